@@ -1,0 +1,41 @@
+"""Run every benchmark; print one JSON line each and save them under --out.
+
+Usage: ``python benchmarks/run_all.py --out out/bench`` (what ``make bench`` runs). Each benchmark
+is a ``rivercal bench <name> --json`` command, so the numbers here are the numbers a user gets.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+BENCHMARKS = {
+    "engine": ["bench", "engine", "--json"],
+}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--out", type=Path, default=Path("out/bench"))
+    parser.add_argument("names", nargs="*", help="benchmarks to run (default: all)")
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    failed = 0
+    for name in args.names or BENCHMARKS:
+        cmd = [sys.executable, "-m", "rivercal.cli", *BENCHMARKS[name]]
+        run = subprocess.run(cmd, capture_output=True, text=True)
+        if run.returncode != 0:
+            print(json.dumps({"benchmark": name, "error": run.stderr.strip()[-2000:]}))
+            failed += 1
+            continue
+        result = {"benchmark": name, **json.loads(run.stdout)}
+        print(json.dumps(result))
+        (args.out / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Benchmarks behind ``rivercal bench`` and ``make bench`` (median wall times, JSON output)."""

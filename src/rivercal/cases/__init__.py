@@ -1,0 +1,1 @@
+"""Cases shipped with rivercal as package data (one folder per case)."""

@@ -1,0 +1,1 @@
+"""Command line (layer 8): parse, call the library, print."""

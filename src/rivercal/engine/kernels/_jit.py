@@ -1,0 +1,19 @@
+"""The decorator for engine kernels.
+
+``kernel`` compiles with ``cache=True`` and without numba's reference counting (``_nrt=False``).
+With reference counting on, every array argument is incremented and decremented atomically on
+each call; for a look-up called once per point per step with a dozen table arrays that costs
+~20 times the arithmetic (measured: 242 ns vs 11 ns per call). A kernel compiled this way must
+not allocate arrays: scratch arrays are allocated by the caller (:func:`.timeloop.make_work`).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["kernel"]
+
+
+def kernel(func):
+    """Compile a non-allocating kernel (cached, no reference counting)."""
+    return njit(cache=True, _nrt=False)(func)

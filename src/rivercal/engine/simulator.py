@@ -1,0 +1,340 @@
+"""The embedded model: a case compiled once, run many times with different parameters.
+
+:class:`Simulator` implements the model protocol of DESIGN.md::
+
+    simulate(parameters, start, end, state=None) -> (SimulationResult, EngineState)
+
+Parameters are model quantities addressed by target strings; they enter the kernel as arrays, so
+changing them never recompiles anything:
+
+- ``weir:<id>.crest_level`` — crest level of a weir, m AD;
+- ``friction:global`` — the friction value of every branch that inherits the global friction
+  (unit of the case's friction type, e.g. k_s in m^(1/3)/s);
+- ``friction:branch:<id>`` — the friction value of one branch.
+"""
+
+from __future__ import annotations
+
+import logging
+import time as _time
+from collections.abc import Mapping
+
+import numpy as np
+import pandas as pd
+
+from rivercal.case.load import Case
+from rivercal.engine.compile import CompiledNetwork, compile_network
+from rivercal.engine.kernels.lookup import hp_volume_width
+from rivercal.engine.kernels.timeloop import STATUS_LEVEL, STATUS_OK, make_work, run
+from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
+from rivercal.errors import EngineDivergedError
+
+__all__ = ["Simulator", "parse_target"]
+
+log = logging.getLogger(__name__)
+
+
+def parse_target(target: str) -> tuple[str, str]:
+    """Split a target string into (kind, id).
+
+    The kinds are ``("weir", id)``, ``("friction", "global")`` and ``("branch", id)``.
+
+    Raises
+    ------
+    KeyError
+        For a malformed target.
+    """
+    if target.startswith("weir:") and target.endswith(".crest_level"):
+        return "weir", target[len("weir:") : -len(".crest_level")]
+    if target == "friction:global":
+        return "friction", "global"
+    if target.startswith("friction:branch:"):
+        return "branch", target[len("friction:branch:") :]
+    raise KeyError(
+        f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global' "
+        "or 'friction:branch:<id>'"
+    )
+
+
+class Simulator:
+    """A case ready to run.
+
+    Parameters
+    ----------
+    case
+        A loaded case.
+    forcing
+        Optional replacement series for boundaries and laterals (keys ``"boundary:<id>"``,
+        ``"lateral:<id>"``; m³/s or m AD; UTC index), e.g. lateral inflows computed by the
+        rainfall-runoff model.
+
+    Examples
+    --------
+    >>> from rivercal.case import load_case
+    >>> from rivercal.engine import Simulator
+    >>> sim = Simulator(load_case("synthetic"))
+    >>> result, state = sim.simulate({"friction:global": 25.0}, end=sim.start + pd.Timedelta("1D"))
+    >>> list(result.series.columns)[:2]
+    ['S1.h_up', 'S1.h_down']
+    """
+
+    def __init__(self, case: Case, forcing: Mapping[str, pd.Series] | None = None):
+        self.case = case
+        self.settings = case.spec.engine
+        self.compiled: CompiledNetwork = compile_network(case.network, self.settings)
+        self.forcing = dict(case.forcing)
+        if forcing:
+            unknown = set(forcing) - set(self.compiled.forcing_keys)
+            if unknown:
+                raise KeyError(f"forcing for unknown boundaries/laterals: {sorted(unknown)}")
+            self.forcing.update(forcing)
+        self._forcing_cache: dict[tuple, np.ndarray] = {}
+        self._work = make_work(self.compiled.arrays)
+
+    # -- facts -------------------------------------------------------------------------------
+
+    @property
+    def start(self) -> pd.Timestamp:
+        """Start of the case period (UTC)."""
+        return self.case.start
+
+    @property
+    def end(self) -> pd.Timestamp:
+        """End of the case period (UTC)."""
+        return self.case.end
+
+    @property
+    def dt(self) -> float:
+        """Time step, s."""
+        return float(self.settings.dt)
+
+    @property
+    def observables(self) -> list[str]:
+        """Names of the simulated series."""
+        return list(self.compiled.observables)
+
+    def default_parameters(self) -> dict[str, float]:
+        """The model quantities of the case as targets → values."""
+        c = self.compiled
+        out = {f"weir:{w}.crest_level": float(v) for w, v in zip(c.weir_ids, c.crest_levels, strict=True)}
+        if c.branch_inherits:
+            out["friction:global"] = float(self.case.spec.friction.value)
+        for b, v in zip(c.branch_ids, c.friction_values, strict=True):
+            if b not in c.branch_inherits:
+                out[f"friction:branch:{b}"] = float(v)
+        return out
+
+    def parameter_arrays(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray]:
+        """Crest levels (m AD, per weir) and friction values (per branch) for a set of targets."""
+        c = self.compiled
+        crest = c.crest_levels.copy()
+        fric = c.friction_values.copy()
+        weir_pos = {w: i for i, w in enumerate(c.weir_ids)}
+        branch_pos = {b: i for i, b in enumerate(c.branch_ids)}
+        # Global first, so that a branch-specific value given in the same call wins.
+        items = sorted((parameters or {}).items(), key=lambda kv: kv[0] != "friction:global")
+        for target, value in items:
+            kind, ident = parse_target(target)
+            value = float(value)
+            if not np.isfinite(value):
+                raise ValueError(f"{target}: value {value} is not finite")
+            if kind == "weir":
+                if ident not in weir_pos:
+                    raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")
+                crest[weir_pos[ident]] = value
+            else:
+                if value <= 0:
+                    raise ValueError(f"{target}: friction value must be positive, got {value}")
+                if kind == "friction":
+                    for b in c.branch_inherits:
+                        fric[branch_pos[b]] = value
+                else:
+                    if ident not in branch_pos:
+                        raise KeyError(f"{target}: no branch {ident!r} in case {self.case.name!r}")
+                    fric[branch_pos[ident]] = value
+        return crest, fric
+
+    # -- state ---------------------------------------------------------------------------------
+
+    def initial_state(self, start: pd.Timestamp | None = None) -> EngineState:
+        """The cold-start state at ``start``: level max(bed + depth, level) at rest."""
+        start = self.start if start is None else pd.Timestamp(start)
+        a = self.compiled.arrays
+        init = self.case.spec.initial
+        z = a.hp_bed + init.depth
+        if init.level is not None:
+            z = np.maximum(z, init.level)
+        for bnd in range(a.b_hp.size):
+            if a.b_type[bnd] == 1:
+                key = self.compiled.forcing_keys[a.b_col[bnd]]
+                z[a.b_hp[bnd]] = self._values_at(key, np.array([0.0]), start)[0]
+        vol = np.array([
+            hp_volume_width(a.sc_ptr, a.sc_prof, a.sc_bed, a.sc_len, a.hp_bed, a.hp_amin, a.tab_off, a.tab_n,
+                            a.tab_dd, a.tab_idd, a.tab_top, a.tab_wt_top, a.tab_at, a.tab_wt, i, z[i])[0]
+            for i in range(z.size)
+        ])
+        return EngineState(
+            time=start,
+            z=z,
+            dz=np.zeros_like(z),
+            vol=vol,
+            u=np.zeros(self.compiled.n_links),
+            q=np.zeros(self.compiled.n_links),
+            pump_on=np.zeros(a.p_cap.size),
+            signature=(self.compiled.n_hpoints, self.compiled.n_links),
+        )
+
+    # -- forcing -------------------------------------------------------------------------------
+
+    def _values_at(self, key: str, seconds: np.ndarray, start: pd.Timestamp) -> np.ndarray:
+        series = self.forcing[key]
+        t = (series.index - start).total_seconds().to_numpy()
+        return np.interp(seconds, t, series.to_numpy(dtype=float))
+
+    def forcing_matrix(self, start: pd.Timestamp, n_steps: int, *, constant: bool = False) -> np.ndarray:
+        """Per-step forcing: step-mean discharges (m³/s) and end-of-step levels (m AD).
+
+        With ``constant`` every step gets the values at ``start`` (used for spin-up).
+        """
+        key = (start, n_steps, constant)
+        cached = self._forcing_cache.get(key)
+        if cached is not None:
+            return cached
+        c = self.compiled
+        edges = np.arange(n_steps + 1, dtype=float) * self.dt
+        if constant:
+            edges = np.zeros(n_steps + 1)
+        out = np.empty((n_steps, len(c.forcing_keys)))
+        for col, fkey in enumerate(c.forcing_keys):
+            v = self._values_at(fkey, edges, start)
+            out[:, col] = v[1:] if c.forcing_is_level[col] else 0.5 * (v[:-1] + v[1:])
+        if len(self._forcing_cache) > 4:
+            self._forcing_cache.clear()
+        self._forcing_cache[key] = out
+        return out
+
+    # -- running -------------------------------------------------------------------------------
+
+    def simulate(
+        self,
+        parameters: Mapping[str, float] | None = None,
+        start: pd.Timestamp | str | None = None,
+        end: pd.Timestamp | str | None = None,
+        state: EngineState | None = None,
+        *,
+        output_interval: float | None = None,
+        snapshots: bool = False,
+    ) -> tuple[SimulationResult, EngineState]:
+        """Run from ``start`` to ``end``.
+
+        Parameters
+        ----------
+        parameters
+            Model quantities to set (targets → values); the rest keep their case values.
+        start, end
+            Period (UTC; default the case period). ``end - start`` must be a multiple of the
+            output interval.
+        state
+            Hot-start state at ``start`` (not modified). Without it the run cold-starts, after the
+            case's spin-up.
+        output_interval
+            Interval of the output series, s (default from the case; a multiple of ``dt``).
+        snapshots
+            Also return levels and discharges at every point at the output times.
+
+        Returns
+        -------
+        (SimulationResult, EngineState)
+            The result and the state at ``end``.
+
+        Raises
+        ------
+        EngineDivergedError
+            When the run produces a non-physical state; it never returns NaN.
+        ValueError
+            For a period that does not fit the time step or a state from another network or time.
+        """
+        start = self.start if start is None else _utc(start)
+        end = self.end if end is None else _utc(end)
+        interval = float(output_interval or self.settings.output_interval)
+        out_every = _ratio(interval, self.dt, "output_interval", "dt")
+        n_steps = _ratio((end - start).total_seconds(), interval, "the period", "the output interval") * out_every
+        if n_steps <= 0:
+            raise ValueError(f"end {end} must be after start {start}")
+        crest, fric = self.parameter_arrays(parameters)
+        if state is None:
+            state = self.initial_state(start)
+            if self.case.spec.initial.spinup > 0:
+                n_spin = max(1, round(self.case.spec.initial.spinup * 3600.0 / self.dt))
+                self._run(state, crest, fric, self.forcing_matrix(start, n_spin, constant=True), n_spin, False, start)
+        else:
+            if state.signature != (self.compiled.n_hpoints, self.compiled.n_links):
+                raise ValueError("the state belongs to another network")
+            if state.time != start:
+                raise ValueError(f"the state is at {state.time}, the run starts at {start}")
+            state = state.copy()
+        forcing = self.forcing_matrix(start, n_steps)
+        t0 = _time.perf_counter()
+        obs, zs, qs, balance, initial_volume = self._run(state, crest, fric, forcing, out_every, snapshots, start)
+        wall = _time.perf_counter() - t0
+        times = pd.date_range(start, end, periods=n_steps // out_every + 1)
+        series = pd.DataFrame(obs, index=times, columns=self.compiled.observables)
+        series.index.name = "time"
+        levels = discharges = None
+        if snapshots:
+            levels = pd.DataFrame(zs, index=times, columns=self.compiled.hp_label)
+            discharges = pd.DataFrame(qs, index=times, columns=self.compiled.link_label)
+        state.time = end
+        final_volume = self._domain_volume(state)
+        bal = VolumeBalance(
+            initial=initial_volume,
+            final=final_volume,
+            boundaries=dict(zip(self.compiled.boundary_ids, balance[:-1].tolist(), strict=True)),
+            laterals=float(balance[-1]),
+        )
+        log.debug("simulated %s .. %s in %.3f s", start, end, wall)
+        return SimulationResult(series=series, balance=bal, levels=levels, discharges=discharges, wall_time=wall), state
+
+    def _domain_volume(self, state: EngineState) -> float:
+        a = self.compiled.arrays
+        mask = np.ones(state.vol.size, dtype=bool)
+        mask[a.b_hp[a.b_type == 1]] = False
+        return float(state.vol[mask].sum())
+
+    def _run(self, state, crest, fric, forcing, out_every, snapshots, start):
+        a = self.compiled.arrays
+        n_steps = forcing.shape[0]
+        n_out = n_steps // out_every + 1
+        obs = np.full((n_out, len(self.compiled.observables)), np.nan)
+        zs = np.empty((n_out if snapshots else 0, self.compiled.n_hpoints))
+        qs = np.empty((n_out if snapshots else 0, self.compiled.n_links))
+        balance = np.zeros(a.b_hp.size + 1)
+        initial_volume = self._domain_volume(state)
+        s = self.settings
+        status, step, index = run(
+            a, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
+            float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+            float(s.max_velocity), int(out_every), obs, zs, qs, balance,
+        )
+        if status != STATUS_OK:
+            when = (start + pd.Timedelta(seconds=(step + 1) * self.dt)).isoformat()
+            if status == STATUS_LEVEL:
+                where, what = self.compiled.hp_label[index], f"level {state.z[index]!r} m AD"
+            else:
+                where, what = self.compiled.link_label[index], (
+                    f"velocity {state.u[index]!r} m/s exceeds engine.max_velocity ({s.max_velocity} m/s)"
+                )
+            raise EngineDivergedError(when, where, what)
+        return obs, zs, qs, balance, initial_volume
+
+
+def _utc(value) -> pd.Timestamp:
+    ts = pd.Timestamp(value)
+    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+
+
+def _ratio(a: float, b: float, what_a: str, what_b: str) -> int:
+    r = a / b
+    if abs(r - round(r)) > 1e-9:
+        raise ValueError(f"{what_a} ({a:g} s) is not a multiple of {what_b} ({b:g} s)")
+    return round(r)

@@ -1,0 +1,64 @@
+"""Exception hierarchy of rivercal.
+
+Every error that rivercal raises on purpose derives from :class:`RivercalError`, so a caller can
+catch everything rivercal-specific in one clause while still telling the kinds apart. Each error
+carries a message that names what is wrong (a file, a field, a value, a time or a location).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CaseError",
+    "EngineDivergedError",
+    "ModelRunError",
+    "RivercalError",
+]
+
+
+class RivercalError(Exception):
+    """Base class of every error raised by rivercal."""
+
+
+class CaseError(RivercalError, ValueError):
+    """A case (``case.toml`` and its time series) is invalid.
+
+    Parameters
+    ----------
+    message
+        What is wrong, in words.
+    file
+        The file in which the problem was found (``case.toml``, a CSV file), if known.
+    field
+        The dotted path of the offending field (``branches[2].from_node``), if known.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, field: str | None = None):
+        self.file = file
+        self.field = field
+        self.reason = message
+        where = ": ".join(part for part in (file, field) if part)
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class ModelRunError(RivercalError):
+    """A model run could not be completed (base class of engine failures)."""
+
+
+class EngineDivergedError(ModelRunError):
+    """The hydrodynamic engine produced a non-physical state.
+
+    Parameters
+    ----------
+    time
+        Simulated time (ISO 8601, UTC) at which the divergence was detected.
+    location
+        Human-readable location: branch id and chainage (m), or node id.
+    detail
+        What was detected (non-finite level, velocity above the limit, ...).
+    """
+
+    def __init__(self, time: str, location: str, detail: str):
+        self.time = time
+        self.location = location
+        self.detail = detail
+        super().__init__(f"engine diverged at {time} at {location}: {detail}")

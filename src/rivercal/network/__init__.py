@@ -1,0 +1,43 @@
+"""What the river is: validated network data (layer 2). No numerics, no I/O."""
+
+from rivercal.network.schema import (
+    Boundary,
+    Branch,
+    CrossSection,
+    Culvert,
+    Friction,
+    Lateral,
+    Network,
+    Node,
+    Profile,
+    Pump,
+    RatingTable,
+    RectangularProfile,
+    SeriesRef,
+    Station,
+    StorageTable,
+    TrapezoidalProfile,
+    Weir,
+    ZWProfile,
+)
+
+__all__ = [
+    "Boundary",
+    "Branch",
+    "CrossSection",
+    "Culvert",
+    "Friction",
+    "Lateral",
+    "Network",
+    "Node",
+    "Profile",
+    "Pump",
+    "RatingTable",
+    "RectangularProfile",
+    "SeriesRef",
+    "Station",
+    "StorageTable",
+    "TrapezoidalProfile",
+    "Weir",
+    "ZWProfile",
+]

@@ -1,0 +1,1 @@
+"""Figures and reports (layer 7). Imports matplotlib lazily, inside the functions that draw."""

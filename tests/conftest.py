@@ -1,0 +1,62 @@
+"""Shared fixtures and helpers for the test suite."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rivercal.case import case_from_dict
+
+
+def channel_case(
+    *,
+    length: float = 5000.0,
+    dx: float = 100.0,
+    slope: float = 1e-4,
+    profile: dict | None = None,
+    friction: dict | None = None,
+    inflow: float = 10.0,
+    downstream: dict | None = None,
+    days: float = 2.0,
+    depth: float = 1.0,
+    engine: dict | None = None,
+    stations: list | None = None,
+    weirs: list | None = None,
+) -> dict:
+    """A single prismatic channel from ``up`` (discharge boundary) to ``down`` as a case dict."""
+    profile = profile or {"id": "p", "type": "rectangular", "width": 10.0}
+    end_day = 1 + int(days)
+    hours = round((days - int(days)) * 24)
+    return {
+        "case": {"name": "channel", "start": "2020-01-01T00:00:00Z",
+                 "end": f"2020-01-{end_day:02d}T{hours:02d}:00:00Z"},
+        "engine": {"dt": 60.0, **(engine or {})},
+        "initial": {"depth": depth},
+        "friction": friction or {"type": "strickler", "value": 30.0},
+        "profiles": [profile],
+        "nodes": [{"id": "up", "x": 0.0, "y": 0.0}, {"id": "down", "x": length, "y": 0.0}],
+        "branches": [{
+            "id": "B", "from_node": "up", "to_node": "down", "length": length, "dx": dx,
+            "cross_sections": [
+                {"chainage": 0.0, "profile": profile["id"], "bed_level": slope * length},
+                {"chainage": length, "profile": profile["id"], "bed_level": 0.0},
+            ],
+        }],
+        "weirs": weirs or [],
+        "boundaries": [
+            {"id": "Qin", "node": "up", "type": "discharge", "value": inflow},
+            downstream or {"id": "hout", "node": "down", "type": "level", "value": depth},
+        ],
+        "stations": stations or [{"id": "mid", "branch": "B", "chainage": length / 2, "quantities": ["h", "Q"]}],
+    }
+
+
+@pytest.fixture
+def make_case(tmp_path: Path):
+    """Build a validated Case from a dict (series files, if any, relative to a temp folder)."""
+
+    def _make(data: dict):
+        return case_from_dict(data, tmp_path)
+
+    return _make
