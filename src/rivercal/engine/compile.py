@@ -54,6 +54,7 @@ class NetArrays(NamedTuple):
     # h-points
     hp_bed: np.ndarray  # lowest bed level at the point, m AD
     hp_amin: np.ndarray  # minimum storage area, m²
+    hp_ilen: np.ndarray  # 1 / channel length represented by the point, 1/m (0 for a point without channel)
     sc_ptr: np.ndarray  # storage contributions of each h-point (CSR)
     sc_prof: np.ndarray
     sc_bed: np.ndarray  # bed level of the contribution, m AD
@@ -281,23 +282,22 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         ids.append(node_index[br.to_node])
         branch_points[br.id] = (chain, ids)
         seg_len = np.diff(chain)
-        for j, c in enumerate(chain):
+        prof_at, bed_at = _section_lookup(br, profiles, chain)
+        for j in range(chain.size):
             length = 0.5 * ((seg_len[j - 1] if j > 0 else 0.0) + (seg_len[j] if j < len(seg_len) else 0.0))
-            cs = br.cross_section_at(float(c))
-            contributions[ids[j]].append((profiles[cs.profile], br.bed_level_at(float(c)), length))
+            contributions[ids[j]].append((prof_at[j], bed_at[j], length))
         for j, seg in enumerate(segs):
-            cs1, cs2 = br.cross_section_at(seg.a), br.cross_section_at(seg.b)
             links.append(
                 dict(
                     k1=ids[j], k2=ids[j + 1], length=seg.b - seg.a, branch=bi, bid=br.id,
-                    p1=profiles[cs1.profile], b1=br.bed_level_at(seg.a),
-                    p2=profiles[cs2.profile], b2=br.bed_level_at(seg.b),
+                    p1=prof_at[j], b1=bed_at[j], p2=prof_at[j + 1], b2=bed_at[j + 1],
                     chainage=0.5 * (seg.a + seg.b), structure=seg.structure,
                 )
             )
 
     n_hp = len(hp_label)
     hp_bed = np.array([min(b for _, b, _ in contributions[i]) for i in range(n_hp)])
+    hp_len = np.array([sum(length for _, _, length in contributions[i]) for i in range(n_hp)])
     # Node storage: a storage-only table with length 1 m.
     for node in network.nodes:
         i = node_index[node.id]
@@ -414,6 +414,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     arrays = NetArrays(
         hp_bed=hp_bed,
         hp_amin=np.full(n_hp, settings.min_storage_area),
+        hp_ilen=np.divide(1.0, hp_len, out=np.zeros(n_hp), where=hp_len > 0),
         sc_ptr=sc_ptr,
         sc_prof=np.asarray(sc_prof, dtype=np.int64),
         sc_bed=np.asarray(sc_bed, dtype=float),
@@ -510,6 +511,17 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         crest_levels=np.array([w.crest_level for w in weirs], dtype=float),
         friction_values=friction_values,
     )
+
+
+def _section_lookup(branch: Branch, profiles: dict[str, int], chain: np.ndarray) -> tuple[list[int], list[float]]:
+    """Profile index (of the nearest cross-section) and bed level (m AD, linear) at each chainage."""
+    cs_ch = np.array([cs.chainage for cs in branch.cross_sections])
+    cs_bed = np.array([cs.bed_level for cs in branch.cross_sections])
+    cs_prof = np.array([profiles[cs.profile] for cs in branch.cross_sections])
+    right = np.clip(np.searchsorted(cs_ch, chain), 0, cs_ch.size - 1)
+    left = np.clip(right - 1, 0, cs_ch.size - 1)
+    nearest = np.where(np.abs(chain - cs_ch[left]) <= np.abs(cs_ch[right] - chain), left, right)
+    return [int(p) for p in cs_prof[nearest]], [float(b) for b in np.interp(chain, cs_ch, cs_bed)]
 
 
 def _xy_along(network: Network, branch: Branch, chainage: float) -> tuple[float, float]:

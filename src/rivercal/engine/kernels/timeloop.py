@@ -3,18 +3,19 @@
 Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003):
 
 1. Channel links (:func:`channel_coefficients`): from the state at n, the upwind flow area A,
-   implicit friction g|u|/(C²R) and explicit upwind advection (energy-head conservative where the
+   implicit friction g|u|/(C²R), explicit upwind advection (energy-head conservative where the
    flow accelerates, momentum conservative where it decelerates, with the link's own velocity
-   taken implicitly) give ``u = r - f (z2 - z1)`` with f = g/(Δx b).
+   taken implicitly) and the momentum that lateral inflow takes from the flow (u q_lat / A, the
+   inflow arriving without velocity along the channel; implicit) give ``u = r - f (z2 - z1)``
+   with f = g/(Δx b).
 2. Picard iterations (at most ``max_iter``, stopping when the level change is below ``tol``),
    starting from the extrapolated level z^n + (z^n - z^{n-1}) (one iteration from this predictor
    is as accurate as two from z^n): structure links are linearised at the current iterate
-   (:func:`structure_coefficients`); the
-   continuity equation ``V(z^k) + w(z^k)(z - z^k) - V^n = Δt Σ Q`` with
-   Q = A(θ u^{n+1} + (1-θ) u^n) gives a symmetric positive definite system in the levels
-   (:func:`assemble`), solved by :func:`.solver.ldl_solve`. Discharge and rating boundaries and
-   laterals enter the right-hand side; level boundaries are Dirichlet rows whose couplings move
-   to the right-hand side, keeping the matrix symmetric.
+   (:func:`structure_coefficients`); the continuity equation
+   ``V(z^k) + w(z^k)(z - z^k) - V^n = Δt Σ Q`` with Q = A(θ u^{n+1} + (1-θ) u^n) gives a symmetric
+   positive definite system in the levels (:func:`assemble`), solved by :func:`.solver.ldl_solve`.
+   Discharge and rating boundaries and laterals enter the right-hand side; level boundaries are
+   Dirichlet rows whose couplings move to the right-hand side, keeping the matrix symmetric.
 3. The fluxes of the last iterate update the stored volumes, ``V^{n+1} = V^n + Δt Σ Q``
    (:func:`finish_step`); the volume is the prognostic variable, so mass is conserved to
    round-off whatever the number of iterations or the table resolution. The new level is the
@@ -26,9 +27,9 @@ every h-point has a minimum storage area that extends below the bed, so the matr
 positive and a level can never become NaN. Extractions (negative laterals) are limited to half
 of the water present at their point per step.
 
-Each phase is its own compiled function taking the arrays it needs: LLVM optimises these small
-functions much better than one large loop body, and passing explicit arrays avoids reference
-counting every field of the network namedtuple (see :mod:`.lookup`).
+Each phase is its own compiled function taking the network arrays (``net``) and the scratch
+arrays (``work``): LLVM optimises these small functions much better than one large loop body.
+The per-point look-ups take explicit arrays (see :mod:`.lookup`).
 """
 
 from __future__ import annotations
@@ -56,14 +57,19 @@ __all__ = [
     "rating_flow",
     "run",
     "structure_coefficients",
+    "switch_pumps",
 ]
 
 STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 
-#: Scratch arrays of :func:`run` (kernels do not allocate; see :mod:`._jit`).
+#: Scratch arrays of :func:`run` (kernels do not allocate; see :mod:`._jit`): matrix diagonal,
+#: right-hand side, iterate (m AD), sources (m³/s), lateral inflow per unit length (m²/s), net
+#: inflow (m³/s), Dirichlet flags and levels,
+#: off-diagonals and L multipliers per edge, link flux area (m²) and coefficients f (1/s) and
+#: r (m/s), rating-boundary linearisation (m³/s, m²/s), and the structure and pump links.
 Work = namedtuple(
     "Work",
-    ["diag", "rhs", "zk", "src", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
+    ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "rq0", "rslope", "struct_links", "pump_links"],
 )
 
@@ -74,7 +80,8 @@ def make_work(net) -> Work:
     n_l = net.lk_k1.size
     n_b = net.b_hp.size
     return Work(
-        diag=np.empty(n_h), rhs=np.empty(n_h), zk=np.empty(n_h), src=np.empty(n_h), netq=np.empty(n_h),
+        diag=np.empty(n_h), rhs=np.empty(n_h), zk=np.empty(n_h), src=np.empty(n_h), qlat=np.zeros(n_h),
+        netq=np.empty(n_h),
         fixed=np.zeros(n_h, dtype=np.bool_), fixed_val=np.zeros(n_h), off=np.zeros(net.sv_nedge),
         lval=np.zeros(net.sv_nedge), area=np.zeros(n_l), fco=np.zeros(n_l), rco=np.zeros(n_l),
         rq0=np.zeros(n_b), rslope=np.zeros(n_b),
@@ -84,10 +91,16 @@ def make_work(net) -> Work:
 
 
 @kernel
-def apply_forcing(n, forcing, dt, vol, b_hp, b_type, b_col, lat_hp, lat_col, src, fixed, fixed_val):
-    """Sources (m³/s) and Dirichlet levels (m AD) of step ``n``; returns the lateral total (m³/s)."""
+def apply_forcing(net, work, n, forcing, dt, vol):
+    """Sources (m³/s), Dirichlet levels (m AD) and lateral inflow per unit length (m²/s) of step ``n``.
+
+    Returns the total of the laterals (m³/s).
+    """
+    src, fixed, fixed_val, qlat = work.src, work.fixed, work.fixed_val, work.qlat
+    b_hp, b_type, b_col = net.b_hp, net.b_type, net.b_col
     src[:] = 0.0
     fixed[:] = False
+    qlat[:] = 0.0
     for bnd in range(b_hp.size):
         i = b_hp[bnd]
         if b_type[bnd] == 0:
@@ -96,26 +109,34 @@ def apply_forcing(n, forcing, dt, vol, b_hp, b_type, b_col, lat_hp, lat_col, src
             fixed[i] = True
             fixed_val[i] = forcing[n, b_col[bnd]]
     total = 0.0
-    for lat in range(lat_hp.size):
-        i = lat_hp[lat]
-        ql = forcing[n, lat_col[lat]]
+    for lat in range(net.lat_hp.size):
+        i = net.lat_hp[lat]
+        ql = forcing[n, net.lat_col[lat]]
         if ql < 0.0:
             ql = max(ql, -0.5 * max(vol[i], 0.0) / dt)
+        else:
+            qlat[i] += ql * net.hp_ilen[i]  # an extraction leaves with the flow's velocity: no momentum change
         src[i] += ql
         total += ql
     return total
 
 
 @kernel
-def channel_coefficients(z, u, q, fric, dt, min_depth, lk_k1, lk_k2, lk_b1, lk_b2, lk_p1, lk_p2, lk_ilen,
-                         lk_fric, lk_type, lk_nb1, lk_ns1, lk_nb2, lk_ns2, fr_type, nl_ptr, nl_link, nl_sign,
-                         tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_r43, area, fco, rco):
+def channel_coefficients(net, work, z, u, q, fric, dt, min_depth):
     """Flux area A (m²), f (1/s) and r (m/s) of every channel link from the state at time n.
 
     Upwind flow area and implicit friction; upwind advection from the velocity of the link that
     feeds the upwind point (inflow-weighted over all feeding links at a junction; none across
-    structures or from a boundary).
+    structures or from a boundary); the lateral-inflow momentum sink u q_lat / A with q_lat the
+    mean lateral inflow per unit length (m²/s) of the link's two points.
     """
+    area, fco, rco, qlat = work.area, work.fco, work.rco, work.qlat
+    lk_k1, lk_k2, lk_type, lk_ilen, lk_fric = net.lk_k1, net.lk_k2, net.lk_type, net.lk_ilen, net.lk_fric
+    lk_b1, lk_b2, lk_p1, lk_p2 = net.lk_b1, net.lk_b2, net.lk_p1, net.lk_p2
+    lk_nb1, lk_ns1, lk_nb2, lk_ns2 = net.lk_nb1, net.lk_ns1, net.lk_nb2, net.lk_ns2
+    nl_ptr, nl_link, nl_sign, fr_type = net.nl_ptr, net.nl_link, net.nl_sign, net.fr_type
+    tab_off, tab_n, tab_idd, tab_top, tab_wf_top = net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top
+    tab_af, tab_pf, tab_r43 = net.tab_af, net.tab_pf, net.tab_r43
     inv_dt = 1.0 / dt
     for link in range(lk_k1.size):
         if lk_type[link] != 0:
@@ -140,6 +161,7 @@ def channel_coefficients(z, u, q, fric, dt, min_depth, lk_k1, lk_k2, lk_b1, lk_b
         ftype = fr_type[group]
         radius = (a_up / per if per > 0.0 else depth) if ftype == 2 else 0.0
         b = inv_dt + G * math.fabs(u0) / friction_c2r(ftype, fric[group], radius, r43)
+        b += 0.5 * (qlat[k1] + qlat[k2]) / a_up
         rhs_u = u0 * inv_dt
         ilen = lk_ilen[link]
         if u0 != 0.0:
@@ -186,36 +208,37 @@ def channel_coefficients(z, u, q, fric, dt, min_depth, lk_k1, lk_k2, lk_b1, lk_b
 
 
 @kernel
-def switch_pumps(z, pump_on, pump_links, lk_k1, lk_k2, lk_sidx, p_sign, p_cap, p_on, p_off, area, fco, rco):
+def switch_pumps(net, work, z, pump_on):
     """Pump switches from the suction-side level at time n; a pump link carries a fixed flux ``rco``."""
-    for link in pump_links:
-        s = lk_sidx[link]
-        ksuc = lk_k1[link] if p_sign[s] > 0.0 else lk_k2[link]
-        if pump_on[s] > 0.5 and z[ksuc] <= p_off[s]:
+    for link in work.pump_links:
+        s = net.lk_sidx[link]
+        ksuc = net.lk_k1[link] if net.p_sign[s] > 0.0 else net.lk_k2[link]
+        if pump_on[s] > 0.5 and z[ksuc] <= net.p_off[s]:
             pump_on[s] = 0.0
-        elif pump_on[s] < 0.5 and z[ksuc] >= p_on[s]:
+        elif pump_on[s] < 0.5 and z[ksuc] >= net.p_on[s]:
             pump_on[s] = 1.0
-        area[link] = 0.0
-        fco[link] = 0.0
-        rco[link] = p_sign[s] * p_cap[s] * pump_on[s]
+        work.area[link] = 0.0
+        work.fco[link] = 0.0
+        work.rco[link] = net.p_sign[s] * net.p_cap[s] * pump_on[s]
 
 
 @kernel
-def structure_coefficients(zk, u, crest, dt, struct_links, lk_type, lk_k1, lk_k2, lk_len, lk_sidx,
-                           w_width, w_cmu, w_dir, c_shape, c_width, c_height, c_invert, c_length, c_xin,
-                           c_xout, c_ftype, c_fval, c_dir, area, fco, rco):
+def structure_coefficients(net, work, zk, u, crest, dt):
     """Weir and culvert links linearised at the iterate ``zk``."""
-    for link in struct_links:
-        s = lk_sidx[link]
-        z1 = zk[lk_k1[link]]
-        z2 = zk[lk_k2[link]]
-        if lk_type[link] == 1:
-            area[link], fco[link], rco[link] = weir_link(
-                z1, z2, crest[s], w_width[s], w_cmu[s], w_dir[s], lk_len[link], u[link], dt)
+    for link in work.struct_links:
+        s = net.lk_sidx[link]
+        z1 = zk[net.lk_k1[link]]
+        z2 = zk[net.lk_k2[link]]
+        if net.lk_type[link] == 1:
+            a, f, r = weir_link(z1, z2, crest[s], net.w_width[s], net.w_cmu[s], net.w_dir[s], net.lk_len[link],
+                                u[link], dt)
         else:
-            area[link], fco[link], rco[link] = culvert_link(
-                z1, z2, c_shape[s], c_width[s], c_height[s], c_invert[s], c_length[s], c_xin[s], c_xout[s],
-                c_ftype[s], c_fval[s], c_dir[s], lk_len[link], u[link], dt)
+            a, f, r = culvert_link(z1, z2, net.c_shape[s], net.c_width[s], net.c_height[s], net.c_invert[s],
+                                   net.c_length[s], net.c_xin[s], net.c_xout[s], net.c_ftype[s], net.c_fval[s],
+                                   net.c_dir[s], net.lk_len[link], u[link], dt)
+        work.area[link] = a
+        work.fco[link] = f
+        work.rco[link] = r
 
 
 @kernel
@@ -237,14 +260,18 @@ def rating_flow(b_rptr, b_rlev, b_rq, bnd, z):
 
 
 @kernel
-def assemble(zk, vol, u, src, fixed, fixed_val, theta, dt, sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
-             tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt,
-             lk_k1, lk_k2, lk_type, lk_edge, area, fco, rco, b_hp, b_type, b_rptr, b_rlev, b_rq, rq0, rslope,
-             diag, off, rhs):
-    """The level system linearised at ``zk``: diagonal, one off-diagonal per edge, right-hand side.
+def assemble(net, work, zk, vol, u, theta, dt):
+    """The level system linearised at ``zk`` into ``work``: diagonal, off-diagonal per edge, right-hand side.
 
     Rating boundaries store their linearised outflow ``rq0 + rslope * z`` (m³/s) for the balance.
     """
+    diag, off, rhs, src, fixed, fixed_val = work.diag, work.off, work.rhs, work.src, work.fixed, work.fixed_val
+    area, fco, rco = work.area, work.fco, work.rco
+    sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin = (
+        net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len, net.hp_bed, net.hp_amin)
+    tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt = (
+        net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top, net.tab_at, net.tab_wt)
+    lk_k1, lk_k2, lk_type, lk_edge = net.lk_k1, net.lk_k2, net.lk_type, net.lk_edge
     inv_dt = 1.0 / dt
     for i in range(zk.size):
         v, w = hp_volume_width(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
@@ -273,29 +300,28 @@ def assemble(zk, vol, u, src, fixed, fixed_val, theta, dt, sc_ptr, sc_prof, sc_b
                 rhs[k1] += c * fixed_val[k2]
         else:
             off[lk_edge[link]] -= c
-    for bnd in range(b_hp.size):
-        i = b_hp[bnd]
-        if b_type[bnd] == 2:
-            qr, slope = rating_flow(b_rptr, b_rlev, b_rq, bnd, zk[i])
-            rq0[bnd] = qr - slope * zk[i]
-            rslope[bnd] = slope
+    for bnd in range(net.b_hp.size):
+        i = net.b_hp[bnd]
+        if net.b_type[bnd] == 2:
+            qr, slope = rating_flow(net.b_rptr, net.b_rlev, net.b_rq, bnd, zk[i])
+            work.rq0[bnd] = qr - slope * zk[i]
+            work.rslope[bnd] = slope
             diag[i] += slope
-            rhs[i] -= rq0[bnd]
-        elif b_type[bnd] == 1:
+            rhs[i] -= work.rq0[bnd]
+        elif net.b_type[bnd] == 1:
             diag[i] = 1.0
             rhs[i] = fixed_val[i]
 
 
 @kernel
-def finish_step(n, forcing, dt, theta, vmax, zk, z, dz, vol, u, q, src, fixed, fixed_val, netq,
-                sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
-                tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt,
-                lk_k1, lk_k2, lk_type, area, fco, rco, nl_ptr, nl_link, nl_sign,
-                b_hp, b_type, b_col, rq0, rslope, balance):
+def finish_step(net, work, n, forcing, dt, theta, vmax, z, dz, vol, u, q, balance):
     """Fluxes of the last iterate → volumes, levels and the boundary balance of step ``n``.
 
     Returns (status, index) of a divergence check: ``STATUS_OK`` or the h-point / link at fault.
     """
+    zk, netq, src, fixed, fixed_val = work.zk, work.netq, work.src, work.fixed, work.fixed_val
+    area, fco, rco = work.area, work.fco, work.rco
+    lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
     for i in range(src.size):
         netq[i] = src[i]
     for link in range(lk_k1.size):
@@ -316,31 +342,32 @@ def finish_step(n, forcing, dt, theta, vmax, zk, z, dz, vol, u, q, src, fixed, f
         q[link] = qn
         netq[k1] -= qn
         netq[k2] += qn
-    for bnd in range(b_hp.size):
-        i = b_hp[bnd]
-        t = b_type[bnd]
+    for bnd in range(net.b_hp.size):
+        i = net.b_hp[bnd]
+        t = net.b_type[bnd]
         if t == 0:
-            balance[bnd] += dt * forcing[n, b_col[bnd]]
+            balance[bnd] += dt * forcing[n, net.b_col[bnd]]
         elif t == 2:
-            qout = rq0[bnd] + rslope[bnd] * zk[i]
+            qout = work.rq0[bnd] + work.rslope[bnd] * zk[i]
             netq[i] -= qout
             balance[bnd] -= dt * qout
         else:
             inflow = 0.0
-            for c in range(nl_ptr[i], nl_ptr[i + 1]):
-                inflow -= nl_sign[c] * q[nl_link[c]]
+            for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
+                inflow -= net.nl_sign[c] * q[net.nl_link[c]]
             balance[bnd] += dt * inflow
     for i in range(z.size):
         z_old = z[i]
         if fixed[i]:
             z[i] = fixed_val[i]
-            vol[i] = hp_volume_width(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
-                                     tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i, z[i])[0]
+            vol[i] = hp_volume_width(net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len, net.hp_bed, net.hp_amin,
+                                     net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top,
+                                     net.tab_at, net.tab_wt, i, z[i])[0]
         else:
             vol[i] += dt * netq[i]
             z[i] = zk[i]
         dz[i] = z[i] - z_old
-        if not math.isfinite(z[i]) or math.fabs(z[i] - hp_bed[i]) > 1.0e4:
+        if not math.isfinite(z[i]) or math.fabs(z[i] - net.hp_bed[i]) > 1.0e4:
             return STATUS_LEVEL, i
     for link in range(u.size):
         if not math.isfinite(u[link]) or math.fabs(u[link]) > vmax:
@@ -349,13 +376,15 @@ def finish_step(n, forcing, dt, theta, vmax, zk, z, dz, vol, u, q, src, fixed, f
 
 
 @kernel
-def _record(row, z, q, ob_type, ob_i1, ob_i2, ob_w, obs_out, z_out, q_out):
+def record(net, row, z, q, obs_out, z_out, q_out):
+    """Write the observables (and, if requested, the full fields) of output row ``row``."""
     if row < obs_out.shape[0]:
-        for o in range(ob_type.size):
-            if ob_type[o] == 0:
-                obs_out[row, o] = ob_w[o] * z[ob_i1[o]] + (1.0 - ob_w[o]) * z[ob_i2[o]]
+        for o in range(net.ob_type.size):
+            if net.ob_type[o] == 0:
+                w = net.ob_w[o]
+                obs_out[row, o] = w * z[net.ob_i1[o]] + (1.0 - w) * z[net.ob_i2[o]]
             else:
-                obs_out[row, o] = ob_w[o] * q[ob_i1[o]]
+                obs_out[row, o] = net.ob_w[o] * q[net.ob_i1[o]]
     if row < z_out.shape[0]:
         for i in range(z.size):
             z_out[row, i] = z[i]
@@ -398,57 +427,30 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` with the h-point, or
         ``STATUS_VELOCITY`` with the link at which the run diverged.
     """
-    hp_bed, hp_amin = net.hp_bed, net.hp_amin
-    sc_ptr, sc_prof, sc_bed, sc_len = net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len
-    nl_ptr, nl_link, nl_sign = net.nl_ptr, net.nl_link, net.nl_sign
-    lk_k1, lk_k2, lk_type, lk_len, lk_sidx = net.lk_k1, net.lk_k2, net.lk_type, net.lk_len, net.lk_sidx
-    tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_at, tab_wt, tab_wt_top = (
-        net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_at, net.tab_wt, net.tab_wt_top)
-    b_hp, b_type, b_col = net.b_hp, net.b_type, net.b_col
-    n_h = z.size
-    diag, rhs, zk, src, netq, fixed_val = work.diag, work.rhs, work.zk, work.src, work.netq, work.fixed_val
-    fixed, off, lval, area, fco, rco = work.fixed, work.off, work.lval, work.area, work.fco, work.rco
-    rq0, rslope, struct_links, pump_links = work.rq0, work.rslope, work.struct_links, work.pump_links
-    n_b = b_hp.size
-
-    _record(0, z, q, net.ob_type, net.ob_i1, net.ob_i2, net.ob_w, obs_out, z_out, q_out)
+    zk, rhs = work.zk, work.rhs
+    n_b = net.b_hp.size
+    record(net, 0, z, q, obs_out, z_out, q_out)
     for n in range(forcing.shape[0]):
-        balance[n_b] += dt * apply_forcing(n, forcing, dt, vol, b_hp, b_type, b_col, net.lat_hp, net.lat_col,
-                                           src, fixed, fixed_val)
-        channel_coefficients(z, u, q, fric, dt, min_depth, lk_k1, lk_k2, net.lk_b1, net.lk_b2, net.lk_p1,
-                             net.lk_p2, net.lk_ilen, net.lk_fric, lk_type, net.lk_nb1, net.lk_ns1, net.lk_nb2,
-                             net.lk_ns2, net.fr_type, nl_ptr, nl_link, nl_sign,
-                             tab_off, tab_n, tab_idd, tab_top, net.tab_wf_top, net.tab_af, net.tab_pf, net.tab_r43,
-                             area, fco, rco)
-        switch_pumps(z, pump_on, pump_links, lk_k1, lk_k2, lk_sidx, net.p_sign, net.p_cap, net.p_on, net.p_off,
-                     area, fco, rco)
+        balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
+        channel_coefficients(net, work, z, u, q, fric, dt, min_depth)
+        switch_pumps(net, work, z, pump_on)
         # linearise at the extrapolated level z^n + (z^n - z^{n-1}); dz holds the last change
-        for i in range(n_h):
+        for i in range(z.size):
             zk[i] = z[i] + dz[i]
         for _ in range(max_iter):
-            structure_coefficients(zk, u, crest, dt, struct_links, lk_type, lk_k1, lk_k2, lk_len, lk_sidx,
-                                   net.w_width, net.w_cmu, net.w_dir, net.c_shape, net.c_width, net.c_height,
-                                   net.c_invert, net.c_length, net.c_xin, net.c_xout, net.c_ftype, net.c_fval,
-                                   net.c_dir, area, fco, rco)
-            assemble(zk, vol, u, src, fixed, fixed_val, theta, dt, sc_ptr, sc_prof, sc_bed, sc_len, hp_bed,
-                     hp_amin, tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, lk_k1, lk_k2,
-                     lk_type, net.lk_edge, area, fco, rco, b_hp, b_type, net.b_rptr, net.b_rlev, net.b_rq, rq0, rslope,
-                     diag, off, rhs)
+            structure_coefficients(net, work, zk, u, crest, dt)
+            assemble(net, work, zk, vol, u, theta, dt)
             ldl_solve(net.sv_order, net.sv_cptr, net.sv_cedge, net.sv_cother, net.sv_uptr, net.sv_ue1,
-                      net.sv_ue2, net.sv_utgt, diag, off, lval, rhs)
+                      net.sv_ue2, net.sv_utgt, work.diag, work.off, work.lval, rhs)
             change = 0.0
-            for i in range(n_h):
+            for i in range(z.size):
                 change = max(change, math.fabs(rhs[i] - zk[i]))
                 zk[i] = rhs[i]
             if change < tol:
                 break
-        status, index = finish_step(
-            n, forcing, dt, theta, vmax, zk, z, dz, vol, u, q, src, fixed, fixed_val, netq,
-            sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin, tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top,
-            tab_at, tab_wt, lk_k1, lk_k2, lk_type, area, fco, rco, nl_ptr, nl_link, nl_sign, b_hp, b_type, b_col,
-            rq0, rslope, balance)
+        status, index = finish_step(net, work, n, forcing, dt, theta, vmax, z, dz, vol, u, q, balance)
         if status != STATUS_OK:
             return status, n, index
         if (n + 1) % out_every == 0:
-            _record((n + 1) // out_every, z, q, net.ob_type, net.ob_i1, net.ob_i2, net.ob_w, obs_out, z_out, q_out)
+            record(net, (n + 1) // out_every, z, q, obs_out, z_out, q_out)
     return STATUS_OK, forcing.shape[0], -1
