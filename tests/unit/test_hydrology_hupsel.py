@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,8 @@ def hupsel() -> pd.DataFrame:
     try:
         path = hupsel_path()
     except FileNotFoundError as exc:
+        if os.environ.get("RIVERCAL_REQUIRE_HUPSEL"):  # set by .ci/run: CI must not skip
+            pytest.fail(f"RIVERCAL_REQUIRE_HUPSEL is set but {exc}")
         pytest.skip(str(exc))  # "Hupsel data not found at ...; set RIVERCAL_HUPSEL_FILE ..."
     return read_hupsel(path)
 
