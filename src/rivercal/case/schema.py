@@ -2,21 +2,48 @@
 
 ``rivercal case schema`` prints the JSON Schema of :class:`CaseFile`; ``docs/case-format.md``
 documents every field with its unit.
+
+Besides the rules of the network (:mod:`rivercal.network.schema`), a case checks the rules that
+depend on the engine settings, so that the engine never meets them: every structure needs its own
+segment of ``engine.structure_length`` metres (:func:`branch_layout` lays a branch out exactly as
+the engine's compiler does), a lateral must not land on a node whose level is imposed, and a
+level station must not sit inside a structure's segment, where its level would be an average of
+the levels up- and downstream of the structure.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from datetime import UTC, datetime
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from rivercal.network.schema import Network
+from rivercal.network.schema import Branch, Culvert, FieldProblem, Level, Network, Pump, Real, Weir
 
-__all__ = ["CaseFile", "CaseMeta", "EngineSettings", "InitialConditions"]
+__all__ = [
+    "EARLIEST",
+    "LATEST",
+    "MAX_SPINUP_HOURS",
+    "CaseFile",
+    "CaseMeta",
+    "EngineSettings",
+    "InitialConditions",
+    "Segment",
+    "StructureOverlap",
+    "branch_layout",
+    "chainages",
+]
+
+#: The simulated period must lie within these dates (the range of pandas' nanosecond times, rounded in).
+EARLIEST = datetime(1700, 1, 1, tzinfo=UTC)
+LATEST = datetime(2200, 1, 1, tzinfo=UTC)
+#: Longest spin-up, h (one leap year).
+MAX_SPINUP_HOURS = 8784.0
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class CaseMeta(_Model):
@@ -29,25 +56,28 @@ class CaseMeta(_Model):
     description
         Free text.
     start, end
-        Simulated period (UTC; a time without offset is read as UTC).
+        Simulated period (UTC; a time without offset is read as UTC), between 1700 and 2200.
     """
 
-    name: str = Field(min_length=1)
-    description: str = ""
-    start: datetime
-    end: datetime
+    name: str = Field(min_length=1, description="short name of the case")
+    description: str = Field(default="", description="free text")
+    start: datetime = Field(description="start of the simulated period, ISO 8601 (UTC when no offset is given)")
+    end: datetime = Field(description="end of the simulated period, ISO 8601 (UTC when no offset is given)")
 
     @field_validator("start", "end")
     @classmethod
     def _utc(cls, value: datetime) -> datetime:
-        if value.tzinfo is None:
-            return value.replace(tzinfo=UTC)
-        return value.astimezone(UTC)
+        value = value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+        if not EARLIEST <= value < LATEST:
+            raise ValueError(f"{value.isoformat()} lies outside the supported years {EARLIEST.year}-{LATEST.year - 1}")
+        return value
 
     @model_validator(mode="after")
     def _ordered(self) -> CaseMeta:
         if self.end <= self.start:
-            raise ValueError(f"end {self.end.isoformat()} is not after start {self.start.isoformat()}")
+            raise FieldProblem(
+                "end", f"the period ends ({_iso(self.end)}) before or when it starts ({_iso(self.start)})"
+            )
         return self
 
 
@@ -57,7 +87,7 @@ class EngineSettings(_Model):
     Attributes
     ----------
     dt
-        Time step, s.
+        Time step, s (0.1-3600).
     theta
         Implicitness of the continuity flux, in [0.5, 1] (1: fully implicit).
     output_interval
@@ -72,26 +102,50 @@ class EngineSettings(_Model):
         Storage area added at every calculation point so that no point has zero storage, m².
     structure_length
         Length of the short channel segment that holds a structure, m; the calculation points at
-        its ends give the levels up- and downstream of the structure.
+        its ends give the levels up- and downstream of the structure. Structures on one branch
+        must be far enough apart for each to get its own segment.
     max_velocity
         Velocity above which the run is declared diverged, m/s.
     """
 
-    dt: float = Field(default=60.0, gt=0, le=3600)
-    theta: float = Field(default=1.0, ge=0.5, le=1.0)
-    output_interval: float = Field(default=3600.0, gt=0)
-    max_iterations: int = Field(default=2, ge=1, le=50)
-    tolerance: float = Field(default=1e-5, gt=0)
-    min_depth: float = Field(default=1e-3, gt=0)
-    min_storage_area: float = Field(default=1.0, gt=0)
-    structure_length: float = Field(default=10.0, gt=0)
-    max_velocity: float = Field(default=20.0, gt=0)
+    dt: Real = Field(default=60.0, ge=0.1, le=3600, description="time step, s (0.1-3600)")
+    theta: Real = Field(
+        default=1.0, ge=0.5, le=1.0, description="implicitness of the continuity flux, - (0.5-1; 1 = fully implicit)"
+    )
+    output_interval: Real = Field(
+        default=3600.0, gt=0, description="interval of the simulated station series, s (a multiple of dt)"
+    )
+    max_iterations: int = Field(
+        default=2, ge=1, le=50, description="Picard iterations per time step for structures and storage (1-50)"
+    )
+    tolerance: Real = Field(
+        default=1e-5, gt=0, description="level change below which the iterations of a step stop, m"
+    )
+    min_depth: Real = Field(
+        default=1e-3, gt=0, le=1.0, description="upwind depth below which a channel carries no flow, m (at most 1)"
+    )
+    min_storage_area: Real = Field(
+        default=1.0, gt=0, description="storage area added at every calculation point, m²"
+    )
+    structure_length: Real = Field(
+        default=10.0,
+        ge=0.1,
+        description="length of the channel segment that holds each structure, m; structures on a branch need "
+        "this much room each",
+    )
+    max_velocity: Real = Field(
+        default=20.0, gt=0, description="flow velocity above which a run is declared diverged, m/s"
+    )
 
     @model_validator(mode="after")
     def _interval(self) -> EngineSettings:
         ratio = self.output_interval / self.dt
-        if abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(f"output_interval {self.output_interval} s is not a multiple of dt {self.dt} s")
+        if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9:
+            raise FieldProblem(
+                "output_interval",
+                f"output_interval {self.output_interval:g} s is not a whole multiple of the time step dt "
+                f"{self.dt:g} s",
+            )
         return self
 
 
@@ -101,7 +155,7 @@ class InitialConditions(_Model):
     Attributes
     ----------
     depth
-        Initial depth above the bed at every calculation point, m.
+        Initial depth above the bed at every calculation point, m (at most 100 m).
     level
         Optional minimum initial level everywhere, m AD (the level is max(bed + depth, level)).
     spinup
@@ -109,30 +163,207 @@ class InitialConditions(_Model):
         so that a cold start reaches a realistic state; the spin-up is not part of the output.
     """
 
-    depth: float = Field(default=0.5, ge=0)
-    level: float | None = None
-    spinup: float = Field(default=0.0, ge=0)
+    depth: Real = Field(
+        default=0.5, ge=0, le=100.0, description="initial water depth above the bed everywhere, m (0-100)"
+    )
+    level: Level | None = Field(
+        default=None, description="minimum initial water level everywhere, m AD (optional)"
+    )
+    spinup: Real = Field(
+        default=0.0,
+        ge=0,
+        le=MAX_SPINUP_HOURS,
+        description="spin-up before start with the forcing held at its start value, h (0-8784)",
+    )
 
 
 class CaseFile(Network):
     """The whole ``case.toml``: ``[case]``, ``[engine]``, ``[initial]`` and the network tables."""
 
-    case: CaseMeta
-    engine: EngineSettings = EngineSettings()
-    initial: InitialConditions = InitialConditions()
+    case: CaseMeta = Field(description="name and simulated period")
+    engine: EngineSettings = Field(default=EngineSettings(), description="numerical settings of the engine")
+    initial: InitialConditions = Field(default=InitialConditions(), description="cold-start state")
 
     @model_validator(mode="after")
     def _period_fits_output(self) -> CaseFile:
         seconds = (self.case.end - self.case.start).total_seconds()
         ratio = seconds / self.engine.output_interval
-        if abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(
-                f"case: the period ({seconds:.0f} s) is not a multiple of engine.output_interval "
-                f"({self.engine.output_interval:.0f} s)"
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise FieldProblem(
+                "case.end",
+                f"the simulated period ({_duration(seconds)}) is not a whole multiple of engine.output_interval "
+                f"({_duration(self.engine.output_interval)})",
             )
         return self
+
+    @model_validator(mode="after")
+    def _fits_the_grid(self) -> CaseFile:
+        where = {
+            s.id: (f"{table}[{i}]", kind)
+            for table, kind, items in (("weirs", "weir", self.weirs), ("culverts", "culvert", self.culverts),
+                                       ("pumps", "pump", self.pumps))
+            for i, s in enumerate(items)
+        }
+        on_branch: dict[str, list[Weir | Culvert | Pump]] = {b.id: [] for b in self.branches}
+        for s in [*self.weirs, *self.culverts, *self.pumps]:
+            on_branch[s.branch].append(s)
+        length = self.engine.structure_length
+        layouts: dict[str, list[Segment]] = {}
+        for br in self.branches:
+            try:
+                layouts[br.id] = branch_layout(br, on_branch[br.id], length)
+            except StructureOverlap as exc:
+                path, kind = where[exc.structure.id]
+                prev_path, prev_kind = where[exc.previous.id]
+                gap = abs(exc.structure.chainage - exc.previous.chainage)
+                raise FieldProblem(
+                    f"{path}.chainage",
+                    f"{kind} {exc.structure.id!r} at chainage {exc.structure.chainage:g} m of branch {br.id!r} is "
+                    f"too close to {prev_kind} {exc.previous.id!r} ({prev_path}, at {exc.previous.chainage:g} m, "
+                    f"{gap:g} m away): each structure needs its own segment of engine.structure_length = "
+                    f"{length:g} m; move one of them or lower engine.structure_length",
+                ) from None
+        self._check_laterals(layouts)
+        self._check_level_stations(layouts, where)
+        return self
+
+    def _check_laterals(self, layouts: dict[str, list[Segment]]) -> None:
+        level_nodes = {bd.node: bd.id for bd in self.boundaries if bd.type == "level"}
+        if not level_nodes:
+            return
+        branches = {b.id: b for b in self.branches}
+        for i, lat in enumerate(self.laterals):
+            if lat.branch is None or lat.chainage is None:
+                continue
+            chain = chainages(layouts[lat.branch])
+            k = int(np.argmin(np.abs(chain - lat.chainage)))
+            br = branches[lat.branch]
+            node = br.from_node if k == 0 else br.to_node if k == chain.size - 1 else None
+            if node in level_nodes:
+                raise FieldProblem(
+                    f"laterals[{i}].chainage",
+                    f"lateral {lat.id!r} at chainage {lat.chainage:g} m of branch {br.id!r} lands on node {node!r} "
+                    f"(the nearest calculation point), which has level boundary {level_nodes[node]!r}: the level "
+                    "there is imposed, so the inflow would be lost; move the lateral further from that node",
+                )
+
+    def _check_level_stations(self, layouts: dict[str, list[Segment]], where: dict[str, tuple[str, str]]) -> None:
+        for i, st in enumerate(self.stations):
+            if st.branch is None or st.chainage is None or "h" not in (st.quantities or ["h"]):
+                continue
+            for seg in layouts[st.branch]:
+                if seg.structure is not None and seg.a + 1e-9 < st.chainage < seg.b - 1e-9:
+                    s = seg.structure
+                    kind = where[s.id][1]
+                    raise FieldProblem(
+                        f"stations[{i}].chainage",
+                        f"level station {st.id!r} at chainage {st.chainage:g} m of branch {st.branch!r} lies inside "
+                        f"the segment of {kind} {s.id!r} ({seg.a:g}-{seg.b:g} m), where the level jumps; use "
+                        f"structure = {s.id!r} with quantities h_up/h_down, or move the station to {seg.a:g} m or "
+                        f"{seg.b:g} m",
+                    )
 
     def network(self) -> Network:
         """The network part of the case as a plain :class:`~rivercal.network.Network`."""
         fields = set(Network.model_fields)
         return Network.model_validate(self.model_dump(include=fields, by_alias=True))
+
+
+# -- the layout of a branch (mirrors rivercal.engine.compile._branch_segments) ------------------
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A stretch of a branch between two calculation points, m from the start of the branch.
+
+    Attributes
+    ----------
+    a, b
+        Chainages of its ends, m.
+    structure
+        The structure that occupies it, or ``None`` for open channel.
+    """
+
+    a: float
+    b: float
+    structure: Weir | Culvert | Pump | None = None
+
+
+class StructureOverlap(Exception):
+    """A structure whose segment would overlap that of the previous structure on the branch."""
+
+    def __init__(self, structure: Weir | Culvert | Pump, previous: Weir | Culvert | Pump):
+        super().__init__(structure.id)
+        self.structure = structure
+        self.previous = previous
+
+
+def branch_layout(branch: Branch, structures: list[Weir | Culvert | Pump], structure_length: float) -> list[Segment]:
+    """Split a branch into channel segments (at most ``dx`` long) and one short segment per structure.
+
+    This is the layout of the engine's grid: a structure occupies a segment of
+    ``structure_length`` (at most the branch length) centred on its chainage, snapped to the end
+    of the branch when it is closer than a quarter of that length to it.
+
+    Parameters
+    ----------
+    branch
+        The branch.
+    structures
+        The weirs, culverts and pumps on it, in the order weirs, culverts, pumps.
+    structure_length
+        ``engine.structure_length``, m.
+
+    Returns
+    -------
+    list of Segment
+        Consecutive segments from chainage 0 to the branch length.
+
+    Raises
+    ------
+    StructureOverlap
+        When a structure's segment would overlap the previous one.
+    """
+    length = branch.length
+    half = 0.5 * min(structure_length, length)
+    snap = 0.5 * half
+    segs: list[Segment] = []
+    pos = 0.0
+    previous: Weir | Culvert | Pump | None = None
+    for s in sorted(structures, key=lambda s: s.chainage):
+        a, b = s.chainage - half, s.chainage + half
+        if a < snap:
+            a, b = 0.0, max(b, min(2 * half, length))
+        if b > length - snap:
+            b, a = length, min(a, max(length - 2 * half, 0.0))
+        if a < pos - 1e-9 and previous is not None:
+            raise StructureOverlap(s, previous)
+        if a > pos + 1e-9:
+            segs.extend(_fill(pos, a, branch.dx))
+        segs.append(Segment(a, b, s))
+        pos = b
+        previous = s
+    if pos < length - 1e-9:
+        segs.extend(_fill(pos, length, branch.dx))
+    return segs
+
+
+def chainages(segments: list[Segment]) -> np.ndarray:
+    """Chainages of the calculation points of a laid-out branch (both end nodes included), m."""
+    return np.array([segments[0].a] + [s.b for s in segments])
+
+
+def _fill(a: float, b: float, dx: float) -> list[Segment]:
+    n = max(1, int(np.ceil((b - a) / dx - 1e-9)))
+    edges = np.linspace(a, b, n + 1)
+    return [Segment(float(edges[i]), float(edges[i + 1])) for i in range(n)]
+
+
+def _iso(value: datetime) -> str:
+    return value.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _duration(seconds: float) -> str:
+    if seconds % 3600 == 0:
+        return f"{seconds / 3600:g} h"
+    return f"{seconds:g} s"

@@ -22,10 +22,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rivercal.case.schema import EngineSettings
+from rivercal.case.schema import EngineSettings, StructureOverlap, branch_layout
 from rivercal.engine.geometry import ProfileTables, build_tables, storage_zw, zw_of
 from rivercal.errors import CaseError
-from rivercal.network.schema import Branch, Culvert, Network, Pump, Weir
+from rivercal.network.schema import Branch, Culvert, Network, Weir
 
 __all__ = [
     "BOUNDARY_DISCHARGE",
@@ -198,47 +198,6 @@ class CompiledNetwork:
         return len(self.link_label)
 
 
-@dataclass
-class _Seg:
-    a: float
-    b: float
-    structure: Weir | Culvert | Pump | None = None
-
-
-def _branch_segments(branch: Branch, structures: list, settings: EngineSettings) -> list[_Seg]:
-    """Split a branch into channel segments (≤ dx) and one short segment per structure."""
-    half = 0.5 * min(settings.structure_length, branch.length)
-    snap = 0.5 * half
-    segs: list[_Seg] = []
-    pos = 0.0
-    for s in sorted(structures, key=lambda s: s.chainage):
-        a, b = s.chainage - half, s.chainage + half
-        if a < snap:
-            a, b = 0.0, max(b, min(2 * half, branch.length))
-        if b > branch.length - snap:
-            b, a = branch.length, min(a, max(branch.length - 2 * half, 0.0))
-        if a < pos - 1e-9:
-            previous = segs[-1].structure.id if segs and segs[-1].structure is not None else "the branch start"
-            raise CaseError(
-                f"structure {s.id!r} at chainage {s.chainage} m is too close to {previous} on branch "
-                f"{branch.id!r} (structures need {settings.structure_length} m each; see engine.structure_length)",
-                file="case.toml",
-            )
-        if a > pos + 1e-9:
-            segs.extend(_fill(pos, a, branch.dx))
-        segs.append(_Seg(a, b, s))
-        pos = b
-    if pos < branch.length - 1e-9:
-        segs.extend(_fill(pos, branch.length, branch.dx))
-    return segs
-
-
-def _fill(a: float, b: float, dx: float) -> list[_Seg]:
-    n = max(1, int(np.ceil((b - a) / dx - 1e-9)))
-    edges = np.linspace(a, b, n + 1)
-    return [_Seg(float(edges[i]), float(edges[i + 1])) for i in range(n)]
-
-
 def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwork:
     """Discretise a validated network and flatten it for the kernels.
 
@@ -270,7 +229,11 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     links: list[dict] = []
     branch_points: dict[str, tuple[np.ndarray, list[int]]] = {}
     for bi, br in enumerate(network.branches):
-        segs = _branch_segments(br, on_branch[br.id], settings)
+        try:
+            segs = branch_layout(br, on_branch[br.id], settings.structure_length)
+        except StructureOverlap as exc:  # validated at load; kept for networks built in code
+            raise CaseError(f"structure {exc.structure.id!r} overlaps {exc.previous.id!r} on branch {br.id!r}; "
+                            "see engine.structure_length") from None
         chain = np.array([segs[0].a] + [s.b for s in segs])
         ids = [node_index[br.from_node]]
         for c in chain[1:-1]:

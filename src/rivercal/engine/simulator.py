@@ -23,11 +23,12 @@ import numpy as np
 import pandas as pd
 
 from rivercal.case.load import Case
-from rivercal.engine.compile import CompiledNetwork, compile_network
+from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
 from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import STATUS_LEVEL, STATUS_OK, make_work, run
 from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
 from rivercal.errors import EngineDivergedError
+from rivercal.network.schema import FRICTION_RANGES, MAX_LEVEL
 
 __all__ = ["Simulator", "parse_target"]
 
@@ -129,6 +130,7 @@ class Simulator:
         c = self.compiled
         crest = c.crest_levels.copy()
         fric = c.friction_values.copy()
+        ftype = {code: name for name, code in FRICTION_CODES.items()}
         weir_pos = {w: i for i, w in enumerate(c.weir_ids)}
         branch_pos = {b: i for i, b in enumerate(c.branch_ids)}
         # Global first, so that a branch-specific value given in the same call wins.
@@ -141,17 +143,25 @@ class Simulator:
             if kind == "weir":
                 if ident not in weir_pos:
                     raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")
+                if abs(value) > MAX_LEVEL:
+                    raise ValueError(f"{target}: crest level {value:g} m AD is outside ±{MAX_LEVEL:g} m AD")
                 crest[weir_pos[ident]] = value
+                continue
+            if kind == "friction":
+                branches = list(c.branch_inherits)
+                if not branches:
+                    raise KeyError(f"{target}: every branch of case {self.case.name!r} has its own friction")
             else:
-                if value <= 0:
-                    raise ValueError(f"{target}: friction value must be positive, got {value}")
-                if kind == "friction":
-                    for b in c.branch_inherits:
-                        fric[branch_pos[b]] = value
-                else:
-                    if ident not in branch_pos:
-                        raise KeyError(f"{target}: no branch {ident!r} in case {self.case.name!r}")
-                    fric[branch_pos[ident]] = value
+                if ident not in branch_pos:
+                    raise KeyError(f"{target}: no branch {ident!r} in case {self.case.name!r}")
+                branches = [ident]
+            for b in branches:
+                name = ftype[int(c.arrays.fr_type[branch_pos[b]])]
+                low, high, unit = FRICTION_RANGES[name]
+                if not low <= value <= high:
+                    raise ValueError(f"{target}: {name} value {value:g} {unit} is outside the plausible range "
+                                     f"{low:g}-{high:g} {unit}")
+                fric[branch_pos[b]] = value
         return crest, fric
 
     # -- state ---------------------------------------------------------------------------------
@@ -266,7 +276,9 @@ class Simulator:
             state = self.initial_state(start)
             if self.case.spec.initial.spinup > 0:
                 n_spin = max(1, round(self.case.spec.initial.spinup * 3600.0 / self.dt))
-                self._run(state, crest, fric, self.forcing_matrix(start, n_spin, constant=True), n_spin, False, start)
+                spin = self.forcing_matrix(start, n_spin, constant=True)
+                self._run(state, crest, fric, spin, n_spin, False, start - pd.Timedelta(seconds=n_spin * self.dt),
+                          phase="spin-up")
         else:
             if state.signature != (self.compiled.n_hpoints, self.compiled.n_links):
                 raise ValueError("the state belongs to another network")
@@ -301,7 +313,7 @@ class Simulator:
         mask[a.b_hp[a.b_type == 1]] = False
         return float(state.vol[mask].sum())
 
-    def _run(self, state, crest, fric, forcing, out_every, snapshots, start):
+    def _run(self, state, crest, fric, forcing, out_every, snapshots, start, phase=""):
         a = self.compiled.arrays
         n_steps = forcing.shape[0]
         n_out = n_steps // out_every + 1
@@ -318,6 +330,8 @@ class Simulator:
         )
         if status != STATUS_OK:
             when = (start + pd.Timedelta(seconds=(step + 1) * self.dt)).isoformat()
+            if phase:
+                when += f" ({phase}, forcing held at its start value)"
             if status == STATUS_LEVEL:
                 where, what = self.compiled.hp_label[index], f"level {state.z[index]!r} m AD"
             else:

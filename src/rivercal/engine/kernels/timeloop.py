@@ -3,11 +3,14 @@
 Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003):
 
 1. Channel links (:func:`channel_coefficients`): from the state at n, the upwind flow area A,
-   implicit friction g|u|/(C²R), explicit upwind advection (energy-head conservative where the
+   implicit friction g|u|u/(C²R), explicit upwind advection (energy-head conservative where the
    flow accelerates, momentum conservative where it decelerates, with the link's own velocity
    taken implicitly) and the momentum that lateral inflow takes from the flow (u q_lat / A, the
-   inflow arriving without velocity along the channel; implicit) give ``u = r - f (z2 - z1)``
-   with f = g/(Δx b).
+   inflow arriving without velocity along the channel; implicit). The friction is linearised by
+   Newton around the exact solution u* of the link's momentum equation at the levels of time n
+   (a quadratic in u), giving ``u = r - f (z2 - z1)``: exact in steady flow, and bounded by
+   friction when flow starts from rest (a Picard linearisation with |u^n| has no friction at
+   u^n = 0 and overshoots there).
 2. Picard iterations (at most ``max_iter``, stopping when the level change is below ``tol``),
    starting from the extrapolated level z^n + (z^n - z^{n-1}) (one iteration from this predictor
    is as accurate as two from z^n): structure links are linearised at the current iterate
@@ -160,8 +163,8 @@ def channel_coefficients(net, work, z, u, q, fric, dt, min_depth):
         group = lk_fric[link]
         ftype = fr_type[group]
         radius = (a_up / per if per > 0.0 else depth) if ftype == 2 else 0.0
-        b = inv_dt + G * math.fabs(u0) / friction_c2r(ftype, fric[group], radius, r43)
-        b += 0.5 * (qlat[k1] + qlat[k2]) / a_up
+        kappa = G / friction_c2r(ftype, fric[group], radius, r43)
+        b = inv_dt + 0.5 * (qlat[k1] + qlat[k2]) / a_up
         rhs_u = u0 * inv_dt
         ilen = lk_ilen[link]
         if u0 != 0.0:
@@ -201,10 +204,15 @@ def channel_coefficients(net, work, z, u, q, fric, dt, min_depth):
                 if uc > 0.0:
                     b += uc * ilen
                     rhs_u += sign * uc * uin * ilen
-        inv_b = 1.0 / b
+        # Newton linearisation of b u + kappa |u| u = rhs_u - g (z2 - z1) / dx around the solution u* at the
+        # levels of time n: u* = 2 s / (b + sqrt(b² + 4 kappa |s|)), du/d(z2 - z1) = -g / (dx sqrt(...))
+        dzl = z[k2] - z[k1]
+        s_u = rhs_u - G * ilen * dzl
+        root = math.sqrt(b * b + 4.0 * kappa * math.fabs(s_u))
+        f_u = G * ilen / root
         area[link] = a_up
-        fco[link] = G * ilen * inv_b
-        rco[link] = rhs_u * inv_b
+        fco[link] = f_u
+        rco[link] = 2.0 * s_u / (b + root) + f_u * dzl
 
 
 @kernel
@@ -223,12 +231,14 @@ def switch_pumps(net, work, z, pump_on):
 
 
 @kernel
-def structure_coefficients(net, work, zk, u, crest, dt):
-    """Weir and culvert links linearised at the iterate ``zk``."""
+def structure_coefficients(net, work, zk, dz, predict, u, crest, dt):
+    """Weir and culvert links linearised at the level ``zk + predict * dz`` (m AD)."""
     for link in work.struct_links:
         s = net.lk_sidx[link]
-        z1 = zk[net.lk_k1[link]]
-        z2 = zk[net.lk_k2[link]]
+        k1 = net.lk_k1[link]
+        k2 = net.lk_k2[link]
+        z1 = zk[k1] + predict * dz[k1]
+        z2 = zk[k2] + predict * dz[k2]
         if net.lk_type[link] == 1:
             a, f, r = weir_link(z1, z2, crest[s], net.w_width[s], net.w_cmu[s], net.w_dir[s], net.lk_len[link],
                                 u[link], dt)
@@ -314,6 +324,82 @@ def assemble(net, work, zk, vol, u, theta, dt):
 
 
 @kernel
+def level_of_volume(net, i, vol, z0):
+    """Level (m AD) at which h-point ``i`` holds ``vol`` (m³): Newton from ``z0``, the linearised solution.
+
+    V(z) is convex and strictly increasing, so Newton converges; ``z0`` usually lies in the same table
+    cells as the answer, and then the first residual is already at round-off.
+    """
+    z = z0
+    for _ in range(50):
+        v, w = hp_volume_width(net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len, net.hp_bed, net.hp_amin,
+                               net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top,
+                               net.tab_at, net.tab_wt, i, z)
+        r = vol - v
+        if math.fabs(r) <= 1e-12 * (math.fabs(vol) + w):
+            break
+        z += r / w
+    return z
+
+
+@kernel
+def _link_flux(work, link, k1, k2, ltype, theta, u):
+    """Flux (m³/s) of a link with the current coefficients and the levels in ``work.zk``."""
+    if ltype == 3:
+        return work.rco[link]
+    th = theta if ltype == 0 else 1.0
+    return work.area[link] * (th * (work.rco[link] - work.fco[link] * (work.zk[k2] - work.zk[k1]))
+                              + (1.0 - th) * u[link])
+
+
+@kernel
+def limit_draining_links(net, work, vol, u, theta, dt):
+    """Throttle, for this step, the links that would empty a point below its bed.
+
+    With the fluxes of the current solution, a point that would lose more water than it holds plus
+    receives (its volume would become negative, the level below the lowest bed) has the flux area of
+    every link carrying water out of it scaled by ``0.9 × available / outflow``; a pump drawing from it
+    is throttled likewise. Returns the number of points limited; the caller solves again.
+    """
+    netq, src, fixed = work.netq, work.src, work.fixed
+    lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
+    inflow = work.rhs  # reused as scratch: the solution is already in work.zk
+    for i in range(src.size):
+        netq[i] = 0.0
+        inflow[i] = max(src[i], 0.0)
+    for link in range(lk_k1.size):
+        k1 = lk_k1[link]
+        k2 = lk_k2[link]
+        qn = _link_flux(work, link, k1, k2, lk_type[link], theta, u)
+        if qn > 0.0:
+            netq[k1] += qn
+            inflow[k2] += qn
+        else:
+            netq[k2] -= qn
+            inflow[k1] -= qn
+    for bnd in range(net.b_hp.size):
+        if net.b_type[bnd] == 2:
+            i = net.b_hp[bnd]
+            netq[i] += max(work.rq0[bnd] + work.rslope[bnd] * work.zk[i], 0.0)
+    limited = 0
+    for i in range(src.size):  # netq holds the outflow of each point here, inflow the inflow
+        outflow = netq[i] - min(src[i], 0.0)
+        if fixed[i] or outflow <= 0.0 or vol[i] + dt * (inflow[i] - outflow) >= 0.0:
+            continue
+        factor = 0.9 * max(vol[i] + dt * inflow[i], 0.0) / (dt * outflow)
+        for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
+            link = net.nl_link[c]
+            qn = _link_flux(work, link, lk_k1[link], lk_k2[link], lk_type[link], theta, u)
+            if -net.nl_sign[c] * qn > 0.0:  # water leaves i through this link
+                if lk_type[link] == 3:
+                    work.rco[link] *= factor
+                else:
+                    work.area[link] *= factor
+        limited += 1
+    return limited
+
+
+@kernel
 def finish_step(net, work, n, forcing, dt, theta, vmax, z, dz, vol, u, q, balance):
     """Fluxes of the last iterate → volumes, levels and the boundary balance of step ``n``.
 
@@ -365,7 +451,7 @@ def finish_step(net, work, n, forcing, dt, theta, vmax, z, dz, vol, u, q, balanc
                                      net.tab_at, net.tab_wt, i, z[i])[0]
         else:
             vol[i] += dt * netq[i]
-            z[i] = zk[i]
+            z[i] = level_of_volume(net, i, vol[i], zk[i])
         dz[i] = z[i] - z_old
         if not math.isfinite(z[i]) or math.fabs(z[i] - net.hp_bed[i]) > 1.0e4:
             return STATUS_LEVEL, i
@@ -390,6 +476,20 @@ def record(net, row, z, q, obs_out, z_out, q_out):
             z_out[row, i] = z[i]
         for link in range(q.size):
             q_out[row, link] = q[link]
+
+
+@kernel
+def _solve(net, work, zk, vol, u, theta, dt):
+    """Assemble at ``zk``, solve, store the solution in ``zk``; returns the largest level change (m)."""
+    rhs = work.rhs
+    assemble(net, work, zk, vol, u, theta, dt)
+    ldl_solve(net.sv_order, net.sv_cptr, net.sv_cedge, net.sv_cother, net.sv_uptr, net.sv_ue1,
+              net.sv_ue2, net.sv_utgt, work.diag, work.off, work.lval, rhs)
+    change = 0.0
+    for i in range(zk.size):
+        change = max(change, math.fabs(rhs[i] - zk[i]))
+        zk[i] = rhs[i]
+    return change
 
 
 @kernel
@@ -427,27 +527,25 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` with the h-point, or
         ``STATUS_VELOCITY`` with the link at which the run diverged.
     """
-    zk, rhs = work.zk, work.rhs
+    zk = work.zk
     n_b = net.b_hp.size
     record(net, 0, z, q, obs_out, z_out, q_out)
     for n in range(forcing.shape[0]):
         balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
         channel_coefficients(net, work, z, u, q, fric, dt, min_depth)
         switch_pumps(net, work, z, pump_on)
-        # linearise at the extrapolated level z^n + (z^n - z^{n-1}); dz holds the last change
         for i in range(z.size):
-            zk[i] = z[i] + dz[i]
-        for _ in range(max_iter):
-            structure_coefficients(net, work, zk, u, crest, dt)
-            assemble(net, work, zk, vol, u, theta, dt)
-            ldl_solve(net.sv_order, net.sv_cptr, net.sv_cedge, net.sv_cother, net.sv_uptr, net.sv_ue1,
-                      net.sv_ue2, net.sv_utgt, work.diag, work.off, work.lval, rhs)
-            change = 0.0
-            for i in range(z.size):
-                change = max(change, math.fabs(rhs[i] - zk[i]))
-                zk[i] = rhs[i]
+            zk[i] = z[i]
+        for it in range(max_iter):
+            # the first linearisation of the structures uses the extrapolated level z^n + (z^n - z^{n-1})
+            structure_coefficients(net, work, zk, dz, 1.0 if it == 0 else 0.0, u, crest, dt)
+            change = _solve(net, work, zk, vol, u, theta, dt)
             if change < tol:
                 break
+        for _ in range(8):  # drying: no point may lose more water than it holds within a step
+            if limit_draining_links(net, work, vol, u, theta, dt) == 0:
+                break
+            _solve(net, work, zk, vol, u, theta, dt)
         status, index = finish_step(net, work, n, forcing, dt, theta, vmax, z, dz, vol, u, q, balance)
         if status != STATUS_OK:
             return status, n, index
