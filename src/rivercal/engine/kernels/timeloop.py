@@ -55,7 +55,9 @@ __all__ = [
     "apply_forcing",
     "assemble",
     "channel_coefficients",
+    "compute_fluxes",
     "finish_step",
+    "limit_draining_links",
     "make_work",
     "rating_flow",
     "run",
@@ -69,11 +71,12 @@ STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 #: right-hand side, iterate (m AD), sources (m³/s), lateral inflow per unit length (m²/s), net
 #: inflow (m³/s), Dirichlet flags and levels,
 #: off-diagonals and L multipliers per edge, link flux area (m²) and coefficients f (1/s) and
-#: r (m/s), rating-boundary linearisation (m³/s, m²/s), and the structure and pump links.
+#: r (m/s), the new velocities (m/s) and fluxes (m³/s), rating-boundary linearisation (m³/s,
+#: m²/s), and the structure and pump links.
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
-     "rq0", "rslope", "struct_links", "pump_links"],
+     "un", "qn", "rq0", "rslope", "struct_links", "pump_links"],
 )
 
 
@@ -87,6 +90,7 @@ def make_work(net) -> Work:
         netq=np.empty(n_h),
         fixed=np.zeros(n_h, dtype=np.bool_), fixed_val=np.zeros(n_h), off=np.zeros(net.sv_nedge),
         lval=np.zeros(net.sv_nedge), area=np.zeros(n_l), fco=np.zeros(n_l), rco=np.zeros(n_l),
+        un=np.zeros(n_l), qn=np.zeros(n_l),
         rq0=np.zeros(n_b), rslope=np.zeros(n_b),
         struct_links=np.flatnonzero((net.lk_type == 1) | (net.lk_type == 2)).astype(np.int64),
         pump_links=np.flatnonzero(net.lk_type == 3).astype(np.int64),
@@ -343,55 +347,67 @@ def level_of_volume(net, i, vol, z0):
 
 
 @kernel
-def _link_flux(work, link, k1, k2, ltype, theta, u):
-    """Flux (m³/s) of a link with the current coefficients and the levels in ``work.zk``."""
-    if ltype == 3:
-        return work.rco[link]
-    th = theta if ltype == 0 else 1.0
-    return work.area[link] * (th * (work.rco[link] - work.fco[link] * (work.zk[k2] - work.zk[k1]))
-                              + (1.0 - th) * u[link])
+def compute_fluxes(net, work, theta, u):
+    """Link velocities (m/s) and fluxes (m³/s) of the current solution ``work.zk``.
+
+    Also, per point, the net inflow (``work.netq``, m³/s) and the gross outflow (``work.rhs``
+    reused, m³/s).
+    """
+    zk, netq, outflow, src = work.zk, work.netq, work.rhs, work.src
+    area, fco, rco, un, qn = work.area, work.fco, work.rco, work.un, work.qn
+    lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
+    for i in range(src.size):
+        netq[i] = src[i]
+        outflow[i] = -min(src[i], 0.0)
+    for link in range(lk_k1.size):
+        k1 = lk_k1[link]
+        k2 = lk_k2[link]
+        t = lk_type[link]
+        if t == 3:
+            un[link] = 0.0
+            q = rco[link]
+        elif area[link] > 0.0:
+            un[link] = rco[link] - fco[link] * (zk[k2] - zk[k1])
+            th = theta if t == 0 else 1.0
+            q = area[link] * (th * un[link] + (1.0 - th) * u[link])
+        else:
+            un[link] = 0.0
+            q = 0.0
+        qn[link] = q
+        netq[k1] -= q
+        netq[k2] += q
+        if q > 0.0:
+            outflow[k1] += q
+        else:
+            outflow[k2] -= q
+    for bnd in range(net.b_hp.size):
+        if net.b_type[bnd] == 2:
+            i = net.b_hp[bnd]
+            q = work.rq0[bnd] + work.rslope[bnd] * zk[i]
+            netq[i] -= q
+            outflow[i] += max(q, 0.0)
 
 
 @kernel
-def limit_draining_links(net, work, vol, u, theta, dt):
+def limit_draining_links(net, work, vol, dt):
     """Throttle, for this step, the links that would empty a point below its bed.
 
-    With the fluxes of the current solution, a point that would lose more water than it holds plus
+    With the fluxes of :func:`compute_fluxes`, a point that would lose more water than it holds plus
     receives (its volume would become negative, the level below the lowest bed) has the flux area of
     every link carrying water out of it scaled by ``0.9 × available / outflow``; a pump drawing from it
     is throttled likewise. Returns the number of points limited; the caller solves again.
     """
-    netq, src, fixed = work.netq, work.src, work.fixed
-    lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
-    inflow = work.rhs  # reused as scratch: the solution is already in work.zk
-    for i in range(src.size):
-        netq[i] = 0.0
-        inflow[i] = max(src[i], 0.0)
-    for link in range(lk_k1.size):
-        k1 = lk_k1[link]
-        k2 = lk_k2[link]
-        qn = _link_flux(work, link, k1, k2, lk_type[link], theta, u)
-        if qn > 0.0:
-            netq[k1] += qn
-            inflow[k2] += qn
-        else:
-            netq[k2] -= qn
-            inflow[k1] -= qn
-    for bnd in range(net.b_hp.size):
-        if net.b_type[bnd] == 2:
-            i = net.b_hp[bnd]
-            netq[i] += max(work.rq0[bnd] + work.rslope[bnd] * work.zk[i], 0.0)
+    netq, outflow, fixed, qn = work.netq, work.rhs, work.fixed, work.qn
     limited = 0
-    for i in range(src.size):  # netq holds the outflow of each point here, inflow the inflow
-        outflow = netq[i] - min(src[i], 0.0)
-        if fixed[i] or outflow <= 0.0 or vol[i] + dt * (inflow[i] - outflow) >= 0.0:
+    for i in range(vol.size):
+        if fixed[i] or vol[i] + dt * netq[i] >= 0.0:
             continue
-        factor = 0.9 * max(vol[i] + dt * inflow[i], 0.0) / (dt * outflow)
+        inflow = netq[i] + outflow[i]
+        factor = 0.9 * max(vol[i] + dt * inflow, 0.0) / (dt * outflow[i])
         for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
             link = net.nl_link[c]
-            qn = _link_flux(work, link, lk_k1[link], lk_k2[link], lk_type[link], theta, u)
-            if -net.nl_sign[c] * qn > 0.0:  # water leaves i through this link
-                if lk_type[link] == 3:
+            if -net.nl_sign[c] * qn[link] > 0.0:  # water leaves i through this link
+                if net.lk_type[link] == 3:
                     work.rco[link] *= factor
                 else:
                     work.area[link] *= factor
@@ -400,43 +416,22 @@ def limit_draining_links(net, work, vol, u, theta, dt):
 
 
 @kernel
-def finish_step(net, work, n, forcing, dt, theta, vmax, z, dz, vol, u, q, balance):
-    """Fluxes of the last iterate → volumes, levels and the boundary balance of step ``n``.
+def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
+    """Commit the fluxes of :func:`compute_fluxes`: velocities, volumes, levels, the boundary balance.
 
     Returns (status, index) of a divergence check: ``STATUS_OK`` or the h-point / link at fault.
     """
-    zk, netq, src, fixed, fixed_val = work.zk, work.netq, work.src, work.fixed, work.fixed_val
-    area, fco, rco = work.area, work.fco, work.rco
-    lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
-    for i in range(src.size):
-        netq[i] = src[i]
-    for link in range(lk_k1.size):
-        k1 = lk_k1[link]
-        k2 = lk_k2[link]
-        t = lk_type[link]
-        if t == 3:
-            qn = rco[link]
-            u[link] = 0.0
-        elif area[link] > 0.0:
-            un = rco[link] - fco[link] * (zk[k2] - zk[k1])
-            th = theta if t == 0 else 1.0
-            qn = area[link] * (th * un + (1.0 - th) * u[link])
-            u[link] = un
-        else:
-            qn = 0.0
-            u[link] = 0.0
-        q[link] = qn
-        netq[k1] -= qn
-        netq[k2] += qn
+    zk, netq, fixed, fixed_val = work.zk, work.netq, work.fixed, work.fixed_val
+    for link in range(u.size):
+        u[link] = work.un[link]
+        q[link] = work.qn[link]
     for bnd in range(net.b_hp.size):
         i = net.b_hp[bnd]
         t = net.b_type[bnd]
         if t == 0:
             balance[bnd] += dt * forcing[n, net.b_col[bnd]]
         elif t == 2:
-            qout = work.rq0[bnd] + work.rslope[bnd] * zk[i]
-            netq[i] -= qout
-            balance[bnd] -= dt * qout
+            balance[bnd] -= dt * (work.rq0[bnd] + work.rslope[bnd] * zk[i])
         else:
             inflow = 0.0
             for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
@@ -542,11 +537,12 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
             change = _solve(net, work, zk, vol, u, theta, dt)
             if change < tol:
                 break
-        for _ in range(8):  # drying: no point may lose more water than it holds within a step
-            if limit_draining_links(net, work, vol, u, theta, dt) == 0:
+        for attempt in range(9):  # drying: no point may lose more water than it holds within a step
+            compute_fluxes(net, work, theta, u)
+            if attempt == 8 or limit_draining_links(net, work, vol, dt) == 0:
                 break
             _solve(net, work, zk, vol, u, theta, dt)
-        status, index = finish_step(net, work, n, forcing, dt, theta, vmax, z, dz, vol, u, q, balance)
+        status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance)
         if status != STATUS_OK:
             return status, n, index
         if (n + 1) % out_every == 0:
