@@ -14,6 +14,7 @@ from pathlib import Path
 
 BENCHMARKS = {
     "engine": ["bench", "engine", "--json"],
+    "engine-dommel": ["bench", "engine", "--case", "dommel", "--json"],
 }
 
 

@@ -39,7 +39,7 @@ def _schema_names() -> tuple[set[str], set[str]]:
 def _code_tokens(text: str) -> set[str]:
     """Words that appear inside `inline code` or fenced code blocks of the document."""
     spans = re.findall(r"```.*?```", text, flags=re.S) + re.findall(r"`([^`\n]+)`", text)
-    return {word for span in spans for word in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", span)}
+    return {word for span in spans for word in re.findall(r"[A-Za-z_][A-Za-z0-9_]*(?:-[A-Za-z0-9_]+)*", span)}
 
 
 def _fenced(text: str, language: str) -> list[str]:

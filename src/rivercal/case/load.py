@@ -160,6 +160,9 @@ def case_from_dict(data: dict[str, Any], root: Path) -> Case:
     except (ValueError, TypeError, ArithmeticError) as exc:
         raise CaseError(_one_line(exc), file=label) from None
     forcing = _load_forcing(spec, Path(root))
+    if spec.meteo is not None and not (Path(root) / spec.meteo.file).is_file():
+        raise CaseError(f"meteo file {spec.meteo.file!r} not found in {root}", file=str(Path(root) / CASE_FILE),
+                        field="meteo.file")
     return Case(spec=spec, root=Path(root), forcing=forcing)
 
 
@@ -360,8 +363,8 @@ def _load_forcing(spec: CaseFile, root: Path) -> dict[str, pd.Series]:
     ]
     for table, kind, i, item in items:
         key = f"{kind}:{item.id}"
-        if getattr(item, "type", None) == "rating":
-            continue
+        if getattr(item, "type", None) == "rating" or item.catchment is not None:
+            continue  # catchment runoff is computed by rivercal.hydrology when the model is built
         if item.value is not None:
             forcing[key] = pd.Series([item.value, item.value], index=pd.DatetimeIndex([start, end]), name=key)
             continue

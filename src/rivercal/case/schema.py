@@ -15,22 +15,28 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from rivercal.network.schema import Branch, Culvert, FieldProblem, Level, Network, Pump, Real, Weir
+from rivercal.network.schema import Branch, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
+from rivercal.parameters import Parameter
 
 __all__ = [
     "EARLIEST",
     "LATEST",
     "MAX_SPINUP_HOURS",
+    "CalibrationSettings",
     "CaseFile",
     "CaseMeta",
+    "Catchment",
     "EngineSettings",
     "InitialConditions",
+    "Meteo",
     "Segment",
     "StructureOverlap",
+    "Window",
     "branch_layout",
     "chainages",
 ]
@@ -177,12 +183,159 @@ class InitialConditions(_Model):
     )
 
 
+class Meteo(_Model):
+    """Meteorological input of the rainfall-runoff model.
+
+    Attributes
+    ----------
+    file
+        Path of the file relative to the case folder.
+    format
+        ``knmi-daily``: a KNMI daily station file ("etmgeg"); rain RH, RHX, RHXH, DR and Makkink
+        evaporation EV24 are disaggregated to hours (:mod:`rivercal.hydrology.disaggregate`).
+    latitude, longitude
+        Position of the station, degrees N and E (for the daytime shape of evaporation).
+    """
+
+    file: str = Field(min_length=1, description="meteo file, relative to the case folder")
+    format: Literal["knmi-daily"] = Field(default="knmi-daily", description="'knmi-daily': KNMI daily station file")
+    latitude: Real = Field(default=51.45, ge=-90, le=90, description="station latitude, degrees N")
+    longitude: Real = Field(default=5.38, ge=-180, le=180, description="station longitude, degrees E")
+
+
+class Catchment(_Model):
+    """A sub-catchment whose rainfall-runoff feeds a lateral or a discharge boundary.
+
+    Attributes
+    ----------
+    id
+        Identifier, referenced by ``catchment = "<id>"`` of a lateral or boundary.
+    area
+        Area, ha.
+    runoff
+        Parameters of the rainfall-runoff model that differ for this catchment from ``[runoff]``.
+    """
+
+    id: Identifier
+    area: Real = Field(gt=0, le=1e7, description="area, ha")
+    runoff: dict[str, Real] = Field(
+        default_factory=dict, description="rainfall-runoff parameters that differ from [runoff] for this catchment"
+    )
+
+
+class Window(_Model):
+    """A named calibration window (thesis Fig. 4-3: "moderate" and "extreme").
+
+    Attributes
+    ----------
+    name
+        Name used on the command line (``--window moderate``).
+    start, end
+        Period (UTC), inside the case period.
+    description
+        Free text.
+    """
+
+    name: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_-]*$", description="window name")
+    start: datetime = Field(description="start of the window, ISO 8601 (UTC when no offset is given)")
+    end: datetime = Field(description="end of the window, ISO 8601 (UTC when no offset is given)")
+    description: str = Field(default="", description="free text")
+
+    @field_validator("start", "end")
+    @classmethod
+    def _utc(cls, value: datetime) -> datetime:
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+
+
+class CalibrationSettings(_Model):
+    """Defaults of a calibration of this case.
+
+    Attributes
+    ----------
+    algorithm
+        Name of an optimiser of :mod:`rivercal.optimise` (``dud``, ``lm``, ``sce_ua``, ...).
+    options
+        Options of that algorithm (for DuD the stopping criteria of thesis Table 4-3: ``max_outer``,
+        ``max_inner``, ``abs_tol`` (T1), ``rel_tol`` (T2), ``rel_tol_linear`` (T3), ``max_rel_step``);
+        checked against the algorithm when a calibration is set up.
+    """
+
+    algorithm: str = Field(default="dud", description="optimiser name (rivercal.optimise)")
+    options: dict[str, float | int | bool] = Field(default_factory=dict, description="options of the algorithm")
+
+
 class CaseFile(Network):
     """The whole ``case.toml``: ``[case]``, ``[engine]``, ``[initial]`` and the network tables."""
 
     case: CaseMeta = Field(description="name and simulated period")
     engine: EngineSettings = Field(default=EngineSettings(), description="numerical settings of the engine")
     initial: InitialConditions = Field(default=InitialConditions(), description="cold-start state")
+    meteo: Meteo | None = Field(default=None, description="meteorological input of the rainfall-runoff model")
+    runoff: dict[str, Real] = Field(
+        default_factory=dict,
+        description="parameters of the rainfall-runoff model for all catchments (names and units: "
+        "rivercal.hydrology.WalrusParameters; checked when the model is built)",
+    )
+    catchments: list[Catchment] = Field(default_factory=list, description="sub-catchments that feed laterals")
+    parameters: list[Parameter] = Field(default_factory=list, description="calibration parameters of this case")
+    calibration: CalibrationSettings = Field(default=CalibrationSettings(), description="calibration defaults")
+    windows: list[Window] = Field(default_factory=list, description="named calibration windows")
+
+    @model_validator(mode="after")
+    def _calibration_refers_to_the_network(self) -> CaseFile:
+        weirs = {w.id for w in self.weirs}
+        branches = {b.id for b in self.branches}
+        names: set[str] = set()
+        for i, p in enumerate(self.parameters):
+            if p.name in names:
+                raise FieldProblem(f"parameters[{i}].name", f"parameter name {p.name!r} is used twice")
+            names.add(p.name)
+            for j, target in enumerate([*p.targets, *(c.target for c in p.cluster)]):
+                if target.startswith("weir:") and target[5:-12] not in weirs:
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r} refers to unknown weir {target[5:-12]!r}")
+                if target.startswith("friction:branch:") and target[16:] not in branches:
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r} refers to unknown branch {target[16:]!r}")
+        window_names: set[str] = set()
+        for i, w in enumerate(self.windows):
+            if w.name in window_names:
+                raise FieldProblem(f"windows[{i}].name", f"window name {w.name!r} is used twice")
+            window_names.add(w.name)
+            if not (self.case.start <= w.start < w.end <= self.case.end):
+                raise FieldProblem(
+                    f"windows[{i}]",
+                    f"window {w.name!r} ({_iso(w.start)} .. {_iso(w.end)}) must be a non-empty part of the case "
+                    f"period {_iso(self.case.start)} .. {_iso(self.case.end)}",
+                )
+        return self
+
+    @model_validator(mode="after")
+    def _catchments_are_used(self) -> CaseFile:
+        known = {c.id: i for i, c in enumerate(self.catchments)}
+        if len(known) != len(self.catchments):
+            seen: set[str] = set()
+            for i, c in enumerate(self.catchments):
+                if c.id in seen:
+                    raise FieldProblem(f"catchments[{i}].id", f"catchment id {c.id!r} is used twice")
+                seen.add(c.id)
+        used: set[str] = set()
+        for table, items in (("laterals", self.laterals), ("boundaries", self.boundaries)):
+            for i, item in enumerate(items):
+                if item.catchment is None:
+                    continue
+                if item.catchment not in known:
+                    listed = ", ".join(repr(k) for k in known) or "none are defined"
+                    raise FieldProblem(f"{table}[{i}].catchment",
+                                       f"{item.id!r} refers to unknown catchment {item.catchment!r} ({listed})")
+                used.add(item.catchment)
+        if self.catchments and self.meteo is None:
+            raise FieldProblem("meteo", "catchments need meteorological input: add a [meteo] table with the file")
+        for cid, i in known.items():
+            if cid not in used:
+                raise FieldProblem(f"catchments[{i}].id",
+                                   f"catchment {cid!r} feeds no lateral or boundary (use catchment = {cid!r})")
+        return self
 
     @model_validator(mode="after")
     def _period_fits_output(self) -> CaseFile:

@@ -33,7 +33,7 @@ app.add_typer(case_app, name="case")
 app.add_typer(bench_app, name="bench")
 
 out_console = Console()
-err_console = Console(stderr=True)
+err_console = Console(stderr=True, soft_wrap=True)
 
 CaseArg = Annotated[str, typer.Argument(help="A case folder or the name of a packaged case (e.g. 'synthetic').")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
@@ -109,12 +109,12 @@ def case_schema() -> None:
 @_guard
 def case_check(case: CaseArg, as_json: JsonOpt = False) -> None:
     """Validate a case and summarise it."""
-    from rivercal.case import load_case
-    from rivercal.engine import compile_network
+    from rivercal.model import load_model
 
-    c = load_case(case)
+    sim = load_model(case)
+    c = sim.case
     net = c.network
-    compiled = compile_network(net, c.spec.engine)
+    compiled = sim.compiled
     summary = {
         "case": c.name,
         "folder": str(c.root),
@@ -128,6 +128,8 @@ def case_check(case: CaseArg, as_json: JsonOpt = False) -> None:
         "pumps": len(net.pumps),
         "boundaries": len(net.boundaries),
         "laterals": len(net.laterals),
+        "catchments": len(c.spec.catchments),
+        "catchment_area_km2": round(sum(x.area for x in c.spec.catchments) / 100.0, 1),
         "observables": compiled.observables,
     }
     if as_json:
@@ -150,8 +152,19 @@ def case_plot(
     from rivercal.report.figures import plot_network
 
     c = load_case(case)
-    path = plot_network(c.network, out, title=f"{c.name}: {c.spec.case.description}"[:110])
+    labels = _weir_labels(c)
+    path = plot_network(c.network, out, title=f"{c.name}: {c.spec.case.description}"[:110], weir_labels=labels)
     out_console.print(f"wrote {path}")
+
+
+def _weir_labels(case) -> dict[str, str]:
+    """Weir labels for the schematic: the calibration name where the case defines one."""
+    names = {}
+    for p in getattr(case.spec, "parameters", []) or []:
+        for target in getattr(p, "targets", []):
+            if target.startswith("weir:") and target.endswith(".crest_level"):
+                names[target[5:-12]] = f"{p.name} {target[5:-12]}"
+    return names
 
 
 # -- simulate -----------------------------------------------------------------------------------
@@ -171,13 +184,12 @@ def simulate(
     quiet: QuietOpt = False,
 ) -> None:
     """Run a case and write series.csv and series.nc (CF-1.8); with --plot also a hydrograph figure."""
-    from rivercal.case import load_case
-    from rivercal.engine import Simulator
+    from rivercal.model import load_model
     from rivercal.report.figures import plot_series
 
     parameters = _parse_sets(set_)
-    c = load_case(case)
-    sim = Simulator(c)
+    sim = load_model(case)
+    c = sim.case
     with err_console.status(f"simulating {c.name}", spinner="dots") if not (quiet or as_json) else _null():
         result, _ = sim.simulate(parameters, start=start, end=end)
     out.mkdir(parents=True, exist_ok=True)
@@ -245,21 +257,23 @@ def demo(
     out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/demo"),
     as_json: JsonOpt = False,
 ) -> None:
-    """The main job on the embedded default case (for now: simulate the synthetic network)."""
-    from rivercal.case import load_case
-    from rivercal.engine import Simulator
+    """The main job on the embedded default case: simulate the De Dommel-like network, Sep-Nov 2010."""
+    from rivercal.model import load_model
     from rivercal.report.figures import plot_network, plot_series
 
-    c = load_case("synthetic")
-    sim = Simulator(c)
-    with err_console.status("simulating the synthetic benchmark network", spinner="dots") if not as_json else _null():
+    with err_console.status("loading the dommel case (rainfall-runoff of 16 catchments)", spinner="dots") \
+            if not as_json else _null():
+        sim = load_model("dommel")
+    c = sim.case
+    with err_console.status("simulating Sep-Nov 2010", spinner="dots") if not as_json else _null():
         result, _ = sim.simulate()
     out.mkdir(parents=True, exist_ok=True)
     result.to_csv(out / "series.csv")
     result.to_netcdf(out / "series.nc")
     figs = [
-        plot_network(c.network, out / "network.png", title="synthetic benchmark network"),
-        plot_series(result.series, out / "series.png", title="synthetic network: simulated station series"),
+        plot_network(c.network, out / "network.png", title="dommel: De Dommel-like weir network",
+                     weir_labels=_weir_labels(c)),
+        plot_series(result.series, out / "series.png", title="dommel, Sep-Nov 2010: simulated station series"),
     ]
     summary = {
         "case": c.name,
@@ -273,15 +287,17 @@ def demo(
         _emit_json(summary)
         return
     out_console.print(f"[bold]rivercal demo[/]: simulated the [bold]{c.name}[/] network "
-                      f"({sim.compiled.n_hpoints} calculation points, {len(c.network.weirs)} weirs) "
-                      f"{c.start:%Y-%m-%d} .. {c.end:%Y-%m-%d} in {result.wall_time:.2f} s; "
-                      f"volume balance closes to {result.balance.relative_error:.1e}.")
-    peak = result.series.max()
-    table = Table(title="peak values per station")
-    table.add_column("series")
-    table.add_column("peak", justify="right")
-    for name, value in peak.items():
-        table.add_row(name, f"{value:.3f} {'m³/s' if name.endswith('.Q') else 'm AD'}")
+                      f"({sim.compiled.n_hpoints} calculation points, {len(c.network.weirs)} weirs, "
+                      f"{len(c.spec.catchments)} catchments) {c.start:%Y-%m-%d} .. {c.end:%Y-%m-%d} in "
+                      f"{result.wall_time:.2f} s; volume balance closes to {result.balance.relative_error:.1e}.")
+    table = Table(title="station series: dry weather (1-6 Sep) and the November 2010 peak")
+    for col in ("series", "1-6 Sep mean", "Nov peak"):
+        table.add_column(col, justify="right" if col != "series" else "left")
+    for name in result.series.columns:
+        unit = "m³/s" if name.endswith(".Q") else "m AD"
+        col = result.series[name]
+        table.add_row(name, f"{col.loc['2010-09-01':'2010-09-06'].mean():.3f} {unit}",
+                      f"{col.loc['2010-11-01':'2010-11-30'].max():.3f} {unit}")
     out_console.print(table)
     out_console.print("results: " + ", ".join(summary["outputs"]))
 

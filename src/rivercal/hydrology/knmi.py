@@ -227,7 +227,9 @@ def read_knmi_daily(
         units[col] = unit
 
     if missing:
-        logger.warning("%s: missing values (NaN): %s", name, ", ".join(f"{c} {n}" for c, n in missing.items()))
+        # reported, not alarming: most columns (wind, visibility, ...) are not used; the functions that use
+        # a column (disaggregation of RH, EV24) refuse its missing days themselves
+        logger.info("%s: missing values (NaN): %s", name, ", ".join(f"{c} {n}" for c, n in missing.items()))
     steps = np.diff(frame.index.to_numpy()).astype("timedelta64[D]").astype(int)
     if (steps > 1).any():
         logger.warning("%s: %d gap(s) in the dates (the longest %d days)", name, int((steps > 1).sum()),

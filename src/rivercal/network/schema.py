@@ -287,6 +287,9 @@ class ZWProfile(_Model):
     total_widths
         Width that stores water at each height, m (default: the flow widths); not smaller than
         the flow width, non-decreasing.
+    height
+        Bank height above the bed, m (optional): the top of the main channel, above which water
+        spreads over the floodplain part of the table.
     """
 
     id: Identifier
@@ -300,6 +303,9 @@ class ZWProfile(_Model):
     total_widths: list[Size] | None = Field(
         default=None,
         description="width that stores water at each height, m (default: flow_widths); not below the flow width",
+    )
+    height: Size | None = Field(
+        default=None, ge=MIN_SIZE, description="bank height above the bed, m (optional; top of the main channel)"
     )
 
     @model_validator(mode="after")
@@ -667,6 +673,9 @@ class Boundary(_Model):
         Time series of the value (for ``discharge`` and ``level``).
     value
         Constant value instead of a series.
+    catchment
+        Id of a sub-catchment (``[[catchments]]`` of the case) whose runoff is the inflow (for
+        ``discharge``).
     rating
         The Q(h) table (for ``rating``).
     """
@@ -678,6 +687,9 @@ class Boundary(_Model):
     )
     series: SeriesRef | None = Field(default=None, description="time series of the value (discharge or level)")
     value: Discharge | None = Field(default=None, description="constant value instead of a series: m³/s or m AD")
+    catchment: Identifier | None = Field(
+        default=None, description="sub-catchment whose runoff (m³/s) is the inflow of a 'discharge' boundary"
+    )
     rating: RatingTable | None = Field(default=None, description="the Q(h) table of a 'rating' boundary")
 
     @model_validator(mode="after")
@@ -685,16 +697,20 @@ class Boundary(_Model):
         if self.type == "rating":
             if self.rating is None:
                 raise FieldProblem("rating", "a rating boundary needs a rating table (levels and discharges)")
-            for name in ("series", "value"):
+            for name in ("series", "value", "catchment"):
                 if getattr(self, name) is not None:
                     raise FieldProblem(name, f"a rating boundary takes its outflow from the rating table, not a {name}")
         else:
             if self.rating is not None:
                 raise FieldProblem("rating", f"a {self.type} boundary takes a series or a value, not a rating table")
-            if self.series is None and self.value is None:
-                raise FieldProblem("series", f"a {self.type} boundary needs a series or a constant value")
-            if self.series is not None and self.value is not None:
-                raise FieldProblem("value", f"a {self.type} boundary takes a series or a value, not both")
+            if self.type == "level" and self.catchment is not None:
+                raise FieldProblem("catchment", "a level boundary cannot take its level from a catchment's runoff")
+            given = [name for name in ("series", "value", "catchment") if getattr(self, name) is not None]
+            if not given:
+                raise FieldProblem("series", f"a {self.type} boundary needs a series, a constant value or a catchment")
+            if len(given) > 1:
+                raise FieldProblem(given[1], f"a {self.type} boundary takes one of series, value or catchment, "
+                                             f"not {' and '.join(given)}")
             if self.type == "level" and self.value is not None and abs(self.value) > MAX_LEVEL:
                 raise FieldProblem(
                     "value", f"level {_num(self.value)} m AD lies outside ±{_num(MAX_LEVEL)} m AD (levels are in m AD)"
@@ -713,6 +729,8 @@ class Lateral(_Model):
         a location on a branch (the inflow goes to the nearest calculation point).
     series, value
         The discharge as a time series, or a constant, m³/s.
+    catchment
+        Or the id of a sub-catchment (``[[catchments]]`` of the case) whose runoff is the inflow.
     """
 
     id: Identifier
@@ -723,14 +741,17 @@ class Lateral(_Model):
     chainage: Real | None = Field(default=None, ge=0, description="location on the branch, m from its start")
     series: SeriesRef | None = Field(default=None, description="time series of the inflow, m³/s (negative: extraction)")
     value: Discharge | None = Field(default=None, description="constant inflow instead of a series, m³/s")
+    catchment: Identifier | None = Field(default=None, description="sub-catchment whose runoff (m³/s) is the inflow")
 
     @model_validator(mode="after")
     def _location_and_source(self) -> Lateral:
         _one_location(self.node, "node", self.branch, self.chainage, "a lateral")
-        if self.series is None and self.value is None:
-            raise FieldProblem("series", "a lateral needs a series or a constant value (m³/s)")
-        if self.series is not None and self.value is not None:
-            raise FieldProblem("value", "a lateral takes a series or a value, not both")
+        given = [name for name in ("series", "value", "catchment") if getattr(self, name) is not None]
+        if not given:
+            raise FieldProblem("series", "a lateral needs a series, a constant value (m³/s) or a catchment")
+        if len(given) > 1:
+            raise FieldProblem(given[1],
+                               f"a lateral takes one of series, value or catchment, not {' and '.join(given)}")
         return self
 
 

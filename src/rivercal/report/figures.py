@@ -65,6 +65,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
             marker = {"discharge": ">", "level": "s", "rating": "D"}[bnd_nodes[n.id]]
             ax.plot(n.x, n.y, marker, color="#2f855a", ms=9, zorder=4)
     struct_xy = {}
+    flip = 0
     for kind, items, marker, colour in (("weir", network.weirs, "|", "#c53030"),
                                         ("culvert", network.culverts, "s", "#805ad5"),
                                         ("pump", network.pumps, "^", "#dd6b20")):
@@ -74,8 +75,9 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
             ax.plot(px, py, marker, color=colour, ms=12 if kind == "weir" else 7, mew=3, zorder=5)
             if label_weirs or kind != "weir":
                 label = (weir_labels or {}).get(s.id, s.id)
-                ax.annotate(label, (px, py), xytext=(5, -11), textcoords="offset points", fontsize=7,
-                            color=colour)
+                flip += 1  # alternate below/above so that neighbouring labels do not overlap
+                ax.annotate(label, (px, py), xytext=(5, -12 if flip % 2 else 7), textcoords="offset points",
+                            fontsize=7, color=colour)
     for st in network.stations:
         if st.structure is not None:
             px, py = struct_xy[st.structure]

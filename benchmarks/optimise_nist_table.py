@@ -1,0 +1,78 @@
+"""Every optimiser on every lower- and average-difficulty NIST StRD problem: a Markdown table.
+
+Usage::
+
+    python benchmarks/optimise_nist_table.py [--out FILE] [--starts 1 2] [--methods dud lm ...] [--jobs N]
+
+Each cell is "significant digits reached / model runs": digits = min over the parameters of
+−log10(|b − certified| / |certified|) (capped at 11; 0 when the fit is off), after mapping permuted
+equivalent terms onto NIST's order. **Bold**: at least 4 digits. The settings per method are those of
+``tests/optimise/nist.py`` (``settings``): local methods from the NIST start with tight tolerances,
+SCE-UA with its initial population in x0 ± |x0| inside wide bounds, grid and GLUE over x0 ± |x0| with
+20 000 points, budgets of 20 000-200 000 runs for the global and direct-search methods.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.optimise.nist import AVERAGE, LOWER, problem, solve  # noqa: E402
+
+from rivercal.optimise import OPTIMISERS  # noqa: E402
+
+
+def run_one(job: tuple[str, str, int]) -> tuple[str, str, int, float, int, float, str]:
+    method, name, start = job
+    p = problem(name, start)
+    t0 = time.perf_counter()
+    res = solve(method, p)
+    return method, name, start, p.digits(res.x), res.nfev, time.perf_counter() - t0, res.message
+
+
+def table(results: dict, methods: list[str], start: int) -> str:
+    lines = [f"### NIST start {start}", "",
+             "| problem | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
+    for name in LOWER + AVERAGE:
+        cells = []
+        for method in methods:
+            digits, nfev = results[method, name, start][:2]
+            text = f"{max(digits, 0.0):.1f} / {nfev}"
+            cells.append(f"**{text}**" if digits >= 4 else text)
+        level = "lower" if name in LOWER else "average"
+        lines.append(f"| {name} ({level}) | " + " | ".join(cells) + " |")
+    solved = [sum(results[m, n, start][0] >= 4 for n in LOWER + AVERAGE) for m in methods]
+    runs = [sum(results[m, n, start][1] for n in LOWER + AVERAGE) for m in methods]
+    lines.append("| **≥ 4 digits** | " + " | ".join(f"{s}/{len(LOWER + AVERAGE)}" for s in solved) + " |")
+    lines.append("| **total runs** | " + " | ".join(str(r) for r in runs) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, help="also write the Markdown here")
+    parser.add_argument("--starts", type=int, nargs="+", default=[1, 2], choices=[1, 2])
+    parser.add_argument("--methods", nargs="+", default=list(OPTIMISERS), choices=list(OPTIMISERS))
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes")
+    args = parser.parse_args()
+    jobs = [(m, n, s) for s in args.starts for m in args.methods for n in LOWER + AVERAGE]
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        results = {(m, n, s): (d, nfev, sec, msg) for m, n, s, d, nfev, sec, msg in pool.map(run_one, jobs)}
+    text = "\n".join(table(results, args.methods, s) for s in args.starts)
+    text += f"\n(wall time {time.perf_counter() - t0:.0f} s with {args.jobs} worker(s))\n"
+    print(text)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text, encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

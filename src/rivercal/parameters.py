@@ -1,0 +1,218 @@
+"""Calibration parameters: names at the edges, model quantities and flat vectors inside.
+
+A :class:`Parameter` is one number the calibration estimates. It has physical bounds (thesis Eq. 2-7;
+always in physical units, so a restart from new initial values keeps its range — OpenDA issue 337),
+an initial value, a transform that sets how the optimiser perturbs it, an optional prior standard
+deviation (a weak constraint), and targets:
+
+- one or more model quantities (``weir:<id>.crest_level`` in m AD, ``friction:global``,
+  ``friction:branch:<id>`` in the unit of the friction law) that all take the parameter's value; or
+- a *cluster* (thesis §4-4, "Wc"): a value in [0, 1] that places every target weir's crest between
+  its own minimum and maximum, crest = min + value × (max - min).
+
+Transforms (what the optimiser sees, and the first DuD step λ):
+
+- ``offset`` (thesis Eq. 2-8): x = θ, first step θ₀ + λ;
+- ``factor`` (Eq. 2-9): x = θ, first step θ₀ + λ θ₀;
+- ``ln``: x = ln θ, first step ln θ₀ + λ (multiplicative; needs positive bounds).
+
+:class:`ParameterSet` maps names ↔ positions of the optimiser's vector and parameter values ↔ the
+model quantities of the model protocol.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = ["ClusterTarget", "Parameter", "ParameterSet"]
+
+_ID = r"[A-Za-z0-9_.\-]+"
+Target = Annotated[str, Field(pattern=rf"^(weir:{_ID}\.crest_level|friction:global|friction:branch:{_ID})$")]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class ClusterTarget(_Model):
+    """A weir crest in a cluster parameter.
+
+    Attributes
+    ----------
+    target
+        ``weir:<id>.crest_level``.
+    min, max
+        The crest range of this weir, m AD (thesis Table 4-2).
+    """
+
+    target: Target = Field(description="model quantity, weir:<id>.crest_level")
+    min: float = Field(description="lowest crest level of this weir, m AD")
+    max: float = Field(description="highest crest level of this weir, m AD")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> ClusterTarget:
+        if not self.target.startswith("weir:"):
+            raise ValueError(f"a cluster places weir crests; {self.target!r} is not a weir crest level")
+        if not self.max > self.min:
+            raise ValueError(f"max {self.max} must be above min {self.min} for {self.target}")
+        return self
+
+
+class Parameter(_Model):
+    """One calibration parameter (see the module docstring).
+
+    Attributes
+    ----------
+    name
+        Short name (``FA``, ``W2``, ``Wc``).
+    targets
+        Model quantities that take the value (or use ``cluster``).
+    cluster
+        Weirs placed by a value in [0, 1] between their own min and max.
+    min, max
+        Physical bounds of the value (for a cluster: 0 and 1).
+    initial
+        Initial value.
+    transform
+        ``offset``, ``factor`` or ``ln``.
+    perturbation
+        λ, the first DuD step (parameter units for offset, a fraction for factor, ln units for ln).
+    prior_std
+        Standard deviation of a weak constraint towards ``initial`` (in the optimiser's units), or None.
+    unit
+        Unit of the value, for reports.
+    """
+
+    name: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=32, description="parameter name")
+    targets: list[Target] = Field(default_factory=list, description="model quantities that take the value")
+    cluster: list[ClusterTarget] = Field(default_factory=list, description="weirs placed by a value in [0, 1]")
+    min: float = Field(description="lower bound, physical units")
+    max: float = Field(description="upper bound, physical units")
+    initial: float = Field(description="initial value, physical units")
+    transform: Literal["offset", "factor", "ln"] = Field(default="offset", description="perturbation transform")
+    perturbation: float = Field(gt=0, description="first DuD step λ (see transform)")
+    prior_std: float | None = Field(default=None, gt=0, description="weak-constraint standard deviation")
+    unit: str = Field(default="", description="unit of the value")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Parameter:
+        if bool(self.targets) == bool(self.cluster):
+            raise ValueError(f"parameter {self.name!r} needs targets or a cluster (exactly one of them)")
+        if not self.max > self.min:
+            raise ValueError(f"parameter {self.name!r}: max {self.max} must be above min {self.min}")
+        if not self.min <= self.initial <= self.max:
+            raise ValueError(f"parameter {self.name!r}: initial {self.initial} lies outside [{self.min}, {self.max}]")
+        if self.cluster and (self.min < 0.0 or self.max > 1.0):
+            raise ValueError(f"cluster parameter {self.name!r} lives in [0, 1], got [{self.min}, {self.max}]")
+        if self.transform == "ln" and self.min <= 0.0:
+            raise ValueError(f"parameter {self.name!r}: the ln transform needs a positive lower bound")
+        return self
+
+    # -- optimiser space --------------------------------------------------------------------------
+
+    def to_x(self, value: float) -> float:
+        """Optimiser coordinate of a physical value."""
+        return math.log(value) if self.transform == "ln" else float(value)
+
+    def from_x(self, x: float) -> float:
+        """Physical value of an optimiser coordinate."""
+        return math.exp(x) if self.transform == "ln" else float(x)
+
+    def initial_step(self, value: float) -> float:
+        """The first DuD perturbation at ``value``, in optimiser units (thesis Eq. 2-8 / 2-9)."""
+        if self.transform == "factor":
+            return self.perturbation * max(abs(value), 1e-12)
+        return self.perturbation
+
+    def quantities(self, value: float) -> dict[str, float]:
+        """Model quantities (target → value) for a physical value of this parameter."""
+        if self.cluster:
+            return {c.target: c.min + value * (c.max - c.min) for c in self.cluster}
+        return dict.fromkeys(self.targets, float(value))
+
+
+class ParameterSet:
+    """An ordered set of parameters: the flat vector of the optimiser ↔ names ↔ model quantities.
+
+    Parameters
+    ----------
+    parameters
+        The parameters in vector order; names must be unique and no model quantity may be set by two
+        parameters.
+    """
+
+    def __init__(self, parameters: Iterable[Parameter]):
+        self.parameters: tuple[Parameter, ...] = tuple(parameters)
+        names = [p.name for p in self.parameters]
+        if len(set(names)) != len(names):
+            raise ValueError(f"duplicate parameter names in {names}")
+        owner: dict[str, str] = {}
+        for p in self.parameters:
+            for target in p.quantities(p.initial):
+                if target in owner:
+                    raise ValueError(f"{target} is set by both {owner[target]!r} and {p.name!r}")
+                owner[target] = p.name
+
+    def __len__(self) -> int:
+        return len(self.parameters)
+
+    def __iter__(self):
+        return iter(self.parameters)
+
+    def __getitem__(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(f"no parameter {name!r} (have: {', '.join(self.names)})")
+
+    @property
+    def names(self) -> list[str]:
+        """Parameter names in vector order."""
+        return [p.name for p in self.parameters]
+
+    def subset(self, names: Sequence[str]) -> ParameterSet:
+        """The parameters with these names, in this order."""
+        return ParameterSet(self[n] for n in names)
+
+    def with_initial(self, values: Mapping[str, float]) -> ParameterSet:
+        """The same parameters with new initial values (bounds unchanged: they are physical)."""
+        return ParameterSet(p.model_copy(update={"initial": float(values[p.name])}) if p.name in values else p
+                            for p in self.parameters)
+
+    # -- vectors -----------------------------------------------------------------------------------
+
+    def values(self, x: np.ndarray) -> dict[str, float]:
+        """Physical values by name of an optimiser vector."""
+        return {p.name: p.from_x(float(v)) for p, v in zip(self.parameters, np.asarray(x, dtype=float), strict=True)}
+
+    def to_x(self, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """Optimiser vector of physical values by name (default: the initial values)."""
+        values = values or {}
+        return np.array([p.to_x(values.get(p.name, p.initial)) for p in self.parameters])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the optimiser vector."""
+        return (np.array([p.to_x(p.min) for p in self.parameters]), np.array([p.to_x(p.max) for p in self.parameters]))
+
+    def initial_steps(self, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """The first DuD perturbation of each parameter at the given (default: initial) values."""
+        values = values or {}
+        return np.array([p.initial_step(values.get(p.name, p.initial)) for p in self.parameters])
+
+    def prior_std(self) -> np.ndarray | None:
+        """Weak-constraint standard deviations (optimiser units), or None when no parameter has one."""
+        if all(p.prior_std is None for p in self.parameters):
+            return None
+        return np.array([p.prior_std if p.prior_std is not None else np.inf for p in self.parameters])
+
+    def quantities(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Model quantities (target → value) for physical values by name; missing names take their initial."""
+        out: dict[str, float] = {}
+        for p in self.parameters:
+            out.update(p.quantities(values.get(p.name, p.initial)))
+        return out
