@@ -1,0 +1,94 @@
+"""Calibration algorithms over ``fun(x) -> residuals``; this package knows nothing of rivers.
+
+Every optimiser has the signature (scipy-like)::
+
+    name(fun, x0, lb, ub, *, options=None, callback=None, batch=None, max_nfev=None, deadline=None)
+        -> OptimiseResult
+
+- ``fun(x)`` returns the vector of *weighted* residuals r; the cost is S = Σ r² (thesis Eq. 2-3 with the
+  weights folded in). x, lb, ub are 1-D arrays in the optimiser's coordinates; no point outside
+  [lb, ub] is ever evaluated. A NaN or infinite residual raises :class:`NonFiniteResidualsError`;
+  exceptions from ``fun`` propagate unchanged.
+- ``options`` is the algorithm's frozen options dataclass (e.g. :class:`DudOptions`) or a dict of its
+  fields (unknown keys raise ValueError).
+- ``batch(list_of_x) -> list_of_r`` evaluates independent points, possibly in parallel (default: a
+  serial map over ``fun``).
+- ``callback(record)`` is called after every iteration with an :class:`IterationRecord`; returning True
+  aborts. ``max_nfev`` caps the number of model runs (a batch that does not fit is cut to the runs
+  that do); ``deadline`` (wall-clock seconds from the call, ``time.monotonic``) is checked before every
+  evaluation or batch, so a batch already running is not interrupted. All three end the run with
+  ``aborted=True`` and the best point so far.
+
+Algorithms (one module each): :func:`dud`, :func:`sparse_dud`, :func:`lm`, :func:`sce_ua`, :func:`dds`,
+:func:`nelder_mead`, :func:`powell`, :func:`cg`, :func:`bfgs`, :func:`grid`, :func:`glue`; by name through
+:data:`OPTIMISERS` / :func:`get_optimiser`. Helpers: :func:`fd_jacobian_of` and
+:func:`parameter_statistics` give the Jacobian-based standard deviations for a result of a method
+without a Jacobian.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from rivercal.optimise._core import Run, default_scale, fd_jacobian, parameter_statistics, validate_problem
+from rivercal.optimise.bfgs import BfgsOptions, bfgs
+from rivercal.optimise.cg import CgOptions, cg
+from rivercal.optimise.dds import DdsOptions, dds
+from rivercal.optimise.dud import DudOptions, DudState, dud
+from rivercal.optimise.glue import GlueOptions, glue
+from rivercal.optimise.grid import GridOptions, grid
+from rivercal.optimise.lm import LmOptions, lm
+from rivercal.optimise.nelder_mead import NelderMeadOptions, nelder_mead
+from rivercal.optimise.powell import PowellOptions, powell
+from rivercal.optimise.registry import OPTIMISERS, get_optimiser
+from rivercal.optimise.result import IterationRecord, NonFiniteResidualsError, OptimiseResult
+from rivercal.optimise.sce_ua import SceOptions, sce_ua
+from rivercal.optimise.sparse_dud import SparseDudOptions, sparse_dud
+
+__all__ = [
+    "OPTIMISERS",
+    "BfgsOptions",
+    "CgOptions",
+    "DdsOptions",
+    "DudOptions",
+    "DudState",
+    "GlueOptions",
+    "GridOptions",
+    "IterationRecord",
+    "LmOptions",
+    "NelderMeadOptions",
+    "NonFiniteResidualsError",
+    "OptimiseResult",
+    "PowellOptions",
+    "SceOptions",
+    "SparseDudOptions",
+    "bfgs",
+    "cg",
+    "dds",
+    "dud",
+    "fd_jacobian_of",
+    "get_optimiser",
+    "glue",
+    "grid",
+    "lm",
+    "nelder_mead",
+    "parameter_statistics",
+    "powell",
+    "sce_ua",
+    "sparse_dud",
+]
+
+
+def fd_jacobian_of(fun: Callable[[np.ndarray], Any], x: Any, lb: Any, ub: Any, *, rel_step: float = 1e-6,
+                   batch: Callable[[list[np.ndarray]], Any] | None = None) -> np.ndarray:
+    """Forward-difference Jacobian of ``fun`` at ``x`` (p + 1 runs, one batch), steps pointing into [lb, ub].
+
+    With :func:`parameter_statistics` it gives ``std``/``correlation`` for the result of a method without a
+    Jacobian (SCE-UA, DDS, Nelder-Mead, Powell, grid, GLUE).
+    """
+    x, lb, ub = validate_problem(x, lb, ub)
+    run = Run(fun, batch, x, lb, ub, max_nfev=None, deadline=None, callback=None)
+    return fd_jacobian(run, x, rel_step, default_scale(x, lb, ub))[1]
