@@ -13,9 +13,8 @@ from dataclasses import asdict, dataclass
 
 import pandas as pd
 
-from rivercal.case.load import load_case
 from rivercal.engine.compile import LINK_CULVERT, LINK_WEIR
-from rivercal.engine.simulator import Simulator
+from rivercal.model import load_model
 
 __all__ = ["EngineBenchmark", "bench_engine"]
 
@@ -57,7 +56,7 @@ def bench_engine(case: str = "synthetic", days: float = 7.0, repeats: int = 7) -
     repeats
         Number of timed runs after the warm-up run (the median is reported).
     """
-    sim = Simulator(load_case(case))
+    sim = load_model(case)
     start = sim.start
     end = start + pd.Timedelta(days=days)
     state = sim.initial_state(start)

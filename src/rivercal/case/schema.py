@@ -122,10 +122,12 @@ class EngineSettings(_Model):
         default=3600.0, gt=0, description="interval of the simulated station series, s (a multiple of dt)"
     )
     max_iterations: int = Field(
-        default=2, ge=1, le=50, description="Picard iterations per time step for structures and storage (1-50)"
+        default=4, ge=1, le=50,
+        description="most Picard iterations per time step for structures and storage (1-50); the first starts "
+        "from the extrapolated level, so one usually suffices",
     )
     tolerance: Real = Field(
-        default=1e-5, gt=0, description="level change below which the iterations of a step stop, m"
+        default=1e-4, gt=0, description="level change below which the iterations of a step stop, m"
     )
     min_depth: Real = Field(
         default=1e-3, gt=0, le=1.0, description="upwind depth below which a channel carries no flow, m (at most 1)"

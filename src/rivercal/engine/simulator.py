@@ -91,6 +91,8 @@ class Simulator:
             self.forcing.update(forcing)
         self._forcing_cache: dict[tuple, np.ndarray] = {}
         self._work = make_work(self.compiled.arrays)
+        #: Counters of the last compiled run: steps, level solves, drying re-solves.
+        self.last_run_stats: dict[str, int] = {}
 
     # -- facts -------------------------------------------------------------------------------
 
@@ -323,11 +325,15 @@ class Simulator:
         balance = np.zeros(a.b_hp.size + 1)
         initial_volume = self._domain_volume(state)
         s = self.settings
+        self._work.stats[:] = 0
         status, step, index = run(
             a, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
             float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
             float(s.max_velocity), int(out_every), obs, zs, qs, balance,
         )
+        steps, solves, drying = (int(v) for v in self._work.stats)
+        log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)
+        self.last_run_stats = {"steps": steps, "solves": solves, "drying_resolves": drying}
         if status != STATUS_OK:
             when = (start + pd.Timedelta(seconds=(step + 1) * self.dt)).isoformat()
             if phase:

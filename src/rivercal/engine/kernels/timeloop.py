@@ -72,11 +72,11 @@ STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 #: inflow (m³/s), Dirichlet flags and levels,
 #: off-diagonals and L multipliers per edge, link flux area (m²) and coefficients f (1/s) and
 #: r (m/s), the new velocities (m/s) and fluxes (m³/s), rating-boundary linearisation (m³/s,
-#: m²/s), and the structure and pump links.
+#: m²/s), the structure and pump links, and counters (steps, solves, drying re-solves).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
-     "un", "qn", "rq0", "rslope", "struct_links", "pump_links"],
+     "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats"],
 )
 
 
@@ -94,6 +94,7 @@ def make_work(net) -> Work:
         rq0=np.zeros(n_b), rslope=np.zeros(n_b),
         struct_links=np.flatnonzero((net.lk_type == 1) | (net.lk_type == 2)).astype(np.int64),
         pump_links=np.flatnonzero(net.lk_type == 3).astype(np.int64),
+        stats=np.zeros(3, dtype=np.int64),
     )
 
 
@@ -529,12 +530,15 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
         channel_coefficients(net, work, z, u, q, fric, dt, min_depth)
         switch_pumps(net, work, z, pump_on)
+        # linearise first at the extrapolated level z^n + (z^n - z^{n-1}) (not below the bed): when the
+        # extrapolation is good one solve suffices (the convergence test compares with it)
         for i in range(z.size):
-            zk[i] = z[i]
-        for it in range(max_iter):
-            # the first linearisation of the structures uses the extrapolated level z^n + (z^n - z^{n-1})
-            structure_coefficients(net, work, zk, dz, 1.0 if it == 0 else 0.0, u, crest, dt)
+            zk[i] = max(z[i] + dz[i], min(z[i], net.hp_bed[i] + min_depth))
+        work.stats[0] += 1
+        for _ in range(max_iter):
+            structure_coefficients(net, work, zk, dz, 0.0, u, crest, dt)
             change = _solve(net, work, zk, vol, u, theta, dt)
+            work.stats[1] += 1
             if change < tol:
                 break
         for attempt in range(9):  # drying: no point may lose more water than it holds within a step
@@ -542,6 +546,7 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
             if attempt == 8 or limit_draining_links(net, work, vol, dt) == 0:
                 break
             _solve(net, work, zk, vol, u, theta, dt)
+            work.stats[2] += 1
         status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance)
         if status != STATUS_OK:
             return status, n, index
