@@ -39,6 +39,9 @@ class CaseError(RivercalError, ValueError):
         where = ": ".join(part for part in (file, field) if part)
         super().__init__(f"{where}: {message}" if where else message)
 
+    def __reduce__(self):  # keep the fields when the error crosses a process boundary
+        return (_rebuild_case_error, (self.reason, self.file, self.field))
+
 
 class ModelRunError(RivercalError):
     """A model run could not be completed (base class of engine failures)."""
@@ -62,3 +65,10 @@ class EngineDivergedError(ModelRunError):
         self.location = location
         self.detail = detail
         super().__init__(f"engine diverged at {time} at {location}: {detail}")
+
+    def __reduce__(self):  # keep the fields when the error crosses a process boundary
+        return (EngineDivergedError, (self.time, self.location, self.detail))
+
+
+def _rebuild_case_error(reason: str, file: str | None, field: str | None) -> CaseError:
+    return CaseError(reason, file=file, field=field)

@@ -224,6 +224,210 @@ class _null:
         return False
 
 
+# -- calibrate ----------------------------------------------------------------------------------
+
+
+def _parse_assignments(text: str | None, what: str) -> dict[str, float]:
+    """'FA=20,Wc=0.8' → {'FA': 20.0, 'Wc': 0.8}."""
+    out: dict[str, float] = {}
+    for item in filter(None, (part.strip() for part in (text or "").split(","))):
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"{what} {item!r}: expected NAME=VALUE")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"{what} {item!r}: {value!r} is not a number") from None
+    return out
+
+
+def _parse_window(case, text: str):
+    import pandas as pd
+
+    named = {w.name: (w.start, w.end) for w in case.spec.windows}
+    if text in named:
+        a, b = named[text]
+    else:
+        first, sep, second = text.partition("/")
+        if not sep:
+            known = ", ".join(named) or "none"
+            raise ValueError(f"--window {text!r}: expected START/END (e.g. 2010-09-27/2010-10-04) or a window of "
+                             f"the case ({known})")
+        try:
+            a, b = pd.Timestamp(first), pd.Timestamp(second)
+        except ValueError:
+            raise ValueError(f"--window {text!r}: not two dates START/END") from None
+    a = pd.Timestamp(a).tz_localize("UTC") if pd.Timestamp(a).tzinfo is None else pd.Timestamp(a).tz_convert("UTC")
+    b = pd.Timestamp(b).tz_localize("UTC") if pd.Timestamp(b).tzinfo is None else pd.Timestamp(b).tz_convert("UTC")
+    if not b > a:
+        raise ValueError(f"--window {text!r}: the end is not after the start")
+    if a < case.start or b > case.end:
+        raise ValueError(f"--window {text!r}: lies outside the case period {case.start} .. {case.end}")
+    return a, b
+
+
+def _select_parameters(case, names: str, start: dict[str, float], bounds: list[str]):
+    from rivercal.parameters import ParameterSet
+
+    wanted = [n.strip() for n in names.split(",") if n.strip()]
+    if not wanted:
+        raise ValueError("--params: give at least one parameter name")
+    known = {p.name: p for p in case.spec.parameters}
+    for n in wanted:
+        if n not in known:
+            raise ValueError(f"--params: unknown parameter {n!r}; the case defines {', '.join(known) or 'none'}")
+    updates: dict[str, dict[str, float]] = {n: {} for n in wanted}
+    for item in bounds:
+        name, sep, rng = item.partition("=")
+        low, colon, high = rng.partition(":")
+        if not sep or not colon or name not in updates:
+            raise ValueError(f"--bounds {item!r}: expected NAME=MIN:MAX for a parameter in --params")
+        try:
+            updates[name].update(min=float(low), max=float(high))
+        except ValueError:
+            raise ValueError(f"--bounds {item!r}: MIN and MAX must be numbers") from None
+        if not updates[name]["min"] < updates[name]["max"]:
+            raise ValueError(f"--bounds {item!r}: min must be below max")
+    for name, value in start.items():
+        if name not in updates:
+            raise ValueError(f"--start {name}={value}: {name!r} is not in --params")
+        updates[name]["initial"] = value
+    chosen = []
+    for n in wanted:
+        p = known[n]
+        merged = {**p.model_dump(), **updates[n]}
+        lo, hi, x0 = merged["min"], merged["max"], merged["initial"]
+        if not lo <= x0 <= hi:
+            raise ValueError(f"parameter {n}: start value {x0:g} lies outside its bounds [{lo:g}, {hi:g}]")
+        chosen.append(type(p).model_validate(merged))
+    return ParameterSet(chosen)
+
+
+@app.command()
+@_guard
+def calibrate(
+    case: CaseArg,
+    params: Annotated[str, typer.Option("--params", help="Parameters to estimate, e.g. FA,Wc (defined by the case).")],
+    window: Annotated[str, typer.Option(help="START/END (UTC dates) or a window of the case (e.g. moderate).")],
+    observations: Annotated[Path | None, typer.Option(
+        help="Observation CSV (time + '<station>.<quantity>' columns).")] = None,
+    twin: Annotated[str | None, typer.Option(help="Twin experiment: true values, e.g. 'FA=20,Wc=0.8'.")] = None,
+    start: Annotated[str | None, typer.Option(help="Start values, e.g. 'FA=14,Wc=0.1' (default: the case's).")] = None,
+    bounds: Annotated[list[str], typer.Option("--bounds", help="Override bounds NAME=MIN:MAX; repeatable.")] = [],  # noqa: B006
+    algorithm: Annotated[str | None, typer.Option(help="Optimiser (default: the case's, usually dud).")] = None,
+    option: Annotated[list[str], typer.Option("--option", help="Optimiser option KEY=VALUE; repeatable.")] = [],  # noqa: B006
+    noise: Annotated[str, typer.Option(help="Twin noise: none, white, gaussian or pink.")] = "none",
+    seed: Annotated[int, typer.Option(help="Seed of the twin noise.")] = 0,
+    warmup: Annotated[float, typer.Option(help="Hours simulated before the window in every run.")] = 24.0,
+    workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
+    max_nfev: Annotated[int | None, typer.Option("--max-nfev", help="Cap on model runs.")] = None,
+    deadline: Annotated[float | None, typer.Option(help="Wall-clock limit, s.")] = None,
+    on_failure: Annotated[str, typer.Option(help="Failed model run: raise or penalty.")] = "raise",
+    out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/calibrate"),
+    as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
+) -> None:
+    """Estimate parameters from observations (or a twin experiment) over a window."""
+    import json as _json
+
+    import pandas as pd
+
+    from rivercal.io.observations import read_observations_csv
+    from rivercal.model import load_model
+    from rivercal.optimise import OPTIMISERS
+    from rivercal.problem import CalibrationProblem
+    from rivercal.problem import calibrate as run_calibration
+    from rivercal.report.figures import plot_convergence, plot_cost
+    from rivercal.twin import NOISE_MODELS, twin_truth
+
+    # -- everything is checked before the first model run
+    if (observations is None) == (twin is None):
+        raise ValueError("give either --observations FILE or --twin 'NAME=VALUE,...'")
+    if noise not in NOISE_MODELS:
+        raise ValueError(f"--noise {noise!r}: choose one of {', '.join(NOISE_MODELS)}")
+    if observations is not None and noise != "none":
+        raise ValueError("--noise applies to twin experiments only")
+    sim = load_model(case)
+    c = sim.case
+    algo = algorithm or c.spec.calibration.algorithm
+    if algo not in OPTIMISERS:
+        raise ValueError(f"--algorithm {algo!r}: choose one of {', '.join(sorted(OPTIMISERS))}")
+    opts = dict(c.spec.calibration.options) if algo == c.spec.calibration.algorithm else {}
+    opts.update(_parse_assignments(",".join(option), "--option"))
+    pset = _select_parameters(c, params, _parse_assignments(start, "--start"), bounds)
+    win = _parse_window(c, window)
+    truth_values = _parse_assignments(twin, "--twin") if twin else {}
+    for name in truth_values:
+        if name not in pset.names:
+            raise ValueError(f"--twin {name}: {name!r} is not in --params")
+    for p in pset:
+        if p.name in truth_values and not p.min <= truth_values[p.name] <= p.max:
+            raise ValueError(f"--twin {p.name}={truth_values[p.name]:g}: outside its bounds [{p.min:g}, {p.max:g}]")
+    obs = read_observations_csv(observations) if observations is not None else None
+    if obs is not None:
+        obs = obs.within(*win)
+        if obs.n_values == 0:
+            raise ValueError(f"{observations}: no observations in the window {win[0]} .. {win[1]}")
+
+    # -- runs
+    status = err_console.status("calibrating", spinner="dots") if not (quiet or as_json) else _null()
+    state = None
+    truth_q = None
+    with status as live:
+        if twin:
+            truth_q = pset.quantities({p.name: truth_values.get(p.name, p.initial) for p in pset})
+            tw = twin_truth(sim, truth_q, win, warmup=pd.Timedelta(hours=warmup), noise=noise, seed=seed)
+            obs, state = tw.observations, tw.state
+        problem = CalibrationProblem(sim, pset, obs, win, state=state, warmup=pd.Timedelta(hours=warmup),
+                                     on_failure=on_failure)
+
+        def progress(record) -> None:
+            if live is not None and hasattr(live, "update"):
+                values = ", ".join(f"{k}={v:.4g}" for k, v in pset.values(record.x).items())
+                live.update(f"iteration {record.nit}: cost {record.cost:.4g}, {record.nfev} runs, {values}")
+
+        cal = run_calibration(problem, algo, opts, workers=workers, max_nfev=max_nfev, deadline=deadline,
+                              callback=progress)
+    out.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(cal.history).to_csv(out / "history.csv", index=False)
+    evals = [{"run": i + 1, "cost": cost, **pset.values(x)} for i, (x, cost) in enumerate(cal.result.evaluations)]
+    pd.DataFrame(evals).to_csv(out / "evaluations.csv", index=False)
+    files = {"history": str(out / "history.csv"), "evaluations": str(out / "evaluations.csv")}
+    if cal.history:
+        units = {p.name: p.unit for p in pset}
+        title = f"{c.name}: {algo}, window {win[0]:%Y-%m-%d}..{win[1]:%Y-%m-%d}"
+        files["convergence"] = str(plot_convergence(cal.history, pset.names, out / "convergence.png",
+                                                    truth=truth_values or None, units=units, title=title))
+        files["cost"] = str(plot_cost(cal.history, out / "cost.png", title=f"{c.name}: cost per iteration"))
+    summary = {"case": c.name, "window": [win[0].isoformat(), win[1].isoformat()],
+               "observations": {"series": len(problem.observations), "values": problem.observations.n_values,
+                                "missing_dropped": problem.observations.n_missing},
+               **cal.summary(), "files": files}
+    if twin:
+        summary["truth"] = truth_values
+        summary["error"] = {n: cal.estimates[n] - truth_values[n] for n in truth_values}
+    (out / "result.json").write_text(_json.dumps(summary, indent=2, default=float) + "\n", encoding="utf-8")
+    if as_json:
+        _emit_json(summary)
+        return
+    if quiet:
+        return
+    table = Table(title=f"{c.name}: {algo} over {win[0]:%Y-%m-%d %H:%M} .. {win[1]:%Y-%m-%d %H:%M}")
+    for col in ("parameter", "start", "estimate", "std", *(["true"] if twin else [])):
+        table.add_column(col, justify="right" if col != "parameter" else "left")
+    for p in pset:
+        row = [p.name, f"{cal.initial[p.name]:.4f}", f"{cal.estimates[p.name]:.4f}",
+               f"{cal.std[p.name]:.2g}" if p.name in cal.std else "-"]
+        if twin:
+            row.append(f"{truth_values.get(p.name, float('nan')):.4f}")
+        table.add_row(*row)
+    out_console.print(table)
+    r = cal.result
+    out_console.print(f"cost {r.cost:.4g} after {r.nit} iterations, {r.nfev} model runs, {cal.wall_time:.1f} s; "
+                      f"{r.message}" + (" [aborted]" if r.aborted else ""))
+    out_console.print("wrote " + ", ".join(files.values()))
+
+
 # -- bench --------------------------------------------------------------------------------------
 
 

@@ -148,3 +148,47 @@ def plot_series(series: pd.DataFrame, path: str | Path, *, title: str = "") -> P
     plt.close(fig)
     return path
 
+
+
+def plot_convergence(history: list[dict], names: list[str], path: str | Path, *, truth: dict | None = None,
+                     units: dict | None = None, title: str = "") -> Path:
+    """Parameter values per iteration (thesis Fig. 4-8), with the true values dashed when known."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(names), 1, figsize=(7, 2.2 * len(names) + 0.6), sharex=True, squeeze=False)
+    it = [h["iteration"] for h in history]
+    for ax, name in zip(axes[:, 0], names, strict=True):
+        ax.plot(it, [h[name] for h in history], "o-", color="#2b6cb0")
+        if truth and name in truth:
+            ax.axhline(truth[name], ls="--", color="#c53030", label="true value")
+            ax.legend(fontsize=8)
+        ax.set_ylabel(f"{name} ({(units or {}).get(name, '')})".replace(" ()", ""))
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("iteration")
+    fig.suptitle(title or "parameter convergence")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_cost(history: list[dict], path: str | Path, *, title: str = "") -> Path:
+    """Cost per iteration on a log scale (thesis Fig. 4-9), with the linearised cost where the method has one."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    it = [h["iteration"] for h in history]
+    ax.semilogy(it, [max(h["cost"], 1e-16) for h in history], "o-", color="#2b6cb0", label="cost S")
+    lin = [h.get("linear_cost", np.nan) for h in history]
+    if np.isfinite(lin).any():
+        ax.semilogy(it, [max(v, 1e-16) if np.isfinite(v) else np.nan for v in lin], "x--", color="#dd6b20",
+                    label="linearised cost")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("cost (Eq. 2-3, -)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax.set_title(title or "cost per iteration")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

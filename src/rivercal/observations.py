@@ -1,0 +1,173 @@
+"""Observation series: what was measured, when, and how much each value counts.
+
+An :class:`ObservationSeries` is named like the simulated series it is compared with,
+``"<station>.<quantity>"`` (quantity ``h``, ``h_up``, ``h_down`` in m AD, ``Q`` in m³/s). Its values
+are at UTC times; missing values (NaN) are dropped when the series is made and counted in
+``n_missing``, never treated as zero. Each series has a weight per thesis Eq. 2-3: either a standard
+deviation σ (W = 1/σ²) or, when σ is None, the weight of thesis Eq. 2-6, W = 1/Δŷ²_max, where Δŷ_max is
+the largest absolute difference between the observations and a prior simulation (set by the
+calibration problem from its first run).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["DEFAULT_SIGMA", "ObservationSeries", "ObservationSet"]
+
+#: Default standard deviations by quantity: ±2.5 cm for levels and ±0.1 m³/s for discharges, the noise
+#: amplitudes of the reference study's twin experiments (thesis §4-2-3).
+DEFAULT_SIGMA = {"h": 0.025, "h_up": 0.025, "h_down": 0.025, "Q": 0.1}
+QUANTITIES = ("h", "h_up", "h_down", "Q")
+
+
+@dataclass(frozen=True)
+class ObservationSeries:
+    """One observed series.
+
+    Attributes
+    ----------
+    id
+        ``"<station>.<quantity>"``.
+    times
+        UTC times (DatetimeIndex, strictly increasing), without the missing values.
+    values
+        Observed values, m AD (levels) or m³/s (discharges); finite.
+    sigma
+        Standard deviation, same unit as the values, or None for the thesis Eq. 2-6 weight.
+    n_missing
+        Number of missing values that were dropped.
+    source
+        Where the values came from (file, twin truth, ...), for reports.
+    """
+
+    id: str
+    times: pd.DatetimeIndex
+    values: np.ndarray
+    sigma: float | None = None
+    n_missing: int = 0
+    source: str = ""
+
+    @classmethod
+    def from_series(cls, series: pd.Series, *, id: str | None = None, sigma: float | None = None,
+                    source: str = "") -> ObservationSeries:
+        """Make a series from a pandas Series indexed by time, dropping (and counting) missing values.
+
+        Raises
+        ------
+        ValueError
+            For a bad id, a non-increasing or non-UTC-convertible index, or a non-positive σ.
+        """
+        name = id or str(series.name)
+        station, _, quantity = name.rpartition(".")
+        if not station or quantity not in QUANTITIES:
+            raise ValueError(f"observation id {name!r} must be '<station>.<quantity>' with quantity one of "
+                             f"{', '.join(QUANTITIES)}")
+        if sigma is not None and not sigma > 0:
+            raise ValueError(f"{name}: sigma must be positive, got {sigma}")
+        index = pd.DatetimeIndex(series.index)
+        index = index.tz_localize("UTC") if index.tz is None else index.tz_convert("UTC")
+        values = pd.to_numeric(pd.Series(series.to_numpy()), errors="coerce").to_numpy(dtype=float)
+        if index.has_duplicates or not index.is_monotonic_increasing:
+            raise ValueError(f"{name}: times must be strictly increasing")
+        keep = np.isfinite(values)
+        return cls(id=name, times=index[keep], values=values[keep], sigma=sigma,
+                   n_missing=int((~keep).sum()), source=source)
+
+    @property
+    def station(self) -> str:
+        """Station id."""
+        return self.id.rpartition(".")[0]
+
+    @property
+    def quantity(self) -> str:
+        """Quantity: ``h``, ``h_up``, ``h_down`` or ``Q``."""
+        return self.id.rpartition(".")[2]
+
+    def __len__(self) -> int:
+        return int(self.values.size)
+
+    def within(self, start: pd.Timestamp, end: pd.Timestamp) -> ObservationSeries:
+        """The part of the series in [start, end]."""
+        keep = (self.times >= start) & (self.times <= end)
+        return replace(self, times=self.times[keep], values=self.values[keep])
+
+    def to_series(self) -> pd.Series:
+        """As a pandas Series (m AD or m³/s) indexed by UTC time."""
+        return pd.Series(self.values, index=self.times, name=self.id)
+
+
+@dataclass(frozen=True)
+class ObservationSet:
+    """Observation series by id, in a fixed order (the order of the residual vector).
+
+    Attributes
+    ----------
+    series
+        The series.
+    """
+
+    series: tuple[ObservationSeries, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        ids = [s.id for s in self.series]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"duplicate observation series in {ids}")
+
+    @classmethod
+    def from_frame(cls, frame: pd.DataFrame, *, sigma: Mapping[str, float | None] | None = None,
+                   source: str = "") -> ObservationSet:
+        """One series per column ``"<station>.<quantity>"`` of a frame indexed by time.
+
+        ``sigma`` maps a series id or a quantity (``h``, ``Q``, ...) to σ; default :data:`DEFAULT_SIGMA`.
+        """
+        sigma = dict(sigma if sigma is not None else DEFAULT_SIGMA)
+        out = []
+        for col in frame.columns:
+            quantity = str(col).rpartition(".")[2]
+            s = sigma.get(str(col), sigma.get(quantity))
+            out.append(ObservationSeries.from_series(frame[col], id=str(col), sigma=s, source=source))
+        return cls(tuple(out))
+
+    def __iter__(self) -> Iterator[ObservationSeries]:
+        return iter(self.series)
+
+    def __len__(self) -> int:
+        return len(self.series)
+
+    def __getitem__(self, series_id: str) -> ObservationSeries:
+        for s in self.series:
+            if s.id == series_id:
+                return s
+        raise KeyError(f"no observation series {series_id!r} (have: {', '.join(self.ids)})")
+
+    @property
+    def ids(self) -> list[str]:
+        """Series ids in order."""
+        return [s.id for s in self.series]
+
+    @property
+    def n_values(self) -> int:
+        """Total number of observed values."""
+        return sum(len(s) for s in self.series)
+
+    @property
+    def n_missing(self) -> int:
+        """Total number of dropped missing values."""
+        return sum(s.n_missing for s in self.series)
+
+    def within(self, start: pd.Timestamp, end: pd.Timestamp) -> ObservationSet:
+        """The parts of all series in [start, end]."""
+        return ObservationSet(tuple(s.within(start, end) for s in self.series))
+
+    def select(self, ids: Iterable[str]) -> ObservationSet:
+        """The series with these ids, in this order."""
+        return ObservationSet(tuple(self[i] for i in ids))
+
+    def to_frame(self) -> pd.DataFrame:
+        """All series as one frame (outer join on time; NaN where a series has no value)."""
+        return pd.concat([s.to_series() for s in self.series], axis=1) if self.series else pd.DataFrame()

@@ -1,0 +1,353 @@
+"""The calibration problem: a model, parameters, observations and a window → weighted residuals.
+
+:class:`CalibrationProblem` turns the optimiser's vector x into model quantities
+(:class:`~rivercal.parameters.ParameterSet`), runs any model that follows the model protocol of
+DESIGN.md::
+
+    model.simulate(parameters, start, end, state=None) -> (SimulationResult, EngineState)
+
+over the window (after a warm-up that lets the state adjust to the candidate parameters), and returns
+the weighted residuals of thesis Eq. 2-3, r = √W (y − ŷ), so that the cost is S(θ) = Σ rᵀ r:
+
+- W = 1/σ² per series, or thesis Eq. 2-6, W = 1/Δŷ²_max, with Δŷ_max the largest absolute
+  difference between the observations and the run at the initial parameters (for series without σ);
+- simulated series are interpolated linearly to the observation times (observations between output
+  times are not rejected); missing observations were dropped when the series were made.
+
+A model run that fails (diverges, raises a :class:`~rivercal.errors.ModelRunError`, or returns
+non-finite values) follows an explicit policy: ``raise`` re-raises it; ``penalty`` logs it and returns
+residuals whose cost is the ``penalty`` value, so that an optimiser steers away from that point.
+
+:func:`calibrate` runs an optimiser of :mod:`rivercal.optimise` on a problem, with its batches on an
+:class:`~rivercal.evaluate.Evaluator`, and reports the estimates in physical units.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal, Protocol
+
+import numpy as np
+import pandas as pd
+
+from rivercal.errors import ModelRunError
+from rivercal.evaluate import Evaluator
+from rivercal.observations import ObservationSet
+from rivercal.optimise import IterationRecord, OptimiseResult, get_optimiser
+from rivercal.parameters import ParameterSet
+
+__all__ = ["Calibration", "CalibrationProblem", "CostBreakdown", "Model", "calibrate"]
+
+log = logging.getLogger(__name__)
+
+#: Floor of Δŷ_max in thesis Eq. 2-6 (m or m³/s), so that a series the prior run already fits exactly
+#: does not get an infinite weight.
+MIN_MAX_DEVIATION = 1e-3
+
+
+class Model(Protocol):
+    """The model protocol (DESIGN.md): what the calibration core sees of any hydrodynamic model."""
+
+    observables: list[str]
+
+    def simulate(self, parameters: Mapping[str, float], start: Any = None, end: Any = None,
+                 state: Any = None) -> tuple[Any, Any]:
+        """Run from ``start`` to ``end`` with model quantities ``parameters``; return (result, state)."""
+        ...
+
+
+@dataclass(frozen=True)
+class CostBreakdown:
+    """Cost of one parameter vector (thesis Eq. 2-3): total, per series and per station.
+
+    Attributes
+    ----------
+    total
+        S(θ), dimensionless (weighted squared residuals).
+    by_series, by_station
+        Contributions by series id and by station id.
+    """
+
+    total: float
+    by_series: dict[str, float]
+    by_station: dict[str, float]
+
+
+class CalibrationProblem:
+    """Weighted residuals of a model against observations over a window.
+
+    Parameters
+    ----------
+    model
+        A model following the model protocol (e.g. :class:`~rivercal.engine.Simulator`).
+    parameters
+        The parameters to estimate, in vector order.
+    observations
+        The observations; only their values inside the window count.
+    window
+        (start, end) of the calibration window (UTC).
+    state
+        Model state at ``start - warmup``; None: computed by a run at the initial parameters from the
+        model's own start (cold start and spin-up) up to there.
+    warmup
+        Simulated time before the window that each run lets the state adjust to the candidate
+        parameters; its residuals do not count.
+    fixed
+        Model quantities held at given values during the calibration (e.g. the other parameters of a
+        twin experiment).
+    on_failure
+        ``raise`` or ``penalty`` (see the module docstring).
+    penalty
+        Cost of a failed run under the ``penalty`` policy.
+
+    Raises
+    ------
+    ValueError
+        When a series is not simulated by the model, the window holds no observation, or an option is
+        invalid — before any model run.
+    """
+
+    def __init__(self, model: Model, parameters: ParameterSet, observations: ObservationSet,
+                 window: tuple[Any, Any], *, state: Any = None, warmup: pd.Timedelta | str = "24h",
+                 fixed: Mapping[str, float] | None = None, on_failure: Literal["raise", "penalty"] = "raise",
+                 penalty: float = 1e8):
+        if on_failure not in ("raise", "penalty"):
+            raise ValueError(f"on_failure must be 'raise' or 'penalty', got {on_failure!r}")
+        if not penalty > 0:
+            raise ValueError(f"penalty must be positive, got {penalty}")
+        if len(parameters) == 0:
+            raise ValueError("no parameters to calibrate")
+        self.model = model
+        self.parameters = parameters
+        self.start, self.end = (_utc(window[0]), _utc(window[1]))
+        if not self.end > self.start:
+            raise ValueError(f"the window end {self.end} is not after its start {self.start}")
+        self.warmup = pd.Timedelta(warmup)
+        self.fixed = dict(fixed or {})
+        self.on_failure = on_failure
+        self.penalty = float(penalty)
+        unknown = [s for s in observations.ids if s not in model.observables]
+        if unknown:
+            raise ValueError(f"observation series {unknown[0]!r} is not simulated by the model "
+                             f"(it simulates: {', '.join(model.observables)})")
+        clash = sorted(set(self.fixed) & set(parameters.quantities({})))
+        if clash:
+            raise ValueError(f"{clash[0]} is both fixed and calibrated")
+        self.observations = ObservationSet(tuple(s for s in observations.within(self.start, self.end) if len(s)))
+        if self.observations.n_values == 0:
+            raise ValueError(f"the window {self.start} .. {self.end} holds no observations")
+        self.run_start = self.start - self.warmup
+        self._state = state
+        self._sqrt_w: np.ndarray | None = None
+        self.n_runs = 0
+
+    # -- vectors ------------------------------------------------------------------------------------
+
+    @property
+    def x0(self) -> np.ndarray:
+        """Initial optimiser vector."""
+        return self.parameters.to_x()
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the optimiser vector."""
+        return self.parameters.bounds()
+
+    def quantities(self, x: np.ndarray) -> dict[str, float]:
+        """Model quantities for optimiser vector ``x`` (plus the fixed ones)."""
+        return {**self.fixed, **self.parameters.quantities(self.parameters.values(x))}
+
+    # -- state and weights --------------------------------------------------------------------------
+
+    @property
+    def state(self) -> Any:
+        """Model state at the start of each run (computed on first use)."""
+        if self._state is None:
+            log.info("computing the start state at %s with the initial parameters", self.run_start)
+            _, self._state = self.model.simulate(self.quantities(self.x0), end=self.run_start)
+        return self._state
+
+    def _weights(self, predictions: dict[str, np.ndarray]) -> np.ndarray:
+        parts = []
+        for s in self.observations:
+            if s.sigma is not None:
+                w = 1.0 / s.sigma
+            else:  # thesis Eq. 2-6 from the prior run
+                w = 1.0 / max(float(np.max(np.abs(s.values - predictions[s.id]))), MIN_MAX_DEVIATION)
+            parts.append(np.full(len(s), w))
+        return np.concatenate(parts)
+
+    @property
+    def sqrt_weights(self) -> np.ndarray:
+        """√W of every residual (1/σ, or 1/Δŷ_max of thesis Eq. 2-6 from the run at x0)."""
+        if self._sqrt_w is None:
+            if all(s.sigma is not None for s in self.observations):
+                self._sqrt_w = self._weights({})
+            else:
+                self._sqrt_w = self._weights(self.predictions(self.simulate(self.x0)))
+        return self._sqrt_w
+
+    # -- running -------------------------------------------------------------------------------------
+
+    def simulate(self, x: np.ndarray, *, end: pd.Timestamp | None = None) -> Any:
+        """Run the model for ``x`` over warm-up and window (or up to ``end``); return the SimulationResult."""
+        self.n_runs += 1
+        result, _ = self.model.simulate(self.quantities(np.asarray(x, dtype=float)), start=self.run_start,
+                                        end=end or self.end, state=self.state)
+        return result
+
+    def predictions(self, result: Any) -> dict[str, np.ndarray]:
+        """Simulated values at the observation times, by series id (linear interpolation in time)."""
+        series = result.series
+        t = (series.index - self.run_start).total_seconds().to_numpy()
+        out = {}
+        for s in self.observations:
+            ts = (s.times - self.run_start).total_seconds().to_numpy()
+            out[s.id] = np.interp(ts, t, series[s.id].to_numpy())
+        return out
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """Weighted residuals √W (y − ŷ(x)), concatenated in the order of :attr:`observations`."""
+        sqrt_w = self.sqrt_weights
+        try:
+            pred = self.predictions(self.simulate(x))
+            r = np.concatenate([s.values - pred[s.id] for s in self.observations]) * sqrt_w
+            if not np.all(np.isfinite(r)):
+                raise ModelRunError(f"the model returned non-finite values for {self._describe(x)}")
+        except ModelRunError as exc:
+            if self.on_failure == "raise":
+                raise
+            log.warning("model run failed for %s (%s); penalty policy: cost %g", self._describe(x), exc, self.penalty)
+            return np.full(sqrt_w.size, math.sqrt(self.penalty / sqrt_w.size))
+        return r
+
+    def cost(self, x: np.ndarray) -> float:
+        """S(x) = Σ r² (thesis Eq. 2-3)."""
+        r = self.residuals(x)
+        return float(r @ r)
+
+    def cost_breakdown(self, x: np.ndarray) -> CostBreakdown:
+        """S(x) in total, per series and per station."""
+        r = self.residuals(x)
+        by_series, i = {}, 0
+        for s in self.observations:
+            by_series[s.id] = float(r[i:i + len(s)] @ r[i:i + len(s)])
+            i += len(s)
+        by_station: dict[str, float] = {}
+        for sid, c in by_series.items():
+            by_station[sid.rpartition(".")[0]] = by_station.get(sid.rpartition(".")[0], 0.0) + c
+        return CostBreakdown(total=float(r @ r), by_series=by_series, by_station=by_station)
+
+    def _describe(self, x: np.ndarray) -> str:
+        return ", ".join(f"{k}={v:.6g}" for k, v in self.parameters.values(x).items())
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The outcome of :func:`calibrate`.
+
+    Attributes
+    ----------
+    result
+        The optimiser's :class:`~rivercal.optimise.OptimiseResult` (optimiser coordinates).
+    estimates
+        Estimated values by parameter name, physical units.
+    std
+        Standard deviations by name in physical units (thesis Eq. 2-12), where the method gives them.
+    initial
+        Initial values by name.
+    wall_time
+        Wall-clock time of the optimisation, s.
+    algorithm
+        Optimiser name.
+    """
+
+    result: OptimiseResult
+    estimates: dict[str, float]
+    std: dict[str, float]
+    initial: dict[str, float]
+    wall_time: float
+    algorithm: str
+    history: list[dict[str, float]] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        """A JSON-friendly summary."""
+        r = self.result
+        return {
+            "algorithm": self.algorithm,
+            "estimates": self.estimates,
+            "std": self.std,
+            "initial": self.initial,
+            "cost": r.cost,
+            "iterations": r.nit,
+            "model_runs": r.nfev,
+            "wall_s": round(self.wall_time, 3),
+            "status": r.status,
+            "message": r.message,
+            "success": r.success,
+            "aborted": r.aborted,
+        }
+
+
+def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapping[str, Any] | None = None, *,
+              workers: int | None = None, max_nfev: int | None = None, deadline: float | None = None,
+              callback: Callable[[IterationRecord], bool | None] | None = None, **extra: Any) -> Calibration:
+    """Run optimiser ``algorithm`` on ``problem``.
+
+    Parameters
+    ----------
+    problem
+        The calibration problem.
+    algorithm
+        A name of :data:`rivercal.optimise.OPTIMISERS`.
+    options
+        Options of the algorithm (a dict of its options dataclass fields). For DuD and Sparse DuD the
+        first perturbations default to the parameters' transforms (thesis Eq. 2-8 / 2-9) and the weak
+        constraint to their ``prior_std`` around the initial values.
+    workers
+        Worker processes for batches (None: all cores; 1: serial).
+    max_nfev, deadline, callback
+        Budget of model runs, wall-clock seconds, abort callback (see :mod:`rivercal.optimise`).
+    extra
+        Further keyword arguments of the optimiser (e.g. ``restart`` for DuD).
+    """
+    optimiser = get_optimiser(algorithm)
+    opts = dict(options or {})
+    if algorithm in ("dud", "sparse_dud"):
+        opts.setdefault("initial_step", problem.parameters.initial_steps())
+        prior = problem.parameters.prior_std()
+        if prior is not None and "prior_std" not in opts:
+            opts["prior_std"] = prior
+            opts.setdefault("prior_mean", problem.x0)
+    lb, ub = problem.bounds
+    x0 = problem.x0
+    problem.state  # noqa: B018 - compute the start state and the weights here, before workers fork
+    problem.sqrt_weights  # noqa: B018
+    t0 = time.perf_counter()
+    with Evaluator(problem.residuals, workers=workers) as batch:
+        result = optimiser(problem.residuals, x0, lb, ub, options=opts, callback=callback, batch=batch,
+                           max_nfev=max_nfev, deadline=deadline, **extra)
+    wall = time.perf_counter() - t0
+    values = problem.parameters.values(result.x)
+    std = {}
+    if result.std is not None:
+        for p, xv, sx in zip(problem.parameters, result.x, result.std, strict=True):
+            std[p.name] = float(math.exp(xv) * sx) if p.transform == "ln" else float(sx)  # delta method for ln
+    history = [{"iteration": rec.nit, "cost": rec.cost, "linear_cost": rec.linear_cost, "nfev": rec.nfev,
+                **problem.parameters.values(rec.x)} for rec in result.history]
+    start_cost = next((c for xe, c in result.evaluations if np.array_equal(xe, x0)), None)
+    if start_cost is not None:  # iteration 0: the start point
+        history.insert(0, {"iteration": 0, "cost": start_cost, "linear_cost": float("nan"), "nfev": 1,
+                           **problem.parameters.values(x0)})
+    return Calibration(result=result, estimates=values, std=std,
+                       initial=problem.parameters.values(x0), wall_time=wall, algorithm=algorithm, history=history)
+
+
+def _utc(value: Any) -> pd.Timestamp:
+    ts = pd.Timestamp(value)
+    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+
