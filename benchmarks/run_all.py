@@ -15,6 +15,9 @@ from pathlib import Path
 BENCHMARKS = {
     "engine": ["bench", "engine", "--json"],
     "engine-dommel": ["bench", "engine", "--case", "dommel", "--json"],
+    "calibrate-dud": ["bench", "calibrate", "--algorithms", "dud", "--json"],
+    "calibrate-all": ["bench", "calibrate", "--json"],
+    "hupsel": ["bench", "hupsel", "--json"],
 }
 
 

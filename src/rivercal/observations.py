@@ -170,4 +170,4 @@ class ObservationSet:
 
     def to_frame(self) -> pd.DataFrame:
         """All series as one frame (outer join on time; NaN where a series has no value)."""
-        return pd.concat([s.to_series() for s in self.series], axis=1) if self.series else pd.DataFrame()
+        return pd.concat([s.to_series() for s in self.series], axis=1, sort=True) if self.series else pd.DataFrame()

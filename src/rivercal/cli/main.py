@@ -332,8 +332,9 @@ def calibrate(
 
     import pandas as pd
 
+    from rivercal.case import load_case
     from rivercal.io.observations import read_observations_csv
-    from rivercal.model import load_model
+    from rivercal.model import build_model
     from rivercal.optimise import OPTIMISERS
     from rivercal.problem import CalibrationProblem
     from rivercal.problem import calibrate as run_calibration
@@ -347,8 +348,7 @@ def calibrate(
         raise ValueError(f"--noise {noise!r}: choose one of {', '.join(NOISE_MODELS)}")
     if observations is not None and noise != "none":
         raise ValueError("--noise applies to twin experiments only")
-    sim = load_model(case)
-    c = sim.case
+    c = load_case(case)
     algo = algorithm or c.spec.calibration.algorithm
     if algo not in OPTIMISERS:
         raise ValueError(f"--algorithm {algo!r}: choose one of {', '.join(sorted(OPTIMISERS))}")
@@ -368,8 +368,13 @@ def calibrate(
         obs = obs.within(*win)
         if obs.n_values == 0:
             raise ValueError(f"{observations}: no observations in the window {win[0]} .. {win[1]}")
+        unknown = [s for s in obs.ids if s not in c.network.observables]
+        if unknown:
+            raise ValueError(f"{observations}: series {unknown[0]!r} is not simulated by case {c.name!r} "
+                             f"(it simulates {', '.join(c.network.observables)})")
 
     # -- runs
+    sim = build_model(c)
     status = err_console.status("calibrating", spinner="dots") if not (quiet or as_json) else _null()
     state = None
     truth_q = None
@@ -450,6 +455,51 @@ def bench_engine_cmd(
     for key, value in result.items():
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out_console.print(table)
+
+
+@bench_app.command("calibrate")
+@_guard
+def bench_calibrate_cmd(
+    algorithms: Annotated[str | None, typer.Option(help="Comma-separated algorithms (default: all).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """FaWc twin calibration of the default case (truth 20/0.8, start 14/0.1, moderate window) per algorithm."""
+    from rivercal.bench.calibrate import bench_calibrate
+
+    names = [a.strip() for a in algorithms.split(",")] if algorithms else None
+    result = bench_calibrate(names, workers=workers)
+    if as_json:
+        _emit_json(result)
+        return
+    table = Table(title="FaWc twin calibration (truth FA=20, Wc=0.8; start 14, 0.1; moderate window)")
+    for col in ("algorithm", "runs", "iterations", "wall s", "FA", "Wc", "ΔFA", "ΔWc"):
+        table.add_column(col, justify="right")
+    for r in result["results"]:
+        table.add_row(r["algorithm"], str(r["model_runs"]), str(r["iterations"]), f"{r['wall_s']:.2f}",
+                      f"{r['fa']:.4f}", f"{r['wc']:.5f}", f"{r['error_fa']:+.1e}", f"{r['error_wc']:+.1e}")
+    out_console.print(table)
+
+
+@bench_app.command("hupsel")
+@_guard
+def bench_hupsel_cmd(as_json: JsonOpt = False) -> None:
+    """Calibrate the rainfall-runoff model on Hupsel 2011/12, validate on 2012/13: DuD, LM, Nelder-Mead, SCE-UA."""
+    from rivercal.bench.hupsel import HUPSEL_METHODS, calibrate_hupsel
+
+    rows = [calibrate_hupsel(m).to_dict() for m in HUPSEL_METHODS]
+    if as_json:
+        _emit_json({"hupsel": rows})
+        return
+    table = Table(title="Hupsel Brook: calibration 2011-04..2012-03, validation 2012-04..2013-03")
+    for col in ("method", "runs", "wall s", "NSE cal", "NSE val", "KGE cal", "KGE val"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        table.add_row(r["method"], str(r["model_runs"]), f"{r['wall_s']:.2f}", f"{r['nse_calibration']:.3f}",
+                      f"{r['nse_validation']:.3f}", f"{r['kge_calibration']:.3f}", f"{r['kge_validation']:.3f}")
+    out_console.print(table)
+    out_console.print(f"a-priori parameters: NSE cal {rows[0]['nse_calibration_default']:.3f}, "
+                      f"val {rows[0]['nse_validation_default']:.3f}")
 
 
 # -- demo ---------------------------------------------------------------------------------------

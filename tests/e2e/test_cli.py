@@ -1,0 +1,66 @@
+"""The command line on the packaged cases: JSON output, files, exit codes, error messages."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+
+def rivercal(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
+
+
+def test_case_schema_is_json_schema() -> None:
+    run = rivercal("case", "schema")
+    assert run.returncode == 0
+    schema = json.loads(run.stdout)
+    assert {"case", "branches", "weirs", "parameters", "catchments"} <= set(schema["properties"])
+
+
+def test_simulate_writes_csv_and_cf_netcdf(tmp_path: Path) -> None:
+    import xarray as xr
+
+    run = rivercal("simulate", "synthetic", "--end", "2020-01-02T00:00:00Z", "--set", "friction:global=30",
+                   "--out", str(tmp_path), "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["parameters"] == {"friction:global": 30.0}
+    assert summary["volume_balance_relative_error"] < 1e-9
+    ds = xr.open_dataset(tmp_path / "series.nc")
+    assert ds.attrs["Conventions"] == "CF-1.8"
+    assert ds["water_level"].attrs["units"] == "m" and ds["discharge"].attrs["units"] == "m3 s-1"
+    assert ds.sizes["time"] == 25
+    csv = (tmp_path / "series.csv").read_text().splitlines()
+    assert csv[0].startswith("time,S1.h_up") and len(csv) == 26
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["simulate", "no-such-case"], "neither a case folder nor a packaged case"),
+    (["simulate", "synthetic", "--set", "weir:W99.crest_level=3"], "no weir 'W99'"),
+    (["simulate", "synthetic", "--set", "friction:global=0.03"], "outside the plausible range"),
+    (["calibrate", "dommel", "--params", "FA,Wx", "--window", "moderate", "--twin", "FA=20"], "unknown parameter 'Wx'"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "moderate", "--twin", "FA=20", "--start", "FA=99"],
+     "outside its bounds"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2011-01-01/2011-01-08", "--twin", "FA=20"],
+     "outside the case period"),
+])
+def test_bad_input_exits_2_with_a_message(args: list[str], message: str) -> None:
+    run = rivercal(*args)
+    assert run.returncode == 2
+    assert message in run.stderr and "Traceback" not in run.stderr
+
+
+@pytest.mark.slow
+def test_calibrate_twin_json_and_files(tmp_path: Path) -> None:
+    run = rivercal("calibrate", "dommel", "--params", "FA", "--window", "moderate", "--twin", "FA=20",
+                   "--start", "FA=14", "--workers", "1", "--out", str(tmp_path), "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert abs(summary["estimates"]["FA"] - 20.0) < 0.01
+    assert summary["model_runs"] <= 15 and summary["success"]
+    for name in ("history.csv", "evaluations.csv", "convergence.png", "cost.png", "result.json"):
+        assert (tmp_path / name).stat().st_size > 0

@@ -1,0 +1,146 @@
+"""The calibration problem with a stub model: any model that follows the protocol can be calibrated."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rivercal.errors import EngineDivergedError
+from rivercal.observations import ObservationSeries, ObservationSet
+from rivercal.parameters import Parameter, ParameterSet
+from rivercal.problem import CalibrationProblem, calibrate
+
+START = pd.Timestamp("2020-01-01", tz="UTC")
+
+
+@dataclass
+class Result:
+    series: pd.DataFrame
+
+
+class LinearReservoirModel:
+    """h(t) = crest + a (1 - exp(-t/τ)), Q = k (h - crest): hourly output; fails when k > 5."""
+
+    observables: ClassVar[list[str]] = ["S.h", "S.Q"]
+
+    def __init__(self):
+        self.runs = 0
+
+    def simulate(self, parameters, start=None, end=None, state=None):
+        self.runs += 1
+        start = START if start is None else start
+        times = pd.date_range(start, end, freq="h")
+        k = parameters.get("friction:global", 1.0)
+        crest = parameters.get("weir:W.crest_level", 10.0)
+        if k > 5.0:
+            raise EngineDivergedError(str(end), "S", "stub failure")
+        t = (times - START).total_seconds().to_numpy() / 3600.0
+        h = crest + 2.0 * (1 - np.exp(-t / 10.0))
+        return Result(pd.DataFrame({"S.h": h, "S.Q": k * (h - crest)}, index=times)), "state"
+
+
+def _params(k0=2.0, crest0=10.2) -> ParameterSet:
+    return ParameterSet([
+        Parameter(name="k", targets=["friction:global"], min=0.5, max=10.0, initial=k0, perturbation=0.5),
+        Parameter(name="crest", targets=["weir:W.crest_level"], min=9.0, max=11.0, initial=crest0, perturbation=0.1),
+    ])
+
+
+def _obs(model, k=3.0, crest=10.0, half_hours=False) -> ObservationSet:
+    truth = {"friction:global": k, "weir:W.crest_level": crest}
+    series = model.simulate(truth, START, START + pd.Timedelta("48h"))[0].series
+    if half_hours:  # observations between the model's output times
+        series = series.resample("30min").interpolate()
+    return ObservationSet.from_frame(series)
+
+
+def test_twin_recovers_the_truth_and_counts_runs() -> None:
+    model = LinearReservoirModel()
+    window = (START + pd.Timedelta("6h"), START + pd.Timedelta("48h"))
+    problem = CalibrationProblem(model, _params(), _obs(model), window, state="s", warmup="6h")
+    assert problem.cost(problem.parameters.to_x({"k": 3.0, "crest": 10.0})) == pytest.approx(0.0, abs=1e-20)
+    result = calibrate(problem, "dud", workers=1)
+    assert result.estimates["k"] == pytest.approx(3.0, abs=1e-6)
+    assert result.estimates["crest"] == pytest.approx(10.0, abs=1e-6)
+    assert result.result.nfev <= 20
+
+
+def test_observations_between_output_times_are_interpolated() -> None:
+    model = LinearReservoirModel()
+    obs = _obs(model, half_hours=True)
+    problem = CalibrationProblem(model, _params(), obs, (START + pd.Timedelta("1h"), START + pd.Timedelta("40h")),
+                                 state="s", warmup="1h")
+    x_true = problem.parameters.to_x({"k": 3.0, "crest": 10.0})
+    r = problem.residuals(x_true)
+    assert r.size == problem.observations.n_values == 2 * (2 * 39 + 1)
+    # the model output is hourly; the half-hour observations are linear interpolations of the same curve
+    assert np.abs(r).max() < 1e-12
+
+
+def test_weights_are_one_over_sigma_or_thesis_eq_2_6() -> None:
+    model = LinearReservoirModel()
+    obs = _obs(model)
+    obs = ObservationSet((obs["S.h"], ObservationSeries(id="S.Q", times=obs["S.Q"].times, values=obs["S.Q"].values,
+                                                       sigma=None)))
+    problem = CalibrationProblem(model, _params(k0=2.0), obs, (START + pd.Timedelta("2h"), START + pd.Timedelta("24h")),
+                                 state="s", warmup="2h")
+    w = problem.sqrt_weights
+    n_h = len(problem.observations["S.h"])
+    np.testing.assert_allclose(w[:n_h], 1 / 0.025)
+    prior = problem.predictions(problem.simulate(problem.x0))["S.Q"]
+    dmax = np.abs(problem.observations["S.Q"].values - prior).max()
+    np.testing.assert_allclose(w[n_h:], 1 / dmax)  # W = 1 / Δŷ²_max
+
+
+def test_cost_breakdown_adds_up() -> None:
+    model = LinearReservoirModel()
+    problem = CalibrationProblem(model, _params(), _obs(model), (START, START + pd.Timedelta("24h")), state="s",
+                                 warmup="0h")
+    b = problem.cost_breakdown(problem.x0)
+    assert b.total == pytest.approx(sum(b.by_series.values()))
+    assert b.by_station == {"S": pytest.approx(b.total)}
+
+
+def test_failure_policy_raise_and_penalty() -> None:
+    model = LinearReservoirModel()
+    obs = _obs(model)
+    window = (START + pd.Timedelta("2h"), START + pd.Timedelta("24h"))
+    x_bad = _params().to_x({"k": 8.0})
+    with pytest.raises(EngineDivergedError):
+        CalibrationProblem(model, _params(), obs, window, state="s", warmup="2h").residuals(x_bad)
+    problem = CalibrationProblem(model, _params(), obs, window, state="s", warmup="2h", on_failure="penalty",
+                                 penalty=1e6)
+    assert problem.cost(x_bad) == pytest.approx(1e6)
+
+
+def test_bad_setups_fail_before_any_model_run() -> None:
+    model = LinearReservoirModel()
+    obs = _obs(model)
+    with pytest.raises(ValueError, match="holds no observations"):
+        CalibrationProblem(model, _params(), obs, (START + pd.Timedelta("100h"), START + pd.Timedelta("120h")))
+    with pytest.raises(ValueError, match="not simulated by the model"):
+        CalibrationProblem(model, _params(), ObservationSet((ObservationSeries.from_series(
+            pd.Series([1.0], index=[START]), id="X.h"),)), (START, START + pd.Timedelta("2h")))
+    with pytest.raises(ValueError, match="on_failure"):
+        CalibrationProblem(model, _params(), obs, (START, START + pd.Timedelta("2h")), on_failure="ignore")
+    assert model.runs == 1  # only the run that made the observations
+
+
+def test_ln_transform_reports_std_in_physical_units() -> None:
+    model = LinearReservoirModel()
+    ps = ParameterSet([Parameter(name="k", targets=["friction:global"], min=0.5, max=10.0, initial=2.0,
+                                 transform="ln", perturbation=0.2)])
+    obs = _obs(model)
+    obs = ObservationSet((obs["S.Q"],))
+    problem = CalibrationProblem(model, ps, obs, (START + pd.Timedelta("2h"), START + pd.Timedelta("48h")),
+                                 state="s", warmup="2h")
+    result = calibrate(problem, "dud", workers=1)
+    assert result.estimates["k"] == pytest.approx(3.0, rel=1e-6)
+    assert problem.x0[0] == pytest.approx(math.log(2.0))
+    # d k = k d(ln k): the reported std is the physical one
+    assert result.std["k"] == pytest.approx(3.0 * result.result.std[0], rel=1e-6)
