@@ -63,8 +63,11 @@ def main() -> int:
     args = parser.parse_args()
     jobs = [(m, n, s) for s in args.starts for m in args.methods for n in LOWER + AVERAGE]
     t0 = time.perf_counter()
+    results = {}
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        results = {(m, n, s): (d, nfev, sec, msg) for m, n, s, d, nfev, sec, msg in pool.map(run_one, jobs)}
+        for m, n, s, d, nfev, sec, msg in pool.map(run_one, jobs):
+            results[m, n, s] = (d, nfev, sec, msg)
+            print(f"{m:12s} {n:9s} start {s}: {d:5.1f} digits, {nfev:6d} runs, {sec:6.1f} s  {msg}", file=sys.stderr)
     text = "\n".join(table(results, args.methods, s) for s in args.starts)
     text += f"\n(wall time {time.perf_counter() - t0:.0f} s with {args.jobs} worker(s))\n"
     print(text)

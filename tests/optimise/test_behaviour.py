@@ -237,3 +237,11 @@ def test_batch_sees_every_evaluation(method):
     assert sum(sizes) == res.nfev
     if method in ("dud", "sparse_dud", "lm", "bfgs", "cg", "sce_ua", "grid", "glue", "nelder_mead"):
         assert max(sizes) > 1   # independent points went out together
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_tiny_deadline_still_evaluates_x0(method):
+    res = call(method, rosenbrock, ROSEN_START, ROSEN_LB, ROSEN_UB, rosen=True, deadline=1e-9)
+    expected = 1 if method == "grid" else -2   # the whole grid (289 points) is the first batch
+    assert res.status == expected and res.nfev >= 1 and np.isfinite(res.cost)
+    assert any(np.array_equal(x, ROSEN_START) for x, _ in res.evaluations)

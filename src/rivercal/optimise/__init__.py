@@ -16,7 +16,8 @@ Every optimiser has the signature (scipy-like)::
 - ``callback(record)`` is called after every iteration with an :class:`IterationRecord`; returning True
   aborts. ``max_nfev`` caps the number of model runs (a batch that does not fit is cut to the runs
   that do); ``deadline`` (wall-clock seconds from the call, ``time.monotonic``) is checked before every
-  evaluation or batch, so a batch already running is not interrupted. All three end the run with
+  evaluation or batch after the first, so a batch already running is not interrupted (and x0 is always
+  evaluated, which validates the problem). All three end the run with
   ``aborted=True`` and the best point so far.
 
 Algorithms (one module each): :func:`dud`, :func:`sparse_dud`, :func:`lm`, :func:`sce_ua`, :func:`dds`,

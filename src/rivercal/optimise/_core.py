@@ -377,7 +377,7 @@ class Run:
         return [self._augmented(x, r) for x, r in zip(xs, raw, strict=True)]  # type: ignore[arg-type]
 
     def _run(self, xs: list[np.ndarray], raw: list[np.ndarray | None], todo: list[int]) -> None:
-        if time.monotonic() >= self.t_end:
+        if self.nfev > 0 and time.monotonic() >= self.t_end:   # the first batch (with x0) always runs
             raise Stop(STATUS_DEADLINE)
         room = self.max_nfev - self.nfev
         if room < 1:

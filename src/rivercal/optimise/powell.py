@@ -2,8 +2,13 @@
 
 The initial direction set is the columns of diag(``initial_step``) (OpenDA's Powell starts from the
 columns of L, the prior standard deviations), realised by running scipy in coordinates scaled by
-``initial_step``; each line search is scipy's bounded Brent search, so no point outside the box is asked
-for.
+``initial_step``. Two ways to keep to the bounds (``line_search``):
+
+- ``"projected"`` (default): scipy's unbounded Powell on the projected cost S(clip(x, lb, ub)); each
+  line search brackets from the current point like OpenDA's, and every point run is inside the box;
+- ``"bounded"``: scipy's bounded Powell, whose line searches run Brent's bounded method over the whole
+  feasible segment of the line. With bounds much wider than the region of interest that search lands
+  far away (1 of the 19 NIST problems solved from start 1, against 15 with ``"projected"``).
 
 Status codes (``TERMINATION_MESSAGES``): 1 converged (``ftol``/``xtol``); −3 ``max_iter``; −4 scipy
 stopped abnormally; 0 / −1 / −2 budget, callback, deadline.
@@ -28,6 +33,7 @@ from rivercal.optimise._core import (
     Fun,
     Run,
     Stop,
+    check_choice,
     check_int,
     check_real,
     coerce_options,
@@ -67,12 +73,15 @@ class PowellOptions:
         Relative decrease of the cost in one iteration below which the run stops (1e-8).
     initial_step
         Lengths of the initial directions per parameter (default: 10 % of |x0|).
+    line_search
+        ``"projected"`` or ``"bounded"`` (see the module docstring).
     """
 
     max_iter: int | None = None
     xtol: float = 1e-4
     ftol: float = 1e-8
     initial_step: Any = None
+    line_search: str = "projected"
 
     def __post_init__(self) -> None:
         if self.max_iter is not None:
@@ -80,6 +89,7 @@ class PowellOptions:
         check_real("xtol", self.xtol, strict=True)
         check_real("ftol", self.ftol)
         optional_array(self, "initial_step", positive=True)
+        check_choice("line_search", self.line_search, ("projected", "bounded"))
 
 
 def powell(fun: Fun, x0: Any, lb: Any, ub: Any, *, options: PowellOptions | dict | None = None,
@@ -109,7 +119,8 @@ def powell(fun: Fun, x0: Any, lb: Any, ub: Any, *, options: PowellOptions | dict
     run = Run(fun, batch, x0, lb, ub, max_nfev=max_nfev, deadline=deadline, callback=callback)
     scaled = Scaled(x0, h, lb, ub)
     try:
-        res = minimize(cost_function(run, scaled), np.zeros(n), method="Powell", bounds=scaled.bounds(),
+        bounds = scaled.bounds() if opts.line_search == "bounded" else None
+        res = minimize(cost_function(run, scaled), np.zeros(n), method="Powell", bounds=bounds,
                        callback=iteration_callback(run, scaled),
                        options={"maxiter": opts.max_iter or 1000 * n, "maxfev": np.iinfo(np.int64).max,
                                 "xtol": opts.xtol, "ftol": opts.ftol, "direc": np.eye(n)})
