@@ -263,9 +263,9 @@ def calibration_toml() -> list[str]:
         "# ---- calibration ------------------------------------------------------------------------------",
         "# FA: global Strickler k_s (thesis FA); F1: the ZL1 section just downstream of ZL1-3014 (F1W0 suite)",
         "[[parameters]]", 'name = "FA"', 'targets = ["friction:global"]', "min = 8.0", "max = 40.0",
-        "initial = 16.0", 'transform = "offset"', "perturbation = 2.0", 'unit = "m^(1/3)/s"', "",
+        "initial = 16.0", 'transform = "offset"', "perturbation = 1.5", 'unit = "m^(1/3)/s"', "",
         "[[parameters]]", 'name = "F1"', 'targets = ["friction:branch:ZL1_3030_3990"]', "min = 8.0", "max = 40.0",
-        "initial = 16.0", 'transform = "offset"', "perturbation = 2.0", 'unit = "m^(1/3)/s"', "",
+        "initial = 16.0", 'transform = "offset"', "perturbation = 1.5", 'unit = "m^(1/3)/s"', "",
     ]
     adjustable = [w for w in WEIRS if w.name]
     for w in adjustable:

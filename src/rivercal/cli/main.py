@@ -5,20 +5,18 @@ writes its files under ``--out``. Errors go to stderr with a non-zero exit code:
 input (a bad case, an unknown parameter), 3 for a failed model run.
 """
 
-import functools
-import json
 import logging
 import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
 from rivercal import __version__
 from rivercal._options import options
-from rivercal.errors import CaseError, ModelRunError, RivercalError
+from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, emit_json, err_console, guard, null_context, out_console
+from rivercal.cli.twin import twin as _twin
 
 app = typer.Typer(
     name="rivercal",
@@ -32,34 +30,9 @@ bench_app = typer.Typer(help="Benchmarks (JSON output).", no_args_is_help=True)
 app.add_typer(case_app, name="case")
 app.add_typer(bench_app, name="bench")
 
-out_console = Console()
-err_console = Console(stderr=True, soft_wrap=True)
-
-CaseArg = Annotated[str, typer.Argument(help="A case folder or the name of a packaged case (e.g. 'synthetic').")]
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
-QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary on the terminal.")]
-
-
-def _fail(exc: Exception, code: int) -> None:
-    err_console.print(f"[bold red]error:[/] {exc}", highlight=False)
-    raise typer.Exit(code)
-
-
-def _guard(func):
-    """Turn rivercal's errors into a message and an exit code."""
-
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except (CaseError, KeyError, ValueError) as exc:
-            _fail(exc if not isinstance(exc, KeyError) else ValueError(exc.args[0]), 2)
-        except ModelRunError as exc:
-            _fail(exc, 3)
-        except RivercalError as exc:
-            _fail(exc, 1)
-
-    return wrapper
+_guard = guard
+_emit_json = emit_json
+_null = null_context
 
 
 @app.callback()
@@ -90,8 +63,6 @@ def _parse_sets(values: list[str]) -> dict[str, float]:
     return out
 
 
-def _emit_json(obj: dict) -> None:
-    sys.stdout.write(json.dumps(obj, indent=None, default=str) + "\n")
 
 
 # -- case ---------------------------------------------------------------------------------------
@@ -216,12 +187,6 @@ def simulate(
         out_console.print("wrote " + ", ".join(files.values()))
 
 
-class _null:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
 
 
 # -- calibrate ----------------------------------------------------------------------------------
@@ -554,6 +519,9 @@ def demo(
                       f"{col.loc['2010-11-01':'2010-11-30'].max():.3f} {unit}")
     out_console.print(table)
     out_console.print("results: " + ", ".join(summary["outputs"]))
+
+
+app.command("twin")(guard(_twin))
 
 
 def main() -> None:  # pragma: no cover - console entry point
