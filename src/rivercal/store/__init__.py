@@ -1,0 +1,52 @@
+"""The SQLite store of the on-line service (layer 6): runs, cycles, estimates, alerts, forecasts, observations.
+
+``import rivercal`` does not import this package (it loads :mod:`sqlite3`); import it where needed::
+
+    from rivercal.store import Store, Schedule, CycleRecord, EstimateRecord, AlertRecord
+
+See :mod:`rivercal.store.sqlite` for the crash-safety design, :mod:`rivercal.store.schema` for the tables
+and their units, and :mod:`rivercal.store.export` for the CSV and NetCDF exports.
+"""
+
+from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_netcdf, to_xarray
+from rivercal.store.records import (
+    CYCLE_STATUSES,
+    FINAL_STATUSES,
+    FORECAST_KINDS,
+    RUN_STATUSES,
+    AlertRecord,
+    CycleRecord,
+    CycleSpec,
+    CycleStateError,
+    EstimateRecord,
+    IngestResult,
+    Run,
+    Schedule,
+    StoreError,
+    StoreVersionError,
+)
+from rivercal.store.schema import SCHEMA_VERSION
+from rivercal.store.sqlite import Store
+
+__all__ = [
+    "CYCLE_STATUSES",
+    "FINAL_STATUSES",
+    "FORECAST_KINDS",
+    "RUN_STATUSES",
+    "SCHEMA_VERSION",
+    "AlertRecord",
+    "CycleRecord",
+    "CycleSpec",
+    "CycleStateError",
+    "EstimateRecord",
+    "IngestResult",
+    "Run",
+    "Schedule",
+    "Store",
+    "StoreError",
+    "StoreVersionError",
+    "export_estimates_csv",
+    "export_forecasts_csv",
+    "to_netcdf",
+    "to_xarray",
+]

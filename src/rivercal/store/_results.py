@@ -1,0 +1,174 @@
+"""Results of the on-line service's cycles: estimates, alerts, forecasts and forecast scores.
+
+Part of :class:`rivercal.store.Store` (this module holds the queries; the connection, transactions and
+cycle bookkeeping are in :mod:`rivercal.store.sqlite`, the only module that imports :mod:`sqlite3`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import pandas as pd
+
+from rivercal.store import _frames as fr
+from rivercal.store._base import StoreBase
+from rivercal.store.records import FORECAST_KINDS, CycleStateError, Run
+
+__all__ = ["ResultTables"]
+
+log = logging.getLogger("rivercal.store")
+
+
+class ResultTables(StoreBase):
+    """Queries over the estimates, alerts, forecasts and forecast_scores tables."""
+
+    def estimates(self, run: int | Run, *, accepted_only: bool = False) -> pd.DataFrame:
+        """Every stored estimate of a run (long format), in cycle and parameter order.
+
+        Returns
+        -------
+        DataFrame
+            Columns cycle, issue_time, window_start, window_end (UTC), status, parameter, value, std (in
+            ``unit``), unit, accepted (bool), reason.
+        """
+        rows = self._query("SELECT c.cycle, c.issue_time, c.window_start, c.window_end, c.status, e.parameter, "
+                           "e.value, e.std, e.unit, e.accepted, e.reason FROM estimates e JOIN cycles c ON "
+                           "c.id = e.cycle_id WHERE c.run_id = ? AND (e.accepted = 1 OR ? = 0) "
+                           "ORDER BY c.cycle, e.parameter", (self._run_id(run), int(accepted_only)))
+        out = fr.frame(rows, ["cycle", "issue_time", "window_start", "window_end", "status", "parameter", "value",
+                              "std", "unit", "accepted", "reason"])
+        for col in ("issue_time", "window_start", "window_end"):
+            out[col] = fr.from_unix(out[col].astype("int64"))
+        out["std"] = out["std"].astype(float)
+        out["accepted"] = out["accepted"].astype(bool)
+        return out
+
+    def last_accepted(self, run: int | Run) -> dict[str, float]:
+        """Per parameter, the value of its latest accepted estimate (the warm start of the next cycle)."""
+        rows = self._query(
+            "SELECT e.parameter, e.value FROM estimates e JOIN cycles c ON c.id = e.cycle_id "
+            "WHERE c.run_id = ? AND e.accepted = 1 AND c.cycle = (SELECT max(c2.cycle) FROM estimates e2 "
+            "JOIN cycles c2 ON c2.id = e2.cycle_id WHERE c2.run_id = c.run_id AND e2.parameter = e.parameter "
+            "AND e2.accepted = 1) ORDER BY e.parameter", (self._run_id(run),))
+        return {p: float(v) for p, v in rows}
+
+    def alerts(self, run: int | Run) -> pd.DataFrame:
+        """The run's alerts: cycle, issue_time (UTC), parameter, kind, message, magnitude (|Δθ|/σ)."""
+        rows = self._query("SELECT c.cycle, c.issue_time, a.parameter, a.kind, a.message, a.magnitude FROM alerts a "
+                           "JOIN cycles c ON c.id = a.cycle_id WHERE c.run_id = ? ORDER BY c.cycle, a.id",
+                           (self._run_id(run),))
+        out = fr.frame(rows, ["cycle", "issue_time", "parameter", "kind", "message", "magnitude"])
+        out["issue_time"] = fr.from_unix(out["issue_time"].astype("int64"))
+        out["magnitude"] = out["magnitude"].astype(float)
+        return out
+
+    def _forecast_rows(self, run_id: int, cycle: int | None, kind: str | None,
+                       series: Iterable[str] | None) -> list[tuple]:
+        sql = ("SELECT c.cycle, c.id, c.issue_time, f.kind, f.series, f.lead_h, f.time, f.value FROM forecasts f "
+               "JOIN cycles c ON c.id = f.cycle_id WHERE c.run_id = ?")
+        params: list[Any] = [run_id]
+        if cycle is not None:
+            sql += " AND c.cycle = ?"
+            params.append(int(cycle))
+        if kind is not None:
+            if kind not in FORECAST_KINDS:
+                raise ValueError(f"forecast kind must be one of {FORECAST_KINDS}, got {kind!r}")
+            sql += " AND f.kind = ?"
+            params.append(kind)
+        if series is not None:
+            ids = list(series)
+            sql += f" AND f.series IN ({', '.join('?' * len(ids))})"
+            params.extend(ids)
+        return self._query(sql + " ORDER BY c.cycle, f.kind, f.series, f.time", params)
+
+    def forecasts(self, run: int | Run, *, cycle: int | None = None, kind: str | None = None,
+                  series: Iterable[str] | None = None) -> pd.DataFrame:
+        """Stored forecasts (long format), optionally of one cycle, kind or some series.
+
+        Returns
+        -------
+        DataFrame
+            Columns cycle, issue_time (UTC), kind, series, lead_h (h), time (UTC), value (m AD or m³/s).
+        """
+        rows = self._forecast_rows(self._run_id(run), cycle, kind, series)
+        out = fr.frame(rows, ["cycle", "cycle_id", "issue_time", "kind", "series", "lead_h", "time", "value"])
+        out = out.drop(columns="cycle_id")
+        out["issue_time"] = fr.from_unix(out["issue_time"].astype("int64"))
+        out["time"] = fr.from_unix(out["time"].astype("int64"))
+        out["lead_h"] = out["lead_h"].astype(float)
+        out["value"] = out["value"].astype(float)
+        return out
+
+    def put_scores(self, run: int | Run, cycle: int, scores: pd.DataFrame) -> None:
+        """Replace a cycle's forecast scores (columns kind, series, lead_from_h, lead_to_h, rmse, bias, n)."""
+        self._put_scores(self._run_id(run), {int(cycle): scores})
+
+    def _put_scores(self, run_id: int, by_cycle: Mapping[int, pd.DataFrame]) -> None:
+        stamp = fr.now_stamp()
+        with self._transaction() as conn:
+            for cycle, table in by_cycle.items():
+                row = self._cycle_row(conn, run_id, cycle)
+                if row is None:
+                    raise CycleStateError(f"{self.path}: run {run_id} has no cycle {cycle}")
+                conn.execute("DELETE FROM forecast_scores WHERE cycle_id = ?", (row[0],))
+                conn.executemany(
+                    "INSERT INTO forecast_scores (cycle_id, kind, series, lead_from_h, lead_to_h, rmse, bias, n, "
+                    "scored) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    [(row[0], r.kind, r.series, float(r.lead_from_h), float(r.lead_to_h), float(r.rmse),
+                      float(r.bias), int(r.n), stamp) for r in table.itertuples(index=False)])
+
+    def score_forecasts(self, run: int | Run, *, buckets_h: Sequence[float] = (0, 6, 12, 24, 48),
+                        sources: Sequence[str] | None = None, cycles: Iterable[int] | None = None) -> pd.DataFrame:
+        """Score stored forecasts against stored observations and store the scores (one transaction).
+
+        A forecast value is compared with the observation of the same series at the same time (no
+        interpolation); RMSE, bias (forecast − observation, m or m³/s) and n per lead-time bucket
+        (a, b] h. Scoring again later, when more observations have arrived, replaces a cycle's scores.
+
+        Parameters
+        ----------
+        run
+            Run id.
+        buckets_h
+            Increasing lead-time bucket edges, h.
+        sources
+            Observation sources to use, in priority order (default all; the latest ingested value wins).
+        cycles
+            Cycle indices to score (default every cycle with forecasts).
+
+        Returns
+        -------
+        DataFrame
+            The stored scores: cycle, kind, series, lead_from_h, lead_to_h, rmse, bias, n.
+        """
+        run_id = self._run_id(run)
+        wanted = None if cycles is None else {int(c) for c in cycles}
+        rows = self._forecast_rows(run_id, None, None, None)
+        fc = fr.frame(rows, ["cycle", "cycle_id", "issue_time", "kind", "series", "lead_h", "time", "value"])
+        if wanted is not None:
+            fc = fc[fc["cycle"].isin(wanted)]
+        columns = ["cycle", "kind", "series", "lead_from_h", "lead_to_h", "rmse", "bias", "n"]
+        if fc.empty:
+            return pd.DataFrame(columns=columns)
+        obs = self._observation_rows(sorted(fc["series"].unique()), int(fc["time"].min()), int(fc["time"].max()))
+        table = fr.score_table(fc, fr.resolve_sources(obs, sources), buckets_h)
+        cycle_of = dict(zip(fc["cycle_id"], fc["cycle"], strict=False))
+        table.insert(0, "cycle", table["cycle_id"].map(cycle_of))
+        by_cycle = {int(c): g for c, g in table.groupby("cycle")}
+        self._put_scores(run_id, by_cycle)
+        log.info("%s: run %d: scored %d cycles (%d score rows)", self.path, run_id, len(by_cycle), len(table))
+        return table[columns].reset_index(drop=True)
+
+    def scores(self, run: int | Run) -> pd.DataFrame:
+        """Stored scores: cycle, issue_time, kind, series, lead_from_h, lead_to_h (h), rmse, bias, n, scored."""
+        rows = self._query("SELECT c.cycle, c.issue_time, s.kind, s.series, s.lead_from_h, s.lead_to_h, s.rmse, "
+                           "s.bias, s.n, s.scored FROM forecast_scores s JOIN cycles c ON c.id = s.cycle_id "
+                           "WHERE c.run_id = ? ORDER BY c.cycle, s.kind, s.series, s.lead_from_h",
+                           (self._run_id(run),))
+        out = fr.frame(rows, ["cycle", "issue_time", "kind", "series", "lead_from_h", "lead_to_h", "rmse", "bias",
+                              "n", "scored"])
+        out["issue_time"] = fr.from_unix(out["issue_time"].astype("int64"))
+        out["scored"] = fr.stamp_to_time(out["scored"])
+        return out

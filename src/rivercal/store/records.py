@@ -1,0 +1,344 @@
+"""What the store takes and gives back: records, the cycle schedule and the store's errors.
+
+Nothing here touches the database (only :mod:`rivercal.store.sqlite` imports ``sqlite3``). Times
+are pandas Timestamps in UTC; a naive time is read as UTC, the convention of
+:mod:`rivercal.observations`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import pandas as pd
+
+from rivercal.errors import RivercalError
+
+__all__ = [
+    "CYCLE_STATUSES",
+    "FINAL_STATUSES",
+    "FORECAST_KINDS",
+    "RUN_STATUSES",
+    "AlertRecord",
+    "CycleRecord",
+    "CycleSpec",
+    "CycleStateError",
+    "EstimateRecord",
+    "IngestResult",
+    "Run",
+    "Schedule",
+    "StoreError",
+    "StoreVersionError",
+    "utc",
+]
+
+#: Status of a cycle. ``pending`` and ``running`` are unfinished (a restarted service resumes them);
+#: ``done``, ``failed`` and ``aborted`` are final and are only ever written by
+#: :meth:`Store.commit_cycle <rivercal.store.sqlite.Store.commit_cycle>`, together with the cycle's results.
+CYCLE_STATUSES = ("pending", "running", "done", "failed", "aborted")
+#: Final cycle statuses (see :data:`CYCLE_STATUSES`).
+FINAL_STATUSES = ("done", "failed", "aborted")
+#: Status of a run.
+RUN_STATUSES = ("active", "stopped", "finished", "failed")
+#: Forecast kinds: with the cycle's updated parameters, and with the fixed parameters of the DSS.
+FORECAST_KINDS = ("updated", "dss")
+
+
+class StoreError(RivercalError):
+    """The store cannot do what was asked (bad file, wrong state, inconsistent input)."""
+
+
+class StoreVersionError(StoreError):
+    """The file's schema version cannot be used by this rivercal (newer file, or read-only and older)."""
+
+
+class CycleStateError(StoreError):
+    """A cycle is not in a state that allows the operation (already final, owned by a live process, a gap)."""
+
+
+def utc(time: Any) -> pd.Timestamp:
+    """A time as a UTC pandas Timestamp (a naive time is taken to be UTC).
+
+    Raises
+    ------
+    ValueError
+        If ``time`` is not a time (or is NaT).
+    """
+    ts = pd.Timestamp(time)
+    if ts is pd.NaT or pd.isna(ts):
+        raise ValueError(f"not a time: {time!r}")
+    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+
+
+@dataclass(frozen=True)
+class Run:
+    """A stored run of the on-line service.
+
+    Attributes
+    ----------
+    id
+        Database id.
+    name
+        Unique name (``"dommel-2010"``).
+    case
+        Case name or path the run serves.
+    created
+        When the run was created (UTC).
+    config
+        The run's configuration, as stored (JSON object).
+    status
+        One of :data:`RUN_STATUSES`.
+    """
+
+    id: int
+    name: str
+    case: str
+    created: pd.Timestamp
+    config: dict[str, Any]
+    status: str
+
+
+@dataclass(frozen=True)
+class CycleSpec:
+    """Which cycle to compute: its index, calibration window and forecast issue time.
+
+    Attributes
+    ----------
+    cycle
+        Cycle index, 0, 1, 2, ... within its run (contiguous).
+    window_start, window_end
+        Calibration window [start, end] (UTC).
+    issue_time
+        Forecast issue time t₀ (UTC); normally ``window_end``.
+    status
+        Stored status (``pending`` for a cycle not stored yet).
+    attempts
+        How many times the cycle was begun before (0 for a new cycle).
+    """
+
+    cycle: int
+    window_start: pd.Timestamp
+    window_end: pd.Timestamp
+    issue_time: pd.Timestamp
+    status: str = "pending"
+    attempts: int = 0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "window_start", utc(self.window_start))
+        object.__setattr__(self, "window_end", utc(self.window_end))
+        object.__setattr__(self, "issue_time", utc(self.issue_time))
+        if self.cycle < 0:
+            raise ValueError(f"cycle index must be >= 0, got {self.cycle}")
+        if not self.window_end > self.window_start:
+            raise ValueError(f"cycle {self.cycle}: window end {self.window_end} is not after its start "
+                             f"{self.window_start}")
+
+
+_ONE_DAY = pd.Timedelta(days=1)
+_ONE_WEEK = pd.Timedelta(days=7)
+_TWO_DAYS = pd.Timedelta(hours=48)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """When cycles run (thesis §6-2: a daily cycle over a one-week window).
+
+    Cycle 0 is issued at ``first_issue``; each later cycle ``period`` after the previous stored one. The
+    calibration window of a cycle issued at t₀ is [t₀ − ``window``, t₀]; its forecasts run to
+    t₀ + ``horizon``.
+
+    Attributes
+    ----------
+    first_issue
+        Issue time of cycle 0 (UTC).
+    period
+        Time between cycles (default 1 day).
+    window
+        Calibration window length (default 7 days).
+    horizon
+        Forecast horizon (default 48 h).
+    """
+
+    first_issue: pd.Timestamp
+    period: pd.Timedelta = _ONE_DAY
+    window: pd.Timedelta = _ONE_WEEK
+    horizon: pd.Timedelta = _TWO_DAYS
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "first_issue", utc(self.first_issue))
+        for name in ("period", "window", "horizon"):
+            value = pd.Timedelta(getattr(self, name))
+            if not value > pd.Timedelta(0):
+                raise ValueError(f"schedule {name} must be positive, got {value}")
+            object.__setattr__(self, name, value)
+
+    def spec(self, cycle: int, issue_time: Any | None = None) -> CycleSpec:
+        """The spec of cycle ``cycle`` issued at ``issue_time`` (default: ``first_issue + cycle * period``)."""
+        t0 = utc(issue_time) if issue_time is not None else self.first_issue + cycle * self.period
+        return CycleSpec(cycle=cycle, window_start=t0 - self.window, window_end=t0, issue_time=t0)
+
+
+@dataclass(frozen=True)
+class EstimateRecord:
+    """One parameter's estimate in one cycle.
+
+    Attributes
+    ----------
+    parameter
+        Parameter name (``"friction:global"``, ``"weirs"``).
+    value
+        Estimated value, in ``unit`` (the optimiser's estimate, also when it was not accepted).
+    unit
+        Unit of ``value`` and ``std`` (``"m"``, ``"m1/3 s-1"``, ``"1"`` for dimensionless).
+    std
+        Standard deviation of the estimate (thesis Eq. 2-12), in ``unit``; None if unknown.
+    accepted
+        Whether the estimate was accepted (passed to the forecast and to the next cycle's warm start).
+    reason
+        Why it was held or rejected; required when ``accepted`` is False.
+    """
+
+    parameter: str
+    value: float
+    unit: str
+    std: float | None = None
+    accepted: bool = True
+    reason: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.parameter:
+            raise ValueError("estimate: empty parameter name")
+        if not math.isfinite(self.value):
+            raise ValueError(f"estimate {self.parameter}: value must be finite, got {self.value}")
+        if self.std is not None and not (math.isfinite(self.std) and self.std >= 0):
+            raise ValueError(f"estimate {self.parameter}: std must be finite and >= 0, got {self.std}")
+        if not self.accepted and not self.reason:
+            raise ValueError(f"estimate {self.parameter}: a held or rejected estimate needs a reason")
+
+
+@dataclass(frozen=True)
+class AlertRecord:
+    """An alert raised by a cycle (a probable intervention, a failed calibration, stale data, ...).
+
+    Attributes
+    ----------
+    kind
+        What kind of alert (``"jump"``, ``"bound"``, ``"failed"``, ...); free text chosen by the service.
+    message
+        What happened, in words.
+    parameter
+        The parameter concerned, or None for an alert about the whole cycle.
+    magnitude
+        Size of the change in standard deviations of the estimate, |Δθ| / σ (dimensionless), if known.
+    """
+
+    kind: str
+    message: str
+    parameter: str | None = None
+    magnitude: float | None = None
+
+    def __post_init__(self) -> None:
+        if not self.kind or not self.message:
+            raise ValueError("alert: kind and message must not be empty")
+        if self.magnitude is not None and not math.isfinite(self.magnitude):
+            raise ValueError(f"alert {self.kind}: magnitude must be finite, got {self.magnitude}")
+
+
+@dataclass(frozen=True)
+class CycleRecord:
+    """Everything one cycle produced; :meth:`Store.commit_cycle` stores it in one transaction.
+
+    Attributes
+    ----------
+    cycle
+        Cycle index.
+    window_start, window_end, issue_time
+        As in :class:`CycleSpec` (UTC).
+    status
+        Final status: ``done``, ``failed`` or ``aborted``.
+    algorithm
+        Optimiser name (``"dud"``).
+    model_runs
+        Number of model runs the cycle used.
+    wall_time_s
+        Wall time of the cycle's computation, s (default: from begin to commit).
+    cost_before, cost_after
+        Cost S(θ) of thesis Eq. 2-3 (dimensionless) at the warm start and at the estimate.
+    message
+        Optimiser termination message, or why the cycle failed or was aborted.
+    estimates
+        One record per parameter.
+    alerts
+        Alerts raised by the cycle.
+    forecasts
+        Forecasts by kind (``"updated"``, ``"dss"``): frames indexed by time (UTC, at or after
+        ``issue_time``), one column per series ``"<station>.<quantity>"`` in m AD (levels) or m³/s
+        (discharges). NaN values are not stored. Store the output step you want to score at (hourly,
+        15 min); a 60-s engine step would store 2,881 values per series per cycle.
+    """
+
+    cycle: int
+    window_start: pd.Timestamp
+    window_end: pd.Timestamp
+    issue_time: pd.Timestamp
+    status: str = "done"
+    algorithm: str | None = None
+    model_runs: int | None = None
+    wall_time_s: float | None = None
+    cost_before: float | None = None
+    cost_after: float | None = None
+    message: str | None = None
+    estimates: tuple[EstimateRecord, ...] = ()
+    alerts: tuple[AlertRecord, ...] = ()
+    forecasts: Mapping[str, pd.DataFrame] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        spec = CycleSpec(self.cycle, self.window_start, self.window_end, self.issue_time)
+        for name in ("window_start", "window_end", "issue_time"):
+            object.__setattr__(self, name, getattr(spec, name))
+        object.__setattr__(self, "estimates", tuple(self.estimates))
+        object.__setattr__(self, "alerts", tuple(self.alerts))
+        if self.status not in FINAL_STATUSES:
+            raise ValueError(f"cycle {self.cycle}: status must be one of {', '.join(FINAL_STATUSES)} when "
+                             f"committed, got {self.status!r}")
+        names = [e.parameter for e in self.estimates]
+        if len(set(names)) != len(names):
+            raise ValueError(f"cycle {self.cycle}: a parameter is estimated twice in {names}")
+        unknown = set(self.forecasts) - set(FORECAST_KINDS)
+        if unknown:
+            raise ValueError(f"cycle {self.cycle}: forecast kinds must be among {FORECAST_KINDS}, got "
+                             f"{sorted(unknown)}")
+        if self.model_runs is not None and self.model_runs < 0:
+            raise ValueError(f"cycle {self.cycle}: model_runs must be >= 0, got {self.model_runs}")
+        if self.wall_time_s is not None and not self.wall_time_s >= 0:
+            raise ValueError(f"cycle {self.cycle}: wall_time_s must be >= 0, got {self.wall_time_s}")
+
+    @property
+    def spec(self) -> CycleSpec:
+        """The cycle's index, window and issue time."""
+        return CycleSpec(self.cycle, self.window_start, self.window_end, self.issue_time)
+
+
+@dataclass(frozen=True)
+class IngestResult:
+    """What :meth:`Store.ingest` did; unpacks as ``inserted, duplicates = store.ingest(...)``.
+
+    Attributes
+    ----------
+    inserted
+        Values stored.
+    duplicates
+        Values whose (series, time, source) was already stored, so not inserted again.
+    conflicts
+        The duplicates whose value differs from the stored one (beyond 1e-9 relative); the stored value
+        was kept, or replaced with ``on_conflict="replace"``.
+    """
+
+    inserted: int
+    duplicates: int
+    conflicts: int = 0
+
+    def __iter__(self) -> Iterator[int]:
+        return iter((self.inserted, self.duplicates))

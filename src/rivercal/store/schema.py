@@ -1,0 +1,225 @@
+"""The store's schema: versioned DDL and the forward migrations between versions.
+
+Units and conventions of every column
+-------------------------------------
+- **Data times** (window start/end, issue time, observation and forecast times) are INTEGER Unix
+  seconds, s since 1970-01-01T00:00:00Z (UTC). ``datetime(time, 'unixepoch')`` shows them in the
+  ``sqlite3`` shell.
+- **Wall-clock stamps** (``created``, ``started``, ``finished``, ``ingested``, ``scored``, ``applied``) are
+  TEXT, ISO 8601 UTC with milliseconds (``2010-11-01T06:00:03.125Z``); the fixed format sorts in time order.
+- **Values** of series ``"<station>.<quantity>"``: m AD for levels (``h``, ``h_up``, ``h_down``), m³/s for
+  discharges (``Q``). Parameter values carry their own ``unit`` column.
+- **Costs** are S(θ) of thesis Eq. 2-3: dimensionless weighted sums of squared residuals.
+
+Tables (current version)
+------------------------
+``schema_version(version, applied, description, rivercal_version)``
+    One row per applied migration; the schema version is ``max(version)``.
+``runs(id, name UNIQUE, case_name, created, config JSON object, status)``
+    A run of the on-line service; ``status`` in active/stopped/finished/failed.
+``cycles(id, run_id → runs, cycle, window_start, window_end, issue_time, status, attempts, owner,
+algorithm, model_runs, wall_time_s [s], cost_before, cost_after, message, started, finished)``
+    One row per cycle, UNIQUE (run_id, cycle). ``status`` pending/running (unfinished) or
+    done/failed/aborted (final; ``finished`` is set if and only if the status is final). ``attempts``
+    counts how often the cycle was begun; ``owner`` is ``pid@host`` of the process that began it last.
+``estimates(cycle_id → cycles, parameter, value [unit], std [unit], unit, accepted 0/1, reason)``
+    PRIMARY KEY (cycle_id, parameter); a held or rejected estimate (accepted = 0) has a reason.
+``alerts(id, cycle_id → cycles, parameter or NULL, kind, message, magnitude [|Δθ|/σ, dimensionless])``
+``observations(series, time, source, value [m AD or m³/s], ingested)``
+    PRIMARY KEY (series, time, source): one value per series, time and source.
+``forecasts(cycle_id → cycles, kind 'updated'|'dss', series, time, lead_h [h], value [m AD or m³/s])``
+    PRIMARY KEY (cycle_id, kind, series, time); ``lead_h`` = (time − issue time) / 3600 ≥ 0.
+``forecast_scores(cycle_id → cycles, kind, series, lead_from_h [h], lead_to_h [h], rmse, bias
+[m or m³/s], n, scored)``
+    Forecast minus observation over the lead-time bucket (lead_from_h, lead_to_h] (the first bucket
+    includes lead 0); PRIMARY KEY (cycle_id, kind, series, lead_from_h).
+
+Every child row is deleted with its cycle and every cycle with its run (ON DELETE CASCADE; the store
+turns foreign keys on for each connection).
+
+Migrations
+----------
+:data:`MIGRATIONS` lists the steps 0→1→2→…; step *n* brings a version *n − 1* file to version *n* and
+records itself in ``schema_version`` in the same transaction, so a file is always at one whole version.
+A released step is never edited: a change to the schema is a new step appended to the list (with a test
+that opens a file of the version before). Versions 1–3 were laid down together in the first release,
+in the order the service needs them: cycles and estimates, then observation ingestion, then forecasts
+and their scores.
+
+This module does not import ``sqlite3``: the steps take any DB-API connection.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+__all__ = ["APPLICATION_ID", "MIGRATIONS", "SCHEMA_VERSION", "Migration", "current_version", "user_tables"]
+
+#: ``PRAGMA application_id`` of a rivercal store ("RVCL"), so that other SQLite files are recognised.
+APPLICATION_ID = 0x5256434C
+
+
+class _Connection(Protocol):
+    def execute(self, sql: str, parameters: Sequence[Any] = ..., /) -> Any: ...
+
+
+@dataclass(frozen=True)
+class Migration:
+    """One forward step of the schema.
+
+    Attributes
+    ----------
+    version
+        The version the step produces.
+    description
+        What the step adds or changes (stored in ``schema_version``).
+    apply
+        Function that executes the step's statements on a connection inside an open transaction.
+    """
+
+    version: int
+    description: str
+    apply: Callable[[_Connection], None]
+
+
+def _statements(*sql: str) -> Callable[[_Connection], None]:
+    def apply(conn: _Connection) -> None:
+        for statement in sql:
+            conn.execute(statement)
+
+    return apply
+
+
+SCHEMA_VERSION_DDL = """
+CREATE TABLE IF NOT EXISTS schema_version (
+    version          INTEGER PRIMARY KEY,
+    applied          TEXT NOT NULL,
+    description      TEXT NOT NULL,
+    rivercal_version TEXT NOT NULL
+)"""
+
+# --- version 1: runs, cycles, estimates, alerts ------------------------------------------------------------
+_V1 = _statements(
+    """
+    CREATE TABLE runs (
+        id        INTEGER PRIMARY KEY,
+        name      TEXT NOT NULL UNIQUE CHECK (length(name) > 0),
+        case_name TEXT NOT NULL,
+        created   TEXT NOT NULL,
+        config    TEXT NOT NULL CHECK (json_valid(config) AND json_type(config) = 'object'),
+        status    TEXT NOT NULL DEFAULT 'active' CHECK (status IN ('active', 'stopped', 'finished', 'failed'))
+    )""",
+    """
+    CREATE TABLE cycles (
+        id           INTEGER PRIMARY KEY,
+        run_id       INTEGER NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+        cycle        INTEGER NOT NULL CHECK (cycle >= 0),
+        window_start INTEGER NOT NULL,
+        window_end   INTEGER NOT NULL,
+        issue_time   INTEGER NOT NULL,
+        status       TEXT NOT NULL DEFAULT 'pending'
+                     CHECK (status IN ('pending', 'running', 'done', 'failed', 'aborted')),
+        attempts     INTEGER NOT NULL DEFAULT 0 CHECK (attempts >= 0),
+        owner        TEXT,
+        algorithm    TEXT,
+        model_runs   INTEGER CHECK (model_runs IS NULL OR model_runs >= 0),
+        wall_time_s  REAL CHECK (wall_time_s IS NULL OR wall_time_s >= 0),
+        cost_before  REAL,
+        cost_after   REAL,
+        message      TEXT,
+        started      TEXT,
+        finished     TEXT,
+        UNIQUE (run_id, cycle),
+        CHECK (window_end > window_start),
+        CHECK ((status IN ('done', 'failed', 'aborted')) = (finished IS NOT NULL))
+    )""",
+    """
+    CREATE TABLE estimates (
+        cycle_id  INTEGER NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+        parameter TEXT NOT NULL CHECK (length(parameter) > 0),
+        value     REAL NOT NULL,
+        std       REAL CHECK (std IS NULL OR std >= 0),
+        unit      TEXT NOT NULL,
+        accepted  INTEGER NOT NULL CHECK (accepted IN (0, 1)),
+        reason    TEXT,
+        PRIMARY KEY (cycle_id, parameter),
+        CHECK (accepted = 1 OR reason IS NOT NULL)
+    )""",
+    """
+    CREATE TABLE alerts (
+        id        INTEGER PRIMARY KEY,
+        cycle_id  INTEGER NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+        parameter TEXT,
+        kind      TEXT NOT NULL CHECK (length(kind) > 0),
+        message   TEXT NOT NULL,
+        magnitude REAL
+    )""",
+    "CREATE INDEX alerts_cycle ON alerts(cycle_id)",
+)
+
+# --- version 2: ingested observations ------------------------------------------------------------------
+_V2 = _statements(
+    """
+    CREATE TABLE observations (
+        series   TEXT NOT NULL CHECK (length(series) > 0),
+        time     INTEGER NOT NULL,
+        source   TEXT NOT NULL CHECK (length(source) > 0),
+        value    REAL NOT NULL,
+        ingested TEXT NOT NULL,
+        PRIMARY KEY (series, time, source)
+    ) WITHOUT ROWID""",
+)
+
+# --- version 3: forecasts and their scores -------------------------------------------------------------
+_V3 = _statements(
+    """
+    CREATE TABLE forecasts (
+        cycle_id INTEGER NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+        kind     TEXT NOT NULL CHECK (kind IN ('updated', 'dss')),
+        series   TEXT NOT NULL,
+        time     INTEGER NOT NULL,
+        lead_h   REAL NOT NULL CHECK (lead_h >= 0),
+        value    REAL NOT NULL,
+        PRIMARY KEY (cycle_id, kind, series, time)
+    ) WITHOUT ROWID""",
+    """
+    CREATE TABLE forecast_scores (
+        cycle_id    INTEGER NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+        kind        TEXT NOT NULL CHECK (kind IN ('updated', 'dss')),
+        series      TEXT NOT NULL,
+        lead_from_h REAL NOT NULL,
+        lead_to_h   REAL NOT NULL,
+        rmse        REAL NOT NULL CHECK (rmse >= 0),
+        bias        REAL NOT NULL,
+        n           INTEGER NOT NULL CHECK (n > 0),
+        scored      TEXT NOT NULL,
+        PRIMARY KEY (cycle_id, kind, series, lead_from_h),
+        CHECK (lead_to_h > lead_from_h)
+    )""",
+)
+
+#: The forward steps, in order. Append only; never edit a released step.
+MIGRATIONS: tuple[Migration, ...] = (
+    Migration(1, "runs, cycles, estimates, alerts", _V1),
+    Migration(2, "ingested observations", _V2),
+    Migration(3, "forecasts and forecast scores", _V3),
+)
+#: The version this rivercal writes.
+SCHEMA_VERSION = MIGRATIONS[-1].version
+
+
+def user_tables(conn: _Connection) -> list[str]:
+    """Names of the file's tables, without SQLite's own."""
+    rows = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE 'sqlite_%' "
+                        "ORDER BY name").fetchall()
+    return [r[0] for r in rows]
+
+
+def current_version(conn: _Connection) -> int:
+    """The file's schema version (0 for a file without a ``schema_version`` table)."""
+    if "schema_version" not in user_tables(conn):
+        return 0
+    row = conn.execute("SELECT max(version) FROM schema_version").fetchone()
+    return int(row[0]) if row and row[0] is not None else 0

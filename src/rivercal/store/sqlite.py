@@ -1,0 +1,550 @@
+"""The SQLite store of the on-line service: runs, cycles, estimates, alerts, forecasts, observations.
+
+One file holds everything a run has stored (schema and units: :mod:`rivercal.store.schema`). The store
+is built so that **nothing that was stored is lost when a process is killed**, and no cycle is stored
+twice or skipped:
+
+- **One transaction per cycle.** :meth:`Store.commit_cycle` writes a cycle's final status, estimates,
+  alerts and forecasts in one ``BEGIN IMMEDIATE … COMMIT``: a cycle is stored whole or not at all.
+- **Resume where it stopped.** :meth:`Store.begin_cycle` marks a cycle ``running`` before its computation;
+  a process killed in between leaves it ``running`` with no results, and :meth:`Store.next_cycle` returns
+  that cycle again on restart (then the next index). Cycle indices are contiguous and unique
+  (UNIQUE (run_id, cycle); a gap or a second commit of a final cycle is refused).
+- **WAL journal, synchronous=FULL.** WAL lets a dashboard read while the service writes. In WAL mode
+  ``synchronous=NORMAL`` already survives a killed *process* (committed pages are in the WAL file, in the
+  operating system's cache) but may lose the last transactions on power loss or an OS crash; ``FULL``
+  syncs the WAL at every commit so a committed cycle also survives those. A cycle commits once a day
+  and an fsync costs milliseconds, so FULL is the default; ``synchronous="NORMAL"`` is available for bulk
+  work where re-running the last cycles after a power cut is acceptable.
+- **Foreign keys on** for every connection; deleting a run deletes its cycles and their rows.
+
+The store is the only module of rivercal that imports :mod:`sqlite3`; ``import rivercal`` does not load it.
+
+Examples
+--------
+>>> from rivercal.store import Store, Schedule, CycleRecord, EstimateRecord
+>>> with Store(tmp_path / "service.db") as store:                                  # doctest: +SKIP
+...     run = store.ensure_run("dommel", "dommel", {"window_days": 7})
+...     spec = store.next_cycle(run.id, Schedule("2010-11-01T06:00Z"))
+...     store.begin_cycle(run.id, spec)
+...     store.commit_cycle(run.id, CycleRecord(spec.cycle, spec.window_start, spec.window_end,
+...                        spec.issue_time, estimates=[EstimateRecord("friction:global", 25.2, "m1/3 s-1")]))
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import socket
+import sqlite3
+from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+import pandas as pd
+
+import rivercal
+from rivercal.store import _frames as fr
+from rivercal.store._observations import ObservationTables
+from rivercal.store._results import ResultTables
+from rivercal.store.records import (
+    CYCLE_STATUSES,
+    FINAL_STATUSES,
+    RUN_STATUSES,
+    CycleRecord,
+    CycleSpec,
+    CycleStateError,
+    Run,
+    Schedule,
+    StoreError,
+    StoreVersionError,
+    utc,
+)
+from rivercal.store.schema import (
+    APPLICATION_ID,
+    MIGRATIONS,
+    SCHEMA_VERSION,
+    SCHEMA_VERSION_DDL,
+    current_version,
+    user_tables,
+)
+
+__all__ = ["MIN_SQLITE", "Store"]
+
+log = logging.getLogger("rivercal.store")
+
+#: Oldest SQLite library the store works with (window functions: 3.25).
+MIN_SQLITE = (3, 25, 0)
+
+_CYCLE_COLUMNS = ("cycle", "window_start", "window_end", "issue_time", "status", "attempts", "owner", "algorithm",
+                  "model_runs", "wall_time_s", "cost_before", "cost_after", "message", "started", "finished")
+_UNFINISHED = tuple(s for s in CYCLE_STATUSES if s not in FINAL_STATUSES)
+
+
+def _owner() -> str:
+    return f"{os.getpid()}@{socket.gethostname()}"
+
+
+def _owner_alive(owner: str | None) -> bool:
+    """Whether ``pid@host`` names another process that still runs on this host."""
+    if not owner or owner == _owner():
+        return False
+    pid_text, _, host = owner.partition("@")
+    if host != socket.gethostname() or not pid_text.isdigit():
+        return False  # another host: no way to know; the caller's lock is the authority there
+    try:
+        os.kill(int(pid_text), 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OSError:
+        return False
+    return True
+
+
+class Store(ResultTables, ObservationTables):
+    """The on-line service's SQLite file; opens, creates or migrates it.
+
+    Parameters
+    ----------
+    path
+        The database file (created with its schema when missing; its folder must exist).
+    readonly
+        Open for reading only (a dashboard); an older schema is then an error instead of being migrated.
+    synchronous
+        ``"FULL"`` (default: a commit survives power loss) or ``"NORMAL"`` (survives a killed process).
+    timeout_s
+        How long to wait for another connection's write lock, s.
+
+    Raises
+    ------
+    StoreError
+        If the file is not a rivercal store or cannot be opened.
+    StoreVersionError
+        If its schema is newer than this rivercal's (or older, when ``readonly``).
+    """
+
+    def __init__(self, path: str | Path, *, readonly: bool = False,
+                 synchronous: Literal["FULL", "NORMAL"] = "FULL", timeout_s: float = 30.0):
+        if sqlite3.sqlite_version_info < MIN_SQLITE:
+            raise StoreError(f"SQLite {sqlite3.sqlite_version} is too old for the store (needs "
+                             f"{'.'.join(map(str, MIN_SQLITE))} or newer)")
+        if synchronous not in ("FULL", "NORMAL"):
+            raise ValueError(f"synchronous must be 'FULL' or 'NORMAL', got {synchronous!r}")
+        self.path = Path(path)
+        self.readonly = readonly
+        if str(path) != ":memory:" and not self.path.parent.is_dir():
+            raise StoreError(f"{self.path}: folder {self.path.parent} does not exist")
+        if readonly and not self.path.is_file():
+            raise StoreError(f"{self.path}: no such store")
+        try:
+            if readonly:
+                self._conn = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
+                                             isolation_level=None, timeout=timeout_s)
+            else:
+                self._conn = sqlite3.connect(str(path), isolation_level=None, timeout=timeout_s)
+        except sqlite3.Error as exc:
+            raise StoreError(f"{self.path}: cannot open ({exc})") from None
+        try:
+            self._configure(synchronous)
+            self._migrate()
+        except sqlite3.OperationalError as exc:
+            self._conn.close()
+            raise StoreError(f"{self.path}: cannot use the store ({exc})") from None
+        except sqlite3.DatabaseError as exc:
+            self._conn.close()
+            raise StoreError(f"{self.path}: not a usable SQLite database ({exc})") from None
+        except BaseException:
+            self._conn.close()
+            raise
+
+    # -- connection, transactions, migrations ---------------------------------------------------------------
+
+    def _configure(self, synchronous: str) -> None:
+        conn = self._conn
+        app_id = conn.execute("PRAGMA application_id").fetchone()[0]
+        tables = user_tables(conn)
+        if app_id not in (0, APPLICATION_ID) or (app_id == 0 and tables and "schema_version" not in tables):
+            raise StoreError(f"{self.path}: not a rivercal store (application id {app_id:#x}, tables "
+                             f"{', '.join(tables) or 'none'})")
+        if not self.readonly:
+            mode = conn.execute("PRAGMA journal_mode = WAL").fetchone()[0]
+            if mode.lower() != "wal" and str(self.path) != ":memory:":
+                log.warning("%s: SQLite refused WAL mode (journal mode %s); commits stay atomic, but readers "
+                            "block while the service writes", self.path, mode)
+        conn.execute(f"PRAGMA synchronous = {synchronous}")
+        conn.execute("PRAGMA foreign_keys = ON")
+
+    @contextlib.contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        """``BEGIN IMMEDIATE`` (take the write lock now) … ``COMMIT``; ``ROLLBACK`` on any exception."""
+        if self.readonly:
+            raise StoreError(f"{self.path}: opened read-only")
+        try:
+            self._conn.execute("BEGIN IMMEDIATE")
+        except sqlite3.OperationalError as exc:  # the write lock was not released within the timeout
+            raise StoreError(f"{self.path}: cannot start a write ({exc})") from exc
+        try:
+            yield self._conn
+            self._conn.execute("COMMIT")
+        except sqlite3.Error as exc:
+            if self._conn.in_transaction:
+                self._conn.execute("ROLLBACK")
+            raise StoreError(f"{self.path}: write failed and was rolled back ({exc})") from exc
+        except BaseException:
+            if self._conn.in_transaction:
+                self._conn.execute("ROLLBACK")
+            raise
+
+    def _migrate(self, target: int | None = None) -> None:
+        target = SCHEMA_VERSION if target is None else target
+        version = current_version(self._conn)
+        if version > SCHEMA_VERSION:
+            raise StoreVersionError(f"{self.path}: schema version {version} was written by a newer rivercal (this "
+                                    f"one knows up to {SCHEMA_VERSION}); upgrade rivercal to use it")
+        if version >= target:
+            return
+        if self.readonly:
+            raise StoreVersionError(f"{self.path}: schema version {version} is older than {SCHEMA_VERSION}; open it "
+                                    "once for writing to migrate it")
+        for step in MIGRATIONS:
+            if step.version > target:
+                break
+            with self._transaction() as conn:
+                # Re-read under the write lock: another process may have migrated meanwhile.
+                if current_version(conn) >= step.version:
+                    continue
+                if step.version == 1:
+                    conn.execute(SCHEMA_VERSION_DDL)
+                    conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                step.apply(conn)
+                conn.execute("INSERT INTO schema_version (version, applied, description, rivercal_version) "
+                             "VALUES (?, ?, ?, ?)", (step.version, fr.now_stamp(), step.description,
+                                                     rivercal.__version__))
+            log.info("%s: schema migrated to version %d (%s)", self.path, step.version, step.description)
+
+    @property
+    def schema_version(self) -> int:
+        """The file's schema version."""
+        return current_version(self._conn)
+
+    def close(self) -> None:
+        """Close the connection (uncommitted work, if any, is rolled back)."""
+        self._conn.close()
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def integrity_check(self) -> list[str]:
+        """Problems found by ``PRAGMA integrity_check`` and ``PRAGMA foreign_key_check`` (empty when sound)."""
+        rows = [r[0] for r in self._conn.execute("PRAGMA integrity_check").fetchall()]
+        problems = [] if rows == ["ok"] else rows
+        for table, rowid, parent, _ in self._conn.execute("PRAGMA foreign_key_check").fetchall():
+            problems.append(f"{table} row {rowid}: no parent row in {parent}")
+        return problems
+
+    # -- runs -----------------------------------------------------------------------------------------------
+
+    def create_run(self, name: str, case: str, config: Mapping[str, Any] | None = None) -> int:
+        """Create a run; returns its id.
+
+        Parameters
+        ----------
+        name
+            Unique run name.
+        case
+            Case name or path the run serves.
+        config
+            The run's configuration (JSON-serialisable mapping; numpy numbers, times and paths are converted).
+
+        Raises
+        ------
+        StoreError
+            If a run of that name exists.
+        """
+        text = fr.config_json(config or {})
+        with self._transaction() as conn:
+            if conn.execute("SELECT 1 FROM runs WHERE name = ?", (name,)).fetchone():
+                raise StoreError(f"{self.path}: a run named {name!r} exists already")
+            cur = conn.execute("INSERT INTO runs (name, case_name, created, config) VALUES (?, ?, ?, ?)",
+                               (name, str(case), fr.now_stamp(), text))
+        log.info("%s: run %r created (id %d, case %s)", self.path, name, cur.lastrowid, case)
+        return int(cur.lastrowid)
+
+    def get_run(self, name: str) -> Run | None:
+        """The run named ``name``, or None."""
+        row = self._conn.execute("SELECT id, name, case_name, created, config, status FROM runs WHERE name = ?",
+                                 (name,)).fetchone()
+        if row is None:
+            return None
+        return Run(id=row[0], name=row[1], case=row[2], created=fr.stamp_to_time(row[3]),
+                   config=json.loads(row[4]), status=row[5])
+
+    def ensure_run(self, name: str, case: str, config: Mapping[str, Any] | None = None) -> Run:
+        """The run named ``name``, created if missing; a restarted service calls this.
+
+        Raises
+        ------
+        StoreError
+            If the run exists with another case or configuration (resuming would mix two set-ups); the
+            message names the differing keys.
+        """
+        run = self.get_run(name)
+        if run is None:
+            self.create_run(name, case, config)
+            run = self.get_run(name)
+            assert run is not None
+            return run
+        if run.case != str(case):
+            raise StoreError(f"{self.path}: run {name!r} serves case {run.case!r}, not {case!r}")
+        differ = fr.config_differences(run.config, config or {})
+        if differ:
+            raise StoreError(f"{self.path}: run {name!r} was created with another configuration (keys differ: "
+                             f"{', '.join(differ)}); use a new run name")
+        return run
+
+    def runs(self) -> pd.DataFrame:
+        """All runs: id, name, case, created (UTC), status, cycles (count) and done (count)."""
+        rows = self._query("SELECT r.id, r.name, r.case_name, r.created, r.status, count(c.id), "
+                           "coalesce(sum(c.status = 'done'), 0) FROM runs r LEFT JOIN cycles c ON c.run_id = r.id "
+                           "GROUP BY r.id ORDER BY r.id")
+        out = fr.frame(rows, ["id", "name", "case", "created", "status", "cycles", "done"])
+        out["created"] = fr.stamp_to_time(out["created"])
+        return out
+
+    def set_run_status(self, run: int | Run, status: str) -> None:
+        """Set a run's status (one of :data:`~rivercal.store.records.RUN_STATUSES`)."""
+        if status not in RUN_STATUSES:
+            raise ValueError(f"run status must be one of {', '.join(RUN_STATUSES)}, got {status!r}")
+        with self._transaction() as conn:
+            if conn.execute("UPDATE runs SET status = ? WHERE id = ?", (status, self._run_id(run))).rowcount != 1:
+                raise StoreError(f"{self.path}: no run with id {self._run_id(run)}")
+
+    # -- cycles ---------------------------------------------------------------------------------------------
+
+    def cycles(self, run: int | Run) -> pd.DataFrame:
+        """The run's cycles in order.
+
+        Returns
+        -------
+        DataFrame
+            Columns cycle, window_start, window_end, issue_time (UTC), status, attempts, owner, algorithm,
+            model_runs, wall_time_s (s), cost_before, cost_after (dimensionless), message, started, finished
+            (UTC wall clock).
+        """
+        rows = self._query(f"SELECT {', '.join(_CYCLE_COLUMNS)} FROM cycles WHERE run_id = ? ORDER BY cycle",
+                           (self._run_id(run),))
+        out = fr.frame(rows, _CYCLE_COLUMNS)
+        for col in ("window_start", "window_end", "issue_time"):
+            out[col] = fr.from_unix(out[col].astype("int64"))
+        for col in ("started", "finished"):
+            out[col] = fr.stamp_to_time(out[col])
+        return out
+
+    @staticmethod
+    def _spec(row: Sequence[Any]) -> CycleSpec:
+        """CycleSpec from (cycle, window_start, window_end, issue_time, status, attempts)."""
+        return CycleSpec(int(row[0]), fr.from_unix(row[1]), fr.from_unix(row[2]), fr.from_unix(row[3]),
+                         status=row[4], attempts=int(row[5]))
+
+    def first_unfinished(self, run: int | Run) -> CycleSpec | None:
+        """The lowest-index cycle that is pending or running (left by a killed process), or None."""
+        row = self._conn.execute(
+            "SELECT cycle, window_start, window_end, issue_time, status, attempts FROM cycles WHERE run_id = ? "
+            f"AND status IN ({', '.join('?' * len(_UNFINISHED))}) ORDER BY cycle LIMIT 1",
+            (self._run_id(run), *_UNFINISHED)).fetchone()
+        return None if row is None else self._spec(row)
+
+    def next_cycle(self, run: int | Run, schedule: Schedule, now: Any | None = None) -> CycleSpec | None:
+        """The cycle to compute next: the first unfinished one, else the one after the last stored.
+
+        Cycle 0 is issued at ``schedule.first_issue``; a new cycle ``schedule.period`` after the last stored
+        cycle's issue time, with window [t₀ − ``schedule.window``, t₀]. A stored unfinished cycle keeps its
+        stored window.
+
+        Parameters
+        ----------
+        run
+            Run id.
+        schedule
+            The cycle schedule.
+        now
+            If given, a new cycle whose issue time is after ``now`` is not due yet: None is returned.
+        """
+        resume = self.first_unfinished(run)
+        if resume is not None:
+            return resume
+        last = self._conn.execute("SELECT cycle, issue_time FROM cycles WHERE run_id = ? ORDER BY cycle DESC "
+                                  "LIMIT 1", (self._run_id(run),)).fetchone()
+        if last is None:
+            spec = schedule.spec(0)
+        else:
+            spec = schedule.spec(int(last[0]) + 1, fr.from_unix(last[1]) + schedule.period)
+        if now is not None and spec.issue_time > utc(now):
+            return None
+        return spec
+
+    def _check_new_cycle(self, conn: sqlite3.Connection, run_id: int, cycle: int) -> None:
+        if conn.execute("SELECT 1 FROM runs WHERE id = ?", (run_id,)).fetchone() is None:
+            raise StoreError(f"{self.path}: no run with id {run_id}")
+        last = conn.execute("SELECT max(cycle) FROM cycles WHERE run_id = ?", (run_id,)).fetchone()[0]
+        expected = 0 if last is None else int(last) + 1
+        if cycle != expected:
+            raise CycleStateError(f"{self.path}: run {run_id}: cycle {cycle} would leave a gap (next index is "
+                                  f"{expected})")
+        unfinished = conn.execute(f"SELECT min(cycle) FROM cycles WHERE run_id = ? AND status IN "
+                                  f"({', '.join('?' * len(_UNFINISHED))})", (run_id, *_UNFINISHED)).fetchone()[0]
+        if unfinished is not None:
+            raise CycleStateError(f"{self.path}: run {run_id}: cycle {unfinished} is unfinished; finish it before "
+                                  f"cycle {cycle}")
+
+    def _check_existing_cycle(self, row: tuple, run_id: int, spec: CycleSpec) -> None:
+        _, w0, w1, t0, status, _, owner, _ = row
+        if status in FINAL_STATUSES:
+            raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is already {status}; it is not "
+                                  "stored twice (retry_cycle() re-opens it)")
+        stored = (w0, w1, t0)
+        given = tuple(fr.to_unix(t) for t in (spec.window_start, spec.window_end, spec.issue_time))
+        if stored != given:
+            raise CycleStateError(
+                f"{self.path}: run {run_id}: cycle {spec.cycle} is stored with window "
+                f"{fr.from_unix(w0).isoformat()}/{fr.from_unix(w1).isoformat()}, issue {fr.from_unix(t0).isoformat()}; "
+                f"got {spec.window_start.isoformat()}/{spec.window_end.isoformat()}, "
+                f"issue {spec.issue_time.isoformat()}")
+        if _owner_alive(owner):
+            raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is being computed by process "
+                                  f"{owner}, which is still alive")
+
+    def begin_cycle(self, run: int | Run, spec: CycleSpec) -> CycleSpec:
+        """Mark a cycle running (inserting it if new) before computing it; returns it as stored.
+
+        A new cycle must be the next index and every earlier cycle final. A cycle left ``running`` by a dead
+        process is taken over (``attempts`` grows); one owned by a live process on this host is refused.
+
+        Raises
+        ------
+        CycleStateError
+            For a gap, an unfinished earlier cycle, a final cycle, a different window, or a live owner.
+        """
+        run_id = self._run_id(run)
+        values = [fr.to_unix(t) for t in (spec.window_start, spec.window_end, spec.issue_time)]
+        with self._transaction() as conn:
+            row = self._cycle_row(conn, run_id, spec.cycle)
+            if row is None:
+                self._check_new_cycle(conn, run_id, spec.cycle)
+                conn.execute("INSERT INTO cycles (run_id, cycle, window_start, window_end, issue_time, status, "
+                             "attempts, owner, started) VALUES (?, ?, ?, ?, ?, 'running', 1, ?, ?)",
+                             (run_id, spec.cycle, *values, _owner(), fr.now_stamp()))
+                attempts = 1
+            else:
+                self._check_existing_cycle(row, run_id, spec)
+                if row[4] == "running":
+                    log.warning("%s: run %d: cycle %d was left running by %s (attempt %d); computing it again",
+                                self.path, run_id, spec.cycle, row[6], row[5])
+                attempts = int(row[5]) + 1
+                conn.execute("UPDATE cycles SET status = 'running', attempts = ?, owner = ?, started = ? WHERE id = ?",
+                             (attempts, _owner(), fr.now_stamp(), row[0]))
+        return CycleSpec(spec.cycle, spec.window_start, spec.window_end, spec.issue_time, "running", attempts)
+
+    def commit_cycle(self, run: int | Run, record: CycleRecord) -> None:
+        """Store a cycle's final status, estimates, alerts and forecasts in ONE transaction.
+
+        Either all of it is stored or none (a kill during the commit leaves the cycle as it was: running,
+        without results). A cycle that was not begun is inserted (it must be the next index).
+
+        Raises
+        ------
+        CycleStateError
+            If the cycle is final already, would leave a gap, has another window, or a live process owns it.
+        ValueError
+            For forecasts with bad times or series ids (checked before anything is written).
+        """
+        run_id = self._run_id(run)
+        rows = fr.forecast_rows(record.forecasts, record.cycle, record.issue_time)  # checked before writing
+        started = None
+        with self._transaction() as conn:
+            row = self._cycle_row(conn, run_id, record.cycle)
+            if row is None:
+                self._check_new_cycle(conn, run_id, record.cycle)
+                values = [fr.to_unix(t) for t in (record.window_start, record.window_end, record.issue_time)]
+                cur = conn.execute("INSERT INTO cycles (run_id, cycle, window_start, window_end, issue_time, "
+                                   "status, attempts, owner) VALUES (?, ?, ?, ?, ?, 'running', 1, ?)",
+                                   (run_id, record.cycle, *values, _owner()))
+                cycle_id = int(cur.lastrowid)
+            else:
+                self._check_existing_cycle(row, run_id, record.spec)
+                cycle_id, started = int(row[0]), row[7]
+            finished = fr.now_stamp()
+            wall = record.wall_time_s
+            if wall is None and started is not None:
+                wall = max(0.0, (fr.stamp_to_time(finished) - fr.stamp_to_time(started)).total_seconds())
+            for table in ("estimates", "alerts", "forecasts", "forecast_scores"):
+                conn.execute(f"DELETE FROM {table} WHERE cycle_id = ?", (cycle_id,))
+            conn.execute("UPDATE cycles SET status = ?, algorithm = ?, model_runs = ?, wall_time_s = ?, "
+                         "cost_before = ?, cost_after = ?, message = ?, finished = ? WHERE id = ?",
+                         (record.status, record.algorithm, record.model_runs, wall, record.cost_before,
+                          record.cost_after, record.message, finished, cycle_id))
+            conn.executemany("INSERT INTO estimates (cycle_id, parameter, value, std, unit, accepted, reason) "
+                             "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                             [(cycle_id, e.parameter, float(e.value), e.std, e.unit, int(e.accepted), e.reason)
+                              for e in record.estimates])
+            log.debug("commit cycle %d of run %d: cycle row and %d estimates written; writing %d alerts and %d "
+                      "forecast values", record.cycle, run_id, len(record.estimates), len(record.alerts), len(rows))
+            conn.executemany("INSERT INTO alerts (cycle_id, parameter, kind, message, magnitude) "
+                             "VALUES (?, ?, ?, ?, ?)",
+                             [(cycle_id, a.parameter, a.kind, a.message, a.magnitude) for a in record.alerts])
+            conn.executemany("INSERT INTO forecasts (cycle_id, kind, series, time, lead_h, value) "
+                             "VALUES (?, ?, ?, ?, ?, ?)", [(cycle_id, *r) for r in rows])
+        log.info("%s: run %d: cycle %d committed (%s; %d estimates, %d alerts, %d forecast values)", self.path,
+                 run_id, record.cycle, record.status, len(record.estimates), len(record.alerts), len(rows))
+
+    def retry_cycle(self, run: int | Run, cycle: int) -> None:
+        """Re-open a final cycle: delete its results and set it pending, in one transaction.
+
+        Later cycles are left as they are (their warm starts came from this cycle's old estimate).
+        """
+        run_id = self._run_id(run)
+        with self._transaction() as conn:
+            row = self._cycle_row(conn, run_id, cycle)
+            if row is None:
+                raise CycleStateError(f"{self.path}: run {run_id} has no cycle {cycle}")
+            for table in ("estimates", "alerts", "forecasts", "forecast_scores"):
+                conn.execute(f"DELETE FROM {table} WHERE cycle_id = ?", (row[0],))
+            conn.execute("UPDATE cycles SET status = 'pending', owner = NULL, algorithm = NULL, model_runs = NULL, "
+                         "wall_time_s = NULL, cost_before = NULL, cost_after = NULL, message = NULL, started = NULL, "
+                         "finished = NULL WHERE id = ?", (row[0],))
+        log.info("%s: run %d: cycle %d re-opened", self.path, run_id, cycle)
+
+    # -- exports --------------------------------------------------------------------------------------------
+
+    def export_estimates_csv(self, run: int | Run, path: str | Path) -> Path:
+        """Write the run's estimates to CSV (see :func:`rivercal.store.export.export_estimates_csv`)."""
+        from rivercal.store.export import export_estimates_csv
+
+        return export_estimates_csv(self, run, path)
+
+    def export_forecasts_csv(self, run: int | Run, path: str | Path, **select: Any) -> Path:
+        """Write the run's forecasts to CSV (see :func:`rivercal.store.export.export_forecasts_csv`)."""
+        from rivercal.store.export import export_forecasts_csv
+
+        return export_forecasts_csv(self, run, path, **select)
+
+    def to_netcdf(self, run: int | Run, path: str | Path) -> Path:
+        """Write the run's estimates and forecasts as CF-1.8 NetCDF (see :func:`rivercal.store.export.to_netcdf`)."""
+        from rivercal.store.export import to_netcdf
+
+        return to_netcdf(self, run, path)
+
+    def run_by_id(self, run_id: int) -> Run:
+        """The run with this id."""
+        row = self._conn.execute("SELECT name FROM runs WHERE id = ?", (int(run_id),)).fetchone()
+        run = None if row is None else self.get_run(row[0])
+        if run is None:
+            raise StoreError(f"{self.path}: no run with id {run_id}")
+        return run
