@@ -1,0 +1,55 @@
+"""``rivercal analyse``: exit codes and messages for bad input, and one run on the dommel case (slow).
+
+The quick checks run in-process on the real app, the dommel run in a subprocess (``python -m rivercal.cli``).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from rivercal.cli.main import app
+
+
+def rivercal(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["analyse", "dommel", "--what", "sensitivity,nonsense"], "--what 'nonsense'"),
+    (["analyse", "dommel", "--params", "W2,Wx"], "unknown parameter 'Wx'"),
+    (["analyse", "dommel", "--params", "W2", "--twin", "FA=20"], "'FA' is not in --params"),
+    (["analyse", "dommel", "--params", "W2", "--window", "2011-01-01/2011-01-08"], "outside the case period"),
+    (["analyse", "dommel", "--params", "W2", "--sv-threshold", "2"], "sv_threshold must be"),
+])
+def test_bad_input_exits_2_with_a_message(args: list[str], message: str) -> None:
+    run = CliRunner().invoke(app, args)
+    assert run.exit_code == 2, run.output
+    assert message in run.stderr
+    assert "Traceback" not in run.output
+
+
+@pytest.mark.slow
+def test_analyse_dommel_json_and_files(tmp_path: Path) -> None:
+    run = rivercal("analyse", "dommel", "--params", "W2,FA", "--what", "identifiability,residuals", "--twin",
+                   "FA=17", "--workers", "2", "--out", str(tmp_path), "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    ident = summary["identifiability"]
+    assert ident["verdict"] == {"W2": "identifiable", "FA": "identifiable"}
+    assert ident["model_runs"] == 3 and summary["model_runs"] == 4
+    assert "0028" in ident["explanations"]["W2"]
+    assert summary["observations_source"]["twin"] == {"W2": 10.45, "FA": 17.0}
+    residuals = summary["residuals"]["weighted"]["total"]
+    assert residuals["n"] == 1859 and residuals["cost"] > 1.0  # the model at FA = 16 misses the truth at 17
+    assert summary["residuals"]["bias"]["0028.h_down"]["significant"] is True
+    for name in ("jacobian", "singular_values", "singular_vectors", "covariance", "correlation", "identifiability",
+                 "residual_statistics", "moving_bias", "bias_significance", "svd_figure", "correlation_figure",
+                 "bias_figure", "summary"):
+        assert Path(summary["files"][name]).is_file(), name
+    assert json.loads((tmp_path / "analysis.json").read_text()) == summary
