@@ -278,6 +278,13 @@ def calibration_toml() -> list[str]:
     for w in adjustable:
         lines.append(f'  {{ target = "weir:{w.id}.crest_level", min = {w.zmin}, max = {w.zmax} }},')
     lines += ["]", "",
+              "# Wd: all nine crests moved alike from their DSS settings (m; -0.15 = lowered by 15 cm, thesis §5-2-1);",
+              "# the on-line service estimates FA and Wd, whose zero is the DSS",
+              "[[parameters]]", 'name = "Wd"', "min = -0.3", "max = 0.3", "initial = 0.0", 'transform = "offset"',
+              "perturbation = 0.05", 'unit = "m"', 'cluster_mode = "shift"', "cluster = ["]
+    for w in adjustable:
+        lines.append(f'  {{ target = "weir:{w.id}.crest_level", min = {w.zmin}, max = {w.zmax}, base = {w.crest} }},')
+    lines += ["]", "",
               "# DuD stopping criteria of thesis Table 4-3",
               "[calibration]", 'algorithm = "dud"',
               "options = { max_outer = 20, max_inner = 5, abs_tol = 0.001, rel_tol = 0.0001, "

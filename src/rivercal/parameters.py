@@ -7,8 +7,11 @@ deviation (a weak constraint), and targets:
 
 - one or more model quantities (``weir:<id>.crest_level`` in m AD, ``friction:global``,
   ``friction:branch:<id>`` in the unit of the friction law) that all take the parameter's value; or
-- a *cluster* (thesis §4-4, "Wc"): a value in [0, 1] that places every target weir's crest between
-  its own minimum and maximum, crest = min + value × (max - min).
+- a *cluster* of weir crests, moved by one number. ``cluster_mode = "fraction"`` (thesis §4-4, "Wc"):
+  a value in [0, 1] that places every target weir's crest between its own minimum and maximum,
+  crest = min + value × (max - min). ``cluster_mode = "shift"``: a change in m that moves every
+  crest from its reference level alike, crest = base + value (an operator lowering all weirs by
+  15 cm is value = -0.15); the parameter's bounds must keep every crest inside its own range.
 
 Transforms (what the optimiser sees, and the first DuD step λ):
 
@@ -48,11 +51,14 @@ class ClusterTarget(_Model):
         ``weir:<id>.crest_level``.
     min, max
         The crest range of this weir, m AD (thesis Table 4-2).
+    base
+        Reference crest level, m AD, from which a ``shift`` cluster moves this weir (required there).
     """
 
     target: Target = Field(description="model quantity, weir:<id>.crest_level")
     min: float = Field(description="lowest crest level of this weir, m AD")
     max: float = Field(description="highest crest level of this weir, m AD")
+    base: float | None = Field(default=None, description="reference crest level for a shift cluster, m AD")
 
     @model_validator(mode="after")
     def _ordered(self) -> ClusterTarget:
@@ -73,9 +79,12 @@ class Parameter(_Model):
     targets
         Model quantities that take the value (or use ``cluster``).
     cluster
-        Weirs placed by a value in [0, 1] between their own min and max.
+        Weirs moved together by the value (see ``cluster_mode``).
+    cluster_mode
+        ``fraction``: the value in [0, 1] places each crest between its min and max; ``shift``: the
+        value, m, is added to each crest's ``base``.
     min, max
-        Physical bounds of the value (for a cluster: 0 and 1).
+        Physical bounds of the value (a fraction cluster lives in [0, 1]).
     initial
         Initial value.
     transform
@@ -90,7 +99,9 @@ class Parameter(_Model):
 
     name: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=32, description="parameter name")
     targets: list[Target] = Field(default_factory=list, description="model quantities that take the value")
-    cluster: list[ClusterTarget] = Field(default_factory=list, description="weirs placed by a value in [0, 1]")
+    cluster: list[ClusterTarget] = Field(default_factory=list, description="weirs moved together by the value")
+    cluster_mode: Literal["fraction", "shift"] = Field(
+        default="fraction", description="fraction: value in [0, 1] of each weir's range; shift: m added to each base")
     min: float = Field(description="lower bound, physical units")
     max: float = Field(description="upper bound, physical units")
     initial: float = Field(description="initial value, physical units")
@@ -107,8 +118,15 @@ class Parameter(_Model):
             raise ValueError(f"parameter {self.name!r}: max {self.max} must be above min {self.min}")
         if not self.min <= self.initial <= self.max:
             raise ValueError(f"parameter {self.name!r}: initial {self.initial} lies outside [{self.min}, {self.max}]")
-        if self.cluster and (self.min < 0.0 or self.max > 1.0):
+        if self.cluster and self.cluster_mode == "fraction" and (self.min < 0.0 or self.max > 1.0):
             raise ValueError(f"cluster parameter {self.name!r} lives in [0, 1], got [{self.min}, {self.max}]")
+        if self.cluster and self.cluster_mode == "shift":
+            for c in self.cluster:
+                if c.base is None:
+                    raise ValueError(f"shift cluster {self.name!r}: {c.target} needs a base crest level")
+                if c.base + self.min < c.min - 1e-9 or c.base + self.max > c.max + 1e-9:
+                    raise ValueError(f"shift cluster {self.name!r}: bounds [{self.min:g}, {self.max:g}] m move "
+                                     f"{c.target} from {c.base:g} outside its range [{c.min:g}, {c.max:g}] m AD")
         if self.transform == "ln" and self.min <= 0.0:
             raise ValueError(f"parameter {self.name!r}: the ln transform needs a positive lower bound")
         return self
@@ -131,6 +149,8 @@ class Parameter(_Model):
 
     def quantities(self, value: float) -> dict[str, float]:
         """Model quantities (target → value) for a physical value of this parameter."""
+        if self.cluster and self.cluster_mode == "shift":
+            return {c.target: c.base + value for c in self.cluster}  # type: ignore[operator]
         if self.cluster:
             return {c.target: c.min + value * (c.max - c.min) for c in self.cluster}
         return dict.fromkeys(self.targets, float(value))
