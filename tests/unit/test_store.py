@@ -359,3 +359,27 @@ def test_readers_see_committed_data_while_a_writer_holds_the_lock(tmp_path: Path
             with pytest.raises(StoreError, match="cannot start a write"):
                 other.set_run_status(run, "failed")
         assert reader.get_run("r").status == "stopped"
+
+
+def test_model_states_are_committed_with_the_cycle_and_read_back(tmp_path: Path) -> None:
+    """The hot-start state travels with its cycle: stored atomically, replaced on retry, latest final one wins."""
+    with Store(tmp_path / "s.db") as store:
+        run = store.create_run("states", "dommel", {})
+        schedule = Schedule(first_issue="2010-11-01")
+        blobs = {}
+        for k in range(2):
+            spec = store.begin_cycle(run, store.next_cycle(run, schedule))
+            blobs[k] = bytes([k]) * 100
+            store.commit_cycle(run, CycleRecord(spec.cycle, spec.window_start, spec.window_end, spec.issue_time,
+                                                states={"updated": (spec.issue_time, "fmt-1", blobs[k])}))
+        time, fmt, data = store.model_state(run, "updated")
+        assert (time, fmt, data) == (pd.Timestamp("2010-11-02", tz="UTC"), "fmt-1", blobs[1])
+        assert store.model_state(run, "updated", cycle=0)[2] == blobs[0]
+        assert store.model_state(run, "dss") is None
+        # a cycle begun but not committed (a killed process) hands over nothing; the last final one counts
+        store.begin_cycle(run, store.next_cycle(run, schedule))
+        assert store.model_state(run, "updated")[2] == blobs[1]
+        store.retry_cycle(run, 1)
+        assert store.model_state(run, "updated")[2] == blobs[0]
+    with pytest.raises(ValueError, match="state 'updated' must be"):
+        CycleRecord(0, "2010-10-25", "2010-11-01", "2010-11-01", states={"updated": ("2010-11-01", "", b"x")})

@@ -72,7 +72,8 @@ def test_a_new_store_has_wal_foreign_keys_full_sync_and_the_current_schema(tmp_p
         rows = store._conn.execute("SELECT version, description FROM schema_version ORDER BY version").fetchall()
         assert [r[0] for r in rows] == list(range(1, SCHEMA_VERSION + 1))
         assert store_schema.user_tables(store._conn) == ["alerts", "cycles", "estimates", "forecast_scores",
-                                                         "forecasts", "observations", "runs", "schema_version"]
+                                                         "forecasts", "model_states", "observations", "runs",
+                                                         "schema_version"]
     with Store(tmp_path / "s.db", synchronous="NORMAL") as store:
         assert store._conn.execute("PRAGMA synchronous").fetchone()[0] == 1
 
@@ -82,7 +83,7 @@ def test_a_version_1_file_migrates_forward_and_keeps_its_data(tmp_path: Path) ->
     with Store(path) as store:
         assert store.schema_version == SCHEMA_VERSION
         history = store._conn.execute("SELECT version, applied FROM schema_version ORDER BY version").fetchall()
-        assert [v for v, _ in history] == [1, 2, 3]
+        assert [v for v, _ in history] == [1, 2, 3, 4]
         assert history[0][1] == "2026-01-05T10:00:00.000Z"  # the old row stays
         run = store.get_run("dommel-2010")
         assert run.config == {"window_days": 7}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -56,6 +57,35 @@ class EngineState:
             pump_on=self.pump_on.copy(),
             signature=self.signature,
         )
+
+    #: Format tag of :meth:`to_bytes` (stored with the bytes so a later rivercal can tell what it reads).
+    BYTES_FORMAT = "rivercal-engine-state-npz-1"
+
+    def to_bytes(self) -> bytes:
+        """The state as bytes (an ``.npz`` archive of plain arrays; no pickle), for the on-line store."""
+        buffer = io.BytesIO()
+        np.savez(buffer, time_ns=np.int64(self.time.value), z=self.z, dz=self.dz, vol=self.vol, u=self.u, q=self.q,
+                 pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64))
+        return buffer.getvalue()
+
+    @classmethod
+    def from_bytes(cls, data: bytes, fmt: str = BYTES_FORMAT) -> EngineState:
+        """Read a state written by :meth:`to_bytes`.
+
+        Raises
+        ------
+        ValueError
+            For another format tag or bytes that are not such an archive.
+        """
+        if fmt != cls.BYTES_FORMAT:
+            raise ValueError(f"engine state format {fmt!r} is not {cls.BYTES_FORMAT!r}")
+        try:
+            with np.load(io.BytesIO(data), allow_pickle=False) as f:
+                return cls(time=pd.Timestamp(int(f["time_ns"]), tz="UTC"), z=f["z"], dz=f["dz"], vol=f["vol"],
+                           u=f["u"], q=f["q"], pump_on=f["pump_on"],
+                           signature=tuple(int(v) for v in f["signature"]))  # type: ignore[arg-type]
+        except (OSError, KeyError, ValueError) as exc:
+            raise ValueError(f"not an engine state archive ({exc})") from None
 
 
 @dataclass(frozen=True)

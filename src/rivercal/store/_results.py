@@ -54,6 +54,21 @@ class ResultTables(StoreBase):
             "AND e2.accepted = 1) ORDER BY e.parameter", (self._run_id(run),))
         return {p: float(v) for p, v in rows}
 
+    def model_state(self, run: int | Run, name: str, *,
+                    cycle: int | None = None) -> tuple[pd.Timestamp, str, bytes] | None:
+        """The model state ``name`` handed over by a cycle: (time (UTC), format, data), or None.
+
+        Without ``cycle``, the state of the latest final cycle that stored one (the hot start of the next).
+        """
+        sql = ("SELECT s.time, s.format, s.data FROM model_states s JOIN cycles c ON c.id = s.cycle_id "
+               "WHERE c.run_id = ? AND s.name = ? AND c.status IN ('done', 'failed', 'aborted')")
+        params: list[Any] = [self._run_id(run), name]
+        if cycle is not None:
+            sql += " AND c.cycle = ?"
+            params.append(int(cycle))
+        row = self._conn.execute(sql + " ORDER BY c.cycle DESC LIMIT 1", params).fetchone()
+        return None if row is None else (fr.from_unix(int(row[0])), str(row[1]), bytes(row[2]))
+
     def alerts(self, run: int | Run) -> pd.DataFrame:
         """The run's alerts: cycle, issue_time (UTC), parameter, kind, message, magnitude (|Δθ|/σ)."""
         rows = self._query("SELECT c.cycle, c.issue_time, a.parameter, a.kind, a.message, a.magnitude FROM alerts a "

@@ -277,6 +277,9 @@ class CycleRecord:
         ``issue_time``), one column per series ``"<station>.<quantity>"`` in m AD (levels) or m³/s
         (discharges). NaN values are not stored. Store the output step you want to score at (hourly,
         15 min); a 60-s engine step would store 2,881 values per series per cycle.
+    states
+        Model states handed to the next cycle, by name: (time (UTC), format, data bytes). The store
+        keeps them opaque (see :meth:`EngineState.to_bytes <rivercal.engine.EngineState.to_bytes>`).
     """
 
     cycle: int
@@ -293,8 +296,12 @@ class CycleRecord:
     estimates: tuple[EstimateRecord, ...] = ()
     alerts: tuple[AlertRecord, ...] = ()
     forecasts: Mapping[str, pd.DataFrame] = field(default_factory=dict)
+    states: Mapping[str, tuple[Any, str, bytes]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        for name, value in self.states.items():
+            if not name or len(value) != 3 or not isinstance(value[2], bytes | bytearray) or not value[1]:
+                raise ValueError(f"cycle {self.cycle}: state {name!r} must be (time, format, bytes)")
         spec = CycleSpec(self.cycle, self.window_start, self.window_end, self.issue_time)
         for name in ("window_start", "window_end", "issue_time"):
             object.__setattr__(self, name, getattr(spec, name))

@@ -33,6 +33,10 @@ algorithm, model_runs, wall_time_s [s], cost_before, cost_after, message, starte
 [m or m³/s], n, scored)``
     Forecast minus observation over the lead-time bucket (lead_from_h, lead_to_h] (the first bucket
     includes lead 0); PRIMARY KEY (cycle_id, kind, series, lead_from_h).
+``model_states(cycle_id → cycles, name, time, format, data BLOB)``
+    Model states a cycle hands to the next one (hot start), by name (e.g. ``updated``, ``dss``), at
+    ``time``; ``data`` is opaque to the store (``format`` says how it was written). PRIMARY KEY
+    (cycle_id, name).
 
 Every child row is deleted with its cycle and every cycle with its run (ON DELETE CASCADE; the store
 turns foreign keys on for each connection).
@@ -44,7 +48,8 @@ records itself in ``schema_version`` in the same transaction, so a file is alway
 A released step is never edited: a change to the schema is a new step appended to the list (with a test
 that opens a file of the version before). Versions 1–3 were laid down together in the first release,
 in the order the service needs them: cycles and estimates, then observation ingestion, then forecasts
-and their scores.
+and their scores. Version 4 adds the model states that a cycle hands to the next (hot start), so that a
+restarted service continues from the stored state instead of spinning the model up again.
 
 This module does not import ``sqlite3``: the steps take any DB-API connection.
 """
@@ -200,11 +205,25 @@ _V3 = _statements(
     )""",
 )
 
+# --- version 4: model states for the hot start of the next cycle ----------------------------------------
+_V4 = _statements(
+    """
+    CREATE TABLE model_states (
+        cycle_id INTEGER NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+        name     TEXT NOT NULL CHECK (length(name) > 0),
+        time     INTEGER NOT NULL,
+        format   TEXT NOT NULL,
+        data     BLOB NOT NULL,
+        PRIMARY KEY (cycle_id, name)
+    )""",
+)
+
 #: The forward steps, in order. Append only; never edit a released step.
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "runs, cycles, estimates, alerts", _V1),
     Migration(2, "ingested observations", _V2),
     Migration(3, "forecasts and forecast scores", _V3),
+    Migration(4, "model states for hot starts", _V4),
 )
 #: The version this rivercal writes.
 SCHEMA_VERSION = MIGRATIONS[-1].version

@@ -81,6 +81,8 @@ MIN_SQLITE = (3, 25, 0)
 _CYCLE_COLUMNS = ("cycle", "window_start", "window_end", "issue_time", "status", "attempts", "owner", "algorithm",
                   "model_runs", "wall_time_s", "cost_before", "cost_after", "message", "started", "finished")
 _UNFINISHED = tuple(s for s in CYCLE_STATUSES if s not in FINAL_STATUSES)
+#: Tables whose rows belong to one cycle's results (replaced together when a cycle is committed or re-opened).
+_CYCLE_CHILDREN = ("estimates", "alerts", "forecasts", "forecast_scores", "model_states")
 
 
 def _owner() -> str:
@@ -484,7 +486,7 @@ class Store(ResultTables, ObservationTables):
             wall = record.wall_time_s
             if wall is None and started is not None:
                 wall = max(0.0, (fr.stamp_to_time(finished) - fr.stamp_to_time(started)).total_seconds())
-            for table in ("estimates", "alerts", "forecasts", "forecast_scores"):
+            for table in _CYCLE_CHILDREN:
                 conn.execute(f"DELETE FROM {table} WHERE cycle_id = ?", (cycle_id,))
             conn.execute("UPDATE cycles SET status = ?, algorithm = ?, model_runs = ?, wall_time_s = ?, "
                          "cost_before = ?, cost_after = ?, message = ?, finished = ? WHERE id = ?",
@@ -501,6 +503,9 @@ class Store(ResultTables, ObservationTables):
                              [(cycle_id, a.parameter, a.kind, a.message, a.magnitude) for a in record.alerts])
             conn.executemany("INSERT INTO forecasts (cycle_id, kind, series, time, lead_h, value) "
                              "VALUES (?, ?, ?, ?, ?, ?)", [(cycle_id, *r) for r in rows])
+            conn.executemany("INSERT INTO model_states (cycle_id, name, time, format, data) VALUES (?, ?, ?, ?, ?)",
+                             [(cycle_id, name, fr.to_unix(t, f"state {name} time"), fmt, bytes(data))
+                              for name, (t, fmt, data) in record.states.items()])
         log.info("%s: run %d: cycle %d committed (%s; %d estimates, %d alerts, %d forecast values)", self.path,
                  run_id, record.cycle, record.status, len(record.estimates), len(record.alerts), len(rows))
 
@@ -514,7 +519,7 @@ class Store(ResultTables, ObservationTables):
             row = self._cycle_row(conn, run_id, cycle)
             if row is None:
                 raise CycleStateError(f"{self.path}: run {run_id} has no cycle {cycle}")
-            for table in ("estimates", "alerts", "forecasts", "forecast_scores"):
+            for table in _CYCLE_CHILDREN:
                 conn.execute(f"DELETE FROM {table} WHERE cycle_id = ?", (row[0],))
             conn.execute("UPDATE cycles SET status = 'pending', owner = NULL, algorithm = NULL, model_runs = NULL, "
                          "wall_time_s = NULL, cost_before = NULL, cost_after = NULL, message = NULL, started = NULL, "
