@@ -1,15 +1,30 @@
-"""Figures: the network schematic and station hydrographs (PNG, matplotlib Agg backend)."""
+"""Figures: the network schematic, station hydrographs, and the maps and transitions of thesis chapter 5.
+
+The older functions write a PNG and return its path; the chapter-5 figures (:func:`plot_network_values`,
+:func:`plot_network_pair`, :func:`plot_transition_levels`) take data and return a
+``matplotlib.figure.Figure`` made without pyplot (nothing global to close), for the caller to save
+with ``fig.savefig(path)`` or to embed in a report. Nothing here computes beyond what it draws.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from rivercal.network.schema import Network
 
-__all__ = ["plot_network", "plot_series"]
+__all__ = [
+    "plot_convergence",
+    "plot_cost",
+    "plot_network",
+    "plot_network_pair",
+    "plot_network_values",
+    "plot_series",
+    "plot_transition_levels",
+]
 
 
 def _pyplot():
@@ -192,3 +207,250 @@ def plot_cost(history: list[dict], path: str | Path, *, title: str = "") -> Path
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+# -- thesis chapter 5: values on the network map, and the levels around a transition ---------------
+
+
+def _figure(**kwargs: Any):
+    from matplotlib.figure import Figure
+
+    return Figure(**kwargs)
+
+
+def _network_of(case: Any) -> Network:
+    return case.network if hasattr(case, "network") else case
+
+
+def _case_weir_labels(case: Any) -> dict[str, str]:
+    """``"W4 ZL1-5930"`` for a weir that a single-target parameter of the case sets, else nothing."""
+    names = {}
+    for p in getattr(getattr(case, "spec", None), "parameters", None) or []:
+        for target in p.targets:
+            if target.startswith("weir:") and target.endswith(".crest_level"):
+                names[target[5:-12]] = f"{p.name} {target[5:-12]}"
+    return names
+
+
+def _point_xy(network: Network, labels: pd.Index) -> np.ndarray:
+    """Map positions (m) of calculation points labelled ``node:<id>`` or ``<branch>@<chainage>``."""
+    xy = _branch_xy(network)
+    lengths = {b.id: b.length for b in network.branches}
+    nodes = {n.id: n for n in network.nodes}
+    out = np.empty((len(labels), 2))
+    for i, label in enumerate(map(str, labels)):
+        if label.startswith("node:") and label[5:] in nodes:
+            n = nodes[label[5:]]
+            out[i] = (n.x, n.y)
+            continue
+        branch, _, chainage = label.rpartition("@")
+        try:
+            out[i] = _at(xy[branch], float(chainage) / lengths[branch])
+        except (KeyError, ValueError):
+            raise ValueError(f"calculation point {label!r} is neither 'node:<id>' nor '<branch>@<chainage>' of a "
+                             "branch of this network") from None
+    return out
+
+
+def _station_xy(network: Network) -> dict[str, tuple[float, float]]:
+    xy = _branch_xy(network)
+    lengths = {b.id: b.length for b in network.branches}
+    structures = {s.id: s for s in (*network.weirs, *network.culverts, *network.pumps)}
+    out = {}
+    for st in network.stations:
+        where = structures[st.structure] if st.structure is not None else st
+        out[st.id] = _at(xy[where.branch], where.chainage / lengths[where.branch])
+    return out
+
+
+def _draw_values(ax: Any, network: Network, values: pd.Series, norm: Any, cmap: str,
+                 weir_labels: dict[str, str]) -> Any:
+    """Branches, coloured calculation points, weirs and stations on ``ax``; returns the coloured points."""
+    missing = [n.id for n in network.nodes if n.x is None or n.y is None]
+    if missing:
+        raise ValueError(f"node {missing[0]!r} has no x/y coordinates; the map needs them for every node")
+    xy = _branch_xy(network)
+    lengths = {b.id: b.length for b in network.branches}
+    for pts in xy.values():
+        ax.plot(pts[:, 0], pts[:, 1], color="#cbd5e0", lw=5, solid_capstyle="round", zorder=1)
+    pts = _point_xy(network, values.index)
+    v = values.to_numpy(dtype=float)
+    known = np.isfinite(v)
+    if (~known).any():
+        ax.scatter(pts[~known, 0], pts[~known, 1], s=10, color="#a0aec0", zorder=2)
+    points = ax.scatter(pts[known, 0], pts[known, 1], c=v[known], cmap=cmap, norm=norm, s=22, edgecolors="#4a5568",
+                        linewidths=0.3, zorder=3)
+    at_station = {st.structure for st in network.stations}
+    span = max(np.ptp(np.concatenate([p[:, 0] for p in xy.values()])), 1.0)
+    below: list[tuple[float, float]] = []
+    for w in sorted(network.weirs, key=lambda w: _at(xy[w.branch], w.chainage / lengths[w.branch])):
+        px, py = _at(xy[w.branch], w.chainage / lengths[w.branch])
+        ax.plot(px, py, marker="|", color="#1a202c", ms=11, mew=2.5, zorder=4)
+        if w.id in at_station:
+            continue  # the station's label names the place
+        # label below, unless a label below is already that close (then above)
+        crowded = any(np.hypot(px - bx, py - by) < 0.07 * span for bx, by in below)
+        if not crowded:
+            below.append((px, py))
+        ax.annotate(weir_labels.get(w.id, w.id), (px, py), xytext=(4, 6 if crowded else -11),
+                    textcoords="offset points", fontsize=6.5, color="#2d3748")
+    for sid, (px, py) in _station_xy(network).items():
+        ax.plot(px, py, "o", mfc="none", mec="black", ms=14, mew=1.5, zorder=5)
+        ax.annotate(sid, (px, py), xytext=(6, 8), textcoords="offset points", fontsize=8.5, weight="bold")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.grid(alpha=0.2)
+    return points
+
+
+def _symmetric_norm(vmax: float | None, *values: pd.Series) -> Any:
+    from matplotlib.colors import Normalize
+
+    if vmax is None:
+        finite = [np.abs(v.to_numpy(dtype=float)) for v in values]
+        finite = [a[np.isfinite(a)] for a in finite]
+        vmax = max((float(a.max()) for a in finite if a.size), default=0.0)
+        vmax = vmax if vmax > 0.0 else 1e-3  # all zero (thesis Fig. 5-2): a valid scale, every point white
+    elif not vmax > 0.0:
+        raise ValueError(f"vmax must be positive, got {vmax}")
+    return Normalize(-vmax, vmax)
+
+
+def plot_network_values(case: Any, values: pd.Series, *, title: str, label: str, ax: Any = None,
+                        vmax: float | None = None, cmap: str = "RdBu_r",
+                        weir_labels: dict[str, str] | None = None) -> Any:
+    """The network map with every calculation point coloured by a value (thesis Figs. 5-2, 5-3, 5-5 …).
+
+    Parameters
+    ----------
+    case
+        A loaded case (or its network); nodes need map coordinates.
+    values
+        One value per calculation point, indexed by its label (``compiled.hp_label``: ``node:<id>`` or
+        ``<branch>@<chainage>``), e.g. the average level error Δŷ_avg in m. Points with NaN are drawn grey.
+    title
+        Axes title.
+    label
+        Colour-bar label with units, e.g. ``"Δŷ_avg (m)"``.
+    ax
+        Axes to draw on (default: a new figure).
+    vmax
+        Half-width of the symmetric colour scale, in the unit of ``values`` (default max |value|).
+    cmap
+        A diverging colour map (zero is its middle).
+    weir_labels
+        Label per weir id (default: ``"W4 ZL1-5930"`` where a case parameter sets that crest, else the id).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        For a label that is not a calculation point of the network, a node without coordinates, or vmax ≤ 0.
+    """
+    network = _network_of(case)
+    labels = _case_weir_labels(case) if weir_labels is None else weir_labels
+    norm = _symmetric_norm(vmax, values)
+    if ax is None:
+        fig = _figure(figsize=(10, 6.5), layout="constrained")
+        ax = fig.add_subplot()
+    fig = ax.figure
+    points = _draw_values(ax, network, values, norm, cmap, labels)
+    fig.colorbar(points, ax=ax, label=label, shrink=0.8)
+    ax.set_title(title)
+    return fig
+
+
+def plot_network_pair(case: Any, left: pd.Series, right: pd.Series, *, label: str,
+                             titles: tuple[str, str] = ("DSS", "rivercal"), suptitle: str = "",
+                             vmax: float | None = None, cmap: str = "RdBu_r",
+                             weir_labels: dict[str, str] | None = None) -> Any:
+    """Two network maps side by side on one colour scale, e.g. Δŷ_avg (m) of the DSS and of rivercal.
+
+    ``left`` and ``right`` are values per calculation point as in :func:`plot_network_values`; the
+    symmetric scale spans the larger of both (or ``vmax``), so equal colours mean equal values.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    network = _network_of(case)
+    labels = _case_weir_labels(case) if weir_labels is None else weir_labels
+    norm = _symmetric_norm(vmax, left, right)
+    fig = _figure(figsize=(16, 6), layout="constrained")
+    axes = fig.subplots(1, 2)
+    for ax, values, title in zip(axes, (left, right), titles, strict=True):
+        points = _draw_values(ax, network, values, norm, cmap, labels)
+        ax.set_title(title)
+    fig.colorbar(points, ax=list(axes), label=label, shrink=0.8)
+    if suptitle:
+        fig.suptitle(suptitle)
+    return fig
+
+
+def _axis_label(series_id: str) -> str:
+    return "Q (m³/s)" if series_id.rpartition(".")[2] == "Q" else "level (m AD)"
+
+
+def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: pd.DataFrame, *,
+                           series: list[str], change_time: Any, title: str, dss_label: str = "DSS",
+                           updated_label: str = "rivercal") -> Any:
+    """Series around a parameter transition (thesis Fig. 5-4): observations, DSS and the updated model.
+
+    Parameters
+    ----------
+    observed, dss, updated
+        Frames indexed by UTC time with one column per series id (``"<station>.<quantity>"``; levels in
+        m AD, discharges in m³/s): the observations (grey circles), the fixed-parameter DSS (red line) and
+        the model with rivercal's estimates (blue line).
+    series
+        The series to draw, one panel each, e.g. ``["ZL1-5930.h_up", "ZL1-5930.h_down"]``.
+    change_time
+        Moment of the transition, drawn as a dashed black vertical line.
+    title
+        Figure title.
+    dss_label, updated_label
+        Legend entries of the two models.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    KeyError
+        When a series is missing from one of the frames (named).
+    ValueError
+        When ``series`` is empty.
+    """
+    if not series:
+        raise ValueError("series is empty: name at least one '<station>.<quantity>' to draw")
+    for name, frame in (("observed", observed), ("dss", dss), ("updated", updated)):
+        absent = [s for s in series if s not in frame.columns]
+        if absent:
+            have = ", ".join(map(str, frame.columns))
+            raise KeyError(f"series {absent[0]!r} is not a column of {name} (have: {have})")
+    from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
+
+    change = pd.Timestamp(change_time)
+    fig = _figure(figsize=(11, 2.6 * len(series) + 0.8), layout="constrained")
+    axes = fig.subplots(len(series), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, sid in zip(axes, series, strict=True):
+        ax.plot(observed.index, observed[sid], "o", mfc="none", mec="#718096", ms=3.5, mew=0.8, label="observed",
+                zorder=1)
+        ax.plot(dss.index, dss[sid], "-", color="#c53030", lw=1.5, label=dss_label, zorder=2)
+        ax.plot(updated.index, updated[sid], "-", color="#2b6cb0", lw=1.5, label=updated_label, zorder=3)
+        ax.axvline(change, ls="--", color="black", lw=1.2, label="transition", zorder=4)
+        ax.set_ylabel(_axis_label(sid))
+        ax.set_title(sid, fontsize=10, loc="left")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="best", ncols=4)
+    locator = AutoDateLocator()
+    axes[-1].xaxis.set_major_locator(locator)
+    axes[-1].xaxis.set_major_formatter(ConciseDateFormatter(locator))
+    axes[-1].set_xlabel("time (UTC)")
+    fig.suptitle(title)
+    return fig

@@ -1,0 +1,339 @@
+"""The practical-implication scenarios of thesis chapter 5: a truth whose parameters change suddenly.
+
+On 2010-11-01 00:00 UTC (thesis §5-1) somebody intervenes in the river: vegetation is mowed or crests are
+lowered. Before the change the truth is the DSS itself (the case's own parameter values); after it one
+of these holds (thesis §5-2):
+
+=======  ===========================================================  ==========================
+name     after the change                                             rivercal can represent it
+=======  ===========================================================  ==========================
+PI-0     nothing changes                                              (nothing to represent)
+PI-Fg    global Strickler k_s 16 → 25 m^(1/3)/s (mowing everywhere)   FA = 25
+PI-Wg    the nine adjustable crests all 0.15 m lower                   Wd = −0.15 m
+PI-Fl    k_s of branch Nriv_ZL_1_9820 → 25 m^(1/3)/s, the rest 16      no case parameter (see below)
+PI-Wl    crest of weir ZL1-5930 0.15 m lower                           W4 = 6.995 m AD
+=======  ===========================================================  ==========================
+
+The changes are written relative to the model's defaults (the DSS): a friction is set to a value, a crest
+is shifted from its DSS level, so the same scenario applies to any case that has these branches and weirs.
+The on-line service estimates FA (``friction:global``) and Wd (all adjustable crests shifted alike); each
+scenario records the true values of these two where they exist. In PI-Fl the global friction stays 16, so
+FA's truth exists, but the changed branch is not a parameter of the dommel case (its F1 targets
+ZL1_3030_3990, the section of the F1W0 suite, not the thesis' Nriv_ZL_1_9820). In PI-Wl the crests do not
+move alike, so Wd has no true value.
+
+:func:`practical_truth` runs the truth in one pass from the model's own start (cold start and spin-up)
+with the "before" values up to the change and the "after" values from there, hot-starting each leg from
+the state the previous one ended in; the model is never restarted inside the period.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from itertools import pairwise
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
+from rivercal.twin.noise import NOISE_MODELS, add_noise
+
+__all__ = [
+    "ADJUSTABLE_WEIRS",
+    "CHANGE_TIME",
+    "LOCAL_BRANCH",
+    "LOCAL_WEIR",
+    "PRACTICAL_SCENARIOS",
+    "PracticalScenario",
+    "PracticalTruth",
+    "QuantityChange",
+    "practical_truth",
+]
+
+#: The moment of the intervention in every scenario (thesis §5-1), UTC.
+CHANGE_TIME = pd.Timestamp("2010-11-01T00:00:00Z")
+
+#: The nine adjustable weirs W1…W9 of the dommel case (thesis Table 4-2), the targets of Wc and Wd.
+ADJUSTABLE_WEIRS = ("ZL1-5", "ZL1-3014", "ZL1-5126", "ZL1-5930", "ZL12-45", "ZL12-1880", "ZL12-4711",
+                    "ZL25-6292", "ZL25-8463")
+
+#: The section whose friction changes in PI-Fl, and the weir whose crest changes in PI-Wl (thesis Fig. 5-1).
+LOCAL_BRANCH = "Nriv_ZL_1_9820"
+LOCAL_WEIR = "ZL1-5930"
+
+
+@dataclass(frozen=True)
+class QuantityChange:
+    """One model quantity of a scenario, relative to the model's default (the DSS).
+
+    Attributes
+    ----------
+    target
+        Model quantity (``friction:global``, ``friction:branch:<id>``, ``weir:<id>.crest_level``).
+    value
+        Absolute value to set (k_s in m^(1/3)/s, crest in m AD), or None.
+    shift
+        Amount added to the model's default value (m for crests), or None. Exactly one of ``value`` and
+        ``shift`` is given.
+    """
+
+    target: str
+    value: float | None = None
+    shift: float | None = None
+
+    def __post_init__(self) -> None:
+        if (self.value is None) == (self.shift is None):
+            raise ValueError(f"{self.target}: give exactly one of value and shift "
+                             f"(got value={self.value}, shift={self.shift})")
+
+    def resolve(self, defaults: Mapping[str, float]) -> float:
+        """The absolute value of the quantity for a model with these defaults (targets → values).
+
+        Raises
+        ------
+        KeyError
+            When the change is a shift and the model has no default for the target.
+        """
+        if self.value is not None:
+            return float(self.value)
+        if self.target not in defaults:
+            raise KeyError(f"{self.target}: the model has no such quantity to shift by {self.shift:+g}")
+        return float(defaults[self.target]) + float(self.shift)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class PracticalScenario:
+    """A truth whose model quantities change at one moment (thesis §5-2).
+
+    Attributes
+    ----------
+    name
+        ``PI-0``, ``PI-Fg``, ``PI-Wg``, ``PI-Fl`` or ``PI-Wl``.
+    description
+        One line for reports.
+    change_time
+        Moment of the change (UTC).
+    before, after
+        Changes to the model's defaults before and after ``change_time`` (empty: the DSS itself).
+    represented_by
+        Names of the dommel case's parameters that could represent the change exactly (empty when none can).
+    true_before, true_after
+        True values of the on-line service's parameters FA (k_s, m^(1/3)/s) and Wd (crest shift from the
+        DSS, m) before and after the change; None where the truth is not of that form.
+    """
+
+    name: str
+    description: str
+    change_time: pd.Timestamp
+    before: tuple[QuantityChange, ...]
+    after: tuple[QuantityChange, ...]
+    represented_by: tuple[str, ...]
+    true_before: dict[str, float | None] = field(hash=False)
+    true_after: dict[str, float | None] = field(hash=False)
+
+    def quantities(self, defaults: Mapping[str, float], *, after: bool) -> dict[str, float]:
+        """The model quantities (targets → values) that differ from ``defaults`` before or after the change.
+
+        ``defaults`` are the model's own values, e.g. ``model.default_parameters()``. Targets not listed
+        keep the model's values, so the dict can be passed to ``model.simulate`` as it is.
+        """
+        changes = self.after if after else self.before
+        return {c.target: c.resolve(defaults) for c in changes}
+
+
+def _dss() -> dict[str, float | None]:
+    return {"FA": 16.0, "Wd": 0.0}
+
+
+def _scenarios() -> dict[str, PracticalScenario]:
+    crests_down = tuple(QuantityChange(f"weir:{w}.crest_level", shift=-0.15) for w in ADJUSTABLE_WEIRS)
+    items = [
+        PracticalScenario("PI-0", "no change: the truth is the DSS throughout", CHANGE_TIME, (), (), (),
+                          _dss(), _dss()),
+        PracticalScenario("PI-Fg", "global friction k_s 16 → 25 m^(1/3)/s (vegetation mowed everywhere)",
+                          CHANGE_TIME, (), (QuantityChange("friction:global", value=25.0),), ("FA",),
+                          _dss(), {"FA": 25.0, "Wd": 0.0}),
+        PracticalScenario("PI-Wg", "all nine adjustable crests lowered by 0.15 m", CHANGE_TIME, (), crests_down,
+                          ("Wd",), _dss(), {"FA": 16.0, "Wd": -0.15}),
+        PracticalScenario("PI-Fl", f"k_s of section {LOCAL_BRANCH} 16 → 25 m^(1/3)/s, the rest stays 16",
+                          CHANGE_TIME, (), (QuantityChange(f"friction:branch:{LOCAL_BRANCH}", value=25.0),), (),
+                          _dss(), {"FA": 16.0, "Wd": 0.0}),
+        PracticalScenario("PI-Wl", f"crest of weir {LOCAL_WEIR} lowered by 0.15 m", CHANGE_TIME, (),
+                          (QuantityChange(f"weir:{LOCAL_WEIR}.crest_level", shift=-0.15),), ("W4",),
+                          _dss(), {"FA": 16.0, "Wd": None}),
+    ]
+    return {s.name: s for s in items}
+
+
+#: The scenarios of thesis chapter 5 by name.
+PRACTICAL_SCENARIOS: dict[str, PracticalScenario] = _scenarios()
+
+
+@dataclass(frozen=True)
+class PracticalTruth:
+    """The truth of a practical scenario over a period.
+
+    Attributes
+    ----------
+    scenario
+        The scenario.
+    observations
+        The observed series in [start, end] at the output interval (with noise when asked); ``source`` names
+        the scenario. Levels in m AD, discharges in m³/s.
+    series
+        The noise-free truth of every observable in [start, end].
+    levels
+        Noise-free levels, m AD, at every calculation point (columns ``compiled.hp_label``) in [start, end],
+        or None when not asked for.
+    state
+        The truth's engine state at ``start`` (to hot-start runs there), or None when ``start`` is the model's
+        own start (a cold start).
+    start, end
+        The period (UTC).
+    change_time
+        Moment of the change (UTC).
+    before, after
+        Model quantities (targets → values) that differ from the model's defaults before and after the change.
+    true_before, true_after
+        True FA (m^(1/3)/s) and Wd (m) before and after the change, None where they do not exist.
+    """
+
+    scenario: PracticalScenario
+    observations: ObservationSet
+    series: pd.DataFrame
+    levels: pd.DataFrame | None
+    state: Any
+    start: pd.Timestamp
+    end: pd.Timestamp
+    change_time: pd.Timestamp
+    before: dict[str, float]
+    after: dict[str, float]
+    true_before: dict[str, float | None]
+    true_after: dict[str, float | None]
+
+
+def _utc(value: Any) -> pd.Timestamp:
+    ts = pd.Timestamp(value)
+    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+
+
+def _on_grid(what: str, t: pd.Timestamp, origin: pd.Timestamp, interval: float) -> None:
+    steps = (t - origin).total_seconds() / interval
+    if abs(steps - round(steps)) > 1e-9:
+        raise ValueError(f"{what} {t.isoformat()} is not on the {interval:g} s output grid that starts at the "
+                         f"model start {origin.isoformat()}")
+
+
+def _legs(model_start: pd.Timestamp, start: pd.Timestamp, end: pd.Timestamp,
+          change: pd.Timestamp) -> list[tuple[pd.Timestamp, pd.Timestamp, bool]]:
+    """The runs (from, to, after the change?) from the model start to ``end``, cut at ``start`` and the change."""
+    cuts = sorted({t for t in (start, change) if model_start < t < end})
+    edges = [model_start, *cuts, end]
+    return [(a, b, a >= change) for a, b in pairwise(edges)]
+
+
+def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, end: Any, *, noise: str = "none",
+                    seed: int = 0, sigma: Mapping[str, float | None] | None = None,
+                    series: Sequence[str] | None = None, output_interval: float = 3600.0,
+                    levels: bool = False) -> PracticalTruth:
+    """Run the truth of a practical scenario and make its observations.
+
+    Parameters
+    ----------
+    model
+        A model following the model protocol with ``start``, ``end``, ``observables`` and
+        ``default_parameters()`` (the embedded :class:`~rivercal.engine.Simulator`).
+    scenario
+        A name of :data:`PRACTICAL_SCENARIOS` or a scenario (e.g. one with another ``change_time``).
+    start, end
+        The period of the observations (UTC; naive times are taken as UTC). It must lie inside the
+        model's period and on its output grid; it may lie entirely before or after the change.
+    noise, seed
+        Noise model of :mod:`rivercal.twin.noise` and its seed (the same seed gives the same noise).
+    sigma
+        σ per quantity or series id for the observation weights (default
+        :data:`~rivercal.observations.DEFAULT_SIGMA`: 0.025 m for levels, 0.1 m³/s for discharges).
+    series
+        Series ids to observe (default: every observable of the model).
+    output_interval
+        Interval of the truth and the observations, s (default hourly).
+    levels
+        Also return the levels at every calculation point (for the network maps of thesis Figs. 5-2 … 5-15).
+
+    Returns
+    -------
+    PracticalTruth
+
+    Raises
+    ------
+    KeyError
+        For an unknown scenario or series id.
+    ValueError
+        For an unknown noise model, a period outside the model's or off its output grid, or end ≤ start.
+
+    Examples
+    --------
+    >>> from rivercal.model import load_model
+    >>> from rivercal.twin.practical import practical_truth
+    >>> truth = practical_truth(load_model("dommel"), "PI-Fg", "2010-10-18", "2010-11-15")  # doctest: +SKIP
+    >>> truth.true_after  # doctest: +SKIP
+    {'FA': 25.0, 'Wd': 0.0}
+    """
+    if isinstance(scenario, str):
+        if scenario not in PRACTICAL_SCENARIOS:
+            raise KeyError(f"unknown practical scenario {scenario!r}; choose one of {', '.join(PRACTICAL_SCENARIOS)}")
+        scenario = PRACTICAL_SCENARIOS[scenario]
+    if noise not in NOISE_MODELS:
+        raise ValueError(f"unknown noise model {noise!r}; choose one of {', '.join(NOISE_MODELS)}")
+    start, end, change = _utc(start), _utc(end), _utc(scenario.change_time)
+    model_start, model_end = _utc(model.start), _utc(model.end)
+    if not end > start:
+        raise ValueError(f"end {end.isoformat()} must be after start {start.isoformat()}")
+    if start < model_start or end > model_end:
+        raise ValueError(f"period {start.isoformat()} … {end.isoformat()} lies outside the model's period "
+                         f"{model_start.isoformat()} … {model_end.isoformat()}")
+    interval = float(output_interval)
+    for what, t in (("start", start), ("end", end), ("change time", change)):
+        if what != "change time" or model_start < t < end:
+            _on_grid(what, t, model_start, interval)
+    ids = list(series) if series is not None else list(model.observables)
+    unknown = [s for s in ids if s not in model.observables]
+    if unknown:
+        raise KeyError(f"series {unknown[0]!r} is not simulated by the model (have: {', '.join(model.observables)})")
+
+    defaults = model.default_parameters()
+    values = {False: scenario.quantities(defaults, after=False), True: scenario.quantities(defaults, after=True)}
+    state = start_state = None
+    frames: list[pd.DataFrame] = []
+    level_frames: list[pd.DataFrame] = []
+    for a, b, after in _legs(model_start, start, end, change):
+        keep = b > start
+        result, state = model.simulate(values[after], a, b, state, output_interval=interval,
+                                       snapshots=levels and keep)
+        if b == start:
+            start_state = state
+        if keep:
+            skip = 1 if frames else 0  # the first row of a hot-started leg repeats the previous leg's last row
+            frames.append(result.series.iloc[skip:])
+            if levels:
+                level_frames.append(result.levels.iloc[skip:])
+    truth = pd.concat(frames).loc[start:end]
+    level_frame = pd.concat(level_frames).loc[start:end] if levels else None
+
+    sigma = dict(sigma if sigma is not None else DEFAULT_SIGMA)
+    rng = np.random.default_rng(seed)
+    source = (f"practical scenario {scenario.name} (change {change:%Y-%m-%d %H:%M} UTC), "
+              f"noise {noise} (seed {seed})")
+    observed = []
+    for sid in ids:
+        quantity = sid.rpartition(".")[2]
+        noisy = add_noise(truth[sid].to_numpy(), quantity, noise, rng)
+        observed.append(ObservationSeries.from_series(pd.Series(noisy, index=truth.index), id=sid,
+                                                      sigma=sigma.get(sid, sigma.get(quantity)), source=source))
+    return PracticalTruth(
+        scenario=scenario, observations=ObservationSet(tuple(observed)), series=truth, levels=level_frame,
+        state=start_state, start=start, end=end, change_time=change, before=values[False], after=values[True],
+        true_before=dict(scenario.true_before), true_after=dict(scenario.true_after),
+    )

@@ -1,0 +1,110 @@
+"""The chapter-5 figures: values on the network map, two maps on one scale, levels around a transition."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.colors import to_rgba
+from matplotlib.figure import Figure
+
+from rivercal.case import load_case
+from rivercal.engine.compile import compile_network
+from rivercal.report.figures import plot_network_pair, plot_network_values, plot_transition_levels
+
+
+@pytest.fixture(scope="module")
+def case():
+    return load_case("dommel")
+
+
+@pytest.fixture(scope="module")
+def labels(case):
+    return pd.Index(compile_network(case.network, case.spec.engine).hp_label)
+
+
+def _texts(ax):
+    return {t.get_text() for t in ax.texts}
+
+
+def test_every_calculation_point_is_coloured_on_a_symmetric_scale(case, labels, tmp_path):
+    values = pd.Series(np.linspace(-0.05, 0.2, labels.size), index=labels)
+    fig = plot_network_values(case, values, title="PI-Fg: DSS", label="Δŷ_avg (m)")
+    assert isinstance(fig, Figure)
+    ax, cbar = fig.axes
+    assert ax.get_title() == "PI-Fg: DSS" and cbar.get_ylabel() == "Δŷ_avg (m)"
+    (points,) = ax.collections
+    np.testing.assert_allclose(points.get_array(), values.to_numpy())
+    assert points.get_offsets().shape == (labels.size, 2)
+    assert (points.norm.vmin, points.norm.vmax) == (-0.2, 0.2)  # symmetric about 0, zero is white
+    # the five stations are marked, the adjustable weirs carry their parameter names
+    assert {"0028", "0040", "0029", "0030", "0031"} <= _texts(ax)
+    assert {"W4 ZL1-5930", "W9 ZL25-8463"} <= _texts(ax)
+    # map positions follow the case geometry: the upstream node of ZL1 sits at (0, 0)
+    xy = dict(zip(values.index, map(tuple, points.get_offsets()), strict=True))
+    assert xy["node:ZL1_up"] == (0.0, 0.0)
+    fig.savefig(tmp_path / "map.png")
+    assert (tmp_path / "map.png").stat().st_size > 10_000
+
+
+def test_all_zero_values_give_a_valid_white_map_and_nan_points_are_grey(case, labels):
+    zero = pd.Series(0.0, index=labels)
+    fig = plot_network_values(case, zero, title="DSS before the transition", label="Δŷ_avg (m)")
+    (points,) = fig.axes[0].collections
+    assert points.norm.vmax > 0 and points.norm.vmin == -points.norm.vmax
+    assert np.allclose(points.to_rgba(points.get_array())[:, :3], 0.97, atol=0.03)  # the middle of RdBu_r
+    partial = zero.copy()
+    partial.iloc[:10] = np.nan
+    fig = plot_network_values(case, partial, title="", label="m", vmax=0.1)
+    grey, coloured = fig.axes[0].collections
+    assert len(grey.get_offsets()) == 10 and len(coloured.get_offsets()) == labels.size - 10
+    assert coloured.norm.vmax == 0.1
+
+
+def test_map_draws_into_a_given_axes_and_rejects_unknown_points(case, labels):
+    fig = Figure()
+    ax = fig.add_subplot()
+    assert plot_network_values(case.network, pd.Series(0.01, index=labels), title="t", label="m", ax=ax) is fig
+    with pytest.raises(ValueError, match=r"calculation point 'Nowhere@12\.0' is neither"):
+        plot_network_values(case, pd.Series([0.1], index=["Nowhere@12.0"]), title="t", label="m")
+    with pytest.raises(ValueError, match="vmax must be positive, got 0"):
+        plot_network_values(case, pd.Series(0.01, index=labels), title="t", label="m", vmax=0)
+
+
+def test_pair_shares_one_colour_scale(case, labels):
+    dss = pd.Series(0.30, index=labels)
+    ours = pd.Series(-0.05, index=labels)
+    fig = plot_network_pair(case, dss, ours, label="Δŷ_avg (m)", suptitle="PI-Fg after the transition")
+    left, right, cbar = fig.axes
+    assert (left.get_title(), right.get_title()) == ("DSS", "rivercal")
+    assert cbar.get_ylabel() == "Δŷ_avg (m)"
+    norms = [(ax.collections[0].norm.vmin, ax.collections[0].norm.vmax) for ax in (left, right)]
+    assert norms == [(-0.30, 0.30), (-0.30, 0.30)]
+    assert fig.get_suptitle() == "PI-Fg after the transition"
+
+
+def test_transition_figure_has_observations_dss_rivercal_and_the_change(tmp_path):
+    times = pd.date_range("2010-10-18", "2010-11-15", freq="h", tz="UTC")
+    base = pd.DataFrame({"0028.h_up": 10.5 + 0.1 * np.sin(np.arange(times.size) / 30),
+                         "0029.Q": 1.0 + 0.5 * np.cos(np.arange(times.size) / 40)}, index=times)
+    change = pd.Timestamp("2010-11-01", tz="UTC")
+    fig = plot_transition_levels(base + 0.01, base + 0.1, base, series=["0028.h_up", "0029.Q"], change_time=change,
+                                 title="PI-Fg at 0028")
+    ax_h, ax_q = fig.axes
+    assert fig.get_suptitle() == "PI-Fg at 0028"
+    assert ax_h.get_ylabel() == "level (m AD)" and ax_q.get_ylabel() == "Q (m³/s)"
+    assert ax_q.get_xlabel() == "time (UTC)"
+    observed, dss, ours, vline = ax_h.lines
+    assert observed.get_marker() == "o" and observed.get_linestyle() == "None"
+    assert to_rgba(dss.get_color())[0] > 0.7 and to_rgba(ours.get_color())[2] > 0.6  # red DSS, blue rivercal
+    assert vline.get_linestyle() == "--" and vline.get_color() == "black"
+    assert [t.get_text() for t in ax_h.get_legend().get_texts()] == ["observed", "DSS", "rivercal", "transition"]
+    fig.savefig(tmp_path / "transition.png")
+    assert (tmp_path / "transition.png").stat().st_size > 10_000
+
+
+def test_transition_figure_names_a_missing_series():
+    frame = pd.DataFrame({"a.h": [1.0]}, index=pd.DatetimeIndex(["2010-11-01"], tz="UTC"))
+    with pytest.raises(KeyError, match=r"series 'b\.h' is not a column of dss"):
+        plot_transition_levels(frame.assign(**{"b.h": 1.0}), frame, frame, series=["b.h"], change_time="2010-11-01",
+                               title="t")
+    with pytest.raises(ValueError, match="series is empty"):
+        plot_transition_levels(frame, frame, frame, series=[], change_time="2010-11-01", title="t")
