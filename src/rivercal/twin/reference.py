@@ -8,11 +8,20 @@ dimensionless values (its weights follow thesis Eq. 2-6, rivercal's default weig
 costs compare in order of magnitude only). Extracted from the thesis text by a script and checked
 against the tables; values exactly as printed (one apparent typo kept: F0W1 H2 RMSE is printed
 negative).
+
+The initial model analysis (thesis §4-5-1) is given only as figures (Fig. 4-5, C-1 … C-5, 4-6, 4-7) and
+the text that reads them; :data:`THESIS_SENSITIVITY` and :data:`THESIS_IDENTIFIABILITY` hold what that
+text states (rankings, which parameters dominate which singular vectors, the signs of correlations, the
+verdict), with the sentence each item comes from. :data:`THESIS_FIGURES` gives the figure numbers of every
+suite's figures, for captions.
 """
 
 from __future__ import annotations
 
-__all__ = ["THESIS", "thesis_row"]
+import statistics
+
+__all__ = ["THESIS", "THESIS_FIGURES", "THESIS_IDENTIFIABILITY", "THESIS_REMARKS", "THESIS_SENSITIVITY",
+           "thesis_row", "thesis_summary"]
 
 #: suite → scenario id → (calibrated values by parameter, iterations, cost, RMSE, bias, STD)
 THESIS = {
@@ -117,3 +126,118 @@ def thesis_row(suite: str, scenario: str) -> dict[str, float] | None:
     estimates, iterations, cost, rmse, bias, std = entry
     return {**{f"{k}_estimate": v for k, v in estimates.items()}, "iterations": iterations, "cost": cost,
             "rmse": rmse, "bias": bias, "std_error": std}
+
+
+def thesis_summary(suite: str, tolerance: dict[str, float] | None = None, *,
+                   ids: list[str] | tuple[str, ...] | None = None) -> dict[str, object] | None:
+    """Performance indicators of a thesis suite computed from its typed-in table (None: no such suite).
+
+    ``ids`` restricts the summary to these scenarios (for a comparison with a partial run; ids the thesis
+    does not have are ignored, and None is returned when none is left).
+
+    Keys as :func:`rivercal.report.twin.suite_summary` where the thesis has the numbers: ``scenarios``,
+    ``iterations_median``, ``iterations_max``, ``max_abs_error`` (per parameter, in its unit, from the
+    calibrated values and the truths decoded from the scenario ids), ``cost_median``, and ``robustness``
+    (share of scenarios within ``tolerance`` of the truth; only with ``tolerance``). The thesis reports
+    no model runs or wall times per suite.
+    """
+    rows = THESIS.get(suite)
+    if rows and ids is not None:
+        rows = {sid: row for sid, row in rows.items() if sid in set(ids)}
+    if not rows:
+        return None
+    errors: dict[str, list[float]] = {}
+    for sid, (estimates, *_rest) in rows.items():
+        for name, value in estimates.items():
+            errors.setdefault(name, []).append(abs(value - _TRUTHS[name][sid[2 * list(estimates).index(name)]]))
+    out: dict[str, object] = {
+        "scenarios": len(rows),
+        "iterations_median": float(statistics.median(r[1] for r in rows.values())),
+        "iterations_max": max(r[1] for r in rows.values()),
+        "max_abs_error": {name: max(v) for name, v in errors.items()},
+        "cost_median": float(statistics.median(r[2] for r in rows.values())),
+    }
+    if tolerance is not None:
+        n_ok = sum(all(abs(v) <= tolerance[name] + 1e-12 for name, v in zip(errors, vals, strict=True))
+                   for vals in zip(*errors.values(), strict=True))
+        out["robustness"] = n_ok / len(rows)
+    return out
+
+
+#: True values by parameter and scenario letter (thesis Tables 4-5, 4-7, 4-9, 4-11); k_s in m^(1/3)/s,
+#: the crest W2 in m AD, Wc dimensionless.
+_TRUTHS = {"F1": {"H": 20.0, "M": 16.0, "L": 12.0}, "FA": {"H": 20.0, "M": 16.0, "L": 12.0},
+           "W2": {"H": 10.75, "M": 10.45, "L": 10.15}, "Wc": {"H": 0.8, "M": 0.6, "L": 0.4}}
+
+
+#: Figure numbers of the thesis for each suite's figures (chapter 4; appendices D-F for the FaWc-type levels).
+THESIS_FIGURES = {
+    "F1W0": {"convergence": "4-8", "cost": "4-9", "levels": "4-10", "bias": "4-11"},
+    "F0W1": {"convergence": "4-12", "cost": "4-13", "levels": "4-14", "bias": "4-15"},
+    "FaWc": {"convergence": "4-17/4-18, 4-20/4-21, 4-23/4-24", "cost": "4-16, 4-19, 4-22", "levels": "D-x",
+             "bias": "4-25"},
+    "FaWcP": {"convergence": "4-27/4-28", "cost": "4-26", "levels": "E-x", "bias": "4-29"},
+    "FaWcN": {"convergence": "4-31/4-32", "cost": "4-30", "levels": "F-x", "bias": "4-33"},
+}
+
+#: What the thesis says of each suite's efficiency and robustness (§4-5-2 … §4-5-6), quoted.
+THESIS_REMARKS = {
+    "F1W0": "§4-5-2-1: \"For each scenario, a fast convergence is observed. Within five iterations the actual "
+            "friction value is correctly estimated by the OPE tool.\"",
+    "F0W1": "§4-5-3-1: \"The crest level is correctly predicted by the OPE tool within two iterations, which is "
+            "faster than [...] the friction parameter.\"",
+    "FaWc": "§4-5-4-1: \"for all scenarios (in each group) within ten iterations the actual parameter value is "
+            "predicted accurately.\"",
+    "FaWcP": "§4-5-5-1: \"Only one scenario (L2H2) tends to need more iterations for correctly predicting the actual "
+             "parameter values\"",
+    "FaWcN": "§4-5-6-1: \"the additive noise causes the OPE tool to execute more iterations for correct prediction "
+             "of the actual parameters [...] the scenario L2H2 requires significantly more iterations\"; §6-1: "
+             "\"the required computation time is only increased with a factor two\".",
+}
+
+#: The sensitivity analysis of thesis §4-5-1 (Fig. 4-5, Figs. C-1 ... C-5), as its text states it.
+THESIS_SENSITIVITY = {
+    "source": "thesis §4-5-1, Fig. 4-5 and Figs. C-1 ... C-5 (moderate window, Table 4-4 scenarios)",
+    # "parameters W2, FA, W3 and W5 have the strongest influence on the objective function values"
+    "strongest": ("W2", "FA", "W3", "W5"),
+    "strongest_quote": "From this figure it can be observed that parameters W2, FA, W3 and W5 have the strongest "
+                       "influence on the objective function values.",
+    # per station: does any crest matter (C-1 ... C-5)? the parameter that matters most, where stated
+    "stations": {
+        "0028": {"figure": "C-1", "crests_matter": True, "top": None},
+        "0029": {"figure": "C-2", "crests_matter": False, "top": None},
+        "0030": {"figure": "C-3", "crests_matter": False, "top": "FA"},
+        "0031": {"figure": "C-4", "crests_matter": False, "top": "FA"},
+        "0040": {"figure": "C-5", "crests_matter": True, "top": "FA", "top_crest_low": "W5", "top_crest_high": "W3"},
+    },
+    "stations_quote": "only location 0028 and 0040 seems to be influenced by a change in the crest level height of "
+                      "weirs (see Figure C-1 and Figure C-5). At location 0030, 0031 and 0040 the objective function "
+                      "is most affected by the overall bed roughness change [...] for location 0040 the lower "
+                      "scenarios 1 and 2 the cost function is most affected by parameter W5, while for the higher "
+                      "scenarios parameter W3 is most influential.",
+}
+
+#: The identifiability analysis of thesis §4-5-1 (Figs. 4-6 and 4-7), as its text states it.
+THESIS_IDENTIFIABILITY = {
+    "source": "thesis §4-5-1, Fig. 4-6 (singular value decomposition) and Fig. 4-7 (correlation matrix)",
+    # singular vector (1-based, strongest first) -> the parameter(s) that dominate it
+    "vectors": {1: ("W2",), 2: ("W3",), 3: ("W5", "FA"), 4: ("W5", "FA"), 5: ("W4",), 6: ("W7",),
+                7: ("W1", "W6", "W9"), 8: ("W1", "W6", "W9"), 9: ("W1", "W6", "W9"), 10: ("W8",)},
+    "vectors_quote": "The eigenvectors 1, 2, 5, 6 and 10 more or less dominated by the parameters W2, W3, W4, W7 and "
+                     "W8, respectively. [...] The eigenvectors 3 and 4 show an influence on the model by the "
+                     "combination of parameter W5 and FA, while eigenvectors 7, 8 and 9 represent a combination of "
+                     "parameter W1, W6 and W9.",
+    # the singular values of vectors 5, 6 and 10 are "(very) low": W4, W7 and W8 are hardly seen
+    "weak_vectors": (5, 6, 10),
+    # pairs the thesis names as negatively correlated (Fig. 4-7)
+    "negative_pairs": (("W1", "W4"), ("FA", "W3"), ("FA", "W5"), ("W2", "W3"), ("W2", "W5"), ("W6", "W7")),
+    "correlation_quote": "parameter W1 is negatively correlated with W4. [...] a negative correlation between the "
+                         "parameters FA and W2 with W3 and W5 is observed. [...] Lastly, a negative correlation "
+                         "between W6 and W7 is noticed.",
+    # the conclusion: FA and W2 are identifiable, the other crests are not (hence the cluster Wc, §4-4)
+    "identifiable": ("FA", "W2"),
+    "not_identifiable": ("W1", "W3", "W4", "W5", "W6", "W7", "W8", "W9"),
+    "verdict_quote": "weir parameter W2 is the only weir parameter that has a significant influence the cost "
+                     "function. In other words, the other weir parameters are not very identifiable [...] the weir "
+                     "parameters are clustered into one parameter",
+}

@@ -28,26 +28,41 @@ import multiprocessing
 import sys
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from rivercal.evaluate import default_workers
+from rivercal.analysis import (
+    Identifiability,
+    IdentifiabilityOptions,
+    SensitivityResult,
+    identifiability,
+    sensitivity,
+    thesis_scenarios,
+)
+from rivercal.evaluate import Evaluator, default_workers
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin.truth import TwinTruth, twin_truth
 
-__all__ = ["SUITES", "Scenario", "ScenarioResult", "SuiteDefinition", "run_scenarios", "suite_scenarios"]
+__all__ = ["SENSITIVITY_PARAMETERS", "SUITES", "InitialAnalysis", "Scenario", "ScenarioResult", "SuiteDefinition",
+           "initial_analysis", "run_scenarios", "suite_scenarios"]
 
 log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
 class SuiteDefinition:
-    """A suite: per parameter the true values by letter and the start values by digit."""
+    """A suite: per parameter the true values by letter and the start values by digit.
+
+    ``bias_series`` is the observed series whose moving-window bias the report plots (thesis Figs. 4-11,
+    4-15, 4-25, 4-29, 4-33: 0028 for the one-parameter suites, the downstream level of 0040 for the others;
+    F0W1 observes only the upstream level of 0028, so its bias is that of ``0028.h_up``). Tolerances are in
+    the parameters' units (k_s in m^(1/3)/s, crest in m, Wc dimensionless).
+    """
 
     name: str
     truths: dict[str, dict[str, float]]
@@ -57,6 +72,7 @@ class SuiteDefinition:
     noise: str
     tolerance: dict[str, float]
     description: str
+    bias_series: str = "0040.h_down"
 
 
 _FA = {"H": 20.0, "M": 16.0, "L": 12.0}
@@ -67,10 +83,12 @@ _WC_START = {"1": 0.1, "2": 0.9}
 SUITES: dict[str, SuiteDefinition] = {
     "F1W0": SuiteDefinition(
         "F1W0", {"F1": dict(_FA)}, {"F1": dict(_FA_START)}, "moderate", ("0028.h_down",), "none",
-        {"F1": 0.05}, "friction of the section just downstream of ZL1-3014 from the downstream level of 0028"),
+        {"F1": 0.05}, "friction of the section just downstream of ZL1-3014 from the downstream level of 0028",
+        "0028.h_down"),
     "F0W1": SuiteDefinition(
         "F0W1", {"W2": {"H": 10.75, "M": 10.45, "L": 10.15}}, {"W2": {"1": 10.00, "2": 10.90}}, "moderate",
-        ("0028.h_up",), "none", {"W2": 0.002}, "crest level of ZL1-3014 from the upstream level of 0028"),
+        ("0028.h_up",), "none", {"W2": 0.002}, "crest level of ZL1-3014 from the upstream level of 0028",
+        "0028.h_up"),
     "FaWc": SuiteDefinition(
         "FaWc", {"FA": dict(_FA), "Wc": dict(_WC)}, {"FA": dict(_FA_START), "Wc": dict(_WC_START)}, "moderate",
         None, "none", {"FA": 0.05, "Wc": 0.002}, "global friction and clustered crest levels, all stations"),
@@ -140,7 +158,9 @@ class ScenarioResult:
 
     Costs and residual statistics are dimensionless (weighted residuals, thesis Tables 4-6…4-12);
     ``state_rmse`` is the RMS difference (m) between the calibrated and the true noise-free levels at
-    the observed stations in the window.
+    the observed stations in the window. ``series`` holds the ``observed``, ``initial``, ``calibrated``
+    and ``truth`` frames of the observed series in the window (m, m³/s) and ``sigma`` the σ of each
+    observed series (same units) that weighs its residuals.
     """
 
     suite: str
@@ -163,11 +183,12 @@ class ScenarioResult:
     message: str
     history: list[dict[str, float]] = field(default_factory=list)
     series: dict[str, pd.DataFrame] = field(default_factory=dict, repr=False)
+    sigma: dict[str, float] = field(default_factory=dict)
 
     def row(self) -> dict[str, Any]:
         """A flat row for tables (no history or series)."""
         out = {k: v for k, v in asdict(self).items() if k not in ("history", "series", "truth", "start",
-                                                                  "estimates", "errors", "std")}
+                                                                  "estimates", "errors", "std", "sigma")}
         for name in self.truth:
             out[f"{name}_true"] = self.truth[name]
             out[f"{name}_start"] = self.start[name]
@@ -228,11 +249,13 @@ def _calibrate(scenario: Scenario, truth: TwinTruth) -> ScenarioResult:
         history=cal.history,
         series={"observed": truth.observations.to_frame(), "initial": initial.loc[window[0]:window[1], ids],
                 "calibrated": final.loc[window[0]:window[1], ids], "truth": true},
+        sigma={o.id: float(o.sigma) for o in problem.observations if o.sigma is not None},
     )
 
 
-def _scenario_job(args: tuple[Scenario, TwinTruth]) -> ScenarioResult:
-    return _calibrate(*args)
+def _expected_work(scenario: Scenario) -> int:
+    """A rough rank of a scenario's cost: more parameters and noise take more iterations."""
+    return len(scenario.truth) + (1 if scenario.noise != "none" else 0)
 
 
 def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: int | None = None,
@@ -240,7 +263,10 @@ def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: int | N
     """Run scenarios on ``model`` (the packaged ``dommel`` case or one with the same parameters and windows).
 
     Each distinct truth runs once; the scenarios then run in parallel, one calibration per worker
-    process (serial model runs inside each), which keeps every core busy for the whole suite.
+    process (serial model runs inside each), which keeps every core busy for the whole suite. Scenarios
+    of several suites can go in one call (one pool for all); the likely longest ones are started first
+    so that no core idles at the end. Results come back in the order of ``scenarios``; ``progress`` is
+    called as each one finishes.
     """
     _setup(model)
     workers = default_workers() if workers is None else workers
@@ -248,21 +274,120 @@ def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: int | N
     for s in scenarios:
         keys.setdefault(s.truth_key, s)
     t0 = time.perf_counter()
-    results: list[ScenarioResult] = []
-    if workers <= 1:
+    if workers <= 1 or len(scenarios) <= 1:
         truths = {k: _truth(s) for k, s in keys.items()}
         log.info("%d truths in %.1f s", len(truths), time.perf_counter() - t0)
+        results = []
         for s in scenarios:
             results.append(_calibrate(s, truths[s.truth_key]))
             if progress:
                 progress(results[-1])
         return results
     context = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+    out: list[ScenarioResult | None] = [None] * len(scenarios)
     with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_setup, initargs=(model,)) as pool:
-        truths = dict(zip(keys, pool.map(_truth, keys.values()), strict=True))
+        order = sorted(keys, key=lambda k: -_expected_work(keys[k]))
+        truths = dict(zip(order, pool.map(_truth, [keys[k] for k in order]), strict=True))
         log.info("%d truths in %.1f s", len(truths), time.perf_counter() - t0)
-        for result in pool.map(_scenario_job, [(s, truths[s.truth_key]) for s in scenarios]):
-            results.append(result)
+        jobs = sorted(range(len(scenarios)), key=lambda i: -_expected_work(scenarios[i]))
+        futures = {pool.submit(_calibrate, scenarios[i], truths[scenarios[i].truth_key]): i for i in jobs}
+        for future in as_completed(futures):
+            result = future.result()
+            out[futures[future]] = result
             if progress:
                 progress(result)
-    return results
+    return [r for r in out if r is not None]
+
+
+# -- the initial model analysis (thesis §4-5-1) ------------------------------------------------------
+
+#: The parameters of thesis Table 4-4, in its order: the nine crests and the global friction.
+SENSITIVITY_PARAMETERS = ("W1", "W2", "W3", "W4", "W5", "W6", "W7", "W8", "W9", "FA")
+
+
+@dataclass(frozen=True)
+class InitialAnalysis:
+    """The initial model analysis of thesis §4-5-1 at the base point (the case's initial values).
+
+    The observations are a noise-free twin truth at the base point, so the base cost is zero and every
+    scenario's cost (thesis Eq. 2-3, dimensionless) measures how far its change moves the stations.
+
+    Attributes
+    ----------
+    parameters
+        The parameters analysed, in order.
+    kinds
+        Per parameter ``crest`` (it sets weir crest levels, also as a cluster), ``friction`` or ``other``.
+    window
+        (start, end) of the window, UTC.
+    sensitivity
+        One-at-a-time scenarios of thesis Table 4-4 (Fig. 4-5, C-1 … C-5).
+    identifiability
+        Jacobian SVD, correlation and verdict (Figs. 4-6, 4-7); None when not asked for.
+    model_runs
+        Model runs of both analyses (not the truth and its spin-up).
+    wall_s
+        Wall time in s, truth included.
+    """
+
+    parameters: tuple[str, ...]
+    kinds: dict[str, str]
+    window: tuple[pd.Timestamp, pd.Timestamp]
+    sensitivity: SensitivityResult
+    identifiability: Identifiability | None
+    model_runs: int
+    wall_s: float
+
+
+def _kind(p: Any) -> str:
+    targets = [c.target for c in p.cluster] if p.cluster else list(p.targets)
+    if targets and all(t.startswith("weir:") and t.endswith(".crest_level") for t in targets):
+        return "crest"
+    if targets and all(t.startswith("friction:") for t in targets):
+        return "friction"
+    return "other"
+
+
+def initial_analysis(model: Any, names: Sequence[str] = SENSITIVITY_PARAMETERS, window: str = "moderate", *,
+                     workers: int | None = None, identifiability_too: bool = True,
+                     options: IdentifiabilityOptions | None = None) -> InitialAnalysis:
+    """Sensitivity (thesis Table 4-4) and identifiability of ``names`` at the base point, one worker pool.
+
+    Parameters
+    ----------
+    model
+        The model (the ``dommel`` case or one with the same parameter names and windows).
+    names
+        Parameters of the case to analyse (default: W1 … W9 and FA, as thesis Table 4-4).
+    window
+        A window of the case or ``START/END`` (UTC).
+    workers
+        Worker processes for the runs (None: all cores).
+    identifiability_too
+        Also compute the Jacobian (p + 1 runs) and the identifiability verdict.
+    options
+        Thresholds of the verdict.
+
+    Raises
+    ------
+    KeyError
+        For a parameter the case does not define.
+    """
+    t0 = time.perf_counter()
+    _setup(model)
+    unknown = [n for n in names if n not in _PARAMS]
+    if unknown:
+        raise KeyError(f"parameter {unknown[0]!r} is not defined by the case (it has {', '.join(_PARAMS)})")
+    params = ParameterSet(_PARAMS[n] for n in names)
+    win = _window(window)
+    truth = twin_truth(model, params.quantities({n: _PARAMS[n].initial for n in names}), win)
+    problem = CalibrationProblem(model, params, truth.observations, win, state=truth.state)
+    problem.sqrt_weights  # noqa: B018 - computed before the workers fork
+    with Evaluator(problem.residuals, workers=workers) as batch:
+        sens = sensitivity(problem, thesis_scenarios(params), batch=batch)
+        ident = identifiability(problem, batch=batch, options=options) if identifiability_too else None
+    runs = sens.nfev + (int(ident.extra["nfev"]) if ident is not None else 0)
+    log.info("initial analysis of %d parameters: %d runs in %.1f s", len(params), runs, time.perf_counter() - t0)
+    return InitialAnalysis(parameters=tuple(names), kinds={p.name: _kind(p) for p in params}, window=win,
+                           sensitivity=sens, identifiability=ident,
+                           model_runs=runs, wall_s=time.perf_counter() - t0)
