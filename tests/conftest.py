@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from rivercal.case import case_from_dict
+
+# Property tests draw the same examples on every run, so CI is reproducible; explore new ones locally with
+# HYPOTHESIS_PROFILE=explore (random draws, remembered failures).
+settings.register_profile("reproducible", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "reproducible"))
 
 
 def channel_case(

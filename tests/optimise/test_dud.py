@@ -82,10 +82,11 @@ def test_convergence_is_declared_after_backtracking():
     def penalty(x):
         return np.array([x[0] - 2.0 + (10.0 if x[0] > 1.0 else 0.0)])
 
-    res = dud(penalty, [0.0], [-5.0], [5.0], options=only(abs_tol=10.0))
-    assert res.status == 1 and res.nit == 1
-    # initial set {0, 0.1}; the secant step 1.9 is capped at max_rel_step × 0.1 = 1: the trial at t = 1
-    # (x = 1.1) is penalised, t = ½ (x = 0.6) is accepted, and T1 fires on this backtracked iteration
+    res = dud(penalty, [0.0], [-5.0], [5.0], options=only(abs_tol=2.5))
+    assert res.status == 7 and res.nit == 1
+    # initial set {0, 0.1} (cost 4 > abs_tol); the secant step 1.9 is capped at max_rel_step × 0.1 = 1: the trial
+    # at t = 1 (x = 1.1) is penalised, t = ½ (x = 0.6, cost 1.96 ≤ abs_tol) is accepted, and T1 fires on this
+    # backtracked iteration
     assert res.nfev == 2 + 2 and res.x[0] == pytest.approx(0.6)
     # OpenDA always continues after an iteration that backtracked
 
@@ -111,9 +112,17 @@ def test_no_predicted_decrease_when_started_at_the_optimum():
 
 
 def test_zero_cost():
-    res = dud(lambda x: A @ (x - X_LINEAR), np.zeros(3), -10.0, 10.0)
+    res = dud(lambda x: A @ (x - X_LINEAR), np.zeros(3), -10.0, 10.0, options=only())
     assert res.status == 6 and res.cost == 0.0
     np.testing.assert_allclose(res.x, X_LINEAR, atol=1e-12)
+
+
+def test_a_cost_below_abs_tol_ends_the_run_at_once():
+    """T1 cannot fail any more once S ≤ abs_tol, so DuD stops instead of spending runs on confirming it."""
+    res = dud(lambda x: A @ (x - X_LINEAR), X_LINEAR + 1e-6, -10.0, 10.0, options={"abs_tol": 1e-3})
+    assert res.status == 7 and res.success and res.nit == 0 and res.nfev == 4  # x0 and its p perturbations
+    far = dud(lambda x: A @ (x - X_LINEAR), np.zeros(3), -10.0, 10.0, options={"abs_tol": 1e-3})
+    assert far.status in (6, 7) and far.cost <= 1e-3 and far.nfev < 10
 
 
 def test_confirmation_round_reinitialises_before_stopping():

@@ -46,6 +46,7 @@ STATUS_LINEAR = 3
 STATUS_NO_DECREASE = 4
 STATUS_LINE_SEARCH = 5
 STATUS_ZERO_COST = 6
+STATUS_ABS_FLOOR = 7
 STATUS_DEGENERATE = -4
 
 TERMINATION_MESSAGES: dict[int, str] = {
@@ -59,6 +60,7 @@ TERMINATION_MESSAGES: dict[int, str] = {
     STATUS_LINE_SEARCH: "The line search found no lower cost along the step of a freshly re-initialised "
                         "interpolation set: the best point is a local minimum to the resolution of the secant model.",
     STATUS_ZERO_COST: "The cost is zero: the residuals vanish at the best point.",
+    STATUS_ABS_FLOOR: "T1: the cost is at most abs_tol, so no further iteration can lower it by more than abs_tol.",
     STATUS_DEGENERATE: "The interpolation set stays degenerate after re-initialisation.",
 }
 
@@ -75,7 +77,8 @@ class DudOptions:
         Maximum number of step reductions in the line search after the full step (Table 4-3: 5), so at
         most ``max_inner + 1`` evaluations per outer iteration.
     abs_tol
-        T1: stop when an iteration lowers the cost by at most this much (Table 4-3: 1e-3). 0 disables.
+        T1: stop when an iteration lowers the cost by at most this much (Table 4-3: 1e-3), or as soon as
+        the cost itself is at most this much (no iteration could then lower it by more). 0 disables.
     rel_tol
         T2: stop when an iteration lowers the cost by at most ``rel_tol`` times the new cost (1e-4).
     rel_tol_linear
@@ -325,6 +328,8 @@ class DudEngine:
         s_b = float(self.costs[0])
         if s_b == 0.0:
             return STATUS_ZERO_COST
+        if s_b <= opts.abs_tol:  # T1 holds for every further iteration: stop without spending runs on it
+            return STATUS_ABS_FLOOR
         if run.nit >= opts.max_outer:
             return STATUS_MAX_ITER
         jac = self.model.jacobian(self.X, self.R)
@@ -349,7 +354,7 @@ class DudEngine:
         run.iteration(self.X[0], self.costs[0], linear)
         if accepted is not None:
             status = self.converged(s_b, float(self.costs[0]), linear)
-            if status is None or from_fresh or not opts.confirm_convergence:
+            if status is None or from_fresh or not opts.confirm_convergence or status == STATUS_ABS_FLOOR:
                 return status
             self.reinit(1.0, "confirming convergence", fresh=True)
             return None
@@ -377,7 +382,7 @@ class DudEngine:
     def spread(self) -> np.ndarray:
         """Per-parameter extent of the interpolation set around the best point (never zero)."""
         extent = np.max(np.abs(self.X[1:] - self.X[0]), axis=0)
-        return np.where(extent > 0.0, extent, self.h0)
+        return np.where(extent >= np.finfo(float).tiny, extent, self.h0)
 
     def trial_factors(self) -> list[float]:
         """Step fractions t of the line search: 1, s, s², ..., alternating sign after ``negative_look_after``."""
@@ -428,6 +433,8 @@ class DudEngine:
         """Stopping rules T1, T2, T3 after an accepted step (also after backtracking)."""
         if s_new == 0.0:
             return STATUS_ZERO_COST
+        if s_new <= self.opts.abs_tol:
+            return STATUS_ABS_FLOOR
         drop = s_old - s_new
         if drop <= self.opts.abs_tol:
             return STATUS_ABS

@@ -88,14 +88,17 @@ class DenseSecant:
         p_mat = (points[1:] - points[0]).T
         a_mat = (residuals[1:] - residuals[0]).T
         extent = np.max(np.abs(p_mat), axis=1)
-        if np.any(extent == 0.0):
+        if np.any(extent < np.finfo(float).tiny):  # zero or subnormal: no usable secant in that direction
             return None
         scaled = p_mat / extent[:, None]
         scaled /= np.linalg.norm(scaled, axis=0)
         cond = np.linalg.cond(scaled)
         if not np.isfinite(cond) or cond > self.max_condition:
             return None
-        return np.linalg.solve(p_mat.T, a_mat.T).T
+        try:
+            return np.linalg.solve(p_mat.T, a_mat.T).T
+        except np.linalg.LinAlgError:
+            return None
 
     def step_size(self, points: np.ndarray, delta: np.ndarray) -> float:
         """‖α‖∞ with δ = Pα: the step in units of the secant spread."""
