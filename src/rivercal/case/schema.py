@@ -457,8 +457,12 @@ def branch_layout(branch: Branch, structures: list[Weir | Culvert | Pump], struc
     """Split a branch into channel segments (at most ``dx`` long) and one short segment per structure.
 
     This is the layout of the engine's grid: a structure occupies a segment of
-    ``structure_length`` (at most the branch length) centred on its chainage, snapped to the end
-    of the branch when it is closer than a quarter of that length to it.
+    ``structure_length`` (at most the branch length) centred on its chainage. When the channel piece
+    between that segment and an end of the branch would be shorter than half the branch's ``dx`` (or
+    a quarter of the structure length), the structure's segment reaches the end node instead: the
+    structure then discharges into (or draws from) the node itself. A very short cell beside a
+    structure would hold a few m³ and be emptied and refilled within one time step (the velocity
+    Courant number |u|Δt/Δx exceeds 1), which makes the level there flip from step to step.
 
     Parameters
     ----------
@@ -481,7 +485,7 @@ def branch_layout(branch: Branch, structures: list[Weir | Culvert | Pump], struc
     """
     length = branch.length
     half = 0.5 * min(structure_length, length)
-    snap = 0.5 * half
+    snap = max(0.5 * half, 0.5 * branch.dx)
     segs: list[Segment] = []
     pos = 0.0
     previous: Weir | Culvert | Pump | None = None
