@@ -18,6 +18,7 @@ BENCHMARKS = {
     "calibrate-dud": ["bench", "calibrate", "--algorithms", "dud", "--json"],
     "calibrate-all": ["bench", "calibrate", "--json"],
     "hupsel": ["bench", "hupsel", "--json"],
+    "online": ["bench", "online", "--replay", "--json"],
 }
 
 

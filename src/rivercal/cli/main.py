@@ -30,6 +30,9 @@ from rivercal.cli.common import (
     parse_window,
     select_parameters,
 )
+from rivercal.cli.online import demo as _demo
+from rivercal.cli.online import online as _online
+from rivercal.cli.online import report as _report
 from rivercal.cli.twin import twin as _twin
 
 app = typer.Typer(
@@ -397,62 +400,39 @@ def bench_hupsel_cmd(as_json: JsonOpt = False) -> None:
                       f"val {rows[0]['nse_validation_default']:.3f}")
 
 
-# -- demo ---------------------------------------------------------------------------------------
-
-
-@app.command()
+@bench_app.command("online")
 @_guard
-def demo(
-    out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/demo"),
+def bench_online_cmd(
+    scenario: Annotated[str, typer.Option(help="Practical scenario that makes the observations.")] = "PI-Fg",
+    first_issue: Annotated[str, typer.Option("--from", help="Issue time of the first (untimed) cycle.")] = "2010-11-09",
+    cycles: Annotated[int, typer.Option(help="Timed warm-started cycles (median reported).")] = 5,
+    workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
+    replay: Annotated[bool, typer.Option(help="Also time the four-week replay 2010-10-18 .. 2010-11-15.")] = False,
+    replay_repeats: Annotated[int, typer.Option(help="Timed replays (median reported).")] = 3,
     as_json: JsonOpt = False,
 ) -> None:
-    """The main job on the embedded default case: simulate the De Dommel-like network, Sep-Nov 2010."""
-    from rivercal.model import load_model
-    from rivercal.report.figures import plot_network, plot_series
+    """Time one warm-started cycle of the on-line service (7-day window, FA and Wd, DuD) on dommel."""
+    from rivercal.bench.online import bench_online
 
-    with err_console.status("loading the dommel case (rainfall-runoff of 16 catchments)", spinner="dots") \
-            if not as_json else _null():
-        sim = load_model("dommel")
-    c = sim.case
-    with err_console.status("simulating Sep-Nov 2010", spinner="dots") if not as_json else _null():
-        result, _ = sim.simulate()
-    out.mkdir(parents=True, exist_ok=True)
-    result.to_csv(out / "series.csv")
-    result.to_netcdf(out / "series.nc")
-    figs = [
-        plot_network(c.network, out / "network.png", title="dommel: De Dommel-like weir network",
-                     weir_labels=_weir_labels(c)),
-        plot_series(result.series, out / "series.png", title="dommel, Sep-Nov 2010: simulated station series"),
-    ]
-    summary = {
-        "case": c.name,
-        "period": [c.start.isoformat(), c.end.isoformat()],
-        "calculation_points": sim.compiled.n_hpoints,
-        "wall_s": round(result.wall_time, 3),
-        "volume_balance_relative_error": result.balance.relative_error,
-        "outputs": [str(out / "series.csv"), str(out / "series.nc"), *map(str, figs)],
-    }
+    result = bench_online("dommel", scenario, first_issue=first_issue, cycles=cycles, workers=workers,
+                          replay=replay, replay_repeats=replay_repeats).to_dict()
     if as_json:
-        _emit_json(summary)
+        _emit_json(result)
         return
-    out_console.print(f"[bold]rivercal demo[/]: simulated the [bold]{c.name}[/] network "
-                      f"({sim.compiled.n_hpoints} calculation points, {len(c.network.weirs)} weirs, "
-                      f"{len(c.spec.catchments)} catchments) {c.start:%Y-%m-%d} .. {c.end:%Y-%m-%d} in "
-                      f"{result.wall_time:.2f} s; volume balance closes to {result.balance.relative_error:.1e}.")
-    table = Table(title="station series: dry weather (1-6 Sep) and the November 2010 peak")
-    for col in ("series", "1-6 Sep mean", "Nov peak"):
-        table.add_column(col, justify="right" if col != "series" else "left")
-    for name in result.series.columns:
-        unit = "m³/s" if name.endswith(".Q") else "m AD"
-        col = result.series[name]
-        table.add_row(name, f"{col.loc['2010-09-01':'2010-09-06'].mean():.3f} {unit}",
-                      f"{col.loc['2010-11-01':'2010-11-30'].max():.3f} {unit}")
+    table = Table(title="on-line service benchmark", show_header=False)
+    for key, value in result.items():
+        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out_console.print(table)
-    out_console.print("results: " + ", ".join(summary["outputs"]))
+
+
+# -- demo ---------------------------------------------------------------------------------------
 
 
 app.command("twin")(guard(_twin))
 app.command("analyse")(_analyse)
+app.command("online")(guard(_online))
+app.command("report")(guard(_report))
+app.command("demo")(guard(_demo))
 
 
 def main() -> None:  # pragma: no cover - console entry point

@@ -1,0 +1,88 @@
+"""``rivercal online`` and ``rivercal report`` on the dommel case: a short PI-Fg run end to end.
+
+The run starts after the global friction of the truth changed 16 → 25 m^(1/3)/s (thesis §5-2-1), with
+the DSS at 16: the estimate must find 25 and its forecasts must beat the DSS's at the stations.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+
+def rivercal(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
+
+
+@pytest.fixture(scope="module")
+def pifg(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    folder = tmp_path_factory.mktemp("online")
+    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
+                   "--db", str(folder / "run.sqlite"), "--out", str(folder / "report"), "--workers", "2", "--json")
+    assert run.returncode == 0, run.stderr
+    return folder, json.loads(run.stdout)
+
+
+def test_online_finds_the_new_friction_and_beats_the_dss(pifg) -> None:
+    _, summary = pifg
+    assert summary["cycles"] == 2 and summary["status"] == {"done": 2}
+    for e in summary["estimates"]:
+        assert e["FA"] == pytest.approx(25.0, rel=0.02) and e["Wd"] == pytest.approx(0.0, abs=0.005)
+        assert e["held"] == []
+    assert [a["kind"] for a in summary["alerts"]] == ["jump"]  # 16 → 25 in the first window, then steady
+    fe = summary["forecast_errors"]
+    assert fe["n"] > 0 and fe["ratio"] > 5 and fe["dss_mae_m"] > 0.02
+
+
+def test_the_report_holds_the_tables_and_figures(pifg) -> None:
+    folder, summary = pifg
+    files = summary["files"]
+    html = Path(files["report"]).read_text(encoding="utf-8")
+    assert "Tables 5-1" in html and "Fig. 5-4" in html and "PI-Fg" in html
+    for kind in ("estimates_figure", "scores_figure", "weir_figure", "error_map_after", "error_time_figure",
+                 "estimates_csv", "forecasts_csv", "netcdf"):
+        assert Path(files[kind]).is_file(), kind
+        if kind.endswith("figure") or kind.startswith("error_map"):
+            assert Path(files[kind]).name in html
+    table = pd.read_csv(folder / "report" / "parameters.csv", index_col="parameter")
+    assert table.loc["FA", "true after"] == 25.0 and table.loc["FA", "DSS"] == 16.0
+    assert table.loc["FA", "rivercal after"] == pytest.approx(25.0, rel=0.02)
+    assert table.loc["W4", "rivercal after"] == pytest.approx(7.145, abs=0.005)  # Wd ≈ 0: crests stay
+
+
+def test_report_command_rewrites_from_the_store_alone(pifg, tmp_path: Path) -> None:
+    folder, _ = pifg
+    run = rivercal("report", "--db", str(folder / "run.sqlite"), "--out", str(tmp_path), "--json")
+    assert run.returncode == 0, run.stderr
+    assert Path(json.loads(run.stdout)["files"]["report"]).is_file()
+
+
+def test_restart_with_the_same_arguments_computes_nothing_again(pifg) -> None:
+    folder, _ = pifg
+    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
+                   "--db", str(folder / "run.sqlite"), "--workers", "2", "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["cycles_done_now"] == 0 and summary["cycles"] == 2
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--scenario", "PI-X"], "--scenario 'PI-X': unknown practical scenario"),
+    (["--scenario", "PI-Fg", "--to", "2010-11-01"], "--to 2010-11-01 is before --from"),
+    (["--params", "FA,Zz"], "unknown parameter 'Zz'"),
+    (["--max-change", "FA"], "--max-change 'FA': expected NAME=VALUE"),
+    (["--observations", "nothing.csv"], "--observations nothing.csv: no such file"),
+])
+def test_bad_input_exits_2_and_names_the_problem(tmp_path: Path, args: list[str], message: str) -> None:
+    base = {"--from": "2010-11-09", "--to": "2010-11-10"}
+    for flag, value in zip(args[::2], args[1::2], strict=True):
+        base[flag] = value
+    argv = [x for kv in base.items() for x in kv]
+    run = rivercal("online", "dommel", *argv, "--db", str(tmp_path / "x.sqlite"))
+    assert run.returncode == 2, run.stderr
+    assert message in run.stderr and "Traceback" not in run.stderr

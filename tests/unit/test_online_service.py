@@ -1,0 +1,202 @@
+"""The on-line service's cycles and guardrails, on a small model whose truth is known.
+
+The toy river has two gauges. Gauge A sits above a weir: its level relaxes (time constant 3 h) towards
+crest + (Q / (0.5 k))^0.6; gauge B has no weir: 1 + (Q / k)^0.6, with Q(t) a smooth hydrograph (m³/s) and
+k the friction (m^(1/3)/s). A third parameter moves a weir nothing observes. The model follows the
+model protocol, so the service, the store and the optimiser are the real ones; only the hydraulics are
+small. Each guardrail of the issue is exercised on its own: warm and hot starts, the deadline, the
+bound on the change per cycle, the identifiability gate, the jump alert, a window without data.
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rivercal.engine.state import EngineState, SimulationResult
+from rivercal.observations import ObservationSeries, ObservationSet
+from rivercal.online.service import OnlineConfig, OnlineService
+from rivercal.parameters import Parameter
+from rivercal.store import Store
+
+START = pd.Timestamp("2010-10-01", tz="UTC")
+END = pd.Timestamp("2010-11-30", tz="UTC")
+DT = 3600.0
+TAU = 3 * 3600.0
+IDS = ["A.h", "B.h"]
+
+
+class ToyRiver:
+    """Two gauges, hourly steps, a state with memory (see the module docstring)."""
+
+    def __init__(self) -> None:
+        params = [
+            Parameter(name="FA", targets=["friction:global"], min=8, max=40, initial=16, perturbation=1.5,
+                      unit="m^(1/3)/s"),
+            Parameter(name="Wd", targets=["weir:W.crest_level"], min=9.0, max=11.0, initial=10.0,
+                      perturbation=0.05, unit="m AD"),
+            Parameter(name="Wx", targets=["weir:V.crest_level"], min=5.0, max=6.0, initial=5.5,
+                      perturbation=0.05, unit="m AD"),
+        ]
+        self.case = SimpleNamespace(name="toy", spec=SimpleNamespace(parameters=params, calibration=SimpleNamespace(
+            options={"max_outer": 20, "abs_tol": 1e-6, "rel_tol": 1e-6, "rel_tol_linear": 1e-6})))
+        self.observables = list(IDS)
+        self.start, self.end = START, END
+        self.defaults = {"friction:global": 16.0, "weir:W.crest_level": 10.0, "weir:V.crest_level": 5.5}
+        self.changes: list[tuple[pd.Timestamp, dict[str, float]]] = []  # truth only: (time, quantities)
+
+    def default_parameters(self) -> dict[str, float]:
+        return dict(self.defaults)
+
+    @staticmethod
+    def discharge(t: np.ndarray) -> np.ndarray:
+        days = (t - START.value) / 86400e9
+        return 2.0 + np.sin(2 * np.pi * days / 5.0) + 1.5 * np.exp(-((days - 33.0) / 1.5) ** 2)
+
+    def simulate(self, parameters=None, start=None, end=None, state=None, *, output_interval=None, snapshots=False):
+        start = self.start if start is None else pd.Timestamp(start)
+        end = self.end if end is None else pd.Timestamp(end)
+        times = pd.date_range(start, end, freq="h")
+        q = {**self.defaults, **(parameters or {})}
+        z = np.array([q["weir:W.crest_level"] + 0.5, 1.5]) if state is None else state.z.copy()
+        if state is not None and state.time != start:
+            raise ValueError(f"the state is at {state.time}, the run starts at {start}")
+        out = np.empty((len(times), 2))
+        out[0] = z
+        flow = self.discharge(times.asi8)
+        relax = 1.0 - math.exp(-DT / TAU)
+        for n in range(1, len(times)):
+            for t_change, changed in self.changes:
+                if times[n] > t_change:
+                    q = {**q, **changed}
+            k, crest = q["friction:global"], q["weir:W.crest_level"]
+            target = np.array([crest + (flow[n] / (0.5 * k)) ** 0.6, 1.0 + (flow[n] / k) ** 0.6])
+            z = z + (target - z) * relax
+            out[n] = z
+        series = pd.DataFrame(out, index=times, columns=IDS)
+        series.index.name = "time"
+        new = EngineState(time=end, z=z.copy(), dz=np.zeros(2), vol=np.zeros(2), u=np.zeros(0), q=np.zeros(0),
+                          pump_on=np.zeros(0, dtype=np.int8), signature=(2, 0))
+        return SimulationResult(series=series, balance=None, levels=None, discharges=None, wall_time=0.0), new
+
+
+def _observations(model: ToyRiver, changes, start="2010-10-01", end="2010-11-25", drop=None) -> ObservationSet:
+    truth = ToyRiver()
+    truth.changes = changes
+    res, _ = truth.simulate(None, pd.Timestamp(start, tz="UTC"), pd.Timestamp(end, tz="UTC"))
+    frame = res.series
+    if drop is not None:
+        frame = frame.drop(frame.loc[drop[0]:drop[1]].index)
+    return ObservationSet(tuple(ObservationSeries.from_series(frame[c], id=c, sigma=0.01, source="truth")
+                                for c in IDS))
+
+
+CHANGE = pd.Timestamp("2010-11-01", tz="UTC")
+MOWED = [(CHANGE, {"friction:global": 25.0})]
+
+
+def _service(tmp_path, config: OnlineConfig, observations: ObservationSet, *, name="toy", first="2010-10-25"):
+    store = Store(tmp_path / "run.sqlite")
+    store.ingest(observations, "truth")
+    return store, OnlineService(ToyRiver(), store, name, config, first_issue=first)
+
+
+def test_cycles_follow_a_jump_warm_hot_and_alert(tmp_path) -> None:
+    config = OnlineConfig(parameters=("FA", "Wd"), workers=1, deadline_s=None)
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED))
+    with store:
+        out = svc.replay("2010-11-10")
+        assert [o.cycle for o in out] == list(range(17))
+        assert out[0].hot_start is False and all(o.hot_start for o in out[1:])
+        before = [o for o in out if o.issue_time <= CHANGE]
+        # once the change has left the window and its warm-up, the state no longer remembers the old friction
+        after = [o for o in out if o.issue_time - pd.Timedelta("8D") >= CHANGE]
+        assert all(abs(o.accepted["FA"] - 16.0) < 0.05 and abs(o.accepted["Wd"] - 10.0) < 0.005 for o in before)
+        assert after and all(abs(o.accepted["FA"] - 25.0) < 0.25 for o in after)  # within 1 %
+        # the steady cycles start at the truth: DuD needs its p + 1 first runs only
+        assert all(o.model_runs <= 3 for o in before[1:])
+        jumps = store.alerts(svc.run)
+        assert (jumps["kind"] == "jump").any()
+        first_jump = jumps.loc[jumps["kind"] == "jump", "issue_time"].min()
+        assert CHANGE < first_jump <= CHANGE + pd.Timedelta("2D")
+        # forecasts of both kinds are stored and the updated one beats the DSS after the change
+        cycles = store.cycles(svc.run)
+        assert (cycles["status"] == "done").all()
+        fc = store.forecasts(svc.run, cycle=16)
+        assert set(fc["kind"]) == {"updated", "dss"} and fc["lead_h"].max() == 48.0
+        scores = store.scores(svc.run)
+        late = scores[scores["cycle"] >= 14].groupby("kind")["rmse"].mean()
+        assert late["updated"] * 5 < late["dss"]
+
+
+def test_a_second_service_on_the_same_store_resumes_without_repeating(tmp_path) -> None:
+    config = OnlineConfig(parameters=("FA", "Wd"), workers=1, deadline_s=None)
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED))
+    with store:
+        first = svc.replay("2010-11-03")
+        again = OnlineService(ToyRiver(), store, "toy", config, first_issue="2010-10-25")
+        assert again.replay("2010-11-03") == []
+        more = again.replay("2010-11-05")
+        assert [o.cycle for o in first] == list(range(10)) and [o.cycle for o in more] == [10, 11]
+        assert more[0].hot_start
+        with pytest.raises(Exception, match="another configuration"):
+            OnlineService(ToyRiver(), store, "toy", OnlineConfig(parameters=("FA",), workers=1), "2010-10-25")
+
+
+def test_deadline_aborts_and_keeps_the_last_accepted_estimate(tmp_path) -> None:
+    config = OnlineConfig(parameters=("FA", "Wd"), workers=1, deadline_s=1e-6)
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED), first="2010-11-08")
+    with store:
+        (o,) = svc.replay("2010-11-08")
+        assert o.status == "aborted" and o.accepted == {"FA": 16.0, "Wd": 10.0}
+        assert set(o.held) == {"FA", "Wd"} and "deadline" in o.held["FA"]
+        est = store.estimates(svc.run)
+        assert not est["accepted"].any() and est["reason"].str.contains("last accepted estimate is kept").all()
+        assert store.cycles(svc.run)["status"].tolist() == ["aborted"]
+
+
+def test_change_per_cycle_is_bounded_and_reported(tmp_path) -> None:
+    config = OnlineConfig(parameters=("FA", "Wd"), workers=1, deadline_s=None, max_change={"FA": 2.0})
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED), first="2010-11-09")
+    with store:
+        out = svc.replay("2010-11-12")
+        fa = [o.accepted["FA"] for o in out]
+        assert fa == pytest.approx([18.0, 20.0, 22.0, 24.0], abs=1e-6)  # 2 per cycle towards 25
+        limits = store.alerts(svc.run).query("kind == 'limit'")
+        assert len(limits) == 4 and limits["parameter"].eq("FA").all()
+
+
+def test_a_parameter_the_window_cannot_see_is_held(tmp_path) -> None:
+    config = OnlineConfig(parameters=("FA", "Wd", "Wx"), workers=1, deadline_s=None)
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED), first="2010-10-28")
+    with store:
+        (o,) = svc.replay("2010-10-28")
+        assert set(o.held) == {"Wx"} and "cannot see Wx" in o.held["Wx"]
+        assert o.accepted["Wx"] == 5.5 and o.accepted["FA"] == pytest.approx(16.0, abs=0.05)
+        est = store.estimates(svc.run).set_index("parameter")
+        assert not est.loc["Wx", "accepted"] and est.loc["FA", "accepted"]
+
+
+def test_a_window_without_observations_fails_but_still_forecasts(tmp_path) -> None:
+    config = OnlineConfig(parameters=("FA", "Wd"), workers=1, deadline_s=None)
+    obs = _observations(ToyRiver(), [], drop=("2010-10-20", "2010-10-30"))
+    store, svc = _service(tmp_path, config, obs, first="2010-10-27")
+    with store:
+        (o,) = svc.replay("2010-10-27")
+        assert o.status == "failed" and "no observations" in o.message
+        assert store.alerts(svc.run)["kind"].tolist() == ["data"]
+        assert set(store.forecasts(svc.run)["kind"]) == {"updated", "dss"}
+
+
+def test_bad_configurations_are_refused_before_any_run(tmp_path) -> None:
+    with pytest.raises(ValueError, match="window must be positive"):
+        OnlineConfig(window="0D")
+    with Store(tmp_path / "s.sqlite") as store:
+        with pytest.raises(ValueError, match="unknown parameter 'Fx'"):
+            OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("Fx",)), "2010-10-25")
+        with pytest.raises(ValueError, match="before the case starts"):
+            OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("FA",)), "2010-10-05")
