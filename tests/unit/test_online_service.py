@@ -200,3 +200,16 @@ def test_bad_configurations_are_refused_before_any_run(tmp_path) -> None:
             OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("Fx",)), "2010-10-25")
         with pytest.raises(ValueError, match="before the case starts"):
             OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("FA",)), "2010-10-05")
+
+
+def test_a_stored_state_of_another_grid_is_not_used(tmp_path) -> None:
+    """After the case's grid changed, the stored state no longer fits: the next cycle spins up instead."""
+    config = OnlineConfig(parameters=("FA",), workers=1, deadline_s=None)
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), []))
+    with store:
+        first = svc.replay("2010-10-26")
+        assert [o.hot_start for o in first] == [False, True]
+        svc.model.compiled = SimpleNamespace(n_hpoints=3, n_links=0)  # the states were stored with (2, 0)
+        (nxt,) = svc.replay("2010-10-27")
+        assert nxt.hot_start is False and nxt.status == "done"
+        assert abs(nxt.accepted["FA"] - 16.0) < 0.05

@@ -115,7 +115,7 @@ def bench_online(case: str = "dommel", scenario: str = "PI-Fg", *, first_issue: 
         warmup=config.warmup, workers=workers, first_issue=first.isoformat(), cycles_timed=len(walls),
         cycle_wall_s_median=statistics.median(walls), cycle_wall_s_min=min(walls), cycle_wall_s_max=max(walls),
         cycle_model_runs_median=statistics.median(runs), first_cycle_wall_s=outcomes[0].wall_s,
-        final_estimates={k: round(v, 6) for k, v in outcomes[-1].accepted.items()},
+        final_estimates={k: round(v, 6) + 0.0 for k, v in outcomes[-1].accepted.items()},
         replay_from=replay_from if replay else None, replay_to=replay_to if replay else None,
         replay_cycles=n_replay, replay_wall_s_median=statistics.median(replay_walls) if replay_walls else None,
         replay_wall_s_all=[round(w, 2) for w in replay_walls] if replay_walls else None,
