@@ -266,6 +266,9 @@ def calibration_toml() -> list[str]:
         "initial = 16.0", 'transform = "offset"', "perturbation = 1.5", 'unit = "m^(1/3)/s"', "",
         "[[parameters]]", 'name = "F1"', 'targets = ["friction:branch:ZL1_3030_3990"]', "min = 8.0", "max = 40.0",
         "initial = 16.0", 'transform = "offset"', "perturbation = 1.5", 'unit = "m^(1/3)/s"', "",
+        "# FL: the section Nriv_ZL_1_9820 with W3 and W4, whose friction scenario PI-Fl changes (thesis §5-2-3)",
+        "[[parameters]]", 'name = "FL"', 'targets = ["friction:branch:Nriv_ZL_1_9820"]', "min = 8.0", "max = 40.0",
+        "initial = 16.0", 'transform = "offset"', "perturbation = 1.5", 'unit = "m^(1/3)/s"', "",
     ]
     adjustable = [w for w in WEIRS if w.name]
     for w in adjustable:

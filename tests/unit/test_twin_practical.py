@@ -83,7 +83,8 @@ def test_true_fa_and_wd_reproduce_the_truth_with_the_case_parameters(model):
         sorted(ADJUSTABLE_WEIRS)
     d = model.default_parameters()
     for s in PRACTICAL_SCENARIOS.values():
-        assert dict(s.true_before) == {"FA": 16.0, "Wd": 0.0}
+        assert dict(s.true_before) == ({"FA": 16.0, "Wd": 0.0, "FL": 16.0} if s.name == "PI-Fl" else
+                                       {"FA": 16.0, "Wd": 0.0})
         truth = {**d, **s.quantities(d, after=True)}
         fa, wd = s.true_after["FA"], s.true_after["Wd"]
         assert fa == truth["friction:global"]  # FA's target is the global friction, which always has a truth
@@ -92,18 +93,22 @@ def test_true_fa_and_wd_reproduce_the_truth_with_the_case_parameters(model):
             continue
         by_fa_wd = {**d, **ParameterSet([params["FA"], params["Wd"]]).quantities({"FA": fa, "Wd": wd})}
         differs = {k for k in truth if by_fa_wd.get(k) != pytest.approx(truth[k])}
-        # FA and Wd describe the truth exactly, except the branch of PI-Fl that no case parameter targets
+        # FA and Wd describe the truth exactly, except the branch of PI-Fl, which only FL targets
         assert differs == ({"friction:branch:Nriv_ZL_1_9820"} if s.name == "PI-Fl" else set())
+        if s.name == "PI-Fl":
+            with_fl = ParameterSet([params["FA"], params["Wd"], params["FL"]])
+            by_fl = {**d, **with_fl.quantities({"FA": fa, "Wd": wd, "FL": s.true_after["FL"]})}
+            assert all(by_fl.get(k) == pytest.approx(v) for k, v in truth.items())
 
 
 def test_represented_by_names_case_parameters_that_reproduce_the_change(model):
     params = {p.name: p for p in model.case.spec.parameters}
     d = model.default_parameters()
-    values = {"PI-Fg": {"FA": 25.0}, "PI-Wg": {"Wd": -0.15}, "PI-Wl": {"W4": 7.145 - 0.15}}
+    values = {"PI-Fg": {"FA": 25.0}, "PI-Wg": {"Wd": -0.15}, "PI-Fl": {"FL": 25.0}, "PI-Wl": {"W4": 7.145 - 0.15}}
     for s in PRACTICAL_SCENARIOS.values():
         after = s.quantities(d, after=True)
         if not s.represented_by:
-            # PI-0 has nothing to represent; no dommel parameter targets the branch of PI-Fl
+            # PI-0 has nothing to represent
             targets = {t for p in params.values() for t in p.quantities(p.initial)}
             assert not set(after) & targets
             continue

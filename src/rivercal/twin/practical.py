@@ -10,17 +10,17 @@ name     after the change                                             rivercal c
 PI-0     nothing changes                                              (nothing to represent)
 PI-Fg    global Strickler k_s 16 → 25 m^(1/3)/s (mowing everywhere)   FA = 25
 PI-Wg    the nine adjustable crests all 0.15 m lower                   Wd = −0.15 m
-PI-Fl    k_s of branch Nriv_ZL_1_9820 → 25 m^(1/3)/s, the rest 16      no case parameter (see below)
+PI-Fl    k_s of branch Nriv_ZL_1_9820 → 25 m^(1/3)/s, the rest 16      FL = 25 (not FA or Wd)
 PI-Wl    crest of weir ZL1-5930 0.15 m lower                           W4 = 6.995 m AD
 =======  ===========================================================  ==========================
 
 The changes are written relative to the model's defaults (the DSS): a friction is set to a value, a crest
 is shifted from its DSS level, so the same scenario applies to any case that has these branches and weirs.
-The on-line service estimates FA (``friction:global``) and Wd (all adjustable crests shifted alike); each
-scenario records the true values of these two where they exist. In PI-Fl the global friction stays 16, so
-FA's truth exists, but the changed branch is not a parameter of the dommel case (its F1 targets
-ZL1_3030_3990, the section of the F1W0 suite, not the thesis' Nriv_ZL_1_9820). In PI-Wl the crests do not
-move alike, so Wd has no true value.
+The on-line service estimates FA (``friction:global``) and Wd (all adjustable crests shifted alike) by
+default; each scenario records the true values of these two where they exist, and of FL (the friction of
+Nriv_ZL_1_9820, a parameter of the dommel case for this scenario) in PI-Fl. In PI-Fl the
+global friction stays 16, so FA's truth exists, but neither FA nor Wd can represent the change. In PI-Wl
+the crests do not move alike, so Wd has no true value.
 
 :func:`practical_truth` runs the truth in one pass from the model's own start (cold start and spin-up)
 with the "before" values up to the change and the "after" values from there, hot-starting each leg from
@@ -121,7 +121,8 @@ class PracticalScenario:
         Names of the dommel case's parameters that could represent the change exactly (empty when none can).
     true_before, true_after
         True values of the on-line service's parameters FA (k_s, m^(1/3)/s) and Wd (crest shift from the
-        DSS, m) before and after the change; None where the truth is not of that form.
+        DSS, m) before and after the change; None where the truth is not of that form. PI-Fl also gives FL
+        (k_s of Nriv_ZL_1_9820, m^(1/3)/s).
     """
 
     name: str
@@ -158,8 +159,8 @@ def _scenarios() -> dict[str, PracticalScenario]:
         PracticalScenario("PI-Wg", "all nine adjustable crests lowered by 0.15 m", CHANGE_TIME, (), crests_down,
                           ("Wd",), _dss(), {"FA": 16.0, "Wd": -0.15}),
         PracticalScenario("PI-Fl", f"k_s of section {LOCAL_BRANCH} 16 → 25 m^(1/3)/s, the rest stays 16",
-                          CHANGE_TIME, (), (QuantityChange(f"friction:branch:{LOCAL_BRANCH}", value=25.0),), (),
-                          _dss(), {"FA": 16.0, "Wd": 0.0}),
+                          CHANGE_TIME, (), (QuantityChange(f"friction:branch:{LOCAL_BRANCH}", value=25.0),), ("FL",),
+                          {**_dss(), "FL": 16.0}, {"FA": 16.0, "Wd": 0.0, "FL": 25.0}),
         PracticalScenario("PI-Wl", f"crest of weir {LOCAL_WEIR} lowered by 0.15 m", CHANGE_TIME, (),
                           (QuantityChange(f"weir:{LOCAL_WEIR}.crest_level", shift=-0.15),), ("W4",),
                           _dss(), {"FA": 16.0, "Wd": None}),
