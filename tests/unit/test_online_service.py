@@ -181,6 +181,16 @@ def test_a_parameter_the_window_cannot_see_is_held(tmp_path) -> None:
         assert not est.loc["Wx", "accepted"] and est.loc["FA", "accepted"]
 
 
+def test_the_gate_measures_a_jacobian_when_the_optimiser_has_none(tmp_path) -> None:
+    """Nelder-Mead returns no Jacobian: the gate takes forward differences at the estimate (p + 1 runs)."""
+    config = OnlineConfig(parameters=("FA", "Wd", "Wx"), algorithm="nelder_mead", workers=1, deadline_s=None)
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED), first="2010-10-28")
+    with store:
+        (o,) = svc.replay("2010-10-28")
+        assert set(o.held) == {"Wx"} and "cannot see Wx" in o.held["Wx"]
+        assert o.accepted["Wx"] == 5.5
+
+
 def test_a_window_without_observations_fails_but_still_forecasts(tmp_path) -> None:
     config = OnlineConfig(parameters=("FA", "Wd"), workers=1, deadline_s=None)
     obs = _observations(ToyRiver(), [], drop=("2010-10-20", "2010-10-30"))

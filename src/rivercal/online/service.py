@@ -46,7 +46,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian
+from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
 from rivercal.engine.state import EngineState
 from rivercal.errors import ModelRunError
 from rivercal.observations import DEFAULT_SIGMA
@@ -247,7 +247,9 @@ class OnlineService:
         if first_run < model.start:
             raise ValueError(f"online: the first window needs the model from {first_run}, before the case starts "
                              f"({model.start}); issue the first cycle later")
-        self.options = dict(config.options if config.options is not None else model.case.spec.calibration.options)
+        case_cal = model.case.spec.calibration  # the case's stopping rules are DuD's (thesis Table 4-3)
+        case_options = case_cal.options if config.algorithm == getattr(case_cal, "algorithm", "dud") else {}
+        self.options = dict(config.options if config.options is not None else case_options)
         stored = {**config.stored(), "first_issue": self.schedule.first_issue.isoformat(), "meta": dict(meta or {})}
         self.run = store.ensure_run(run_name, model.case.name, stored)
 
@@ -356,7 +358,8 @@ class OnlineService:
                     message = f"{r.message} after {r.nfev} model runs; the last accepted estimate is kept"
                     held = dict.fromkeys(warm, message)
                 else:
-                    held = self._gate(problem, r)
+                    held, extra = self._gate(problem, r)
+                    model_runs += extra
         accepted = {n: (warm[n] if n in held else estimates[n]) for n in warm}
         alerts += self._alerts(warm, accepted, estimates, std, held, spec)
         forecasts, states = self._forecasts(spec, run_start, state, accepted)
@@ -383,17 +386,28 @@ class OnlineService:
     def _cycles_per_horizon(self) -> int:
         return math.ceil(self.horizon / self.period) + 1
 
-    def _gate(self, problem: CalibrationProblem, result: Any) -> dict[str, str]:
-        """Parameters the window cannot see, with the reason (module docstring)."""
+    def _gate(self, problem: CalibrationProblem, result: Any) -> tuple[dict[str, str], int]:
+        """Parameters the window cannot see, with the reason (module docstring); and the model runs it took.
+
+        The Jacobian is the optimiser's (DuD's secant one); when it has none, a forward-difference one at
+        the estimate (p + 1 runs in one batch).
+        """
         if self.config.gate_sv <= 0:
-            return {}
-        if result.jac is None or not np.all(np.isfinite(result.jac)):
-            log.warning("no usable Jacobian from %s; the identifiability gate is skipped", self.config.algorithm)
-            return {}
+            return {}, 0
+        jac, extra = result.jac, 0
+        if jac is None or not np.all(np.isfinite(jac)):
+            # e.g. DuD's secant set degenerated: a gate that is skipped would accept anything, so measure it
+            log.info("no usable Jacobian from %s; finite differences at the estimate", self.config.algorithm)
+            try:
+                fd = fd_jacobian(problem, np.asarray(result.x, dtype=float), workers=self.config.workers)
+            except ModelRunError as exc:
+                reason = f"the identifiability gate could not run ({exc}); held at its last accepted value"
+                return dict.fromkeys(problem.parameters.names, reason), 0
+            jac, extra = fd.matrix, fd.nfev
         names = problem.parameters.names
         scale = np.array([self.resolution(n) for n in names])
-        seen = int(np.count_nonzero(np.linalg.svd(result.jac * scale, compute_uv=False) >= self.config.gate_sv))
-        ident = analyse_jacobian(result.jac, names, scale=scale, options=IdentifiabilityOptions(k=seen))
+        seen = int(np.count_nonzero(np.linalg.svd(jac * scale, compute_uv=False) >= self.config.gate_sv))
+        ident = analyse_jacobian(jac, names, scale=scale, options=IdentifiabilityOptions(k=seen))
         held = {}
         for i, n in enumerate(names):
             if ident.index[i] < self.config.gate_index:
@@ -401,7 +415,7 @@ class OnlineService:
                            f"{self.config.gate_index:g} over the {seen} direction(s) whose singular value reaches "
                            f"{self.config.gate_sv:g} (a change of {self.resolution(n):g} {self.parameters[n].unit} "
                            f"moves the cost by less than that); held at its last accepted value")
-        return held
+        return held, extra
 
     def _alerts(self, warm: Mapping[str, float], accepted: Mapping[str, float], estimates: Mapping[str, float],
                 std: Mapping[str, float], held: Mapping[str, str], spec: CycleSpec) -> list[AlertRecord]:
