@@ -39,6 +39,7 @@ __all__ = [
     "NetArrays",
     "compile_network",
     "elimination_order",
+    "solver_schedule",
 ]
 
 LINK_CHANNEL, LINK_WEIR, LINK_CULVERT, LINK_PUMP = 0, 1, 2, 3
@@ -92,6 +93,7 @@ class NetArrays(NamedTuple):
     tab_wf_top: np.ndarray
     tab_wt_top: np.ndarray
     tab_top: np.ndarray
+    tab_flow: np.ndarray  # per table cell: af, pf and r43 and their increments to the next cell (FLOW_WIDTH values)
     # friction groups
     fr_type: np.ndarray
     # weirs
@@ -134,6 +136,7 @@ class NetArrays(NamedTuple):
     sv_ue2: np.ndarray
     sv_utgt: np.ndarray
     sv_nedge: int
+    sv_sched: np.ndarray  # the same as a two-lane schedule for ldl_solve_packed (uint64, see solver_schedule)
     # observables
     ob_type: np.ndarray
     ob_i1: np.ndarray
@@ -413,6 +416,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         tab_wf_top=tables.wf_top,
         tab_wt_top=tables.wt_top,
         tab_top=tables.top,
+        tab_flow=_flow_records(tables),
         fr_type=fr_type,
         w_width=np.array([w.crest_width for w in weirs], dtype=float),
         w_cmu=np.array([w.discharge_coefficient * w.lateral_contraction for w in weirs], dtype=float),
@@ -448,6 +452,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         sv_ue2=solver.ue2,
         sv_utgt=solver.utgt,
         sv_nedge=solver.n_edges,
+        sv_sched=solver_schedule(solver),
         ob_type=ob_type,
         ob_i1=ob_i1,
         ob_i2=ob_i2,
@@ -680,3 +685,132 @@ def elimination_order(n: int, pairs: Sequence[tuple[int, int]]) -> SymbolicLDL:
         n_edges=len(edge_of),
         fill=len(edge_of) - n_original,
     )
+
+
+#: Values per elimination step and lane in :func:`solver_schedule`.
+SCHED_WIDTH = 8
+
+
+def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
+    """The symbolic factorisation as a two-lane schedule for :func:`~rivercal.engine.kernels.solver.ldl_solve_packed`.
+
+    Along a branch every elimination depends on the previous one, so the solve is bound by the latency of
+    that chain; two independent eliminations per step let the processor overlap two chains. A step holds
+    two lanes of ``SCHED_WIDTH`` unsigned integers: the point eliminated (``n``: the lane is empty), the
+    number m of its later neighbours, their edges and points when m is 1 or 2 (``k, m, e1, o1, e2, o2``),
+    then the edge between the two (m = 2) or the elimination position in ``sym`` (m > 2, read from the
+    CSR arrays; such a step has one lane), and which later point the lane carries to its next step
+    (0: o1, 1: o2, 2: none).
+
+    Two eliminations are paired only when neither touches an entry (pivot, later point, edge, fill
+    target) that the other touches, and every entry is updated by the same eliminations in the same
+    order as in ``sym.order``: the result is bit-identical to the one-lane solve. The steps follow a
+    list schedule by longest remaining chain, keeping each chain in its lane so that the value it
+    updates stays in a register (the "carry").
+
+    Parameters
+    ----------
+    sym
+        The symbolic factorisation of :func:`elimination_order`.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``uint64`` array of ``2 * SCHED_WIDTH`` entries per step.
+    """
+    n = sym.order.size
+    touches: list[set[tuple[str, int]]] = []
+    for p in range(n):
+        ent = {("h", int(sym.order[p]))}
+        for c in range(sym.cptr[p], sym.cptr[p + 1]):
+            ent.add(("h", int(sym.cother[c])))
+            ent.add(("e", int(sym.cedge[c])))
+        ent.update(("e", int(t)) for t in sym.utgt[sym.uptr[p] : sym.uptr[p + 1]] if t >= 0)
+        touches.append(ent)
+    after: list[list[int]] = [[] for _ in range(n)]  # eliminations that must wait for p
+    waits = np.zeros(n, dtype=np.int64)
+    last: dict[tuple[str, int], int] = {}
+    for p in range(n):
+        for ent in touches[p]:
+            q = last.get(ent)
+            if q is not None and p not in after[q]:
+                after[q].append(p)
+                waits[p] += 1
+            last[ent] = p
+    chain = np.ones(n, dtype=np.int64)  # longest chain of waiting eliminations from p on
+    for p in range(n - 1, -1, -1):
+        for s in after[p]:
+            chain[p] = max(chain[p], chain[s] + 1)
+    width = sym.cptr[1:] - sym.cptr[:-1]
+    ready = [(-int(chain[p]), p) for p in range(n) if waits[p] == 0]
+    heapq.heapify(ready)
+    steps: list[list[np.ndarray]] = []
+    carried = [n, n]  # the point each lane carries into its next step
+    while ready:
+        first = heapq.heappop(ready)[1]
+        take = [first]
+        if width[first] <= 2 and ready and width[ready[0][1]] <= 2:
+            take.append(heapq.heappop(ready)[1])
+        lanes: list[int | None] = [None, None]
+        for p in take:  # an elimination of a carried point goes to the lane that carries it
+            if int(sym.order[p]) in carried:
+                lanes[carried.index(int(sym.order[p]))] = p
+        for p in take:
+            if p not in lanes:
+                lanes[lanes.index(None)] = p
+        step = []
+        for lane, p in enumerate(lanes):
+            rec = np.zeros(SCHED_WIDTH, dtype=np.uint64)
+            rec[0], rec[7] = n, 2
+            carried[lane] = n
+            if p is not None:
+                c0, m = sym.cptr[p], int(width[p])
+                rec[0], rec[1] = sym.order[p], m
+                if m in (1, 2):
+                    rec[2], rec[3] = sym.cedge[c0], sym.cother[c0]
+                if m == 2:  # the updates of a two-neighbour step are (o1, o1), (o1, o2), (o2, o2)
+                    rec[4], rec[5] = sym.cedge[c0 + 1], sym.cother[c0 + 1]
+                    rec[6] = sym.utgt[sym.uptr[p] + 1]
+                elif m > 2:
+                    rec[6] = p
+                if m in (1, 2):  # carry the later point that is eliminated first
+                    rec[7] = 0 if m == 1 or sym.cother[c0] < sym.cother[c0 + 1] else 1
+                    carried[lane] = int(rec[3 + 2 * rec[7]])
+            step.append(rec)
+        steps.append(step)
+        for p in take:
+            for s in after[p]:
+                waits[s] -= 1
+                if waits[s] == 0:
+                    heapq.heappush(ready, (-int(chain[s]), s))
+    return np.array(steps, dtype=np.uint64).ravel()
+
+
+#: Values per table cell in ``tab_flow``: af, its increment, pf, its increment, r43, its increment, 2 unused.
+FLOW_WIDTH = 8
+
+
+def _aligned_empty(n: int, align: int = 64) -> np.ndarray:
+    """A float64 array of ``n`` zeros whose data starts on an ``align``-byte boundary (a cache line)."""
+    raw = np.zeros(n + align // 8)
+    start = (-raw.ctypes.data % align) // 8
+    return raw[start : start + n]
+
+
+def _flow_records(tables: ProfileTables) -> np.ndarray:
+    """The flow tables as one cache-line record per cell: a look-up reads one line, not six values in three arrays.
+
+    The increments are the differences the interpolation takes (``af[k + 1] - af[k]``, computed the same way), so
+    the interpolated values are bit-identical; the last cell of each table, never interpolated from, has none.
+    """
+    n = tables.af.size
+    rec = _aligned_empty(n * FLOW_WIDTH).reshape(n, FLOW_WIDTH)
+    last = np.zeros(n, dtype=bool)
+    last[tables.off + tables.n - 1] = True
+    for col, values in enumerate((tables.af, tables.pf, tables.r43)):
+        rec[:, 2 * col] = values
+        inc = np.zeros(n)
+        inc[:-1] = values[1:] - values[:-1]
+        inc[last] = 0.0
+        rec[:, 2 * col + 1] = inc
+    return rec.ravel()

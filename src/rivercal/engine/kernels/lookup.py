@@ -7,9 +7,19 @@ call, 50 times the look-up itself.
 
 from __future__ import annotations
 
+import math
+
 from rivercal.engine.kernels._jit import kernel
 
-__all__ = ["flow_geometry", "hp_volume_width", "storage_area_width"]
+__all__ = [
+    "PIECE_MARGIN",
+    "flow_geometry",
+    "flow_geometry_rec",
+    "hp_volume_width",
+    "hp_volume_width_cached",
+    "hp_volume_width_piece",
+    "storage_area_width",
+]
 
 
 @kernel
@@ -34,6 +44,30 @@ def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, 
     k = off + j
     return (tab_af[k] + f * (tab_af[k + 1] - tab_af[k]), tab_pf[k] + f * (tab_pf[k + 1] - tab_pf[k]),
             tab_r43[k] + f * (tab_r43[k + 1] - tab_r43[k]))
+
+
+@kernel
+def flow_geometry_rec(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, p, d):
+    """:func:`flow_geometry` reading the cell from ``tab_flow``, one cache line per cell (bit-identical).
+
+    ``tab_flow`` holds per cell af, pf and r43, each followed by its increment to the next cell
+    (:data:`rivercal.engine.compile.FLOW_WIDTH` values).
+    """
+    if d <= 0.0:
+        return 0.0, 0.0, 0.0
+    off = tab_off[p]
+    n = tab_n[p]
+    x = d * tab_idd[p]
+    j = int(x)
+    if j >= n - 1:
+        extra = d - tab_top[p]
+        area = tab_af[off + n - 1] + tab_wf_top[p] * extra
+        per = tab_pf[off + n - 1] + 2.0 * extra
+        radius = area / per
+        return area, per, radius * radius ** (1.0 / 3.0)
+    f = x - j
+    r = tab_flow[8 * (off + j) : 8 * (off + j) + 6]
+    return r[0] + f * r[1], r[2] + f * r[3], r[4] + f * r[5]
 
 
 @kernel
@@ -72,5 +106,79 @@ def hp_volume_width(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
         a, w = storage_area_width(tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt,
                                   sc_prof[c], z - sc_bed[c])
         vol += sc_len[c] * a
+        width += sc_len[c] * w
+    return vol, width
+
+
+#: Margin (m) by which :func:`hp_volume_width_piece` narrows the interval it returns, so that within the
+#: interval every table index comes out the same as at the look-up (far above the round-off of a level).
+PIECE_MARGIN = 1.0e-9
+
+
+@kernel
+def hp_volume_width_piece(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
+                          tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i, z, c_at, c_d0, c_wt):
+    """:func:`hp_volume_width` (bit-identical) that also keeps the table values it used.
+
+    Per storage contribution ``c`` it stores in ``c_at``, ``c_d0`` and ``c_wt`` the area (m²), depth (m) and
+    width (m) of the table cell it read (zeros below the bed; the top of the table above it), so that
+    :func:`hp_volume_width_cached` repeats the same arithmetic without the look-up. Returns (volume m³,
+    storage area m², low m AD, high m AD): within [low, high] each contribution stays in that cell.
+    """
+    amin = hp_amin[i]
+    vol = amin * (z - hp_bed[i])
+    width = amin
+    lo = -math.inf
+    hi = math.inf
+    for c in range(sc_ptr[i], sc_ptr[i + 1]):
+        p = sc_prof[c]
+        bed = sc_bed[c]
+        d = z - bed
+        length = sc_len[c]
+        if d <= 0.0:
+            c_at[c] = 0.0
+            c_d0[c] = 0.0
+            c_wt[c] = 0.0
+            vol += length * 0.0
+            width += length * 0.0
+            hi = min(hi, bed - PIECE_MARGIN)
+            continue
+        off = tab_off[p]
+        n = tab_n[p]
+        j = int(d * tab_idd[p])
+        if j >= n - 1:
+            w = tab_wt_top[p]
+            c_at[c] = tab_at[off + n - 1]
+            c_d0[c] = tab_top[p]
+            c_wt[c] = w
+            vol += length * (tab_at[off + n - 1] + w * (d - tab_top[p]))
+            width += length * w
+            lo = max(lo, bed + tab_top[p] + PIECE_MARGIN)
+            continue
+        k = off + j
+        w = tab_wt[k]
+        dd = tab_dd[p]
+        c_at[c] = tab_at[k]
+        c_d0[c] = j * dd
+        c_wt[c] = w
+        vol += length * (tab_at[k] + (d - j * dd) * w)
+        width += length * w
+        lo = max(lo, bed + j * dd + PIECE_MARGIN)
+        hi = min(hi, bed + (j + 1) * dd - PIECE_MARGIN)
+    return vol, width, lo, hi
+
+
+@kernel
+def hp_volume_width_cached(sc_ptr, sc_bed, sc_len, hp_bed, hp_amin, c_at, c_d0, c_wt, i, z):
+    """:func:`hp_volume_width` from the table values kept by :func:`hp_volume_width_piece`.
+
+    Bit-identical to the look-up for a level ``z`` (m AD) in the interval that returned; volume m³, area m².
+    """
+    amin = hp_amin[i]
+    vol = amin * (z - hp_bed[i])
+    width = amin
+    for c in range(sc_ptr[i], sc_ptr[i + 1]):
+        w = c_wt[c]
+        vol += sc_len[c] * (c_at[c] + (z - sc_bed[c] - c_d0[c]) * w)
         width += sc_len[c] * w
     return vol, width

@@ -43,8 +43,12 @@ from collections import namedtuple
 import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
-from rivercal.engine.kernels.lookup import flow_geometry, hp_volume_width
-from rivercal.engine.kernels.solver import ldl_solve
+from rivercal.engine.kernels.lookup import (
+    flow_geometry_rec,
+    hp_volume_width,
+    hp_volume_width_piece,
+)
+from rivercal.engine.kernels.solver import ldl_solve_packed
 from rivercal.engine.kernels.structures import G, culvert_link, friction_c2r, weir_link
 
 __all__ = [
@@ -57,6 +61,7 @@ __all__ = [
     "channel_coefficients",
     "compute_fluxes",
     "finish_step",
+    "gross_outflow",
     "limit_draining_links",
     "make_work",
     "rating_flow",
@@ -72,11 +77,15 @@ STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 #: inflow (m³/s), Dirichlet flags and levels,
 #: off-diagonals and L multipliers per edge, link flux area (m²) and coefficients f (1/s) and
 #: r (m/s), the new velocities (m/s) and fluxes (m³/s), rating-boundary linearisation (m³/s,
-#: m²/s), the structure and pump links, and counters (steps, solves, drying re-solves).
+#: m²/s), the structure and pump links, counters (steps, solves, drying re-solves), per point the
+#: level interval (m AD) in which the table cells of its last volume look-up stay valid and, per
+#: storage contribution, those cells' area (m²), depth (m) and width (m), the momentum terms of each
+#: channel link (:func:`_link_momentum`).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
-     "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats"],
+     "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "c_at", "c_d0", "c_wt",
+     "cb", "cs", "cc2r", "cdz"],
 )
 
 
@@ -95,6 +104,9 @@ def make_work(net) -> Work:
         struct_links=np.flatnonzero((net.lk_type == 1) | (net.lk_type == 2)).astype(np.int64),
         pump_links=np.flatnonzero(net.lk_type == 3).astype(np.int64),
         stats=np.zeros(3, dtype=np.int64),
+        zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), c_at=np.zeros(net.sc_prof.size),
+        c_d0=np.zeros(net.sc_prof.size), c_wt=np.zeros(net.sc_prof.size),
+        cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l),
     )
 
 
@@ -137,21 +149,39 @@ def channel_coefficients(net, work, z, u, q, fric, dt, min_depth):
     feeds the upwind point (inflow-weighted over all feeding links at a junction; none across
     structures or from a boundary); the lateral-inflow momentum sink u q_lat / A with q_lat the
     mean lateral inflow per unit length (m²/s) of the link's two points.
+
+    Two passes: :func:`_link_momentum` gathers, per link, the terms of its momentum equation (table
+    look-ups and branches); :func:`_link_newton` solves it, a branch-free loop over all links that
+    the compiler vectorises (its square root and three divisions dominate the cost of a link). The
+    coefficients it writes for structure and pump links are replaced before use, by
+    :func:`switch_pumps` and :func:`structure_coefficients`.
     """
-    area, fco, rco, qlat = work.area, work.fco, work.rco, work.qlat
+    _link_momentum(net, work, z, u, q, fric, dt, min_depth)
+    _link_newton(net.lk_ilen, work.area, work.cb, work.cs, work.cc2r, work.cdz, work.fco, work.rco)
+
+
+@kernel
+def _link_momentum(net, work, z, u, q, fric, dt, min_depth):
+    """Per channel link: flux area A (m², 0 when dry), and in ``work`` the momentum terms of :func:`_link_newton`.
+
+    The momentum equation of a link, per unit mass, is ``b u + kappa |u| u = s - g (z2 - z1) / dx`` with
+    b (1/s) the inertia, lateral-inflow and implicit advection terms, kappa = g / (C² R) (1/m), and
+    s (m/s²) the explicit terms; ``cs`` holds s - g (z2 - z1) / dx at the levels of time n, ``cc2r``
+    C² R (m²/s²), ``cb`` b and ``cdz`` z2 - z1 (m).
+    """
+    area, qlat = work.area, work.qlat
+    cb, cs, cc2r, cdz = work.cb, work.cs, work.cc2r, work.cdz
     lk_k1, lk_k2, lk_type, lk_ilen, lk_fric = net.lk_k1, net.lk_k2, net.lk_type, net.lk_ilen, net.lk_fric
     lk_b1, lk_b2, lk_p1, lk_p2 = net.lk_b1, net.lk_b2, net.lk_p1, net.lk_p2
     lk_nb1, lk_ns1, lk_nb2, lk_ns2 = net.lk_nb1, net.lk_ns1, net.lk_nb2, net.lk_ns2
     nl_ptr, nl_link, nl_sign, fr_type = net.nl_ptr, net.nl_link, net.nl_sign, net.fr_type
     tab_off, tab_n, tab_idd, tab_top, tab_wf_top = net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top
-    tab_af, tab_pf, tab_r43 = net.tab_af, net.tab_pf, net.tab_r43
+    tab_af, tab_pf = net.tab_af, net.tab_pf
     inv_dt = 1.0 / dt
     for link in range(lk_k1.size):
+        area[link] = 0.0
         if lk_type[link] != 0:
             continue
-        area[link] = 0.0
-        fco[link] = 0.0
-        rco[link] = 0.0
         k1 = lk_k1[link]
         k2 = lk_k2[link]
         u0 = u[link]
@@ -161,15 +191,15 @@ def channel_coefficients(net, work, z, u, q, fric, dt, min_depth):
             sign, kup, depth, prof = -1.0, k2, z[k2] - lk_b2[link], lk_p2[link]
         if depth < min_depth:
             continue
-        a_up, per, r43 = flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf,
-                                       tab_r43, prof, depth)
+        a_up, per, r43 = flow_geometry_rec(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf,
+                                           net.tab_flow, prof, depth)
         if a_up <= 0.0:
             continue
         group = lk_fric[link]
         ftype = fr_type[group]
         radius = (a_up / per if per > 0.0 else depth) if ftype == 2 else 0.0
-        kappa = G / friction_c2r(ftype, fric[group], radius, r43)
-        b = inv_dt + 0.5 * (qlat[k1] + qlat[k2]) / a_up
+        ql = qlat[k1] + qlat[k2]
+        b = inv_dt + 0.5 * ql / a_up if ql != 0.0 else inv_dt  # skips a division: exact, the term is +0 then
         rhs_u = u0 * inv_dt
         ilen = lk_ilen[link]
         if u0 != 0.0:
@@ -209,15 +239,34 @@ def channel_coefficients(net, work, z, u, q, fric, dt, min_depth):
                 if uc > 0.0:
                     b += uc * ilen
                     rhs_u += sign * uc * uin * ilen
-        # Newton linearisation of b u + kappa |u| u = rhs_u - g (z2 - z1) / dx around the solution u* at the
-        # levels of time n: u* = 2 s / (b + sqrt(b² + 4 kappa |s|)), du/d(z2 - z1) = -g / (dx sqrt(...))
         dzl = z[k2] - z[k1]
-        s_u = rhs_u - G * ilen * dzl
-        root = math.sqrt(b * b + 4.0 * kappa * math.fabs(s_u))
-        f_u = G * ilen / root
         area[link] = a_up
-        fco[link] = f_u
-        rco[link] = 2.0 * s_u / (b + root) + f_u * dzl
+        cb[link] = b
+        cs[link] = rhs_u - G * ilen * dzl
+        cc2r[link] = friction_c2r(ftype, fric[group], radius, r43)
+        cdz[link] = dzl
+
+
+@kernel
+def _link_newton(lk_ilen, area, cb, cs, cc2r, cdz, fco, rco):
+    """Coefficients f (1/s) and r (m/s) of ``u = r - f (z2 - z1)`` per link with flux area > 0 (0 for the others).
+
+    Newton linearisation of b u + kappa |u| u = s - g (z2 - z1) / dx around its solution u* at the
+    levels of time n: u* = 2 s / (b + sqrt(b² + 4 kappa |s|)), du/d(z2 - z1) = -g / (dx sqrt(...)).
+    Exact in steady flow, and bounded by friction when flow starts from rest. The loop has no
+    branches (links without flow are masked at the end) so that it runs in SIMD lanes; the inputs
+    of a masked link may be stale, which is harmless.
+    """
+    for link in range(area.size):
+        s_u = cs[link]
+        b = cb[link]
+        kappa = G / cc2r[link]
+        root = math.sqrt(b * b + 4.0 * kappa * math.fabs(s_u))
+        f_u = G * lk_ilen[link] / root
+        r_u = 2.0 * s_u / (b + root) + f_u * cdz[link]
+        wet = area[link] > 0.0
+        fco[link] = f_u if wet else 0.0
+        rco[link] = r_u if wet else 0.0
 
 
 @kernel
@@ -278,7 +327,9 @@ def rating_flow(b_rptr, b_rlev, b_rq, bnd, z):
 def assemble(net, work, zk, vol, u, theta, dt):
     """The level system linearised at ``zk`` into ``work``: diagonal, off-diagonal per edge, right-hand side.
 
-    Rating boundaries store their linearised outflow ``rq0 + rslope * z`` (m³/s) for the balance.
+    Rating boundaries store their linearised outflow ``rq0 + rslope * z`` (m³/s) for the balance;
+    every point stores the interval ``[zlo, zhi]`` (m AD) in which its volume is linear, for
+    :func:`finish_step`.
     """
     diag, off, rhs, src, fixed, fixed_val = work.diag, work.off, work.rhs, work.src, work.fixed, work.fixed_val
     area, fco, rco = work.area, work.fco, work.rco
@@ -287,12 +338,22 @@ def assemble(net, work, zk, vol, u, theta, dt):
     tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt = (
         net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top, net.tab_at, net.tab_wt)
     lk_k1, lk_k2, lk_type, lk_edge = net.lk_k1, net.lk_k2, net.lk_type, net.lk_edge
+    zlo, zhi, c_at, c_d0, c_wt = work.zlo, work.zhi, work.c_at, work.c_d0, work.c_wt
     inv_dt = 1.0 / dt
     for i in range(zk.size):
-        v, w = hp_volume_width(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
-                               tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i, zk[i])
+        z = zk[i]
+        if zlo[i] <= z <= zhi[i]:  # the table cells of the last look-up: hp_volume_width_cached, written out
+            w = hp_amin[i]
+            v = w * (z - hp_bed[i])
+            for c in range(sc_ptr[i], sc_ptr[i + 1]):
+                v += sc_len[c] * (c_at[c] + (z - sc_bed[c] - c_d0[c]) * c_wt[c])
+                w += sc_len[c] * c_wt[c]
+        else:
+            v, w, zlo[i], zhi[i] = hp_volume_width_piece(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin, tab_off,
+                                                         tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i,
+                                                         z, c_at, c_d0, c_wt)
         diag[i] = w * inv_dt
-        rhs[i] = (w * zk[i] - (v - vol[i])) * inv_dt + src[i]
+        rhs[i] = (w * z - (v - vol[i])) * inv_dt + src[i]
     off[:] = 0.0
     for link in range(lk_k1.size):
         k1 = lk_k1[link]
@@ -351,15 +412,13 @@ def level_of_volume(net, i, vol, z0):
 def compute_fluxes(net, work, theta, u):
     """Link velocities (m/s) and fluxes (m³/s) of the current solution ``work.zk``.
 
-    Also, per point, the net inflow (``work.netq``, m³/s) and the gross outflow (``work.rhs``
-    reused, m³/s).
+    Also, per point, the net inflow (``work.netq``, m³/s).
     """
-    zk, netq, outflow, src = work.zk, work.netq, work.rhs, work.src
+    zk, netq, src = work.zk, work.netq, work.src
     area, fco, rco, un, qn = work.area, work.fco, work.rco, work.un, work.qn
     lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
     for i in range(src.size):
         netq[i] = src[i]
-        outflow[i] = -min(src[i], 0.0)
     for link in range(lk_k1.size):
         k1 = lk_k1[link]
         k2 = lk_k2[link]
@@ -377,28 +436,48 @@ def compute_fluxes(net, work, theta, u):
         qn[link] = q
         netq[k1] -= q
         netq[k2] += q
-        if q > 0.0:
-            outflow[k1] += q
-        else:
-            outflow[k2] -= q
     for bnd in range(net.b_hp.size):
         if net.b_type[bnd] == 2:
             i = net.b_hp[bnd]
-            q = work.rq0[bnd] + work.rslope[bnd] * zk[i]
-            netq[i] -= q
-            outflow[i] += max(q, 0.0)
+            netq[i] -= work.rq0[bnd] + work.rslope[bnd] * zk[i]
+
+
+@kernel
+def gross_outflow(net, work):
+    """Per point, the gross outflow (m³/s) of the fluxes of :func:`compute_fluxes`, into ``work.rhs``."""
+    zk, outflow, src, qn = work.zk, work.rhs, work.src, work.qn
+    lk_k1, lk_k2 = net.lk_k1, net.lk_k2
+    for i in range(src.size):
+        outflow[i] = -min(src[i], 0.0)
+    for link in range(lk_k1.size):
+        q = qn[link]
+        if q > 0.0:
+            outflow[lk_k1[link]] += q
+        else:
+            outflow[lk_k2[link]] -= q
+    for bnd in range(net.b_hp.size):
+        if net.b_type[bnd] == 2:
+            i = net.b_hp[bnd]
+            outflow[i] += max(work.rq0[bnd] + work.rslope[bnd] * zk[i], 0.0)
 
 
 @kernel
 def limit_draining_links(net, work, vol, dt):
     """Throttle, for this step, the links that would empty a point below its bed.
 
-    With the fluxes of :func:`compute_fluxes`, a point that would lose more water than it holds plus
+    With the fluxes of :func:`compute_fluxes` (and their gross outflow per point, :func:`gross_outflow`),
+    a point that would lose more water than it holds plus
     receives (its volume would become negative, the level below the lowest bed) has the flux area of
     every link carrying water out of it scaled by ``0.9 × available / outflow``; a pump drawing from it
     is throttled likewise. Returns the number of points limited; the caller solves again.
     """
     netq, outflow, fixed, qn = work.netq, work.rhs, work.fixed, work.qn
+    drains = False
+    for i in range(vol.size):
+        drains |= not fixed[i] and vol[i] + dt * netq[i] < 0.0
+    if not drains:
+        return 0  # the common case
+    gross_outflow(net, work)
     limited = 0
     for i in range(vol.size):
         if fixed[i] or vol[i] + dt * netq[i] >= 0.0:
@@ -423,9 +502,12 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
     Returns (status, index) of a divergence check: ``STATUS_OK`` or the h-point / link at fault.
     """
     zk, netq, fixed, fixed_val = work.zk, work.netq, work.fixed, work.fixed_val
-    for link in range(u.size):
+    bad_link = -1
+    for link in range(u.size - 1, -1, -1):  # backwards: bad_link ends as the first link at fault
         u[link] = work.un[link]
         q[link] = work.qn[link]
+        if not math.fabs(u[link]) <= vmax:  # also NaN
+            bad_link = link
     for bnd in range(net.b_hp.size):
         i = net.b_hp[bnd]
         t = net.b_type[bnd]
@@ -447,13 +529,25 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
                                      net.tab_at, net.tab_wt, i, z[i])[0]
         else:
             vol[i] += dt * netq[i]
-            z[i] = level_of_volume(net, i, vol[i], zk[i])
+            # the first iteration of level_of_volume from zk, without the look-up while zk stays in the
+            # table cells of the last linearisation (bit-identical): the residual is usually at round-off
+            zi = zk[i]
+            if work.zlo[i] <= zi <= work.zhi[i]:
+                w = net.hp_amin[i]  # hp_volume_width_cached, written out
+                v = w * (zi - net.hp_bed[i])
+                for c in range(net.sc_ptr[i], net.sc_ptr[i + 1]):
+                    v += net.sc_len[c] * (work.c_at[c] + (zi - net.sc_bed[c] - work.c_d0[c]) * work.c_wt[c])
+                    w += net.sc_len[c] * work.c_wt[c]
+                if math.fabs(vol[i] - v) > 1e-12 * (math.fabs(vol[i]) + w):
+                    zi = level_of_volume(net, i, vol[i], zi)
+            else:
+                zi = level_of_volume(net, i, vol[i], zi)
+            z[i] = zi
         dz[i] = z[i] - z_old
         if not math.isfinite(z[i]) or math.fabs(z[i] - net.hp_bed[i]) > 1.0e4:
             return STATUS_LEVEL, i
-    for link in range(u.size):
-        if not math.isfinite(u[link]) or math.fabs(u[link]) > vmax:
-            return STATUS_VELOCITY, link
+    if bad_link >= 0:
+        return STATUS_VELOCITY, bad_link
     return STATUS_OK, -1
 
 
@@ -479,7 +573,7 @@ def _solve(net, work, zk, vol, u, theta, dt):
     """Assemble at ``zk``, solve, store the solution in ``zk``; returns the largest level change (m)."""
     rhs = work.rhs
     assemble(net, work, zk, vol, u, theta, dt)
-    ldl_solve(net.sv_order, net.sv_cptr, net.sv_cedge, net.sv_cother, net.sv_uptr, net.sv_ue1,
+    ldl_solve_packed(net.sv_sched, net.sv_cptr, net.sv_cedge, net.sv_cother, net.sv_uptr, net.sv_ue1,
               net.sv_ue2, net.sv_utgt, work.diag, work.off, work.lval, rhs)
     change = 0.0
     for i in range(zk.size):
