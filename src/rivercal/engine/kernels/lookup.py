@@ -16,7 +16,6 @@ __all__ = [
     "flow_geometry",
     "flow_geometry_rec",
     "hp_volume_width",
-    "hp_volume_width_cached",
     "hp_volume_width_piece",
     "storage_area_width",
 ]
@@ -122,7 +121,8 @@ def hp_volume_width_piece(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
 
     Per storage contribution ``c`` it stores in ``c_at``, ``c_d0`` and ``c_wt`` the area (m²), depth (m) and
     width (m) of the table cell it read (zeros below the bed; the top of the table above it), so that
-    :func:`hp_volume_width_cached` repeats the same arithmetic without the look-up. Returns (volume m³,
+    the time loop can repeat the same arithmetic without the look-up while the level stays in that cell
+    (``vol = amin (z − bed_i) + Σ_c len_c (c_at + (z − bed_c − c_d0) c_wt)``). Returns (volume m³,
     storage area m², low m AD, high m AD): within [low, high] each contribution stays in that cell.
     """
     amin = hp_amin[i]
@@ -167,18 +167,3 @@ def hp_volume_width_piece(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
         hi = min(hi, bed + (j + 1) * dd - PIECE_MARGIN)
     return vol, width, lo, hi
 
-
-@kernel
-def hp_volume_width_cached(sc_ptr, sc_bed, sc_len, hp_bed, hp_amin, c_at, c_d0, c_wt, i, z):
-    """:func:`hp_volume_width` from the table values kept by :func:`hp_volume_width_piece`.
-
-    Bit-identical to the look-up for a level ``z`` (m AD) in the interval that returned; volume m³, area m².
-    """
-    amin = hp_amin[i]
-    vol = amin * (z - hp_bed[i])
-    width = amin
-    for c in range(sc_ptr[i], sc_ptr[i + 1]):
-        w = c_wt[c]
-        vol += sc_len[c] * (c_at[c] + (z - sc_bed[c] - c_d0[c]) * w)
-        width += sc_len[c] * w
-    return vol, width

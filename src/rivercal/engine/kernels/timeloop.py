@@ -342,7 +342,7 @@ def assemble(net, work, zk, vol, u, theta, dt):
     inv_dt = 1.0 / dt
     for i in range(zk.size):
         z = zk[i]
-        if zlo[i] <= z <= zhi[i]:  # the table cells of the last look-up: hp_volume_width_cached, written out
+        if zlo[i] <= z <= zhi[i]:  # the table cells of the last look-up (see hp_volume_width_piece)
             w = hp_amin[i]
             v = w * (z - hp_bed[i])
             for c in range(sc_ptr[i], sc_ptr[i + 1]):
@@ -533,7 +533,7 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
             # table cells of the last linearisation (bit-identical): the residual is usually at round-off
             zi = zk[i]
             if work.zlo[i] <= zi <= work.zhi[i]:
-                w = net.hp_amin[i]  # hp_volume_width_cached, written out
+                w = net.hp_amin[i]  # the kept table cell (see hp_volume_width_piece)
                 v = w * (zi - net.hp_bed[i])
                 for c in range(net.sc_ptr[i], net.sc_ptr[i + 1]):
                     v += net.sc_len[c] * (work.c_at[c] + (zi - net.sc_bed[c] - work.c_d0[c]) * work.c_wt[c])
