@@ -17,7 +17,7 @@ from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin import twin_truth
 
-__all__ = ["ALGORITHMS", "CalibrationBenchmark", "bench_calibrate"]
+__all__ = ["ALGORITHMS", "CalibrationBenchmark", "algorithm_arguments", "bench_calibrate"]
 
 TRUTH = {"FA": 20.0, "Wc": 0.8}
 START = {"FA": 14.0, "Wc": 0.1}
@@ -58,6 +58,21 @@ class CalibrationBenchmark:
         return asdict(self)
 
 
+def algorithm_arguments(name: str, case_options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Options and keyword arguments of :func:`rivercal.problem.calibrate` for algorithm ``name``.
+
+    DuD and Sparse DuD take the case's stopping rules (thesis Table 4-3); the grid spans the parameters'
+    bounds with ``points_per_axis`` points.
+    """
+    kwargs = dict(ALGORITHMS[name])
+    options = dict(kwargs.pop("options", {}))
+    if name in ("dud", "sparse_dud"):
+        options = {**case_options, **options}
+    if name == "sparse_dud":
+        kwargs["dependency"] = None  # every station sees both parameters: the dense map
+    return options, kwargs
+
+
 def bench_calibrate(algorithms: list[str] | None = None, workers: int | None = None) -> dict[str, Any]:
     """Run the FaWc twin calibration with each algorithm; return the setup and one row per algorithm."""
     t0 = time.perf_counter()
@@ -69,14 +84,7 @@ def bench_calibrate(algorithms: list[str] | None = None, workers: int | None = N
     rows = []
     for name in algorithms or list(ALGORITHMS):
         problem = CalibrationProblem(sim, params.with_initial(START), truth.observations, window, state=truth.state)
-        kwargs = dict(ALGORITHMS[name])
-        options = dict(kwargs.pop("options", {}))
-        if name in ("dud", "sparse_dud"):
-            options = {**sim.case.spec.calibration.options, **options}
-        if name == "grid":
-            options["ranges"] = [(p.min, p.max) for p in params]
-        if name == "sparse_dud":
-            kwargs["dependency"] = None  # every station sees both parameters: the dense map
+        options, kwargs = algorithm_arguments(name, sim.case.spec.calibration.options)
         cal = calibrate(problem, name, options, workers=workers, **kwargs)
         r = cal.result
         rows.append(CalibrationBenchmark(
