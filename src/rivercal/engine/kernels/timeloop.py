@@ -32,7 +32,10 @@ of the water present at their point per step.
 
 Each phase is its own compiled function taking the network arrays (``net``) and the scratch
 arrays (``work``): LLVM optimises these small functions much better than one large loop body.
-The per-point look-ups take explicit arrays (see :mod:`.lookup`).
+The per-point look-ups take explicit arrays (see :mod:`.lookup`). In the loops over all links and
+points, the point, profile, link and storage indices read from the network's arrays are cast to
+``np.uint64``: numba then adds no negative-index wraparound to the accesses they make (as in
+:func:`.solver.ldl_solve_packed`; the arithmetic is unchanged).
 """
 
 from __future__ import annotations
@@ -182,20 +185,20 @@ def _link_momentum(net, work, z, u, q, fric, dt, min_depth):
         area[link] = 0.0
         if lk_type[link] != 0:
             continue
-        k1 = lk_k1[link]
-        k2 = lk_k2[link]
+        k1 = np.uint64(lk_k1[link])
+        k2 = np.uint64(lk_k2[link])
         u0 = u[link]
         if u0 > 0.0 or (u0 == 0.0 and z[k1] >= z[k2]):
-            sign, kup, depth, prof = 1.0, k1, z[k1] - lk_b1[link], lk_p1[link]
+            sign, kup, depth, prof = 1.0, lk_k1[link], z[k1] - lk_b1[link], np.uint64(lk_p1[link])
         else:
-            sign, kup, depth, prof = -1.0, k2, z[k2] - lk_b2[link], lk_p2[link]
+            sign, kup, depth, prof = -1.0, lk_k2[link], z[k2] - lk_b2[link], np.uint64(lk_p2[link])
         if depth < min_depth:
             continue
         a_up, per, r43 = flow_geometry_rec(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf,
                                            net.tab_flow, prof, depth)
         if a_up <= 0.0:
             continue
-        group = lk_fric[link]
+        group = np.uint64(lk_fric[link])
         ftype = fr_type[group]
         radius = (a_up / per if per > 0.0 else depth) if ftype == 2 else 0.0
         ql = qlat[k1] + qlat[k2]
@@ -211,9 +214,10 @@ def _link_momentum(net, work, z, u, q, fric, dt, min_depth):
             else:
                 m, sm = lk_nb2[link], lk_ns2[link]
             if m >= 0:  # one feeding channel link: the common case along a branch
-                if sm * q[m] > 0.0:
-                    qin = sm * q[m]
-                    uin = sm * u[m]
+                mu = np.uint64(m)
+                if sm * q[mu] > 0.0:
+                    qin = sm * q[mu]
+                    uin = sm * u[mu]
             elif m == -1:  # junction: inflow-weighted velocity of the feeding links
                 quin = 0.0
                 blocked = False
@@ -345,7 +349,7 @@ def assemble(net, work, zk, vol, u, theta, dt):
         if zlo[i] <= z <= zhi[i]:  # the table cells of the last look-up (see hp_volume_width_piece)
             w = hp_amin[i]
             v = w * (z - hp_bed[i])
-            for c in range(sc_ptr[i], sc_ptr[i + 1]):
+            for c in range(np.uint64(sc_ptr[i]), np.uint64(sc_ptr[i + 1])):
                 v += sc_len[c] * (c_at[c] + (z - sc_bed[c] - c_d0[c]) * c_wt[c])
                 w += sc_len[c] * c_wt[c]
         else:
@@ -356,8 +360,8 @@ def assemble(net, work, zk, vol, u, theta, dt):
         rhs[i] = (w * z - (v - vol[i])) * inv_dt + src[i]
     off[:] = 0.0
     for link in range(lk_k1.size):
-        k1 = lk_k1[link]
-        k2 = lk_k2[link]
+        k1 = np.uint64(lk_k1[link])
+        k2 = np.uint64(lk_k2[link])
         if lk_type[link] == 3:
             rhs[k1] -= rco[link]
             rhs[k2] += rco[link]
@@ -375,7 +379,7 @@ def assemble(net, work, zk, vol, u, theta, dt):
             elif not fixed[k1]:
                 rhs[k1] += c * fixed_val[k2]
         else:
-            off[lk_edge[link]] -= c
+            off[np.uint64(lk_edge[link])] -= c
     for bnd in range(net.b_hp.size):
         i = net.b_hp[bnd]
         if net.b_type[bnd] == 2:
@@ -420,8 +424,8 @@ def compute_fluxes(net, work, theta, u):
     for i in range(src.size):
         netq[i] = src[i]
     for link in range(lk_k1.size):
-        k1 = lk_k1[link]
-        k2 = lk_k2[link]
+        k1 = np.uint64(lk_k1[link])
+        k2 = np.uint64(lk_k2[link])
         t = lk_type[link]
         if t == 3:
             un[link] = 0.0
@@ -535,7 +539,7 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
             if work.zlo[i] <= zi <= work.zhi[i]:
                 w = net.hp_amin[i]  # the kept table cell (see hp_volume_width_piece)
                 v = w * (zi - net.hp_bed[i])
-                for c in range(net.sc_ptr[i], net.sc_ptr[i + 1]):
+                for c in range(np.uint64(net.sc_ptr[i]), np.uint64(net.sc_ptr[i + 1])):
                     v += net.sc_len[c] * (work.c_at[c] + (zi - net.sc_bed[c] - work.c_d0[c]) * work.c_wt[c])
                     w += net.sc_len[c] * work.c_wt[c]
                 if math.fabs(vol[i] - v) > 1e-12 * (math.fabs(vol[i]) + w):
