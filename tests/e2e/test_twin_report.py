@@ -1,6 +1,6 @@
 """``rivercal twin``: a small thesis-style run through the CLI writes index.html with ours beside the thesis'.
 
-One short suite (F1W0, two scenarios, a one-day window early in the case so that the truths need little
+One short suite (F1W0, three scenarios, a one-day window early in the case so that the truths need little
 spin-up) and the initial analysis of two parameters: ~30 model runs, well under a minute on 2 cores.
 """
 
@@ -38,7 +38,7 @@ class _Images(HTMLParser):
 @pytest.fixture(scope="module")
 def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("twin")
-    done = rivercal("twin", "dommel", "--suite", "F1W0,sensitivity", "--scenarios", "H1,L2", "--window", WINDOW,
+    done = rivercal("twin", "dommel", "--suite", "F1W0,sensitivity", "--scenarios", "H1,M2,L2", "--window", WINDOW,
                     "--params", "W2,FA", "--workers", "2", "--out", str(out), "--json")
     assert done.returncode == 0, done.stderr
     return out, json.loads(done.stdout)
@@ -53,12 +53,12 @@ def test_index_html_holds_our_numbers_and_the_thesis_numbers(run: tuple[Path, di
     text = "".join(parser.text)
     # ours: the calibrated values, iterations and the sensitivity's largest cost, as the run reported them
     rows = {r["id"]: r for r in _csv(out / "F1W0.csv")}
-    assert set(rows) == {"H1", "L2"}
+    assert set(rows) == {"H1", "M2", "L2"}
     for row in rows.values():
         assert f"{float(row['F1_estimate']):.6g}" in text
         assert abs(float(row["F1_estimate"]) - float(row["F1_true"])) <= 0.05
     f1w0 = summary["suites"]["F1W0"]
-    assert f1w0["robustness"] == 1.0 and f1w0["scenarios"] == 2
+    assert f1w0["robustness"] == 1.0 and f1w0["scenarios"] == 3
     assert f"max {f1w0['iterations_max']} (" in text
     ranking = summary["sensitivity"]["sensitivity"]["ranking"]
     assert {r["parameter"] for r in ranking} == {"W2", "FA"}
@@ -88,7 +88,7 @@ def test_index_html_links_existing_pngs_relatively(run: tuple[Path, dict]) -> No
 def test_bias_of_eq_2_14_per_scenario_and_targets(run: tuple[Path, dict]) -> None:
     out, summary = run
     bias = _csv(out / "F1W0_bias.csv")
-    assert {r["scenario"] for r in bias} == {"H1", "L2"}
+    assert {r["scenario"] for r in bias} == {"H1", "M2", "L2"}
     assert {r["series"] for r in bias} == {"0028.h_down"}  # the station of thesis Fig. 4-11
     rows = _csv(out / "F1W0.csv")
     assert all(r["bias_eq214_series"] == "0028.h_down" for r in rows)
