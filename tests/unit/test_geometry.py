@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rivercal.engine.compile import flow_records
 from rivercal.engine.geometry import build_tables, zw_of
 from rivercal.engine.kernels.lookup import flow_geometry, storage_area_width
 from rivercal.network import RectangularProfile, TrapezoidalProfile, ZWProfile
@@ -14,7 +15,7 @@ def _lookup(tables, p, d, compiled=True):
     fg = flow_geometry if compiled else flow_geometry.py_func
     sa = storage_area_width if compiled else storage_area_width.py_func
     a, per, r43 = fg(tables.off, tables.n, 1 / tables.dd, tables.top, tables.wf_top, tables.af, tables.pf,
-                     tables.r43, p, d)
+                     flow_records(tables), p, d)
     at, wt = sa(tables.off, tables.n, tables.dd, 1 / tables.dd, tables.top, tables.wt_top, tables.at, tables.wt, p, d)
     return a, per, r43, at, wt
 

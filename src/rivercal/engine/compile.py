@@ -39,6 +39,7 @@ __all__ = [
     "NetArrays",
     "compile_network",
     "elimination_order",
+    "flow_records",
     "solver_schedule",
 ]
 
@@ -89,7 +90,6 @@ class NetArrays(NamedTuple):
     tab_pf: np.ndarray
     tab_at: np.ndarray
     tab_wt: np.ndarray  # storage width per cell, m
-    tab_r43: np.ndarray  # R^(4/3), m^(4/3)
     tab_wf_top: np.ndarray
     tab_wt_top: np.ndarray
     tab_top: np.ndarray
@@ -412,11 +412,10 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         tab_pf=tables.pf,
         tab_at=tables.at,
         tab_wt=tables.wt,
-        tab_r43=tables.r43,
         tab_wf_top=tables.wf_top,
         tab_wt_top=tables.wt_top,
         tab_top=tables.top,
-        tab_flow=_flow_records(tables),
+        tab_flow=flow_records(tables),
         fr_type=fr_type,
         w_width=np.array([w.crest_width for w in weirs], dtype=float),
         w_cmu=np.array([w.discharge_coefficient * w.lateral_contraction for w in weirs], dtype=float),
@@ -797,7 +796,7 @@ def _aligned_empty(n: int, align: int = 64) -> np.ndarray:
     return raw[start : start + n]
 
 
-def _flow_records(tables: ProfileTables) -> np.ndarray:
+def flow_records(tables: ProfileTables) -> np.ndarray:
     """The flow tables as one cache-line record per cell: a look-up reads one line, not six values in three arrays.
 
     The increments are the differences the interpolation takes (``af[k + 1] - af[k]``, computed the same way), so

@@ -14,7 +14,6 @@ from rivercal.engine.kernels._jit import kernel
 __all__ = [
     "PIECE_MARGIN",
     "flow_geometry",
-    "flow_geometry_rec",
     "hp_volume_width",
     "hp_volume_width_piece",
     "storage_area_width",
@@ -22,35 +21,12 @@ __all__ = [
 
 
 @kernel
-def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_r43, p, d):
+def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, p, d):
     """Flow area (m²), wetted perimeter (m) and R^(4/3) (m^(4/3)) of profile ``p`` at depth ``d`` (m).
 
-    ``tab_idd`` holds the inverse depth step of each table, 1/m.
-    """
-    if d <= 0.0:
-        return 0.0, 0.0, 0.0
-    off = tab_off[p]
-    n = tab_n[p]
-    x = d * tab_idd[p]
-    j = int(x)
-    if j >= n - 1:
-        extra = d - tab_top[p]
-        area = tab_af[off + n - 1] + tab_wf_top[p] * extra
-        per = tab_pf[off + n - 1] + 2.0 * extra
-        radius = area / per
-        return area, per, radius * radius ** (1.0 / 3.0)
-    f = x - j
-    k = off + j
-    return (tab_af[k] + f * (tab_af[k + 1] - tab_af[k]), tab_pf[k] + f * (tab_pf[k + 1] - tab_pf[k]),
-            tab_r43[k] + f * (tab_r43[k + 1] - tab_r43[k]))
-
-
-@kernel
-def flow_geometry_rec(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, p, d):
-    """:func:`flow_geometry` reading the cell from ``tab_flow``, one cache line per cell (bit-identical).
-
-    ``tab_flow`` holds per cell af, pf and r43, each followed by its increment to the next cell
-    (:data:`rivercal.engine.compile.FLOW_WIDTH` values).
+    ``tab_idd`` holds the inverse depth step of each table, 1/m. The cell is read from ``tab_flow``, one
+    cache line per cell: af, pf and r43, each followed by its increment to the next cell
+    (:func:`rivercal.engine.compile.flow_records`); above the table the walls are vertical.
     """
     if d <= 0.0:
         return 0.0, 0.0, 0.0

@@ -47,7 +47,7 @@ import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.lookup import (
-    flow_geometry_rec,
+    flow_geometry,
     hp_volume_width,
     hp_volume_width_piece,
 )
@@ -194,7 +194,7 @@ def _link_momentum(net, work, z, u, q, fric, dt, min_depth):
             sign, kup, depth, prof = -1.0, lk_k2[link], z[k2] - lk_b2[link], np.uint64(lk_p2[link])
         if depth < min_depth:
             continue
-        a_up, per, r43 = flow_geometry_rec(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf,
+        a_up, per, r43 = flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf,
                                            net.tab_flow, prof, depth)
         if a_up <= 0.0:
             continue
