@@ -5,7 +5,8 @@ The elimination order and fill pattern come from
 value per (original or fill) edge; both are overwritten by the factorisation. No pivoting is
 needed: the level matrix is a symmetric, diagonally dominant M-matrix.
 
-:func:`ldl_solve` is the plain three-pass algorithm on the CSR arrays of the symbolic factorisation.
+:func:`ldl_solve` is the plain algorithm on the CSR arrays of the symbolic factorisation (factorisation and
+forward elimination in one pass, then the back substitution).
 :func:`ldl_solve_packed`, which the time loop uses, does the same arithmetic in the same order
 (bit-identical results) about twice as fast: along a branch every elimination step depends on
 the previous one (divide, multiply, multiply, subtract), so the solve is bound by the latency of
@@ -39,24 +40,11 @@ def ldl_solve(order, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval,
         Right-hand side; overwritten by the solution.
     """
     n = order.size
-    for p in range(n):
+    for p in range(n):  # factorise and eliminate forward (rhs[k] has all its updates once p is reached)
         k = order[p]
         inv = 1.0 / diag[k]
         diag[k] = inv
-        for c in range(cptr[p], cptr[p + 1]):
-            e = cedge[c]
-            lval[e] = off[e] * inv
-        for u in range(uptr[p], uptr[p + 1]):
-            v = lval[ue1[u]] * off[ue2[u]]
-            t = utgt[u]
-            if t < 0:
-                diag[-1 - t] -= v
-            else:
-                off[t] -= v
-    for p in range(n):
-        bk = rhs[order[p]]
-        for c in range(cptr[p], cptr[p + 1]):
-            rhs[cother[c]] -= lval[cedge[c]] * bk
+        _eliminate_general(p, inv, rhs[k], cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval, rhs)
     for i in range(n):
         rhs[i] *= diag[i]
     for p in range(n - 1, -1, -1):

@@ -16,7 +16,7 @@ Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003):
    is as accurate as two from z^n): structure links are linearised at the current iterate
    (:func:`structure_coefficients`); the continuity equation
    ``V(z^k) + w(z^k)(z - z^k) - V^n = Δt Σ Q`` with Q = A(θ u^{n+1} + (1-θ) u^n) gives a symmetric
-   positive definite system in the levels (:func:`assemble`), solved by :func:`.solver.ldl_solve`.
+   positive definite system in the levels (:func:`assemble`), solved by :func:`.solver.ldl_solve_packed`.
    Discharge and rating boundaries and laterals enter the right-hand side; level boundaries are
    Dirichlet rows whose couplings move to the right-hand side, keeping the matrix symmetric.
 3. The fluxes of the last iterate update the stored volumes, ``V^{n+1} = V^n + Δt Σ Q``
