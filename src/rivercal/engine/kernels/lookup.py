@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from rivercal.engine.kernels._jit import kernel
 
 __all__ = [
@@ -41,8 +43,9 @@ def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, 
         radius = area / per
         return area, per, radius * radius ** (1.0 / 3.0)
     f = x - j
-    r = tab_flow[8 * (off + j) : 8 * (off + j) + 6]
-    return r[0] + f * r[1], r[2] + f * r[3], r[4] + f * r[5]
+    k = np.uint64(8 * (off + j))  # unsigned, and no slice: no wraparound or slice-bounds code
+    return (tab_flow[k] + f * tab_flow[k + np.uint64(1)], tab_flow[k + np.uint64(2)] + f * tab_flow[k + np.uint64(3)],
+            tab_flow[k + np.uint64(4)] + f * tab_flow[k + np.uint64(5)])
 
 
 @kernel

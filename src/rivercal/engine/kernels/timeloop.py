@@ -533,18 +533,12 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
                                      net.tab_at, net.tab_wt, i, z[i])[0]
         else:
             vol[i] += dt * netq[i]
-            # the first iteration of level_of_volume from zk, without the look-up while zk stays in the
-            # table cells of the last linearisation (bit-identical): the residual is usually at round-off
+            # While zk lies in the table cells of the last linearisation (work.zlo..zhi), V is linear there and
+            # the solved system says V(zk) = V^n + Δt Σ Q exactly, up to the round-off of the solve: zk is the
+            # level of the new volume, and what round-off leaves enters the next step's right-hand side (as
+            # any linearisation difference does). Outside those cells V bends: Newton from zk.
             zi = zk[i]
-            if work.zlo[i] <= zi <= work.zhi[i]:
-                w = net.hp_amin[i]  # the kept table cell (see hp_volume_width_piece)
-                v = w * (zi - net.hp_bed[i])
-                for c in range(np.uint64(net.sc_ptr[i]), np.uint64(net.sc_ptr[i + 1])):
-                    v += net.sc_len[c] * (work.c_at[c] + (zi - net.sc_bed[c] - work.c_d0[c]) * work.c_wt[c])
-                    w += net.sc_len[c] * work.c_wt[c]
-                if math.fabs(vol[i] - v) > 1e-12 * (math.fabs(vol[i]) + w):
-                    zi = level_of_volume(net, i, vol[i], zi)
-            else:
+            if not work.zlo[i] <= zi <= work.zhi[i]:
                 zi = level_of_volume(net, i, vol[i], zi)
             z[i] = zi
         dz[i] = z[i] - z_old
