@@ -95,18 +95,17 @@ PIECE_MARGIN = 1.0e-9
 
 @kernel
 def hp_volume_width_piece(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
-                          tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i, z, c_at, c_d0, c_wt):
-    """:func:`hp_volume_width` (bit-identical) that also keeps the table values it used.
+                          tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i, z):
+    """The piece of h-point ``i``'s volume curve that holds level ``z`` (m AD), on which the volume is linear.
 
-    Per storage contribution ``c`` it stores in ``c_at``, ``c_d0`` and ``c_wt`` the area (m²), depth (m) and
-    width (m) of the table cell it read (zeros below the bed; the top of the table above it), so that
-    the time loop can repeat the same arithmetic without the look-up while the level stays in that cell
-    (``vol = amin (z − bed_i) + Σ_c len_c (c_at + (z − bed_c − c_d0) c_wt)``). Returns (volume m³,
-    storage area m², low m AD, high m AD): within [low, high] each contribution stays in that cell.
+    Returns (low m AD, high m AD, reference level m AD, its volume m³, storage area m²): within
+    [low, high] every storage contribution stays in the table cell it is read from at ``z`` (or below
+    its bed, or above its table), so ``V(z') = volume + area (z' - reference)`` there. The reference
+    level is the low end of the piece (the high end, or the bed, when the piece is unbounded below):
+    it depends on the piece only, not on ``z``, so the linear form is the same whichever level in the
+    piece it was made at.
     """
-    amin = hp_amin[i]
-    vol = amin * (z - hp_bed[i])
-    width = amin
+    width = hp_amin[i]
     lo = -math.inf
     hi = math.inf
     for c in range(sc_ptr[i], sc_ptr[i + 1]):
@@ -115,34 +114,25 @@ def hp_volume_width_piece(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
         d = z - bed
         length = sc_len[c]
         if d <= 0.0:
-            c_at[c] = 0.0
-            c_d0[c] = 0.0
-            c_wt[c] = 0.0
-            vol += length * 0.0
-            width += length * 0.0
             hi = min(hi, bed - PIECE_MARGIN)
             continue
         off = tab_off[p]
         n = tab_n[p]
         j = int(d * tab_idd[p])
         if j >= n - 1:
-            w = tab_wt_top[p]
-            c_at[c] = tab_at[off + n - 1]
-            c_d0[c] = tab_top[p]
-            c_wt[c] = w
-            vol += length * (tab_at[off + n - 1] + w * (d - tab_top[p]))
-            width += length * w
+            width += length * tab_wt_top[p]
             lo = max(lo, bed + tab_top[p] + PIECE_MARGIN)
             continue
-        k = off + j
-        w = tab_wt[k]
         dd = tab_dd[p]
-        c_at[c] = tab_at[k]
-        c_d0[c] = j * dd
-        c_wt[c] = w
-        vol += length * (tab_at[k] + (d - j * dd) * w)
-        width += length * w
+        width += length * tab_wt[off + j]
         lo = max(lo, bed + j * dd + PIECE_MARGIN)
         hi = min(hi, bed + (j + 1) * dd - PIECE_MARGIN)
-    return vol, width, lo, hi
-
+    if lo > -math.inf:
+        ref = lo
+    elif hi < math.inf:
+        ref = hi
+    else:
+        ref = hp_bed[i]
+    vol = hp_volume_width(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin, tab_off, tab_n, tab_dd, tab_idd, tab_top,
+                          tab_wt_top, tab_at, tab_wt, i, ref)[0]
+    return lo, hi, ref, vol, width

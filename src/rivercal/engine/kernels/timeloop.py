@@ -81,13 +81,13 @@ STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 #: off-diagonals and L multipliers per edge, link flux area (m²) and coefficients f (1/s) and
 #: r (m/s), the new velocities (m/s) and fluxes (m³/s), rating-boundary linearisation (m³/s,
 #: m²/s), the structure and pump links, counters (steps, solves, drying re-solves), per point the
-#: level interval (m AD) in which the table cells of its last volume look-up stay valid and, per
-#: storage contribution, those cells' area (m²), depth (m) and width (m), the momentum terms of each
+#: piece of its volume curve last looked up (:func:`assemble`): low and high end and reference level
+#: (m AD), the volume there (m³) and the storage area (m²); the momentum terms of each
 #: channel link (:func:`_link_momentum`).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
-     "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "c_at", "c_d0", "c_wt",
+     "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
      "cb", "cs", "cc2r", "cdz"],
 )
 
@@ -107,8 +107,7 @@ def make_work(net) -> Work:
         struct_links=np.flatnonzero((net.lk_type == 1) | (net.lk_type == 2)).astype(np.int64),
         pump_links=np.flatnonzero(net.lk_type == 3).astype(np.int64),
         stats=np.zeros(3, dtype=np.int64),
-        zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), c_at=np.zeros(net.sc_prof.size),
-        c_d0=np.zeros(net.sc_prof.size), c_wt=np.zeros(net.sc_prof.size),
+        zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
         cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l),
     )
 
@@ -331,9 +330,11 @@ def rating_flow(b_rptr, b_rlev, b_rq, bnd, z):
 def assemble(net, work, zk, vol, u, theta, dt):
     """The level system linearised at ``zk`` into ``work``: diagonal, off-diagonal per edge, right-hand side.
 
-    Rating boundaries store their linearised outflow ``rq0 + rslope * z`` (m³/s) for the balance;
-    every point stores the interval ``[zlo, zhi]`` (m AD) in which its volume is linear, for
-    :func:`finish_step`.
+    Rating boundaries store their linearised outflow ``rq0 + rslope * z`` (m³/s) for the balance.
+    A point's volume is linear on each piece ``[zlo, zhi]`` (m AD) of its volume curve
+    (:func:`.lookup.hp_volume_width_piece`): ``V = p_v + p_w (z - p_z)``; the tables are read only when
+    ``zk`` leaves the piece of the last look-up. The linear form depends on the piece alone, so a run's
+    result does not depend on what was simulated before it. :func:`finish_step` uses the piece too.
     """
     diag, off, rhs, src, fixed, fixed_val = work.diag, work.off, work.rhs, work.src, work.fixed, work.fixed_val
     area, fco, rco = work.area, work.fco, work.rco
@@ -342,20 +343,16 @@ def assemble(net, work, zk, vol, u, theta, dt):
     tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt = (
         net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top, net.tab_at, net.tab_wt)
     lk_k1, lk_k2, lk_type, lk_edge = net.lk_k1, net.lk_k2, net.lk_type, net.lk_edge
-    zlo, zhi, c_at, c_d0, c_wt = work.zlo, work.zhi, work.c_at, work.c_d0, work.c_wt
+    zlo, zhi, p_z, p_v, p_w = work.zlo, work.zhi, work.p_z, work.p_v, work.p_w
     inv_dt = 1.0 / dt
     for i in range(zk.size):
         z = zk[i]
-        if zlo[i] <= z <= zhi[i]:  # the table cells of the last look-up (see hp_volume_width_piece)
-            w = hp_amin[i]
-            v = w * (z - hp_bed[i])
-            for c in range(np.uint64(sc_ptr[i]), np.uint64(sc_ptr[i + 1])):
-                v += sc_len[c] * (c_at[c] + (z - sc_bed[c] - c_d0[c]) * c_wt[c])
-                w += sc_len[c] * c_wt[c]
-        else:
-            v, w, zlo[i], zhi[i] = hp_volume_width_piece(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin, tab_off,
-                                                         tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i,
-                                                         z, c_at, c_d0, c_wt)
+        if not zlo[i] <= z <= zhi[i]:  # z left the piece of the last look-up: find its piece
+            zlo[i], zhi[i], p_z[i], p_v[i], p_w[i] = hp_volume_width_piece(
+                sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin, tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top,
+                tab_at, tab_wt, i, z)
+        w = p_w[i]
+        v = p_v[i] + w * (z - p_z[i])
         diag[i] = w * inv_dt
         rhs[i] = (w * z - (v - vol[i])) * inv_dt + src[i]
     off[:] = 0.0
@@ -533,10 +530,10 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
                                      net.tab_at, net.tab_wt, i, z[i])[0]
         else:
             vol[i] += dt * netq[i]
-            # While zk lies in the table cells of the last linearisation (work.zlo..zhi), V is linear there and
-            # the solved system says V(zk) = V^n + Δt Σ Q exactly, up to the round-off of the solve: zk is the
-            # level of the new volume, and what round-off leaves enters the next step's right-hand side (as
-            # any linearisation difference does). Outside those cells V bends: Newton from zk.
+            # While zk lies in the piece of the volume curve the system was linearised on (work.zlo..zhi),
+            # V is linear there and the solved system says V(zk) = V^n + Δt Σ Q exactly, up to the round-off
+            # of the solve: zk is the level of the new volume, and what round-off leaves enters the next
+            # step's right-hand side (as any linearisation difference does). Outside it V bends: Newton.
             zi = zk[i]
             if not work.zlo[i] <= zi <= work.zhi[i]:
                 zi = level_of_volume(net, i, vol[i], zi)
