@@ -56,7 +56,7 @@ def test_tree_has_no_fill_and_loops_do() -> None:
 
 
 def test_packed_schedule_is_bit_identical_to_the_csr_solve() -> None:
-    from rivercal.engine.compile import elimination_order, solver_schedule
+    from rivercal.engine.compile import solver_schedule
     from rivercal.engine.kernels.solver import ldl_solve_packed
 
     rng = np.random.default_rng(0)
@@ -67,18 +67,8 @@ def test_packed_schedule_is_bit_identical_to_the_csr_solve() -> None:
         "grid": [(i * 6 + j, i * 6 + j + 1) for i in range(6) for j in range(5)]
         + [(i * 6 + j, (i + 1) * 6 + j) for i in range(5) for j in range(6)],
     }
-    for pairs in graphs.values():
-        n = 1 + max(max(p) for p in pairs)
-        sym = elimination_order(n, pairs)
-        off = np.zeros(sym.n_edges)
-        dense = np.zeros((n, n))
-        for i, j in pairs:
-            c = rng.uniform(0.5, 5.0)
-            off[sym.edge_of[(min(i, j), max(i, j))]] -= c
-            dense[i, j] -= c
-            dense[j, i] -= c
-        diag = -dense.sum(axis=1) + rng.uniform(0.01, 1.0, n)
-        rhs = rng.normal(size=n)
+    for seed, pairs in enumerate(graphs.values()):
+        sym, diag, off, rhs, _ = _random_system(1 + max(max(p) for p in pairs), pairs, seed)
         x, y = rhs.copy(), rhs.copy()
         ldl_solve_packed(solver_schedule(sym), sym.cptr, sym.cedge, sym.cother, sym.uptr, sym.ue1, sym.ue2, sym.utgt,
                          diag.copy(), off.copy(), np.zeros(sym.n_edges), x)
