@@ -45,3 +45,21 @@ def test_a_run_split_in_two_equals_the_whole_and_does_not_depend_on_earlier_runs
     model.simulate({"friction:global": 25.0}, start=start, end=end)  # other levels, other pieces
     again, _ = model.simulate(None, start=start, end=end)
     assert np.array_equal(whole.series.to_numpy(), again.series.to_numpy())
+
+
+def test_the_state_holds_the_last_step_whatever_the_number_of_steps() -> None:
+    """The time loop swaps its velocity and flux arrays every step instead of copying them; after an odd
+    number of steps the last ones are in the other buffer and must still reach the returned state."""
+    model = load_model("synthetic")
+    _, state = model.simulate(None, end=model.start + pd.Timedelta(hours=6))
+    dt = pd.Timedelta(seconds=model.dt)
+    t0 = state.time
+    for n_steps in (1, 3, 4):
+        result, after = model.simulate(None, start=t0, end=t0 + n_steps * dt, state=state,
+                                       output_interval=model.dt, snapshots=True)
+        assert np.array_equal(after.q, result.discharges.iloc[-1].to_numpy()), n_steps
+        assert not np.array_equal(after.q, state.q), n_steps  # the flow changes over a step
+    three, _ = model.simulate(None, start=t0, end=t0 + 3 * dt, state=state, output_interval=model.dt)
+    _, one = model.simulate(None, start=t0, end=t0 + dt, state=state, output_interval=model.dt)
+    rest, _ = model.simulate(None, start=t0 + dt, end=t0 + 3 * dt, state=one, output_interval=model.dt)
+    assert np.array_equal(three.series.iloc[1:].to_numpy(), rest.series.to_numpy())

@@ -79,7 +79,8 @@ STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 #: right-hand side, iterate (m AD), sources (m³/s), lateral inflow per unit length (m²/s), net
 #: inflow (m³/s), Dirichlet flags and levels,
 #: off-diagonals and L multipliers per edge, link flux area (m²) and coefficients f (1/s) and
-#: r (m/s), the new velocities (m/s) and fluxes (m³/s), rating-boundary linearisation (m³/s,
+#: r (m/s), a second buffer of velocities (m/s) and fluxes (m³/s) that :func:`run` swaps with the state's
+#: arrays every step, rating-boundary linearisation (m³/s,
 #: m²/s), the structure and pump links, counters (steps, solves, drying re-solves), per point the
 #: piece of its volume curve last looked up (:func:`assemble`): low and high end and reference level
 #: (m AD), the volume there (m³) and the storage area (m²); the momentum terms of each
@@ -98,7 +99,7 @@ def make_work(net) -> Work:
     n_l = net.lk_k1.size
     n_b = net.b_hp.size
     return Work(
-        diag=np.empty(n_h), rhs=np.empty(n_h), zk=np.empty(n_h), src=np.empty(n_h), qlat=np.zeros(n_h),
+        diag=np.empty(n_h), rhs=np.empty(n_h), zk=np.empty(n_h), src=np.zeros(n_h), qlat=np.zeros(n_h),
         netq=np.empty(n_h),
         fixed=np.zeros(n_h, dtype=np.bool_), fixed_val=np.zeros(n_h), off=np.zeros(net.sv_nedge),
         lval=np.zeros(net.sv_nedge), area=np.zeros(n_l), fco=np.zeros(n_l), rco=np.zeros(n_l),
@@ -116,13 +117,16 @@ def make_work(net) -> Work:
 def apply_forcing(net, work, n, forcing, dt, vol):
     """Sources (m³/s), Dirichlet levels (m AD) and lateral inflow per unit length (m²/s) of step ``n``.
 
-    Returns the total of the laterals (m³/s).
+    Only the entries of forced points are written: the others stay as :func:`run` set them at its start
+    (no source, no lateral inflow, not fixed). Returns the total of the laterals (m³/s).
     """
     src, fixed, fixed_val, qlat = work.src, work.fixed, work.fixed_val, work.qlat
     b_hp, b_type, b_col = net.b_hp, net.b_type, net.b_col
-    src[:] = 0.0
-    fixed[:] = False
-    qlat[:] = 0.0
+    for bnd in range(b_hp.size):
+        src[b_hp[bnd]] = 0.0
+    for lat in range(net.lat_hp.size):
+        src[net.lat_hp[lat]] = 0.0
+        qlat[net.lat_hp[lat]] = 0.0
     for bnd in range(b_hp.size):
         i = b_hp[bnd]
         if b_type[bnd] == 0:
@@ -410,13 +414,13 @@ def level_of_volume(net, i, vol, z0):
 
 
 @kernel
-def compute_fluxes(net, work, theta, u):
-    """Link velocities (m/s) and fluxes (m³/s) of the current solution ``work.zk``.
+def compute_fluxes(net, work, theta, u, un, qn):
+    """Link velocities ``un`` (m/s) and fluxes ``qn`` (m³/s) of the current solution ``work.zk``.
 
-    Also, per point, the net inflow (``work.netq``, m³/s).
+    ``u`` is the velocity at time n (m/s). Also, per point, the net inflow (``work.netq``, m³/s).
     """
     zk, netq, src = work.zk, work.netq, work.src
-    area, fco, rco, un, qn = work.area, work.fco, work.rco, work.un, work.qn
+    area, fco, rco = work.area, work.fco, work.rco
     lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
     for i in range(src.size):
         netq[i] = src[i]
@@ -444,9 +448,9 @@ def compute_fluxes(net, work, theta, u):
 
 
 @kernel
-def gross_outflow(net, work):
-    """Per point, the gross outflow (m³/s) of the fluxes of :func:`compute_fluxes`, into ``work.rhs``."""
-    zk, outflow, src, qn = work.zk, work.rhs, work.src, work.qn
+def gross_outflow(net, work, qn):
+    """Per point, the gross outflow (m³/s) of the fluxes ``qn`` of :func:`compute_fluxes`, into ``work.rhs``."""
+    zk, outflow, src = work.zk, work.rhs, work.src
     lk_k1, lk_k2 = net.lk_k1, net.lk_k2
     for i in range(src.size):
         outflow[i] = -min(src[i], 0.0)
@@ -463,22 +467,22 @@ def gross_outflow(net, work):
 
 
 @kernel
-def limit_draining_links(net, work, vol, dt):
+def limit_draining_links(net, work, vol, dt, qn):
     """Throttle, for this step, the links that would empty a point below its bed.
 
-    With the fluxes of :func:`compute_fluxes` (and their gross outflow per point, :func:`gross_outflow`),
+    With the fluxes ``qn`` (m³/s) of :func:`compute_fluxes` (and their gross outflow per point, :func:`gross_outflow`),
     a point that would lose more water than it holds plus
     receives (its volume would become negative, the level below the lowest bed) has the flux area of
     every link carrying water out of it scaled by ``0.9 × available / outflow``; a pump drawing from it
     is throttled likewise. Returns the number of points limited; the caller solves again.
     """
-    netq, outflow, fixed, qn = work.netq, work.rhs, work.fixed, work.qn
+    netq, outflow, fixed = work.netq, work.rhs, work.fixed
     drains = False
     for i in range(vol.size):
         drains |= not fixed[i] and vol[i] + dt * netq[i] < 0.0
     if not drains:
         return 0  # the common case
-    gross_outflow(net, work)
+    gross_outflow(net, work, qn)
     limited = 0
     for i in range(vol.size):
         if fixed[i] or vol[i] + dt * netq[i] >= 0.0:
@@ -497,17 +501,17 @@ def limit_draining_links(net, work, vol, dt):
 
 
 @kernel
-def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
-    """Commit the fluxes of :func:`compute_fluxes`: velocities, volumes, levels, the boundary balance.
+def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, un, qn, balance):
+    """Commit the step: volumes and levels from the net inflows of :func:`compute_fluxes`, the boundary balance.
 
-    Returns (status, index) of a divergence check: ``STATUS_OK`` or the h-point / link at fault.
+    ``un`` (m/s) and ``qn`` (m³/s) are the new velocities and fluxes; they become the state by the time
+    loop's swap of its velocity and flux arrays, not by a copy. Returns (status, index) of a divergence
+    check: ``STATUS_OK`` or the h-point / link at fault.
     """
     zk, netq, fixed, fixed_val = work.zk, work.netq, work.fixed, work.fixed_val
     bad_link = -1
-    for link in range(u.size - 1, -1, -1):  # backwards: bad_link ends as the first link at fault
-        u[link] = work.un[link]
-        q[link] = work.qn[link]
-        if not math.fabs(u[link]) <= vmax:  # also NaN
+    for link in range(un.size - 1, -1, -1):  # backwards: bad_link ends as the first link at fault
+        if not math.fabs(un[link]) <= vmax:  # also NaN
             bad_link = link
     for bnd in range(net.b_hp.size):
         i = net.b_hp[bnd]
@@ -519,7 +523,7 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance):
         else:
             inflow = 0.0
             for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
-                inflow -= net.nl_sign[c] * q[net.nl_link[c]]
+                inflow -= net.nl_sign[c] * qn[net.nl_link[c]]
             balance[bnd] += dt * inflow
     for i in range(z.size):
         z_old = z[i]
@@ -615,9 +619,14 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     zk = work.zk
     n_b = net.b_hp.size
     record(net, 0, z, q, obs_out, z_out, q_out)
+    # velocities and fluxes at time n (u0, q0) and n+1 (u1, q1): the arrays swap roles after each step
+    u0, q0, u1, q1 = u, q, work.un, work.qn
+    work.src[:] = 0.0
+    work.qlat[:] = 0.0
+    work.fixed[:] = False
     for n in range(forcing.shape[0]):
         balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
-        channel_coefficients(net, work, z, u, q, fric, dt, min_depth)
+        channel_coefficients(net, work, z, u0, q0, fric, dt, min_depth)
         switch_pumps(net, work, z, pump_on)
         # linearise first at the extrapolated level z^n + (z^n - z^{n-1}) (not below the bed): when the
         # extrapolation is good one solve suffices (the convergence test compares with it)
@@ -625,20 +634,32 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
             zk[i] = max(z[i] + dz[i], min(z[i], net.hp_bed[i] + min_depth))
         work.stats[0] += 1
         for _ in range(max_iter):
-            structure_coefficients(net, work, zk, dz, 0.0, u, crest, dt)
-            change = _solve(net, work, zk, vol, u, theta, dt)
+            structure_coefficients(net, work, zk, dz, 0.0, u0, crest, dt)
+            change = _solve(net, work, zk, vol, u0, theta, dt)
             work.stats[1] += 1
             if change < tol:
                 break
         for attempt in range(9):  # drying: no point may lose more water than it holds within a step
-            compute_fluxes(net, work, theta, u)
-            if attempt == 8 or limit_draining_links(net, work, vol, dt) == 0:
+            compute_fluxes(net, work, theta, u0, u1, q1)
+            if attempt == 8 or limit_draining_links(net, work, vol, dt, q1) == 0:
                 break
-            _solve(net, work, zk, vol, u, theta, dt)
+            _solve(net, work, zk, vol, u0, theta, dt)
             work.stats[2] += 1
-        status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u, q, balance)
+        status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u1, q1, balance)
+        u0, q0, u1, q1 = u1, q1, u0, q0
         if status != STATUS_OK:
+            _keep(u0, q0, u, q)
             return status, n, index
         if (n + 1) % out_every == 0:
-            record(net, (n + 1) // out_every, z, q, obs_out, z_out, q_out)
+            record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
+    _keep(u0, q0, u, q)
     return STATUS_OK, forcing.shape[0], -1
+
+
+@kernel
+def _keep(u_last, q_last, u, q):
+    """Copy the last velocities and fluxes into the state arrays ``u``, ``q`` unless they are already there."""
+    if u_last.ctypes.data != u.ctypes.data:
+        for link in range(u.size):
+            u[link] = u_last[link]
+            q[link] = q_last[link]
