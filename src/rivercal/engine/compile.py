@@ -741,6 +741,8 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
         for s in after[p]:
             chain[p] = max(chain[p], chain[s] + 1)
     width = sym.cptr[1:] - sym.cptr[:-1]
+    position = np.empty(n, dtype=np.int64)
+    position[sym.order] = np.arange(n)
     ready = [(-int(chain[p]), p) for p in range(n) if waits[p] == 0]
     heapq.heapify(ready)
     steps: list[list[np.ndarray]] = []
@@ -773,7 +775,7 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
                 elif m > 2:
                     rec[6] = p
                 if m in (1, 2):  # carry the later point that is eliminated first
-                    rec[7] = 0 if m == 1 or sym.cother[c0] < sym.cother[c0 + 1] else 1
+                    rec[7] = 0 if m == 1 or position[sym.cother[c0]] < position[sym.cother[c0 + 1]] else 1
                     carried[lane] = int(rec[3 + 2 * rec[7]])
             step.append(rec)
         steps.append(step)

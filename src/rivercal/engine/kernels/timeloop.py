@@ -79,9 +79,9 @@ STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 #: right-hand side, iterate (m AD), sources (m³/s), lateral inflow per unit length (m²/s), net
 #: inflow (m³/s), Dirichlet flags and levels,
 #: off-diagonals and L multipliers per edge, link flux area (m²) and coefficients f (1/s) and
-#: r (m/s), a second buffer of velocities (m/s) and fluxes (m³/s) that :func:`run` swaps with the state's
-#: arrays every step, rating-boundary linearisation (m³/s,
-#: m²/s), the structure and pump links, counters (steps, solves, drying re-solves), per point the
+#: r (m/s), a second buffer of velocities (m/s) and fluxes (m³/s) that :func:`run` swaps with the
+#: state's arrays every step, rating-boundary linearisation (m³/s, m²/s), the structure and pump
+#: links, counters (steps, solves, drying re-solves), per point the
 #: piece of its volume curve last looked up (:func:`assemble`): low and high end and reference level
 #: (m AD), the volume there (m³) and the storage area (m²); the momentum terms of each
 #: channel link (:func:`_link_momentum`).
@@ -198,7 +198,7 @@ def _link_momentum(net, work, z, u, q, fric, dt, min_depth):
         if depth < min_depth:
             continue
         a_up, per, r43 = flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf,
-                                           net.tab_flow, prof, depth)
+                                       net.tab_flow, prof, depth)
         if a_up <= 0.0:
             continue
         group = np.uint64(lk_fric[link])
@@ -470,9 +470,9 @@ def gross_outflow(net, work, qn):
 def limit_draining_links(net, work, vol, dt, qn):
     """Throttle, for this step, the links that would empty a point below its bed.
 
-    With the fluxes ``qn`` (m³/s) of :func:`compute_fluxes` (and their gross outflow per point, :func:`gross_outflow`),
-    a point that would lose more water than it holds plus
-    receives (its volume would become negative, the level below the lowest bed) has the flux area of
+    With the fluxes ``qn`` (m³/s) of :func:`compute_fluxes` (and their gross outflow per point,
+    :func:`gross_outflow`), a point that would lose more water than it holds plus receives (its
+    volume would become negative, the level below the lowest bed) has the flux area of
     every link carrying water out of it scaled by ``0.9 × available / outflow``; a pump drawing from it
     is throttled likewise. Returns the number of points limited; the caller solves again.
     """
