@@ -223,3 +223,15 @@ def test_a_stored_state_of_another_grid_is_not_used(tmp_path) -> None:
         (nxt,) = svc.replay("2010-10-27")
         assert nxt.hot_start is False and nxt.status == "done"
         assert abs(nxt.accepted["FA"] - 16.0) < 0.05
+
+
+def test_data_period_spans_the_first_window_to_the_last_forecast_within_the_case(tmp_path) -> None:
+    """The observations the cycles use: first issue − window − warm-up .. last issue + horizon, clipped at the end."""
+    config = OnlineConfig(parameters=("FA",), workers=1, window="7D", warmup="24h", horizon="48h")
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), []), first="2010-10-25")
+    with store:
+        start, end = svc.data_period("2010-11-10")
+        assert start == pd.Timestamp("2010-10-17", tz="UTC")
+        assert end == pd.Timestamp("2010-11-12", tz="UTC")
+        # a last issue a day before the case ends: the forecast horizon is cut at the case's end
+        assert svc.data_period(END - pd.Timedelta("1D"))[1] == END

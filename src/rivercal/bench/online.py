@@ -61,9 +61,7 @@ def _service(model, folder: Path, scenario: str, first: pd.Timestamp, last: pd.T
              config: OnlineConfig) -> tuple[Store, OnlineService]:
     store = Store(folder / "bench.sqlite")
     service = OnlineService(model, store, scenario, config, first, meta={"scenario": scenario})
-    start = first - pd.Timedelta(config.window) - pd.Timedelta(config.warmup)
-    end = min(last + pd.Timedelta(config.horizon), model.end)
-    truth = practical_truth(model, scenario, start, end, series=service.series)
+    truth = practical_truth(model, scenario, *service.data_period(last), series=service.series)
     store.ingest(truth.observations, source=f"twin:{scenario}")
     return store, service
 

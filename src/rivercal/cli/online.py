@@ -83,8 +83,6 @@ def online(
     quiet: QuietOpt = False,
 ) -> None:
     """Run the on-line service: every cycle re-estimates the parameters and forecasts against the DSS."""
-    import pandas as pd
-
     from rivercal.model import load_model
     from rivercal.online.service import OnlineConfig, OnlineService
     from rivercal.store import Store
@@ -122,9 +120,7 @@ def online(
 
             if show:
                 status.update(f"{scenario}: running the truth")
-            start = first - pd.Timedelta(window) - pd.Timedelta(warmup)
-            end = min(last + pd.Timedelta(horizon), model.end)
-            truth = practical_truth(model, scenario, start, end, noise=noise, seed=seed,
+            truth = practical_truth(model, scenario, *service.data_period(last), noise=noise, seed=seed,
                                     series=service.series)
             store.ingest(truth.observations, source=f"twin:{scenario}")
         for path, obs in zip(observations, files, strict=True):

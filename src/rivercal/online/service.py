@@ -262,6 +262,15 @@ class OnlineService:
             return float(self.config.resolution[name])
         return DEFAULT_RESOLUTION.get(p.unit, 0.01 * (p.max - p.min))
 
+    def data_period(self, last_issue: Any) -> tuple[pd.Timestamp, pd.Timestamp]:
+        """The period (UTC) whose observations the cycles up to ``last_issue`` use.
+
+        From the first window's start (first issue − window − warm-up) to the last issue plus the
+        forecast horizon, so that every forecast can be scored; but not past the end of the case.
+        """
+        start = self.schedule.first_issue - self.window - self.warmup
+        return start, min(_utc(last_issue) + self.horizon, self.model.end)
+
     def warm_start(self) -> dict[str, float]:
         """The last accepted value of each parameter, else its initial value (physical units)."""
         last = self.store.last_accepted(self.run)
