@@ -469,8 +469,10 @@ def _reduced_correlation(jac: np.ndarray, keep: np.ndarray, rcond: float) -> np.
 
 def _svd(jd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Singular values (length p, zeros appended when m < p) and right singular vectors with a fixed sign."""
-    p = jd.shape[1]
-    _, s, vt = np.linalg.svd(jd, full_matrices=True)
+    m, p = jd.shape
+    # The full V (p x p) needs full matrices only when there are fewer rows than parameters; otherwise
+    # they would also build the m x m left factor, 3 GB and minutes for a season of hourly residuals.
+    _, s, vt = np.linalg.svd(jd, full_matrices=m < p)
     v = vt.T
     s = np.concatenate([s, np.zeros(p - s.size)])
     for j in range(p):  # deterministic sign: the largest component positive
