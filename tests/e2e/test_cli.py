@@ -64,3 +64,14 @@ def test_calibrate_twin_json_and_files(tmp_path: Path) -> None:
     assert summary["model_runs"] <= 15 and summary["success"]
     for name in ("history.csv", "evaluations.csv", "convergence.png", "cost.png", "result.json"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+def test_bench_engine_reports_the_network_and_a_second_call_does_not_compile() -> None:
+    """Issue 2: the bench network has >= 400 points, >= 9 weirs and 10 laterals; a second CLI call loads
+    every kernel from numba's cache (the first may compile, if nothing ran the engine before)."""
+    runs = [rivercal("bench", "engine", "--days", "0.25", "--repeats", "1", "--json") for _ in range(2)]
+    assert all(r.returncode == 0 for r in runs), runs[-1].stderr
+    first, second = (json.loads(r.stdout) for r in runs)
+    assert first["points"] >= 400 and first["weirs"] >= 9 and first["laterals"] == 10 and first["dt_s"] == 60.0
+    assert second["compiled"] is False
+    assert 0 < second["wall_s_median"] and 0 < second["compile_s"]
