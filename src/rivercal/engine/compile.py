@@ -35,11 +35,19 @@ __all__ = [
     "LINK_CULVERT",
     "LINK_PUMP",
     "LINK_WEIR",
+    "RUN_COUNT",
+    "RUN_EDGE",
+    "RUN_GENERAL",
+    "RUN_K1",
+    "RUN_K2",
+    "RUN_LINK",
     "CompiledNetwork",
     "NetArrays",
     "compile_network",
     "elimination_order",
     "flow_records",
+    "link_runs",
+    "momentum_runs",
     "solver_schedule",
 ]
 
@@ -81,6 +89,10 @@ class NetArrays(NamedTuple):
     lk_ns1: np.ndarray  # +1 if that link ends at k1, -1 if it starts there
     lk_nb2: np.ndarray  # same at k2
     lk_ns2: np.ndarray
+    lk_runs: np.ndarray  # the links as runs along which k1, k2 and the edge step by one (uint64, see link_runs)
+    lk_ftype: np.ndarray  # friction type of the link's group (FRICTION_CODES)
+    mo_runs: np.ndarray  # runs of channel links whose momentum terms vectorise (uint64, see momentum_runs)
+    mo_other: np.ndarray  # the other channel links (uint64)
     # profile tables
     tab_off: np.ndarray
     tab_n: np.ndarray
@@ -358,6 +370,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
             forcing_keys.append(f"boundary:{bd.id}")
             forcing_is_level.append(bd.type == "level")
         b_rptr.append(len(b_rlev))
+    level_points = np.array([hp for hp, t in zip(b_hp, b_type, strict=True) if t == BOUNDARY_LEVEL], dtype=np.int64)
     lat_hp, lat_col = [], []
     for lat in network.laterals:
         if lat.node is not None:
@@ -377,6 +390,8 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     )
     friction_values = np.array([(b.friction or network.friction).value for b in network.branches], dtype=float)
 
+    lk_ftype = fr_type[np.array([lk["branch"] for lk in links], dtype=np.int64)]
+    mo_runs, mo_other = momentum_runs(lk_type, lk_k1, lk_k2, lk_nb, lk_ns, lk_ftype, np.asarray(lat_hp, dtype=np.int64))
     arrays = NetArrays(
         hp_bed=hp_bed,
         hp_amin=np.full(n_hp, settings.min_storage_area),
@@ -404,6 +419,11 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         lk_ns1=lk_ns[0].copy(),
         lk_nb2=lk_nb[1].copy(),
         lk_ns2=lk_ns[1].copy(),
+        lk_runs=link_runs(lk_k1, lk_k2, lk_edge, (lk_type == LINK_PUMP) | np.isin(lk_k1, level_points)
+                          | np.isin(lk_k2, level_points)),
+        lk_ftype=lk_ftype,
+        mo_runs=mo_runs,
+        mo_other=mo_other,
         tab_off=tables.off,
         tab_n=tables.n,
         tab_dd=tables.dd,
@@ -785,6 +805,95 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
                 if waits[s] == 0:
                     heapq.heappush(ready, (-int(chain[s]), s))
     return np.array(steps, dtype=np.uint64).ravel()
+
+
+#: Columns of a row of ``lk_runs`` (:func:`link_runs`).
+RUN_LINK, RUN_COUNT, RUN_K1, RUN_K2, RUN_EDGE, RUN_GENERAL = range(6)
+
+
+def link_runs(lk_k1: np.ndarray, lk_k2: np.ndarray, lk_edge: np.ndarray, general: np.ndarray) -> np.ndarray:
+    """The links, in order, as runs along which both end points and the solver edge step by one.
+
+    The calculation points and links of a branch are numbered along it, so a branch's links form a few
+    long runs: link ``l + j`` of a run joins points ``k1 + j`` and ``k2 + j`` and has solver edge ``e + j``.
+    A kernel that loops over a run reads and writes the point arrays contiguously instead of gathering and
+    scattering through ``lk_k1``/``lk_k2``, and the compiler vectorises it. A ``general`` link (a pump, or
+    a link at a level-boundary point, which the assembly treats apart) is a run of its own, flagged.
+
+    Parameters
+    ----------
+    lk_k1, lk_k2, lk_edge
+        Per link: its two h-points and its solver edge (-1 for a pump).
+    general
+        Per link: whether it must be a run of its own.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``uint64`` array, one row per run: first link, number of links, first k1, first k2, first edge (0 for
+        a pump), general flag (columns ``RUN_LINK`` … ``RUN_GENERAL``). The runs cover every link once, in order.
+    """
+    rows = []
+    n = lk_k1.size
+    link = 0
+    while link < n:
+        end = link + 1
+        if not general[link]:
+            while (end < n and not general[end] and lk_k1[end] - lk_k1[link] == end - link
+                   and lk_k2[end] - lk_k2[link] == end - link and lk_edge[end] - lk_edge[link] == end - link):
+                end += 1
+        rows.append((link, end - link, lk_k1[link], lk_k2[link], max(int(lk_edge[link]), 0), int(general[link])))
+        link = end
+    return np.array(rows, dtype=np.uint64).reshape(-1, 6)
+
+
+def momentum_runs(lk_type: np.ndarray, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_nb: np.ndarray,
+                  lk_ns: np.ndarray, lk_ftype: np.ndarray, lateral_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The channel links whose momentum terms a branch-free, contiguous loop can compute, as runs; the others.
+
+    Inside a branch a channel link ``l`` joins consecutive points (k2 = k1 + 1) and its upwind neighbour is
+    the next channel link along the branch on either side: link ``l - 1`` ending at k1, link ``l + 1``
+    starting at k2. For such *simple* links the momentum pass reads the levels, the neighbours' velocities
+    and fluxes contiguously (:func:`rivercal.engine.kernels.timeloop.channel_coefficients`). A channel link
+    next to a junction, a structure, a branch end or a lateral, or with Chézy friction (whose hydraulic
+    radius costs a division that the others do not need), is one of the others.
+
+    Parameters
+    ----------
+    lk_type, lk_k1, lk_k2
+        Per link: its type and its two h-points.
+    lk_nb, lk_ns
+        Per end (rows) and link: the one other channel link at that end (-1 junction, -2 none or a
+        structure) and +1 if it ends there, -1 if it starts there.
+    lk_ftype
+        Per link: its friction type (``FRICTION_CODES``).
+    lateral_points
+        The h-points that receive a lateral.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        ``uint64`` rows (first link, number of links, k1 of the first link) of the runs of simple links,
+        and the other channel links (``uint64``).
+    """
+    n = lk_type.size
+    index = np.arange(n)
+    simple = ((lk_type == LINK_CHANNEL) & (lk_k2 == lk_k1 + 1) & (lk_nb[0] == index - 1) & (lk_ns[0] == 1)
+              & (lk_nb[1] == index + 1) & (lk_ns[1] == -1) & (lk_ftype != FRICTION_CODES["chezy"])
+              & ~np.isin(lk_k1, lateral_points) & ~np.isin(lk_k2, lateral_points))
+    rows = []
+    link = 0
+    while link < n:
+        if not simple[link]:
+            link += 1
+            continue
+        end = link + 1
+        while end < n and simple[end]:
+            end += 1
+        rows.append((link, end - link, lk_k1[link]))
+        link = end
+    other = np.flatnonzero((lk_type == LINK_CHANNEL) & ~simple)
+    return np.array(rows, dtype=np.uint64).reshape(-1, 3), other.astype(np.uint64)
 
 
 #: Values per table cell in ``tab_flow``: af, its increment, pf, its increment, r43, its increment, 2 unused.

@@ -339,10 +339,10 @@ class Simulator:
             if phase:
                 when += f" ({phase}, forcing held at its start value)"
             if status == STATUS_LEVEL:
-                where, what = self.compiled.hp_label[index], f"level {state.z[index]!r} m AD"
+                where, what = self.compiled.hp_label[index], f"level {float(state.z[index]):.6g} m AD"
             else:
                 where, what = self.compiled.link_label[index], (
-                    f"velocity {state.u[index]!r} m/s exceeds engine.max_velocity ({s.max_velocity} m/s)"
+                    f"velocity {float(state.u[index]):.6g} m/s exceeds engine.max_velocity ({s.max_velocity} m/s)"
                 )
             raise EngineDivergedError(when, where, what)
         return obs, zs, qs, balance, initial_volume

@@ -84,12 +84,13 @@ STATUS_OK, STATUS_LEVEL, STATUS_VELOCITY = 0, 1, 2
 #: links, counters (steps, solves, drying re-solves), per point the
 #: piece of its volume curve last looked up (:func:`assemble`): low and high end and reference level
 #: (m AD), the volume there (m³) and the storage area (m²); the momentum terms of each
-#: channel link (:func:`_link_momentum`).
+#: channel link (:func:`_momentum_other`), its wetted perimeter (m) and R^(4/3) (m^(4/3)) at the upwind
+#: depth, and its friction value (unit of its friction type).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
-     "cb", "cs", "cc2r", "cdz"],
+     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric"],
 )
 
 
@@ -109,7 +110,8 @@ def make_work(net) -> Work:
         pump_links=np.flatnonzero(net.lk_type == 3).astype(np.int64),
         stats=np.zeros(3, dtype=np.int64),
         zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
-        cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l),
+        cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l), cper=np.ones(n_l), cr43=np.ones(n_l),
+        lfric=np.ones(n_l),
     )
 
 
@@ -148,110 +150,173 @@ def apply_forcing(net, work, n, forcing, dt, vol):
 
 
 @kernel
-def channel_coefficients(net, work, z, u, q, fric, dt, min_depth):
+def channel_coefficients(net, work, z, u, q, dt, min_depth):
     """Flux area A (m²), f (1/s) and r (m/s) of every channel link from the state at time n.
 
     Upwind flow area and implicit friction; upwind advection from the velocity of the link that
     feeds the upwind point (inflow-weighted over all feeding links at a junction; none across
     structures or from a boundary); the lateral-inflow momentum sink u q_lat / A with q_lat the
-    mean lateral inflow per unit length (m²/s) of the link's two points.
+    mean lateral inflow per unit length (m²/s) of the link's two points. The friction value of each
+    link is ``work.lfric`` (set by :func:`run` from the run's parameters).
 
-    Two passes: :func:`_link_momentum` gathers, per link, the terms of its momentum equation (table
-    look-ups and branches); :func:`_link_newton` solves it, a branch-free loop over all links that
-    the compiler vectorises (its square root and three divisions dominate the cost of a link). The
-    coefficients it writes for structure and pump links are replaced before use, by
+    Four passes: :func:`_link_geometry` looks up the flow geometry at the upwind depth (a gather from
+    the tables); :func:`_momentum_simple` gathers the momentum terms of the links inside a branch, whose
+    neighbours are the links before and after them (``net.mo_runs``), in a branch-free loop that
+    reads contiguously and vectorises; :func:`_momentum_other` does the same for the other channel links
+    (at junctions, structures and branch ends); :func:`_link_newton` solves each link's momentum equation.
+    The coefficients written for structure and pump links are replaced before use, by
     :func:`switch_pumps` and :func:`structure_coefficients`.
     """
-    _link_momentum(net, work, z, u, q, fric, dt, min_depth)
+    _link_geometry(net, work, z, u, min_depth)
+    _momentum_simple(net, work, z, u, q, dt)
+    for link in net.mo_other:
+        _momentum_other(net, work, link, z, u, q, dt)
     _link_newton(net.lk_ilen, work.area, work.cb, work.cs, work.cc2r, work.cdz, work.fco, work.rco)
 
 
 @kernel
-def _link_momentum(net, work, z, u, q, fric, dt, min_depth):
-    """Per channel link: flux area A (m², 0 when dry), and in ``work`` the momentum terms of :func:`_link_newton`.
+def _upwind(net, link, z, u):
+    """Direction (+1 along the branch, -1 against), upwind depth (m) and upwind profile of a channel link."""
+    k1 = np.uint64(net.lk_k1[link])
+    k2 = np.uint64(net.lk_k2[link])
+    u0 = u[link]
+    if u0 > 0.0 or (u0 == 0.0 and z[k1] >= z[k2]):
+        return 1.0, z[k1] - net.lk_b1[link], np.uint64(net.lk_p1[link])
+    return -1.0, z[k2] - net.lk_b2[link], np.uint64(net.lk_p2[link])
+
+
+@kernel
+def _link_geometry(net, work, z, u, min_depth):
+    """Per link: flux area (m²; 0 when dry or not a channel), wetted perimeter (m) and R^(4/3) at the upwind depth."""
+    area, cper, cr43, lk_type = work.area, work.cper, work.cr43, net.lk_type
+    for link in range(lk_type.size):
+        area[link] = 0.0
+        if lk_type[link] != 0:
+            continue
+        _, depth, prof = _upwind(net, link, z, u)
+        if depth < min_depth:
+            continue
+        a_up, per, r43 = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
+                                       net.tab_pf, net.tab_flow, prof, depth)
+        if a_up > 0.0:
+            area[link] = a_up
+            cper[link] = per
+            cr43[link] = r43
+
+
+@kernel
+def _momentum_simple(net, work, z, u, q, dt):
+    """The momentum terms of :func:`_momentum_other` for the links of ``net.mo_runs``, without branches.
+
+    Such a link joins points k1 and k1 + 1, neither of which receives a lateral, has no Chézy friction, and
+    its upwind neighbour is link - 1 (flowing into k1) or link + 1 (flowing out of k2, so -q and -u point
+    towards it). Every quantity is computed for every link and the right one selected, in the same
+    floating-point operations as :func:`_momentum_other`; a dry link gets meaningless terms (numpy's error
+    model: a division by its zero area gives inf, no exception), which :func:`_link_newton` masks.
+    """
+    area, cr43, lfric = work.area, work.cr43, work.lfric
+    cb, cs, cc2r, cdz = work.cb, work.cs, work.cc2r, work.cdz
+    lk_ilen, lk_ftype = net.lk_ilen, net.lk_ftype
+    inv_dt = 1.0 / dt
+    one = np.uint64(1)
+    for run in net.mo_runs:
+        l0, k0 = run[0], run[2]
+        for j in range(run[1]):
+            link = l0 + j
+            k1 = k0 + j
+            u0 = u[link]
+            z1 = z[k1]
+            z2 = z[k1 + one]
+            up = (u0 > 0.0) | ((u0 == 0.0) & (z1 >= z2))
+            sign = 1.0 if up else -1.0
+            a_up = area[link]
+            b = inv_dt  # no lateral at either end: the lateral-inflow term is 0
+            rhs_u = u0 * inv_dt
+            ilen = lk_ilen[link]
+            ul = sign * u0
+            q_nb = q[link - one] if up else -q[link + one]
+            u_nb = u[link - one] if up else -u[link + one]
+            feeds = (u0 != 0.0) & (q_nb > 0.0)
+            qin = q_nb if feeds else 0.0
+            uin = u_nb if feeds else 0.0
+            uc = 0.5 * (ul + uin) if uin < ul else 0.5 * (qin + math.fabs(q[link])) / a_up
+            advect = (qin > 0.0) & (uc > 0.0)
+            dzl = z2 - z1
+            cb[link] = (b + uc * ilen) if advect else b
+            cs[link] = ((rhs_u + sign * uc * uin * ilen) if advect else rhs_u) - G * ilen * dzl
+            cc2r[link] = friction_c2r(lk_ftype[link], lfric[link], 0.0, cr43[link])  # not Chézy: no radius
+            cdz[link] = dzl
+
+
+@kernel
+def _momentum_other(net, work, link, z, u, q, dt):
+    """The momentum terms of one channel link with flux area > 0, in ``work`` (see :func:`_link_newton`).
 
     The momentum equation of a link, per unit mass, is ``b u + kappa |u| u = s - g (z2 - z1) / dx`` with
     b (1/s) the inertia, lateral-inflow and implicit advection terms, kappa = g / (C² R) (1/m), and
     s (m/s²) the explicit terms; ``cs`` holds s - g (z2 - z1) / dx at the levels of time n, ``cc2r``
     C² R (m²/s²), ``cb`` b and ``cdz`` z2 - z1 (m).
     """
-    area, qlat = work.area, work.qlat
-    cb, cs, cc2r, cdz = work.cb, work.cs, work.cc2r, work.cdz
-    lk_k1, lk_k2, lk_type, lk_ilen, lk_fric = net.lk_k1, net.lk_k2, net.lk_type, net.lk_ilen, net.lk_fric
-    lk_b1, lk_b2, lk_p1, lk_p2 = net.lk_b1, net.lk_b2, net.lk_p1, net.lk_p2
-    lk_nb1, lk_ns1, lk_nb2, lk_ns2 = net.lk_nb1, net.lk_ns1, net.lk_nb2, net.lk_ns2
-    nl_ptr, nl_link, nl_sign, fr_type = net.nl_ptr, net.nl_link, net.nl_sign, net.fr_type
-    tab_off, tab_n, tab_idd, tab_top, tab_wf_top = net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top
-    tab_af, tab_pf = net.tab_af, net.tab_pf
+    a_up = work.area[link]
+    if a_up <= 0.0:
+        return
+    lk_type, nl_ptr, nl_link, nl_sign = net.lk_type, net.nl_ptr, net.nl_link, net.nl_sign
+    qlat = work.qlat
+    k1 = np.uint64(net.lk_k1[link])
+    k2 = np.uint64(net.lk_k2[link])
+    u0 = u[link]
+    sign, depth, _ = _upwind(net, link, z, u)
+    per = work.cper[link]
+    ftype = net.lk_ftype[link]
+    radius = (a_up / per if per > 0.0 else depth) if ftype == 2 else 0.0
     inv_dt = 1.0 / dt
-    for link in range(lk_k1.size):
-        area[link] = 0.0
-        if lk_type[link] != 0:
-            continue
-        k1 = np.uint64(lk_k1[link])
-        k2 = np.uint64(lk_k2[link])
-        u0 = u[link]
-        if u0 > 0.0 or (u0 == 0.0 and z[k1] >= z[k2]):
-            sign, kup, depth, prof = 1.0, lk_k1[link], z[k1] - lk_b1[link], np.uint64(lk_p1[link])
+    ql = qlat[k1] + qlat[k2]
+    b = inv_dt + 0.5 * ql / a_up if ql != 0.0 else inv_dt  # skips a division: exact, the term is +0 then
+    rhs_u = u0 * inv_dt
+    ilen = net.lk_ilen[link]
+    if u0 != 0.0:
+        ul = sign * u0
+        qin = 0.0
+        uin = 0.0
+        if sign > 0.0:
+            m, sm, kup = net.lk_nb1[link], net.lk_ns1[link], k1
         else:
-            sign, kup, depth, prof = -1.0, lk_k2[link], z[k2] - lk_b2[link], np.uint64(lk_p2[link])
-        if depth < min_depth:
-            continue
-        a_up, per, r43 = flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf,
-                                       net.tab_flow, prof, depth)
-        if a_up <= 0.0:
-            continue
-        group = np.uint64(lk_fric[link])
-        ftype = fr_type[group]
-        radius = (a_up / per if per > 0.0 else depth) if ftype == 2 else 0.0
-        ql = qlat[k1] + qlat[k2]
-        b = inv_dt + 0.5 * ql / a_up if ql != 0.0 else inv_dt  # skips a division: exact, the term is +0 then
-        rhs_u = u0 * inv_dt
-        ilen = lk_ilen[link]
-        if u0 != 0.0:
-            ul = sign * u0
-            qin = 0.0
-            uin = 0.0
-            if sign > 0.0:
-                m, sm = lk_nb1[link], lk_ns1[link]
+            m, sm, kup = net.lk_nb2[link], net.lk_ns2[link], k2
+        if m >= 0:  # one feeding channel link
+            mu = np.uint64(m)
+            if sm * q[mu] > 0.0:
+                qin = sm * q[mu]
+                uin = sm * u[mu]
+        elif m == -1:  # junction: inflow-weighted velocity of the feeding links
+            quin = 0.0
+            blocked = False
+            for c in range(nl_ptr[kup], nl_ptr[kup + np.uint64(1)]):
+                j = nl_link[c]
+                if j == link:
+                    continue
+                qj = nl_sign[c] * q[j]
+                if qj > 0.0:
+                    if lk_type[j] != 0:
+                        blocked = True
+                    qin += qj
+                    quin += qj * nl_sign[c] * u[j]
+            if blocked:
+                qin = 0.0
+            elif qin > 0.0:
+                uin = quin / qin
+        if qin > 0.0:
+            if uin < ul:
+                uc = 0.5 * (ul + uin)  # contraction: energy-head conservative
             else:
-                m, sm = lk_nb2[link], lk_ns2[link]
-            if m >= 0:  # one feeding channel link: the common case along a branch
-                mu = np.uint64(m)
-                if sm * q[mu] > 0.0:
-                    qin = sm * q[mu]
-                    uin = sm * u[mu]
-            elif m == -1:  # junction: inflow-weighted velocity of the feeding links
-                quin = 0.0
-                blocked = False
-                for c in range(nl_ptr[kup], nl_ptr[kup + 1]):
-                    j = nl_link[c]
-                    if j == link:
-                        continue
-                    qj = nl_sign[c] * q[j]
-                    if qj > 0.0:
-                        if lk_type[j] != 0:
-                            blocked = True
-                        qin += qj
-                        quin += qj * nl_sign[c] * u[j]
-                if blocked:
-                    qin = 0.0
-                elif qin > 0.0:
-                    uin = quin / qin
-            if qin > 0.0:
-                if uin < ul:
-                    uc = 0.5 * (ul + uin)  # contraction: energy-head conservative
-                else:
-                    uc = 0.5 * (qin + math.fabs(q[link])) / a_up  # expansion: momentum conservative
-                if uc > 0.0:
-                    b += uc * ilen
-                    rhs_u += sign * uc * uin * ilen
-        dzl = z[k2] - z[k1]
-        area[link] = a_up
-        cb[link] = b
-        cs[link] = rhs_u - G * ilen * dzl
-        cc2r[link] = friction_c2r(ftype, fric[group], radius, r43)
-        cdz[link] = dzl
+                uc = 0.5 * (qin + math.fabs(q[link])) / a_up  # expansion: momentum conservative
+            if uc > 0.0:
+                b += uc * ilen
+                rhs_u += sign * uc * uin * ilen
+    dzl = z[k2] - z[k1]
+    work.cb[link] = b
+    work.cs[link] = rhs_u - G * ilen * dzl
+    work.cc2r[link] = friction_c2r(ftype, work.lfric[link], radius, work.cr43[link])
+    work.cdz[link] = dzl
 
 
 @kernel
@@ -331,6 +396,37 @@ def rating_flow(b_rptr, b_rlev, b_rq, bnd, z):
 
 
 @kernel
+def _assemble_general_link(net, work, link, u, theta):
+    """The contribution of one pump, or of a link at a level-boundary point, to the level system.
+
+    A pump's flux is fixed: it enters the right-hand sides. A level-boundary point has a Dirichlet row; the
+    coupling of its neighbour moves to the neighbour's right-hand side, keeping the matrix symmetric.
+    """
+    diag, rhs, fixed, fixed_val = work.diag, work.rhs, work.fixed, work.fixed_val
+    area, fco, rco = work.area, work.fco, work.rco
+    k1 = net.lk_k1[link]
+    k2 = net.lk_k2[link]
+    if net.lk_type[link] == 3:
+        rhs[k1] -= rco[link]
+        rhs[k2] += rco[link]
+        return
+    th = theta if net.lk_type[link] == 0 else 1.0
+    c = th * area[link] * fco[link]
+    a = area[link] * (th * rco[link] + (1.0 - th) * u[link])
+    diag[k1] += c
+    diag[k2] += c
+    rhs[k1] -= a
+    rhs[k2] += a
+    if fixed[k1] or fixed[k2]:
+        if not fixed[k2]:
+            rhs[k2] += c * fixed_val[k1]
+        elif not fixed[k1]:
+            rhs[k1] += c * fixed_val[k2]
+    else:
+        work.off[net.lk_edge[link]] -= c
+
+
+@kernel
 def assemble(net, work, zk, vol, u, theta, dt):
     """The level system linearised at ``zk`` into ``work``: diagonal, off-diagonal per edge, right-hand side.
 
@@ -340,47 +436,48 @@ def assemble(net, work, zk, vol, u, theta, dt):
     ``zk`` leaves the piece of the last look-up. The linear form depends on the piece alone, so a run's
     result does not depend on what was simulated before it. :func:`finish_step` uses the piece too.
     """
-    diag, off, rhs, src, fixed, fixed_val = work.diag, work.off, work.rhs, work.src, work.fixed, work.fixed_val
+    diag, off, rhs, src, fixed_val = work.diag, work.off, work.rhs, work.src, work.fixed_val
     area, fco, rco = work.area, work.fco, work.rco
     sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin = (
         net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len, net.hp_bed, net.hp_amin)
     tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt = (
         net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top, net.tab_at, net.tab_wt)
-    lk_k1, lk_k2, lk_type, lk_edge = net.lk_k1, net.lk_k2, net.lk_type, net.lk_edge
+    lk_type = net.lk_type
     zlo, zhi, p_z, p_v, p_w = work.zlo, work.zhi, work.p_z, work.p_v, work.p_w
     inv_dt = 1.0 / dt
+    inside = True
     for i in range(zk.size):
+        inside &= (zlo[i] <= zk[i]) & (zk[i] <= zhi[i])
+    if not inside:  # some levels left the piece of their last look-up: find their pieces
+        for i in range(zk.size):
+            if not zlo[i] <= zk[i] <= zhi[i]:
+                zlo[i], zhi[i], p_z[i], p_v[i], p_w[i] = hp_volume_width_piece(
+                    sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin, tab_off, tab_n, tab_dd, tab_idd, tab_top,
+                    tab_wt_top, tab_at, tab_wt, i, zk[i])
+    for i in range(zk.size):  # no branch: vectorises
         z = zk[i]
-        if not zlo[i] <= z <= zhi[i]:  # z left the piece of the last look-up: find its piece
-            zlo[i], zhi[i], p_z[i], p_v[i], p_w[i] = hp_volume_width_piece(
-                sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin, tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top,
-                tab_at, tab_wt, i, z)
         w = p_w[i]
         v = p_v[i] + w * (z - p_z[i])
         diag[i] = w * inv_dt
         rhs[i] = (w * z - (v - vol[i])) * inv_dt + src[i]
     off[:] = 0.0
-    for link in range(lk_k1.size):
-        k1 = np.uint64(lk_k1[link])
-        k2 = np.uint64(lk_k2[link])
-        if lk_type[link] == 3:
-            rhs[k1] -= rco[link]
-            rhs[k2] += rco[link]
+    for run in net.lk_runs:  # run by run, see compute_fluxes: contiguous, vectorised, each point in link order
+        l0, k1, k2, e0 = run[0], run[2], run[3], run[4]
+        if run[5]:  # a pump, or a link at a level boundary
+            _assemble_general_link(net, work, l0, u, theta)
             continue
-        th = theta if lk_type[link] == 0 else 1.0
-        c = th * area[link] * fco[link]
-        a = area[link] * (th * rco[link] + (1.0 - th) * u[link])
-        diag[k1] += c
-        diag[k2] += c
-        rhs[k1] -= a
-        rhs[k2] += a
-        if fixed[k1] or fixed[k2]:
-            if not fixed[k2]:
-                rhs[k2] += c * fixed_val[k1]
-            elif not fixed[k1]:
-                rhs[k1] += c * fixed_val[k2]
-        else:
-            off[np.uint64(lk_edge[link])] -= c
+        for j in range(run[1]):
+            link = l0 + j
+            th = theta if lk_type[link] == 0 else 1.0
+            diag[k2 + j] += th * area[link] * fco[link]
+            rhs[k2 + j] += area[link] * (th * rco[link] + (1.0 - th) * u[link])
+        for j in range(run[1]):
+            link = l0 + j
+            th = theta if lk_type[link] == 0 else 1.0
+            c = th * area[link] * fco[link]
+            diag[k1 + j] += c
+            rhs[k1 + j] -= area[link] * (th * rco[link] + (1.0 - th) * u[link])
+            off[e0 + j] -= c
     for bnd in range(net.b_hp.size):
         i = net.b_hp[bnd]
         if net.b_type[bnd] == 2:
@@ -418,29 +515,32 @@ def compute_fluxes(net, work, theta, u, un, qn):
     """Link velocities ``un`` (m/s) and fluxes ``qn`` (m³/s) of the current solution ``work.zk``.
 
     ``u`` is the velocity at time n (m/s). Also, per point, the net inflow (``work.netq``, m³/s).
+    The links are visited run by run (:func:`rivercal.engine.compile.link_runs`): within a run the
+    levels are read and the inflows written contiguously, so the loops vectorise. Each point receives its
+    inflows in link order, as a plain loop over the links would add them (the outflow of run link j-1
+    into its point k2 before the outflow of link j from the same point, its k1).
     """
     zk, netq, src = work.zk, work.netq, work.src
     area, fco, rco = work.area, work.fco, work.rco
-    lk_k1, lk_k2, lk_type = net.lk_k1, net.lk_k2, net.lk_type
+    lk_type = net.lk_type
     for i in range(src.size):
         netq[i] = src[i]
-    for link in range(lk_k1.size):
-        k1 = np.uint64(lk_k1[link])
-        k2 = np.uint64(lk_k2[link])
-        t = lk_type[link]
-        if t == 3:
-            un[link] = 0.0
-            q = rco[link]
-        elif area[link] > 0.0:
-            un[link] = rco[link] - fco[link] * (zk[k2] - zk[k1])
+    for run in net.lk_runs:
+        l0, k1, k2 = run[0], run[2], run[3]
+        for j in range(run[1]):
+            link = l0 + j
+            t = lk_type[link]
+            ul = rco[link] - fco[link] * (zk[k2 + j] - zk[k1 + j])
             th = theta if t == 0 else 1.0
-            q = area[link] * (th * un[link] + (1.0 - th) * u[link])
-        else:
-            un[link] = 0.0
-            q = 0.0
-        qn[link] = q
-        netq[k1] -= q
-        netq[k2] += q
+            ql = area[link] * (th * ul + (1.0 - th) * u[link])
+            wet = area[link] > 0.0
+            pump = t == 3  # a pump carries its fixed flux rco, and no velocity
+            un[link] = ul if wet & (not pump) else 0.0
+            qn[link] = rco[link] if pump else (ql if wet else 0.0)
+        for j in range(run[1]):
+            netq[k2 + j] += qn[l0 + j]
+        for j in range(run[1]):
+            netq[k1 + j] -= qn[l0 + j]
     for bnd in range(net.b_hp.size):
         if net.b_type[bnd] == 2:
             i = net.b_hp[bnd]
@@ -479,7 +579,7 @@ def limit_draining_links(net, work, vol, dt, qn):
     netq, outflow, fixed = work.netq, work.rhs, work.fixed
     drains = False
     for i in range(vol.size):
-        drains |= not fixed[i] and vol[i] + dt * netq[i] < 0.0
+        drains |= (vol[i] + dt * netq[i] < 0.0) & (not fixed[i])  # no short circuit: the loop vectorises
     if not drains:
         return 0  # the common case
     gross_outflow(net, work, qn)
@@ -506,13 +606,30 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, un, qn, balance):
 
     ``un`` (m/s) and ``qn`` (m³/s) are the new velocities and fluxes; they become the state by the time
     loop's swap of its velocity and flux arrays, not by a copy. Returns (status, index) of a divergence
-    check: ``STATUS_OK`` or the h-point / link at fault.
+    check: ``STATUS_OK`` or the h-point / link at fault (the first one).
+
+    The loops over all points and links have no branches (their checks are conjunctions), so that they
+    vectorise; the rare cases (a level outside its linearised piece, a divergence) are handled after them.
     """
-    zk, netq, fixed, fixed_val = work.zk, work.netq, work.fixed, work.fixed_val
-    bad_link = -1
-    for link in range(un.size - 1, -1, -1):  # backwards: bad_link ends as the first link at fault
-        if not math.fabs(un[link]) <= vmax:  # also NaN
-            bad_link = link
+    zk, netq, zlo, zhi = work.zk, work.netq, work.zlo, work.zhi
+    # While zk lies in the piece of the volume curve the system was linearised on (work.zlo..zhi), V is
+    # linear there and the solved system says V(zk) = V^n + Δt Σ Q exactly, up to the round-off of the
+    # solve: zk is the level of the new volume, and what round-off leaves enters the next step's right-hand
+    # side (as any linearisation difference does). Outside it V bends: Newton, before zk is committed.
+    inside = True
+    for i in range(zk.size):
+        inside &= (zlo[i] <= zk[i]) & (zk[i] <= zhi[i])
+    if not inside:
+        for i in range(zk.size):
+            if not work.fixed[i] and not zlo[i] <= zk[i] <= zhi[i]:
+                zk[i] = level_of_volume(net, i, vol[i] + dt * netq[i], zk[i])
+    finite = True
+    for i in range(zk.size):
+        zi = zk[i]
+        vol[i] += dt * netq[i]
+        dz[i] = zi - z[i]
+        z[i] = zi
+        finite &= math.fabs(zi - net.hp_bed[i]) <= 1.0e4  # also NaN
     for bnd in range(net.b_hp.size):
         i = net.b_hp[bnd]
         t = net.b_type[bnd]
@@ -520,33 +637,25 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, un, qn, balance):
             balance[bnd] += dt * forcing[n, net.b_col[bnd]]
         elif t == 2:
             balance[bnd] -= dt * (work.rq0[bnd] + work.rslope[bnd] * zk[i])
-        else:
+        else:  # a level boundary: the solve returned its level exactly; its volume follows from it
+            vol[i] = hp_volume_width(net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len, net.hp_bed, net.hp_amin,
+                                     net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top,
+                                     net.tab_at, net.tab_wt, i, z[i])[0]
             inflow = 0.0
             for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
                 inflow -= net.nl_sign[c] * qn[net.nl_link[c]]
             balance[bnd] += dt * inflow
-    for i in range(z.size):
-        z_old = z[i]
-        if fixed[i]:
-            z[i] = fixed_val[i]
-            vol[i] = hp_volume_width(net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len, net.hp_bed, net.hp_amin,
-                                     net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top,
-                                     net.tab_at, net.tab_wt, i, z[i])[0]
-        else:
-            vol[i] += dt * netq[i]
-            # While zk lies in the piece of the volume curve the system was linearised on (work.zlo..zhi),
-            # V is linear there and the solved system says V(zk) = V^n + Δt Σ Q exactly, up to the round-off
-            # of the solve: zk is the level of the new volume, and what round-off leaves enters the next
-            # step's right-hand side (as any linearisation difference does). Outside it V bends: Newton.
-            zi = zk[i]
-            if not work.zlo[i] <= zi <= work.zhi[i]:
-                zi = level_of_volume(net, i, vol[i], zi)
-            z[i] = zi
-        dz[i] = z[i] - z_old
-        if not math.isfinite(z[i]) or math.fabs(z[i] - net.hp_bed[i]) > 1.0e4:
-            return STATUS_LEVEL, i
-    if bad_link >= 0:
-        return STATUS_VELOCITY, bad_link
+    if not finite:
+        for i in range(z.size):
+            if not math.fabs(z[i] - net.hp_bed[i]) <= 1.0e4:
+                return STATUS_LEVEL, i
+    calm = True
+    for link in range(un.size):
+        calm &= math.fabs(un[link]) <= vmax  # also NaN
+    if not calm:
+        for link in range(un.size):
+            if not math.fabs(un[link]) <= vmax:
+                return STATUS_VELOCITY, link
     return STATUS_OK, -1
 
 
@@ -568,17 +677,20 @@ def record(net, row, z, q, obs_out, z_out, q_out):
 
 
 @kernel
-def _solve(net, work, zk, vol, u, theta, dt):
-    """Assemble at ``zk``, solve, store the solution in ``zk``; returns the largest level change (m)."""
+def _solve(net, work, zk, vol, u, theta, dt, tol):
+    """Assemble at ``zk``, solve, store the solution in ``zk``; returns whether no level changed by ``tol`` (m) or more.
+
+    The test is a conjunction over the points, not a running maximum: it vectorises (a NaN counts as a change).
+    """
     rhs = work.rhs
     assemble(net, work, zk, vol, u, theta, dt)
     ldl_solve_packed(net.sv_sched, net.sv_cptr, net.sv_cedge, net.sv_cother, net.sv_uptr, net.sv_ue1,
               net.sv_ue2, net.sv_utgt, work.diag, work.off, work.lval, rhs)
-    change = 0.0
+    converged = True
     for i in range(zk.size):
-        change = max(change, math.fabs(rhs[i] - zk[i]))
+        converged &= math.fabs(rhs[i] - zk[i]) < tol
         zk[i] = rhs[i]
-    return change
+    return converged
 
 
 @kernel
@@ -624,9 +736,11 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     work.src[:] = 0.0
     work.qlat[:] = 0.0
     work.fixed[:] = False
+    for link in range(work.lfric.size):
+        work.lfric[link] = fric[net.lk_fric[link]]
     for n in range(forcing.shape[0]):
         balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
-        channel_coefficients(net, work, z, u0, q0, fric, dt, min_depth)
+        channel_coefficients(net, work, z, u0, q0, dt, min_depth)
         switch_pumps(net, work, z, pump_on)
         # linearise first at the extrapolated level z^n + (z^n - z^{n-1}) (not below the bed): when the
         # extrapolation is good one solve suffices (the convergence test compares with it)
@@ -635,15 +749,15 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         work.stats[0] += 1
         for _ in range(max_iter):
             structure_coefficients(net, work, zk, dz, 0.0, u0, crest, dt)
-            change = _solve(net, work, zk, vol, u0, theta, dt)
+            converged = _solve(net, work, zk, vol, u0, theta, dt, tol)
             work.stats[1] += 1
-            if change < tol:
+            if converged:
                 break
         for attempt in range(9):  # drying: no point may lose more water than it holds within a step
             compute_fluxes(net, work, theta, u0, u1, q1)
             if attempt == 8 or limit_draining_links(net, work, vol, dt, q1) == 0:
                 break
-            _solve(net, work, zk, vol, u0, theta, dt)
+            _solve(net, work, zk, vol, u0, theta, dt, tol)
             work.stats[2] += 1
         status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u1, q1, balance)
         u0, q0, u1, q1 = u1, q1, u0, q0
