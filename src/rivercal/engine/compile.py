@@ -390,7 +390,8 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     )
     friction_values = np.array([(b.friction or network.friction).value for b in network.branches], dtype=float)
 
-    lk_ftype = fr_type[np.array([lk["branch"] for lk in links], dtype=np.int64)]
+    lk_fric = np.array([lk["branch"] for lk in links], dtype=np.int64)
+    lk_ftype = fr_type[lk_fric]
     mo_runs, mo_other = momentum_runs(lk_type, lk_k1, lk_k2, lk_nb, lk_ns, lk_ftype, np.asarray(lat_hp, dtype=np.int64))
     arrays = NetArrays(
         hp_bed=hp_bed,
@@ -412,7 +413,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         lk_b1=np.array([lk["b1"] for lk in links], dtype=float),
         lk_p2=np.array([lk["p2"] for lk in links], dtype=np.int64),
         lk_b2=np.array([lk["b2"] for lk in links], dtype=float),
-        lk_fric=np.array([lk["branch"] for lk in links], dtype=np.int64),
+        lk_fric=lk_fric,
         lk_sidx=lk_sidx,
         lk_edge=lk_edge,
         lk_nb1=lk_nb[0].copy(),

@@ -427,6 +427,18 @@ def _assemble_general_link(net, work, link, u, theta):
 
 
 @kernel
+def _in_pieces(zk, zlo, zhi):
+    """Whether every level ``zk`` (m AD) lies in the piece ``zlo``..``zhi`` of its volume curve last looked up.
+
+    A conjunction without branches, so that it vectorises; a NaN level counts as outside.
+    """
+    inside = True
+    for i in range(zk.size):
+        inside &= (zlo[i] <= zk[i]) & (zk[i] <= zhi[i])
+    return inside
+
+
+@kernel
 def assemble(net, work, zk, vol, u, theta, dt):
     """The level system linearised at ``zk`` into ``work``: diagonal, off-diagonal per edge, right-hand side.
 
@@ -445,10 +457,7 @@ def assemble(net, work, zk, vol, u, theta, dt):
     lk_type = net.lk_type
     zlo, zhi, p_z, p_v, p_w = work.zlo, work.zhi, work.p_z, work.p_v, work.p_w
     inv_dt = 1.0 / dt
-    inside = True
-    for i in range(zk.size):
-        inside &= (zlo[i] <= zk[i]) & (zk[i] <= zhi[i])
-    if not inside:  # some levels left the piece of their last look-up: find their pieces
+    if not _in_pieces(zk, zlo, zhi):  # some levels left the piece of their last look-up: find their pieces
         for i in range(zk.size):
             if not zlo[i] <= zk[i] <= zhi[i]:
                 zlo[i], zhi[i], p_z[i], p_v[i], p_w[i] = hp_volume_width_piece(
@@ -616,10 +625,7 @@ def finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, un, qn, balance):
     # linear there and the solved system says V(zk) = V^n + Δt Σ Q exactly, up to the round-off of the
     # solve: zk is the level of the new volume, and what round-off leaves enters the next step's right-hand
     # side (as any linearisation difference does). Outside it V bends: Newton, before zk is committed.
-    inside = True
-    for i in range(zk.size):
-        inside &= (zlo[i] <= zk[i]) & (zk[i] <= zhi[i])
-    if not inside:
+    if not _in_pieces(zk, zlo, zhi):
         for i in range(zk.size):
             if not work.fixed[i] and not zlo[i] <= zk[i] <= zhi[i]:
                 zk[i] = level_of_volume(net, i, vol[i] + dt * netq[i], zk[i])
