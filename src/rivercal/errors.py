@@ -10,8 +10,10 @@ from __future__ import annotations
 __all__ = [
     "CaseError",
     "EngineDivergedError",
+    "FieldProblem",
     "ModelRunError",
     "RivercalError",
+    "StructureOverlap",
 ]
 
 
@@ -41,6 +43,49 @@ class CaseError(RivercalError, ValueError):
 
     def __reduce__(self):  # keep the fields when the error crosses a process boundary
         return (_rebuild_case_error, (self.reason, self.file, self.field))
+
+
+class FieldProblem(RivercalError, ValueError):
+    """A rule of the network or case schema broken by one field.
+
+    The schema's validators raise it (pydantic wraps a ``ValueError`` into its validation error);
+    the case loader turns it into a :class:`CaseError` that names the file and the full path.
+
+    Parameters
+    ----------
+    path
+        Path of the field relative to the model that raises the problem, e.g.
+        ``cross_sections[1].chainage``; empty for the model as a whole.
+    reason
+        What is wrong, in words.
+    """
+
+    def __init__(self, path: str, reason: str):
+        self.path = path
+        self.reason = reason
+        super().__init__(f"{path}: {reason}" if path else reason)
+
+    def __reduce__(self):  # keep the fields when the error crosses a process boundary
+        return (FieldProblem, (self.path, self.reason))
+
+
+class StructureOverlap(RivercalError):
+    """A structure whose segment of the grid would overlap that of the previous structure on its branch.
+
+    Parameters
+    ----------
+    structure, previous
+        The two structures (weirs, culverts or pumps: objects with an ``id`` and a ``chainage`` in m),
+        ``previous`` being the one before ``structure`` along the branch.
+    """
+
+    def __init__(self, structure, previous):
+        super().__init__(structure.id)
+        self.structure = structure
+        self.previous = previous
+
+    def __reduce__(self):  # keep the fields when the error crosses a process boundary
+        return (StructureOverlap, (self.structure, self.previous))
 
 
 class ModelRunError(RivercalError):

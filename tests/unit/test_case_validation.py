@@ -668,3 +668,37 @@ def test_error_carries_file_and_field(tmp_path: Path) -> None:
 
 def test_mini_case_is_not_modified_by_tests() -> None:
     assert mini_case() == copy.deepcopy(mini_case())
+
+
+# -- the schema's own errors ------------------------------------------------------------------------
+
+
+def test_schema_errors_belong_to_the_rivercal_hierarchy() -> None:
+    """A broken rule and an overlap of structures are rivercal errors that keep their fields across processes."""
+    import pickle
+
+    from pydantic import ValidationError
+
+    from rivercal.case.schema import branch_layout
+    from rivercal.errors import FieldProblem, RivercalError, StructureOverlap
+    from rivercal.network import Branch, Network, Weir
+
+    data = mini_case()
+    data["weirs"][0]["crest_level"] = 3.0
+    fields = {k: v for k, v in data.items() if k in Network.model_fields}
+    with pytest.raises(ValidationError) as info:
+        Network.model_validate(fields)
+    problem = info.value.errors()[0]["ctx"]["error"]
+    assert isinstance(problem, FieldProblem) and isinstance(problem, RivercalError)
+    assert problem.path == "weirs[0].crest_level" and "below the bed" in problem.reason
+    again = pickle.loads(pickle.dumps(problem))
+    assert (again.path, again.reason, str(again)) == (problem.path, problem.reason, str(problem))
+
+    branch = Branch.model_validate(data["branches"][1])
+    weirs = [Weir(id=f"W{k}", branch=branch.id, chainage=500.0 + k, crest_level=5.0, crest_width=3.0) for k in (0, 1)]
+    with pytest.raises(StructureOverlap) as overlap:
+        branch_layout(branch, weirs, 10.0)
+    assert isinstance(overlap.value, RivercalError)
+    assert (overlap.value.structure.id, overlap.value.previous.id) == ("W1", "W0")
+    again = pickle.loads(pickle.dumps(overlap.value))
+    assert (again.structure, again.previous) == (overlap.value.structure, overlap.value.previous)

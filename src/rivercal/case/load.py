@@ -24,7 +24,7 @@ from pydantic import BaseModel, ValidationError
 from rivercal.case.schema import CaseFile
 from rivercal.case.series import SeriesTable, check_coverage, check_range, read_series_table, series_column
 from rivercal.errors import CaseError
-from rivercal.network.schema import MAX_DISCHARGE, MAX_LEVEL, FieldProblem, Network, SeriesRef
+from rivercal.network import MAX_DISCHARGE, MAX_LEVEL, FieldProblem, Network, SeriesRef
 
 __all__ = ["Case", "available_cases", "case_from_dict", "load_case", "resolve_case_path"]
 

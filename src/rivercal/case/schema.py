@@ -3,7 +3,7 @@
 ``rivercal case schema`` prints the JSON Schema of :class:`CaseFile`; ``docs/case-format.md``
 documents every field with its unit.
 
-Besides the rules of the network (:mod:`rivercal.network.schema`), a case checks the rules that
+Besides the rules of the network (:mod:`rivercal.network`), a case checks the rules that
 depend on the engine settings, so that the engine never meets them: every structure needs its own
 segment of ``engine.structure_length`` metres (:func:`branch_layout` lays a branch out exactly as
 the engine's compiler does), a lateral must not land on a node whose level is imposed, and a
@@ -20,7 +20,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from rivercal.network.schema import Branch, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
+from rivercal.errors import StructureOverlap
+from rivercal.network import Branch, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
 from rivercal.parameters import Parameter
 
 __all__ = [
@@ -442,15 +443,6 @@ class Segment:
     a: float
     b: float
     structure: Weir | Culvert | Pump | None = None
-
-
-class StructureOverlap(Exception):
-    """A structure whose segment would overlap that of the previous structure on the branch."""
-
-    def __init__(self, structure: Weir | Culvert | Pump, previous: Weir | Culvert | Pump):
-        super().__init__(structure.id)
-        self.structure = structure
-        self.previous = previous
 
 
 def branch_layout(branch: Branch, structures: list[Weir | Culvert | Pump], structure_length: float) -> list[Segment]:

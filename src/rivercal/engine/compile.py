@@ -25,7 +25,7 @@ import numpy as np
 from rivercal.case.schema import EngineSettings, StructureOverlap, branch_layout
 from rivercal.engine.geometry import ProfileTables, build_tables, storage_zw, zw_of
 from rivercal.errors import CaseError
-from rivercal.network.schema import Branch, Culvert, Network, Weir
+from rivercal.network import Branch, Culvert, Network, Weir
 
 __all__ = [
     "BOUNDARY_DISCHARGE",

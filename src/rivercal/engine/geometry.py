@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rivercal.network.schema import RectangularProfile, StorageTable, TrapezoidalProfile, ZWProfile
+from rivercal.network import RectangularProfile, StorageTable, TrapezoidalProfile, ZWProfile
 
 __all__ = ["ProfileTables", "build_tables", "zw_of"]
 

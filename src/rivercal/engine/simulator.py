@@ -28,7 +28,7 @@ from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import STATUS_LEVEL, STATUS_OK, make_work, run
 from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
 from rivercal.errors import EngineDivergedError
-from rivercal.network.schema import FRICTION_RANGES, MAX_LEVEL
+from rivercal.network import FRICTION_RANGES, MAX_LEVEL
 
 __all__ = ["Simulator", "parse_target"]
 

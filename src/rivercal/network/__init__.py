@@ -1,40 +1,80 @@
-"""What the river is: validated network data (layer 2). No numerics, no I/O."""
+"""The river network as validated data (layer 2): nodes, branches, profiles, structures, forcing, stations.
 
-from rivercal.network.schema import (
-    Boundary,
-    Branch,
-    CrossSection,
-    Culvert,
-    Friction,
-    Lateral,
-    Network,
-    Node,
-    Profile,
-    Pump,
-    RatingTable,
-    RectangularProfile,
-    SeriesRef,
-    Station,
-    StorageTable,
-    TrapezoidalProfile,
-    Weir,
-    ZWProfile,
+These pydantic models are both the in-memory network description and the schema of the network
+part of ``case.toml`` (see ``docs/case-format.md``). One module per kind of object, each with its
+own checks:
+
+- :mod:`~rivercal.network.friction` — the friction law and its plausible ranges;
+- :mod:`~rivercal.network.profiles` — cross-section shapes;
+- :mod:`~rivercal.network.nodes` — connection nodes and their storage;
+- :mod:`~rivercal.network.branches` — branches and the cross-sections along them;
+- :mod:`~rivercal.network.structures` — weirs, culverts and pumps;
+- :mod:`~rivercal.network.forcing` — boundaries, laterals and the series they read;
+- :mod:`~rivercal.network.stations` — observation stations;
+- :mod:`~rivercal.network.topology` — the :class:`Network` and the rules that need all of it
+  (unknown ids, connectivity, a crest below the bed).
+
+Field-level rules (positive widths, monotone tables, finite numbers) are checked by the objects
+themselves. Every rule that fails raises :class:`~rivercal.errors.FieldProblem`, a ``ValueError``
+that carries the path of the offending field relative to the object that raised it
+(``cross_sections[1].chainage``), so that the case loader can report the full path
+(``branches[2].cross_sections[1].chainage``). No numerics beyond the bed level along a branch, no I/O.
+
+Conventions
+-----------
+Levels are in m above the vertical datum (m AD); depths, widths, lengths and chainages in m;
+discharges in m³/s; areas in m². The positive flow direction of a branch runs from its
+``from_node`` (chainage 0) to its ``to_node`` (chainage = ``length``). Numbers must be finite
+(``nan`` and ``inf`` are rejected) and written as numbers, not as quoted text.
+"""
+
+from rivercal.errors import FieldProblem
+from rivercal.network._base import (
+    MAX_DISCHARGE,
+    MAX_LEVEL,
+    MAX_SIZE,
+    MIN_SIZE,
+    Discharge,
+    Identifier,
+    Level,
+    Real,
+    Size,
 )
+from rivercal.network.branches import MAX_POINTS_PER_BRANCH, Branch, CrossSection
+from rivercal.network.forcing import Boundary, Lateral, RatingTable, SeriesRef
+from rivercal.network.friction import FRICTION_RANGES, Friction
+from rivercal.network.nodes import Node, StorageTable
+from rivercal.network.profiles import Profile, RectangularProfile, TrapezoidalProfile, ZWProfile
+from rivercal.network.stations import Station
+from rivercal.network.structures import Culvert, Pump, Weir
+from rivercal.network.topology import Network
 
 __all__ = [
+    "FRICTION_RANGES",
+    "MAX_DISCHARGE",
+    "MAX_LEVEL",
+    "MAX_POINTS_PER_BRANCH",
+    "MAX_SIZE",
+    "MIN_SIZE",
     "Boundary",
     "Branch",
     "CrossSection",
     "Culvert",
+    "Discharge",
+    "FieldProblem",
     "Friction",
+    "Identifier",
     "Lateral",
+    "Level",
     "Network",
     "Node",
     "Profile",
     "Pump",
     "RatingTable",
+    "Real",
     "RectangularProfile",
     "SeriesRef",
+    "Size",
     "Station",
     "StorageTable",
     "TrapezoidalProfile",

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.network.schema import Network
+from rivercal.network import Network
 
 __all__ = [
     "plot_convergence",

@@ -1,0 +1,269 @@
+"""The whole network and the rules that need all of it.
+
+Ids are unique, every reference names an object that exists, the branches form one connected
+graph, structures lie within their branch and above its bed, boundaries sit at end nodes.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections import defaultdict, deque
+
+from pydantic import Field, model_validator
+
+from rivercal.errors import FieldProblem
+from rivercal.network._base import NetworkModel, num
+from rivercal.network.branches import Branch
+from rivercal.network.forcing import Boundary, Lateral
+from rivercal.network.friction import Friction
+from rivercal.network.nodes import Node
+from rivercal.network.profiles import Profile, RectangularProfile, TrapezoidalProfile, ZWProfile
+from rivercal.network.stations import Station
+from rivercal.network.structures import Culvert, Pump, Weir
+
+__all__ = ["Network"]
+
+
+class Network(NetworkModel):
+    """A complete river network.
+
+    Attributes
+    ----------
+    friction
+        Global friction, inherited by every branch without its own (``friction:global``).
+    profiles, nodes, branches
+        Geometry and topology.
+    weirs, culverts, pumps
+        Structures on branches.
+    boundaries, laterals
+        Forcing locations.
+    stations
+        Observation stations.
+    """
+
+    friction: Friction = Field(
+        default=Friction(type="strickler", value=30.0),
+        description="global friction, used by every branch without its own (default Strickler 30 m^(1/3)/s)",
+    )
+    profiles: list[Profile] = Field(min_length=1, description="cross-section shapes, referenced by id")
+    nodes: list[Node] = Field(min_length=2, description="connection nodes (branch ends)")
+    branches: list[Branch] = Field(min_length=1, description="channel reaches between two nodes")
+    weirs: list[Weir] = Field(default=[], description="weirs on branches")
+    culverts: list[Culvert] = Field(default=[], description="culverts on branches")
+    pumps: list[Pump] = Field(default=[], description="pumps on branches")
+    boundaries: list[Boundary] = Field(default=[], description="boundary conditions at end nodes")
+    laterals: list[Lateral] = Field(default=[], description="point inflows and extractions")
+    stations: list[Station] = Field(default=[], description="observation stations")
+
+    @model_validator(mode="after")
+    def _check_topology(self) -> Network:
+        _unique(self.profiles, "profiles", "profile")
+        _unique(self.nodes, "nodes", "node")
+        _unique(self.branches, "branches", "branch")
+        _unique_structures(self)
+        _unique(self.boundaries, "boundaries", "boundary")
+        _unique(self.laterals, "laterals", "lateral")
+        _unique(self.stations, "stations", "station")
+        nodes = {n.id for n in self.nodes}
+        profiles = {p.id for p in self.profiles}
+        branches = {b.id: b for b in self.branches}
+        degree: dict[str, int] = defaultdict(int)
+        for i, b in enumerate(self.branches):
+            for end in ("from_node", "to_node"):
+                node = getattr(b, end)
+                if node not in nodes:
+                    raise FieldProblem(f"branches[{i}].{end}", f"branch {b.id!r} refers to unknown node {node!r}"
+                                       f"{_known(nodes, node)}")
+                degree[node] += 1
+            for j, cs in enumerate(b.cross_sections):
+                if cs.profile not in profiles:
+                    raise FieldProblem(
+                        f"branches[{i}].cross_sections[{j}].profile",
+                        f"branch {b.id!r} refers to unknown profile {cs.profile!r}{_known(profiles, cs.profile)}",
+                    )
+        for i, n in enumerate(self.nodes):
+            if degree[n.id] == 0:
+                raise FieldProblem(
+                    f"nodes[{i}].id", f"node {n.id!r} is not the end of any branch; remove it or connect a branch to it"
+                )
+        self._check_connected()
+        self._check_structures(branches)
+        boundary_at: dict[str, Boundary] = {}
+        for i, bd in enumerate(self.boundaries):
+            if bd.node not in nodes:
+                raise FieldProblem(f"boundaries[{i}].node", f"boundary {bd.id!r} refers to unknown node {bd.node!r}"
+                                   f"{_known(nodes, bd.node)}")
+            if degree[bd.node] != 1:
+                raise FieldProblem(
+                    f"boundaries[{i}].node",
+                    f"boundary {bd.id!r} is at node {bd.node!r}, which joins {degree[bd.node]} branches; "
+                    "boundaries must sit at end nodes (nodes with exactly one branch)",
+                )
+            if bd.node in boundary_at:
+                raise FieldProblem(
+                    f"boundaries[{i}].node",
+                    f"node {bd.node!r} already has boundary {boundary_at[bd.node].id!r}; a node takes one boundary",
+                )
+            boundary_at[bd.node] = bd
+        for i, lat in enumerate(self.laterals):
+            where = f"laterals[{i}]"
+            if lat.node is not None:
+                if lat.node not in nodes:
+                    raise FieldProblem(f"{where}.node", f"lateral {lat.id!r} refers to unknown node {lat.node!r}"
+                                       f"{_known(nodes, lat.node)}")
+                bd = boundary_at.get(lat.node)
+                if bd is not None and bd.type == "level":
+                    raise FieldProblem(
+                        f"{where}.node",
+                        f"lateral {lat.id!r} is at node {lat.node!r}, which has level boundary {bd.id!r}: the level "
+                        "there is imposed, so the inflow would be lost; move the lateral onto the branch",
+                    )
+            else:
+                self._check_on_branch(lat, where, "lateral", branches)
+        structures = {s.id for s in [*self.weirs, *self.culverts, *self.pumps]}
+        for i, st in enumerate(self.stations):
+            if st.structure is not None and st.structure not in structures:
+                raise FieldProblem(
+                    f"stations[{i}].structure",
+                    f"station {st.id!r} refers to unknown structure {st.structure!r} (no weir, culvert or pump "
+                    f"has that id){_known(structures, st.structure)}",
+                )
+            if st.branch is not None:
+                self._check_on_branch(st, f"stations[{i}]", "station", branches)
+        return self
+
+    def _check_on_branch(self, item: Lateral | Station, where: str, what: str, branches: dict[str, Branch]) -> None:
+        if item.branch not in branches:
+            raise FieldProblem(f"{where}.branch", f"{what} {item.id!r} refers to unknown branch {item.branch!r}"
+                               f"{_known(branches, item.branch)}")
+        length = branches[item.branch].length
+        if item.chainage is not None and item.chainage > length:
+            raise FieldProblem(
+                f"{where}.chainage",
+                f"{what} {item.id!r} at chainage {num(item.chainage)} m lies beyond the end of branch "
+                f"{item.branch!r} ({num(length)} m long)",
+            )
+
+    def _check_connected(self) -> None:
+        adjacency: dict[str, set[str]] = defaultdict(set)
+        for b in self.branches:
+            adjacency[b.from_node].add(b.to_node)
+            adjacency[b.to_node].add(b.from_node)
+        start = self.nodes[0].id
+        seen = {start}
+        queue = deque([start])
+        while queue:
+            for nb in adjacency[queue.popleft()]:
+                if nb not in seen:
+                    seen.add(nb)
+                    queue.append(nb)
+        missing = [(i, n.id) for i, n in enumerate(self.nodes) if n.id not in seen]
+        if missing:
+            i, node = missing[0]
+            others = ", ".join(repr(m) for _, m in missing[:5]) + (", ..." if len(missing) > 5 else "")
+            raise FieldProblem(
+                f"nodes[{i}].id",
+                f"the network is disconnected: no chain of branches leads from node {start!r} to node {node!r} "
+                f"(unreachable: {others}); every node must be connected to the rest of the network",
+            )
+
+    def _check_structures(self, branches: dict[str, Branch]) -> None:
+        groups = (("weirs", "weir", self.weirs), ("culverts", "culvert", self.culverts), ("pumps", "pump", self.pumps))
+        for table, what, items in groups:
+            for i, s in enumerate(items):
+                where = f"{table}[{i}]"
+                if s.branch not in branches:
+                    raise FieldProblem(f"{where}.branch", f"{what} {s.id!r} refers to unknown branch {s.branch!r}"
+                                       f"{_known(branches, s.branch)}")
+                br = branches[s.branch]
+                if s.chainage > br.length:
+                    raise FieldProblem(
+                        f"{where}.chainage",
+                        f"{what} {s.id!r} at chainage {num(s.chainage)} m lies beyond the end of branch {br.id!r} "
+                        f"({num(br.length)} m long)",
+                    )
+                bed = br.bed_level_at(s.chainage)
+                if isinstance(s, Weir) and s.crest_level < bed:
+                    raise FieldProblem(
+                        f"{where}.crest_level",
+                        f"the crest of weir {s.id!r} ({num(s.crest_level)} m AD) lies below the bed "
+                        f"({bed:.3f} m AD at chainage {num(s.chainage)} m of branch {br.id!r})",
+                    )
+                if isinstance(s, Culvert) and s.invert_level < bed - 1e-9:
+                    raise FieldProblem(
+                        f"{where}.invert_level",
+                        f"the invert of culvert {s.id!r} ({num(s.invert_level)} m AD) lies below the bed "
+                        f"({bed:.3f} m AD at chainage {num(s.chainage)} m of branch {br.id!r})",
+                    )
+                if isinstance(s, Pump) and s.stop_level <= bed:
+                    raise FieldProblem(
+                        f"{where}.stop_level",
+                        f"pump {s.id!r} would run the suction side dry: its stop level {num(s.stop_level)} m AD is "
+                        f"not above the bed ({bed:.3f} m AD at chainage {num(s.chainage)} m of branch {br.id!r})",
+                    )
+
+    # -- convenience look-ups -------------------------------------------------------------
+
+    def branch(self, branch_id: str) -> Branch:
+        """The branch with this id."""
+        for b in self.branches:
+            if b.id == branch_id:
+                return b
+        raise KeyError(branch_id)
+
+    def profile(self, profile_id: str) -> RectangularProfile | TrapezoidalProfile | ZWProfile:
+        """The profile with this id."""
+        for p in self.profiles:
+            if p.id == profile_id:
+                return p
+        raise KeyError(profile_id)
+
+    def structure(self, structure_id: str) -> Weir | Culvert | Pump:
+        """The weir, culvert or pump with this id."""
+        for s in [*self.weirs, *self.culverts, *self.pumps]:
+            if s.id == structure_id:
+                return s
+        raise KeyError(structure_id)
+
+    @property
+    def observables(self) -> list[str]:
+        """All simulated series names ``"<station>.<quantity>"``, in station order."""
+        return [name for st in self.stations for name in st.observables]
+
+
+def _known(ids, name: str) -> str:
+    """A suggestion, or a short list of the ids that do exist, for an 'unknown id' message."""
+    names = sorted(ids)
+    if not names:
+        return " (there are none)"
+    lower = {n.lower(): n for n in names}
+    close = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=0.6)
+    if close:
+        hint = " (ids are case-sensitive)" if close[0] == name.lower() else ""
+        return f"; did you mean {lower[close[0]]!r}?{hint}"
+    shown = ", ".join(repr(n) for n in names[:8])
+    return f" (known: {shown}{', ...' if len(names) > 8 else ''})"
+
+
+def _unique(items: list, table: str, what: str) -> None:
+    first: dict[str, int] = {}
+    for i, item in enumerate(items):
+        if item.id in first:
+            raise FieldProblem(
+                f"{table}[{i}].id", f"{what} id {item.id!r} is used twice (also by {table}[{first[item.id]}])"
+            )
+        first[item.id] = i
+
+
+def _unique_structures(network: Network) -> None:
+    first: dict[str, str] = {}
+    for table, items in (("weirs", network.weirs), ("culverts", network.culverts), ("pumps", network.pumps)):
+        for i, s in enumerate(items):
+            where = f"{table}[{i}]"
+            if s.id in first:
+                raise FieldProblem(
+                    f"{where}.id",
+                    f"structure id {s.id!r} is used twice (also by {first[s.id]}); weirs, culverts and pumps "
+                    "share one set of ids",
+                )
+            first[s.id] = where
