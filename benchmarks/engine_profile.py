@@ -22,18 +22,11 @@ import numba
 import numpy as np
 import pandas as pd
 
+from rivercal.engine.kernels.assemble import assemble
+from rivercal.engine.kernels.fluxes import compute_fluxes, limit_draining_links
+from rivercal.engine.kernels.momentum import _link_geometry, _link_newton, _momentum_other, _momentum_simple
 from rivercal.engine.kernels.solver import ldl_solve_packed
-from rivercal.engine.kernels.timeloop import (
-    _link_geometry,
-    _link_newton,
-    _momentum_other,
-    _momentum_simple,
-    assemble,
-    compute_fluxes,
-    limit_draining_links,
-    structure_coefficients,
-    switch_pumps,
-)
+from rivercal.engine.kernels.structures import structure_coefficients, switch_pumps
 from rivercal.model import load_model
 
 
@@ -63,10 +56,10 @@ def _newton(net, work, calls):
 
 
 @numba.njit
-def _structures(net, work, z, dz, u, crest, pump_on, dt, calls):
+def _structures(net, work, z, u, crest, pump_on, dt, calls):
     for _ in range(calls):
         switch_pumps(net, work, z, pump_on)
-        structure_coefficients(net, work, z, dz, 0.0, u, crest, dt)
+        structure_coefficients(net, work, z, u, crest, dt)
 
 
 @numba.njit
@@ -132,7 +125,7 @@ def main() -> None:
     net, work, s = sim.compiled.arrays, sim._work, sim.settings
     crest, fric = sim.parameter_arrays(None)
     dt, theta, md = float(s.dt), float(s.theta), float(s.min_depth)
-    z, dz, vol, u, q = state.z, state.dz, state.vol, state.u, state.q
+    z, vol, u, q = state.z, state.vol, state.u, state.q
     for link in range(work.lfric.size):
         work.lfric[link] = fric[net.lk_fric[link]]
     un, qn = work.un.copy(), work.qn.copy()
@@ -147,7 +140,7 @@ def main() -> None:
         "momentum_inner": _time(_simple, (net, work, z, u, q, dt), c, r),
         "momentum_other": _time(_other, (net, work, z, u, q, dt), c, r),
         "newton": _time(_newton, (net, work), c, r),
-        "structures": _time(_structures, (net, work, z, dz, u, crest, state.pump_on.copy(), dt), c, r),
+        "structures": _time(_structures, (net, work, z, u, crest, state.pump_on.copy(), dt), c, r),
         "assemble": _time(_assemble, (net, work, z.copy(), vol, u, theta, dt), c, r),
     }
     diag, off, rhs = work.diag.copy(), work.off.copy(), work.rhs.copy()

@@ -69,7 +69,7 @@ class FieldProblem(RivercalError, ValueError):
         return (FieldProblem, (self.path, self.reason))
 
 
-class StructureOverlap(RivercalError):
+class StructureOverlap(CaseError):
     """A structure whose segment of the grid would overlap that of the previous structure on its branch.
 
     Parameters
@@ -77,15 +77,26 @@ class StructureOverlap(RivercalError):
     structure, previous
         The two structures (weirs, culverts or pumps: objects with an ``id`` and a ``chainage`` in m),
         ``previous`` being the one before ``structure`` along the branch.
+    branch
+        The branch id.
+    structure_length
+        The segment length each of them needs, m.
     """
 
-    def __init__(self, structure, previous):
-        super().__init__(structure.id)
+    def __init__(self, structure, previous, branch: str = "", structure_length: float = float("nan")):
         self.structure = structure
         self.previous = previous
+        self.branch = branch
+        self.structure_length = structure_length
+        gap = abs(structure.chainage - previous.chainage)
+        super().__init__(
+            f"structure {structure.id!r} at chainage {structure.chainage:g} m of branch {branch!r} is too close to "
+            f"{previous.id!r} ({gap:g} m away): each structure needs its own segment of "
+            f"engine.structure_length = {structure_length:g} m"
+        )
 
     def __reduce__(self):  # keep the fields when the error crosses a process boundary
-        return (StructureOverlap, (self.structure, self.previous))
+        return (StructureOverlap, (self.structure, self.previous, self.branch, self.structure_length))
 
 
 class ModelRunError(RivercalError):

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rivercal.engine.compile import flow_records
-from rivercal.engine.geometry import build_tables, zw_of
+from rivercal.engine.geometry import build_tables, flow_records, zw_of
 from rivercal.engine.kernels.lookup import flow_geometry, storage_area_width
 from rivercal.network import RectangularProfile, TrapezoidalProfile, ZWProfile
 

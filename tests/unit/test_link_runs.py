@@ -4,8 +4,9 @@ and the momentum runs: every channel link once, simple links (inner links of a b
 import numpy as np
 import pytest
 
-from rivercal.engine.compile import (
-    FRICTION_CODES,
+from rivercal.engine.kernels.codes import (
+    FRICTION_CHEZY,
+    FRICTION_MANNING,
     LINK_CHANNEL,
     LINK_PUMP,
     RUN_COUNT,
@@ -14,9 +15,8 @@ from rivercal.engine.compile import (
     RUN_K1,
     RUN_K2,
     RUN_LINK,
-    link_runs,
-    momentum_runs,
 )
+from rivercal.engine.plan import link_runs, momentum_runs
 from rivercal.model import load_model
 
 
@@ -76,8 +76,8 @@ def test_junctions_structures_laterals_and_chezy_friction_break_the_momentum_run
     lk_k2 = lk_k1 + 1
     nb = np.array([[-2, 0, 1, 2, -2, -2, 5, 6, 7], [1, 2, 3, -2, -2, 6, 7, 8, -2]])
     ns = np.array([[1, 1, 1, 1, 1, 1, 1, 1, 1], [-1, -1, -1, -1, -1, -1, -1, -1, -1]])
-    ftype = np.full(n, FRICTION_CODES["manning"])
-    ftype[7] = FRICTION_CODES["chezy"]
+    ftype = np.full(n, FRICTION_MANNING)
+    ftype[7] = FRICTION_CHEZY
     runs, other = momentum_runs(lk_type, lk_k1, lk_k2, nb, ns, ftype, np.array([7]))
     # simple: 1, 2 (0 and 3 are branch ends); 5 and 8 are ends, 6 touches the lateral point 7, 7 is Chezy
     assert [tuple(r) for r in runs.astype(np.int64)] == [(1, 2, 1)]

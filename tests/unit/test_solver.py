@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rivercal.engine.compile import elimination_order
 from rivercal.engine.kernels.solver import ldl_solve
+from rivercal.engine.plan import elimination_order
 
 
 def _random_system(n: int, pairs: list[tuple[int, int]], seed: int):
@@ -56,8 +56,8 @@ def test_tree_has_no_fill_and_loops_do() -> None:
 
 
 def test_packed_schedule_is_bit_identical_to_the_csr_solve() -> None:
-    from rivercal.engine.compile import solver_schedule
     from rivercal.engine.kernels.solver import ldl_solve_packed
+    from rivercal.engine.plan import solver_schedule
 
     rng = np.random.default_rng(0)
     tree = [(int(rng.integers(0, i)), i) for i in range(1, 60)]

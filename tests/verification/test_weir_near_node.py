@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rivercal.case.schema import branch_layout
+from rivercal.network.grid import branch_layout
 from tests.verification._support import START, case_dict, simulator
 
 Q_IN = 0.6  # m³/s

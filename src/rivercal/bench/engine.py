@@ -19,7 +19,7 @@ import pandas as pd
 from numba.core.registry import CPUDispatcher
 
 import rivercal.engine.kernels
-from rivercal.engine.compile import LINK_CULVERT, LINK_WEIR
+from rivercal.engine.kernels.codes import LINK_CULVERT, LINK_WEIR
 from rivercal.model import load_model
 
 __all__ = ["EngineBenchmark", "bench_engine"]

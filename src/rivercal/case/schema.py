@@ -5,15 +5,14 @@ documents every field with its unit.
 
 Besides the rules of the network (:mod:`rivercal.network`), a case checks the rules that
 depend on the engine settings, so that the engine never meets them: every structure needs its own
-segment of ``engine.structure_length`` metres (:func:`branch_layout` lays a branch out exactly as
-the engine's compiler does), a lateral must not land on a node whose level is imposed, and a
+segment of ``engine.structure_length`` metres (laid out by :func:`rivercal.network.grid.branch_layout`,
+the layout of the engine's grid), a lateral must not land on a node whose level is imposed, and a
 level station must not sit inside a structure's segment, where its level would be an average of
 the levels up- and downstream of the structure.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Literal
 
@@ -21,7 +20,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from rivercal.errors import StructureOverlap
-from rivercal.network import Branch, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
+from rivercal.network import Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
+from rivercal.network.grid import Segment, branch_layout, chainages
 from rivercal.parameters import Parameter
 
 __all__ = [
@@ -35,11 +35,7 @@ __all__ = [
     "EngineSettings",
     "InitialConditions",
     "Meteo",
-    "Segment",
-    "StructureOverlap",
     "Window",
-    "branch_layout",
-    "chainages",
 ]
 
 #: The simulated period must lie within these dates (the range of pandas' nanosecond times, rounded in).
@@ -423,91 +419,6 @@ class CaseFile(Network):
         """The network part of the case as a plain :class:`~rivercal.network.Network`."""
         fields = set(Network.model_fields)
         return Network.model_validate(self.model_dump(include=fields, by_alias=True))
-
-
-# -- the layout of a branch (mirrors rivercal.engine.compile._branch_segments) ------------------
-
-
-@dataclass(frozen=True)
-class Segment:
-    """A stretch of a branch between two calculation points, m from the start of the branch.
-
-    Attributes
-    ----------
-    a, b
-        Chainages of its ends, m.
-    structure
-        The structure that occupies it, or ``None`` for open channel.
-    """
-
-    a: float
-    b: float
-    structure: Weir | Culvert | Pump | None = None
-
-
-def branch_layout(branch: Branch, structures: list[Weir | Culvert | Pump], structure_length: float) -> list[Segment]:
-    """Split a branch into channel segments (at most ``dx`` long) and one short segment per structure.
-
-    This is the layout of the engine's grid: a structure occupies a segment of
-    ``structure_length`` (at most the branch length) centred on its chainage. When the channel piece
-    between that segment and an end of the branch would be shorter than half the branch's ``dx`` (or
-    a quarter of the structure length), the structure's segment reaches the end node instead: the
-    structure then discharges into (or draws from) the node itself. A very short cell beside a
-    structure would hold a few m³ and be emptied and refilled within one time step (the velocity
-    Courant number |u|Δt/Δx exceeds 1), which makes the level there flip from step to step.
-
-    Parameters
-    ----------
-    branch
-        The branch.
-    structures
-        The weirs, culverts and pumps on it, in the order weirs, culverts, pumps.
-    structure_length
-        ``engine.structure_length``, m.
-
-    Returns
-    -------
-    list of Segment
-        Consecutive segments from chainage 0 to the branch length.
-
-    Raises
-    ------
-    StructureOverlap
-        When a structure's segment would overlap the previous one.
-    """
-    length = branch.length
-    half = 0.5 * min(structure_length, length)
-    snap = max(0.5 * half, 0.5 * branch.dx)
-    segs: list[Segment] = []
-    pos = 0.0
-    previous: Weir | Culvert | Pump | None = None
-    for s in sorted(structures, key=lambda s: s.chainage):
-        a, b = s.chainage - half, s.chainage + half
-        if a < snap:
-            a, b = 0.0, max(b, min(2 * half, length))
-        if b > length - snap:
-            b, a = length, min(a, max(length - 2 * half, 0.0))
-        if a < pos - 1e-9 and previous is not None:
-            raise StructureOverlap(s, previous)
-        if a > pos + 1e-9:
-            segs.extend(_fill(pos, a, branch.dx))
-        segs.append(Segment(a, b, s))
-        pos = b
-        previous = s
-    if pos < length - 1e-9:
-        segs.extend(_fill(pos, length, branch.dx))
-    return segs
-
-
-def chainages(segments: list[Segment]) -> np.ndarray:
-    """Chainages of the calculation points of a laid-out branch (both end nodes included), m."""
-    return np.array([segments[0].a] + [s.b for s in segments])
-
-
-def _fill(a: float, b: float, dx: float) -> list[Segment]:
-    n = max(1, int(np.ceil((b - a) / dx - 1e-9)))
-    edges = np.linspace(a, b, n + 1)
-    return [Segment(float(edges[i]), float(edges[i + 1])) for i in range(n)]
 
 
 def _iso(value: datetime) -> str:

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rivercal.engine.kernels.codes import FLOW_WIDTH
 from rivercal.network import RectangularProfile, StorageTable, TrapezoidalProfile, ZWProfile
 
-__all__ = ["ProfileTables", "build_tables", "zw_of"]
+__all__ = ["ProfileTables", "build_tables", "flow_records", "storage_zw", "zw_of"]
 
 #: Depth grid cells per table; δ = top / CELLS.
 CELLS = 2000
@@ -145,3 +146,29 @@ def build_tables(zw: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> Profile
         wt_top=np.asarray(wtt, dtype=float),
         top=np.asarray(tops, dtype=float),
     )
+
+
+def _aligned_empty(n: int, align: int = 64) -> np.ndarray:
+    """A float64 array of ``n`` zeros whose data starts on an ``align``-byte boundary (a cache line)."""
+    raw = np.zeros(n + align // 8)
+    start = (-raw.ctypes.data % align) // 8
+    return raw[start : start + n]
+
+
+def flow_records(tables: ProfileTables) -> np.ndarray:
+    """The flow tables as one cache-line record per cell: a look-up reads one line, not six values in three arrays.
+
+    The increments are the differences the interpolation takes (``af[k + 1] - af[k]``, computed the same way), so
+    the interpolated values are bit-identical; the last cell of each table, never interpolated from, has none.
+    """
+    n = tables.af.size
+    rec = _aligned_empty(n * FLOW_WIDTH).reshape(n, FLOW_WIDTH)
+    last = np.zeros(n, dtype=bool)
+    last[tables.off + tables.n - 1] = True
+    for col, values in enumerate((tables.af, tables.pf, tables.r43)):
+        rec[:, 2 * col] = values
+        inc = np.zeros(n)
+        inc[:-1] = values[1:] - values[:-1]
+        inc[last] = 0.0
+        rec[:, 2 * col + 1] = inc
+    return rec.ravel()

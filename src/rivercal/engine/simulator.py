@@ -24,8 +24,9 @@ import pandas as pd
 
 from rivercal.case.load import Case
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
+from rivercal.engine.kernels.codes import BOUNDARY_LEVEL, STAT_DRYING, STAT_SOLVES, STAT_STEPS, STATUS_LEVEL, STATUS_OK
 from rivercal.engine.kernels.lookup import hp_volume_width
-from rivercal.engine.kernels.timeloop import STATUS_LEVEL, STATUS_OK, make_work, run
+from rivercal.engine.kernels.timeloop import make_work, run
 from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
 from rivercal.errors import EngineDivergedError
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
@@ -177,7 +178,7 @@ class Simulator:
         if init.level is not None:
             z = np.maximum(z, init.level)
         for bnd in range(a.b_hp.size):
-            if a.b_type[bnd] == 1:
+            if a.b_type[bnd] == BOUNDARY_LEVEL:
                 key = self.compiled.forcing_keys[a.b_col[bnd]]
                 z[a.b_hp[bnd]] = self._values_at(key, np.array([0.0]), start)[0]
         vol = np.array([
@@ -312,7 +313,7 @@ class Simulator:
     def _domain_volume(self, state: EngineState) -> float:
         a = self.compiled.arrays
         mask = np.ones(state.vol.size, dtype=bool)
-        mask[a.b_hp[a.b_type == 1]] = False
+        mask[a.b_hp[a.b_type == BOUNDARY_LEVEL]] = False
         return float(state.vol[mask].sum())
 
     def _run(self, state, crest, fric, forcing, out_every, snapshots, start, phase=""):
@@ -331,7 +332,8 @@ class Simulator:
             float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
             float(s.max_velocity), int(out_every), obs, zs, qs, balance,
         )
-        steps, solves, drying = (int(v) for v in self._work.stats)
+        stats = self._work.stats
+        steps, solves, drying = int(stats[STAT_STEPS]), int(stats[STAT_SOLVES]), int(stats[STAT_DRYING])
         log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)
         self.last_run_stats = {"steps": steps, "solves": solves, "drying_resolves": drying}
         if status != STATUS_OK:

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels.codes import FLOW_WIDTH
 
 __all__ = [
     "PIECE_MARGIN",
@@ -28,7 +29,7 @@ def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, 
 
     ``tab_idd`` holds the inverse depth step of each table, 1/m. The cell is read from ``tab_flow``, one
     cache line per cell: af, pf and r43, each followed by its increment to the next cell
-    (:func:`rivercal.engine.compile.flow_records`); above the table the walls are vertical.
+    (:func:`rivercal.engine.geometry.flow_records`); above the table the walls are vertical.
     """
     if d <= 0.0:
         return 0.0, 0.0, 0.0
@@ -43,7 +44,7 @@ def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, 
         radius = area / per
         return area, per, radius * radius ** (1.0 / 3.0)
     f = x - j
-    k = np.uint64(8 * (off + j))  # unsigned, and no slice: no wraparound or slice-bounds code
+    k = np.uint64(FLOW_WIDTH * (off + j))  # unsigned, and no slice: no wraparound or slice-bounds code
     return (tab_flow[k] + f * tab_flow[k + np.uint64(1)], tab_flow[k + np.uint64(2)] + f * tab_flow[k + np.uint64(3)],
             tab_flow[k + np.uint64(4)] + f * tab_flow[k + np.uint64(5)])
 

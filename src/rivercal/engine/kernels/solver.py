@@ -1,7 +1,7 @@
 """Sparse LDLᵀ factorisation and solve of the symmetric positive definite level system.
 
 The elimination order and fill pattern come from
-:func:`rivercal.engine.compile.elimination_order`. The matrix is given as its diagonal and one
+:func:`rivercal.engine.plan.elimination_order`. The matrix is given as its diagonal and one
 value per (original or fill) edge; both are overwritten by the factorisation. No pivoting is
 needed: the level matrix is a symmetric, diagonally dominant M-matrix.
 
@@ -18,8 +18,12 @@ from __future__ import annotations
 import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels.codes import SCHED_WIDTH
 
 __all__ = ["ldl_solve", "ldl_solve_packed"]
+
+#: Values per step of the schedule: two lanes.
+_STEP = 2 * SCHED_WIDTH
 
 
 @kernel
@@ -91,7 +95,7 @@ def _forward(rec, carried, d_carried, b_carried, diag, off, lval, rhs):
     rhs[o1] = b1
     if m == 1:
         return o1, d1, b1, inv, bk
-    e2 = rec[4]  # two later points: the updates (o1, o1), (o1, o2), (o2, o2) of compile.elimination_order
+    e2 = rec[4]  # two later points: the updates (o1, o1), (o1, o2), (o2, o2) of plan.elimination_order
     o2 = rec[5]
     a2 = off[e2]
     l2 = a2 * inv
@@ -152,7 +156,7 @@ def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off
     Parameters
     ----------
     sched
-        :func:`rivercal.engine.compile.solver_schedule` (``sv_sched``).
+        :func:`rivercal.engine.plan.solver_schedule` (``sv_sched``).
     cptr, cedge, cother, uptr, ue1, ue2, utgt
         The CSR arrays of the symbolic factorisation, read only for eliminations with more than two
         later neighbours.
@@ -172,19 +176,20 @@ def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off
     - The schedule's indices are unsigned: numba adds no negative-index wraparound to the accesses.
     """
     n = np.uint64(diag.size)
-    n_steps = sched.size // 16
+    n_steps = sched.size // _STEP
     ka = kb = n  # the point each lane carries, with its pivot and right-hand side
     da = db = ba = bb = 0.0
     for s in range(n_steps):
-        ra = sched[16 * s : 16 * s + 8]
+        ra = sched[_STEP * s : _STEP * s + SCHED_WIDTH]
+        rb = sched[_STEP * s + SCHED_WIDTH : _STEP * s + _STEP]
         ka, da, ba, inv, bk = _forward(ra, ka, da, ba, diag, off, lval, rhs)
-        kb, db, bb, _, _ = _forward(sched[16 * s + 8 : 16 * s + 16], kb, db, bb, diag, off, lval, rhs)
+        kb, db, bb, _, _ = _forward(rb, kb, db, bb, diag, off, lval, rhs)
         if ra[1] > 2:  # such a step has one lane
             _eliminate_general(ra[6], inv, bk, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval, rhs)
     ka = kb = n  # the point each lane solved last, with its value
     xa = xb = 0.0
     for s in range(n_steps - 1, -1, -1):
-        ra = sched[16 * s : 16 * s + 8]
+        ra = sched[_STEP * s : _STEP * s + SCHED_WIDTH]
         if ra[1] > 2:
             xa = rhs[ra[0]]
             for c in range(cptr[ra[6]], cptr[ra[6] + 1]):
@@ -193,4 +198,4 @@ def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off
             rhs[ka] = xa
         else:
             ka, xa = _back(ra, ka, xa, lval, rhs)
-        kb, xb = _back(sched[16 * s + 8 : 16 * s + 16], kb, xb, lval, rhs)
+        kb, xb = _back(sched[_STEP * s + SCHED_WIDTH : _STEP * s + _STEP], kb, xb, lval, rhs)

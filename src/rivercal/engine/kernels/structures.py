@@ -1,6 +1,6 @@
 """Structures written in the linear link form ``u = r - f (z2 - z1)`` (Picard-linearised).
 
-Each function returns, for one link, the flux area A (m²) and the coefficients ``f`` (1/s) and
+Each law returns, for one link, the flux area A (m²) and the coefficients ``f`` (1/s) and
 ``r`` (m/s) of ``u = r - f (z2 - z1)``, evaluated at the current iterate of the levels. With A,
 u_s and the flow regime taken from the iterate, the level system stays symmetric;
 at convergence the link reproduces the discharge formula exactly (reference note §A, after
@@ -20,8 +20,26 @@ import math
 import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels.codes import (
+    CULVERT_RECTANGULAR,
+    FLOW_BOTH,
+    FLOW_NEGATIVE,
+    FLOW_POSITIVE,
+    FRICTION_MANNING,
+    FRICTION_STRICKLER,
+    LINK_WEIR,
+)
 
-__all__ = ["G", "culvert_area_perimeter", "culvert_link", "direction_allowed", "friction_c2r", "weir_link"]
+__all__ = [
+    "G",
+    "culvert_area_perimeter",
+    "culvert_link",
+    "direction_allowed",
+    "friction_c2r",
+    "structure_coefficients",
+    "switch_pumps",
+    "weir_link",
+]
 
 G = 9.81
 
@@ -29,11 +47,11 @@ G = 9.81
 @kernel
 def direction_allowed(code, sign):
     """Whether flow with ``sign`` (+1 branch direction, -1 against) passes a structure with ``code``."""
-    if code == 0:
+    if code == FLOW_BOTH:
         return True
-    if code == 1:
+    if code == FLOW_POSITIVE:
         return sign > 0
-    if code == 2:
+    if code == FLOW_NEGATIVE:
         return sign < 0
     return False
 
@@ -41,9 +59,9 @@ def direction_allowed(code, sign):
 @kernel
 def friction_c2r(ftype, value, r, r43):
     """C² R (m²/s²) for hydraulic radius ``r`` (m) and r43 = R^(4/3): Strickler, Manning or Chézy."""
-    if ftype == 0:
+    if ftype == FRICTION_STRICKLER:
         return value * value * r43
-    if ftype == 1:
+    if ftype == FRICTION_MANNING:
         return r43 / (value * value)
     return value * value * r
 
@@ -78,7 +96,7 @@ def culvert_area_perimeter(shape, width, height, d):
     """Flow area (m²) and wetted perimeter (m) of a culvert barrel at depth ``d`` (m)."""
     if d <= 0.0:
         return 0.0, 0.0
-    if shape == 0:
+    if shape == CULVERT_RECTANGULAR:
         if d >= height:
             return width * height, 2.0 * (width + height)
         return width * d, width + 2.0 * d
@@ -114,3 +132,39 @@ def culvert_link(z1, z2, shape, width, height, invert, clen, xin, xout, ftype, f
     extra = cu * (smin - invert - d) if free else 0.0
     b = 1.0 / dt + us / length
     return area, cu / b, (u_old / dt + sign * extra) / b
+
+
+@kernel
+def switch_pumps(net, work, z, pump_on):
+    """Pump switches from the suction-side level at time n; a pump link carries a fixed flux ``rco``."""
+    for link in work.pump_links:
+        s = net.lk_sidx[link]
+        ksuc = net.lk_k1[link] if net.p_sign[s] > 0.0 else net.lk_k2[link]
+        if pump_on[s] > 0.5 and z[ksuc] <= net.p_off[s]:
+            pump_on[s] = 0.0
+        elif pump_on[s] < 0.5 and z[ksuc] >= net.p_on[s]:
+            pump_on[s] = 1.0
+        work.area[link] = 0.0
+        work.fco[link] = 0.0
+        work.rco[link] = net.p_sign[s] * net.p_cap[s] * pump_on[s]
+
+
+@kernel
+def structure_coefficients(net, work, zk, u, crest, dt):
+    """Weir and culvert links linearised at the levels ``zk`` (m AD) of the current iterate."""
+    for link in work.struct_links:
+        s = net.lk_sidx[link]
+        k1 = net.lk_k1[link]
+        k2 = net.lk_k2[link]
+        z1 = zk[k1]
+        z2 = zk[k2]
+        if net.lk_type[link] == LINK_WEIR:
+            a, f, r = weir_link(z1, z2, crest[s], net.w_width[s], net.w_cmu[s], net.w_dir[s], net.lk_len[link],
+                                u[link], dt)
+        else:
+            a, f, r = culvert_link(z1, z2, net.c_shape[s], net.c_width[s], net.c_height[s], net.c_invert[s],
+                                   net.c_length[s], net.c_xin[s], net.c_xout[s], net.c_ftype[s], net.c_fval[s],
+                                   net.c_dir[s], net.lk_len[link], u[link], dt)
+        work.area[link] = a
+        work.fco[link] = f
+        work.rco[link] = r

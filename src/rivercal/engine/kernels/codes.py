@@ -1,0 +1,78 @@
+"""The integer codes of the kernel arrays, named once for the packing code and the kernels.
+
+The packing code (:mod:`rivercal.engine.compile`) writes these codes into the network arrays; the
+kernels compare with the same names. Numba reads a module-level integer as a compile-time constant,
+so ``lk_type[link] == LINK_WEIR`` compiles to the same machine code as ``lk_type[link] == 1``.
+
+Numba's cache checks a kernel's own source file only: after changing a value here, remove the
+stale caches (``make clean-cache``).
+"""
+
+from __future__ import annotations
+
+# -- link types (``lk_type``) ---------------------------------------------------------------------
+LINK_CHANNEL = 0
+LINK_WEIR = 1
+LINK_CULVERT = 2
+LINK_PUMP = 3
+
+# -- boundary kinds (``b_type``) ------------------------------------------------------------------
+BOUNDARY_DISCHARGE = 0
+BOUNDARY_LEVEL = 1
+BOUNDARY_RATING = 2
+
+# -- friction types (``fr_type``, ``lk_ftype``, ``c_ftype``) --------------------------------------
+FRICTION_STRICKLER = 0
+FRICTION_MANNING = 1
+FRICTION_CHEZY = 2
+
+# -- flow directions a structure lets through (``w_dir``, ``c_dir``) ------------------------------
+FLOW_BOTH = 0
+FLOW_POSITIVE = 1
+FLOW_NEGATIVE = 2
+FLOW_NONE = 3
+
+# -- culvert barrel shapes (``c_shape``) ----------------------------------------------------------
+CULVERT_RECTANGULAR = 0
+CULVERT_CIRCULAR = 1
+
+# -- observables (``ob_type``) --------------------------------------------------------------------
+OBS_LEVEL = 0
+OBS_FLUX = 1
+
+# -- the neighbour of a channel link at one end (``lk_nb1``, ``lk_nb2``), when it is not one link --
+NB_JUNCTION = -1  # two or more other links meet there
+NB_NONE = -2  # a branch end without another link, or a structure
+
+# -- run status of the time loop (:func:`rivercal.engine.kernels.timeloop.run`) -------------------
+STATUS_OK = 0
+STATUS_LEVEL = 1  # a level left the plausible range (the index is an h-point)
+STATUS_VELOCITY = 2  # a velocity exceeded engine.max_velocity (the index is a link)
+
+# -- counters of a run (``Work.stats``) -----------------------------------------------------------
+STAT_STEPS = 0
+STAT_SOLVES = 1
+STAT_DRYING = 2
+N_STATS = 3
+
+# -- columns of a row of ``lk_runs`` (:func:`rivercal.engine.plan.link_runs`) ---------------------
+RUN_LINK = 0
+RUN_COUNT = 1
+RUN_K1 = 2
+RUN_K2 = 3
+RUN_EDGE = 4
+RUN_GENERAL = 5
+RUN_WIDTH = 6
+
+# -- columns of a row of ``mo_runs`` (:func:`rivercal.engine.plan.momentum_runs`) -----------------
+MO_LINK = 0
+MO_COUNT = 1
+MO_K1 = 2
+MO_WIDTH = 3
+
+#: Values per elimination step and lane of the solver schedule (:func:`rivercal.engine.plan.solver_schedule`).
+SCHED_WIDTH = 8
+
+#: Values per table cell in ``tab_flow`` (:func:`rivercal.engine.geometry.flow_records`): af, its increment,
+#: pf, its increment, r43, its increment, 2 unused (one 64-byte cache line).
+FLOW_WIDTH = 8

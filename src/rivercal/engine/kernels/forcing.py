@@ -1,0 +1,66 @@
+"""The forcing of a time step: boundary discharges and levels, laterals, and the rating-boundary law.
+
+Per step :func:`apply_forcing` writes the sources (m³/s) of discharge boundaries and laterals, the
+imposed levels (m AD) of level boundaries, and the lateral inflow per unit length (m²/s) that the
+momentum equation of the channel links sees. :func:`rating_flow` is the Q(h) law of a rating
+boundary, which the assembly linearises at each iterate.
+"""
+
+from __future__ import annotations
+
+from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels.codes import BOUNDARY_DISCHARGE, BOUNDARY_LEVEL
+
+__all__ = ["apply_forcing", "rating_flow"]
+
+
+@kernel
+def apply_forcing(net, work, n, forcing, dt, vol):
+    """Sources (m³/s), Dirichlet levels (m AD) and lateral inflow per unit length (m²/s) of step ``n``.
+
+    Only the entries of forced points are written: the others stay as :func:`run` set them at its start
+    (no source, no lateral inflow, not fixed). Returns the total of the laterals (m³/s).
+    """
+    src, fixed, fixed_val, qlat = work.src, work.fixed, work.fixed_val, work.qlat
+    b_hp, b_type, b_col = net.b_hp, net.b_type, net.b_col
+    for bnd in range(b_hp.size):
+        src[b_hp[bnd]] = 0.0
+    for lat in range(net.lat_hp.size):
+        src[net.lat_hp[lat]] = 0.0
+        qlat[net.lat_hp[lat]] = 0.0
+    for bnd in range(b_hp.size):
+        i = b_hp[bnd]
+        if b_type[bnd] == BOUNDARY_DISCHARGE:
+            src[i] += forcing[n, b_col[bnd]]
+        elif b_type[bnd] == BOUNDARY_LEVEL:
+            fixed[i] = True
+            fixed_val[i] = forcing[n, b_col[bnd]]
+    total = 0.0
+    for lat in range(net.lat_hp.size):
+        i = net.lat_hp[lat]
+        ql = forcing[n, net.lat_col[lat]]
+        if ql < 0.0:
+            ql = max(ql, -0.5 * max(vol[i], 0.0) / dt)
+        else:
+            qlat[i] += ql * net.hp_ilen[i]  # an extraction leaves with the flow's velocity: no momentum change
+        src[i] += ql
+        total += ql
+    return total
+
+
+@kernel
+def rating_flow(b_rptr, b_rlev, b_rq, bnd, z):
+    """Outflow (m³/s) of rating boundary ``bnd`` at level ``z`` (m AD) and its slope dQ/dz (m²/s).
+
+    Constant below the table, linearly extrapolated above it.
+    """
+    lo = b_rptr[bnd]
+    hi = b_rptr[bnd + 1]
+    if z <= b_rlev[lo]:
+        return b_rq[lo], 0.0
+    for j in range(lo, hi - 1):
+        if z <= b_rlev[j + 1]:
+            s = (b_rq[j + 1] - b_rq[j]) / (b_rlev[j + 1] - b_rlev[j])
+            return b_rq[j] + s * (z - b_rlev[j]), s
+    s = (b_rq[hi - 1] - b_rq[hi - 2]) / (b_rlev[hi - 1] - b_rlev[hi - 2])
+    return b_rq[hi - 1] + s * (z - b_rlev[hi - 1]), s

@@ -1,0 +1,223 @@
+"""The momentum equation of the channel links: coefficients of ``u = r - f (z2 - z1)`` for a time step.
+
+From the state at time n (reference note §A; Stelling & Duinmeijer 2003): the upwind flow area A,
+implicit friction g|u|u/(C²R), explicit upwind advection (energy-head conservative where the flow
+accelerates, momentum conservative where it decelerates, with the link's own velocity taken
+implicitly) and the momentum that lateral inflow takes from the flow (u q_lat / A, the inflow
+arriving without velocity along the channel; implicit). The friction is linearised by Newton
+around the exact solution u* of the link's momentum equation at the levels of time n (a quadratic
+in u), giving ``u = r - f (z2 - z1)``: exact in steady flow, and bounded by friction when flow
+starts from rest (a Picard linearisation with |u^n| has no friction at u^n = 0 and overshoots
+there).
+
+Wetting and drying: a channel link carries no flow while its upwind depth is below ``min_depth``.
+
+In the loops over all links, the point, profile and link indices read from the network's arrays are
+cast to ``np.uint64``: numba then adds no negative-index wraparound to the accesses they make (as in
+:func:`.solver.ldl_solve_packed`; the arithmetic is unchanged).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels.codes import FRICTION_CHEZY, LINK_CHANNEL, MO_COUNT, MO_K1, MO_LINK, NB_JUNCTION
+from rivercal.engine.kernels.lookup import flow_geometry
+from rivercal.engine.kernels.structures import G, friction_c2r
+
+__all__ = ["channel_coefficients"]
+
+
+@kernel
+def channel_coefficients(net, work, z, u, q, dt, min_depth):
+    """Flux area A (m²), f (1/s) and r (m/s) of every channel link from the state at time n.
+
+    Upwind flow area and implicit friction; upwind advection from the velocity of the link that
+    feeds the upwind point (inflow-weighted over all feeding links at a junction; none across
+    structures or from a boundary); the lateral-inflow momentum sink u q_lat / A with q_lat the
+    mean lateral inflow per unit length (m²/s) of the link's two points. The friction value of each
+    link is ``work.lfric`` (set by :func:`run` from the run's parameters).
+
+    Four passes: :func:`_link_geometry` looks up the flow geometry at the upwind depth (a gather from
+    the tables); :func:`_momentum_simple` gathers the momentum terms of the links inside a branch, whose
+    neighbours are the links before and after them (``net.mo_runs``), in a branch-free loop that
+    reads contiguously and vectorises; :func:`_momentum_other` does the same for the other channel links
+    (at junctions, structures and branch ends); :func:`_link_newton` solves each link's momentum equation.
+    The coefficients written for structure and pump links are replaced before use, by
+    :func:`switch_pumps` and :func:`structure_coefficients`.
+    """
+    _link_geometry(net, work, z, u, min_depth)
+    _momentum_simple(net, work, z, u, q, dt)
+    for link in net.mo_other:
+        _momentum_other(net, work, link, z, u, q, dt)
+    _link_newton(net.lk_ilen, work.area, work.cb, work.cs, work.cc2r, work.cdz, work.fco, work.rco)
+
+
+@kernel
+def _upwind(net, link, z, u):
+    """Direction (+1 along the branch, -1 against), upwind depth (m) and upwind profile of a channel link."""
+    k1 = np.uint64(net.lk_k1[link])
+    k2 = np.uint64(net.lk_k2[link])
+    u0 = u[link]
+    if u0 > 0.0 or (u0 == 0.0 and z[k1] >= z[k2]):
+        return 1.0, z[k1] - net.lk_b1[link], np.uint64(net.lk_p1[link])
+    return -1.0, z[k2] - net.lk_b2[link], np.uint64(net.lk_p2[link])
+
+
+@kernel
+def _link_geometry(net, work, z, u, min_depth):
+    """Per link: flux area (m²; 0 when dry or not a channel), wetted perimeter (m) and R^(4/3) at the upwind depth."""
+    area, cper, cr43, lk_type = work.area, work.cper, work.cr43, net.lk_type
+    for link in range(lk_type.size):
+        area[link] = 0.0
+        if lk_type[link] != LINK_CHANNEL:
+            continue
+        _, depth, prof = _upwind(net, link, z, u)
+        if depth < min_depth:
+            continue
+        a_up, per, r43 = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
+                                       net.tab_pf, net.tab_flow, prof, depth)
+        if a_up > 0.0:
+            area[link] = a_up
+            cper[link] = per
+            cr43[link] = r43
+
+
+@kernel
+def _momentum_simple(net, work, z, u, q, dt):
+    """The momentum terms of :func:`_momentum_other` for the links of ``net.mo_runs``, without branches.
+
+    Such a link joins points k1 and k1 + 1, neither of which receives a lateral, has no Chézy friction, and
+    its upwind neighbour is link - 1 (flowing into k1) or link + 1 (flowing out of k2, so -q and -u point
+    towards it). Every quantity is computed for every link and the right one selected, in the same
+    floating-point operations as :func:`_momentum_other`; a dry link gets meaningless terms (numpy's error
+    model: a division by its zero area gives inf, no exception), which :func:`_link_newton` masks.
+    """
+    area, cr43, lfric = work.area, work.cr43, work.lfric
+    cb, cs, cc2r, cdz = work.cb, work.cs, work.cc2r, work.cdz
+    lk_ilen, lk_ftype = net.lk_ilen, net.lk_ftype
+    inv_dt = 1.0 / dt
+    one = np.uint64(1)
+    for run in net.mo_runs:
+        l0, k0 = run[MO_LINK], run[MO_K1]
+        for j in range(run[MO_COUNT]):
+            link = l0 + j
+            k1 = k0 + j
+            u0 = u[link]
+            z1 = z[k1]
+            z2 = z[k1 + one]
+            up = (u0 > 0.0) | ((u0 == 0.0) & (z1 >= z2))
+            sign = 1.0 if up else -1.0
+            a_up = area[link]
+            b = inv_dt  # no lateral at either end: the lateral-inflow term is 0
+            rhs_u = u0 * inv_dt
+            ilen = lk_ilen[link]
+            ul = sign * u0
+            q_nb = q[link - one] if up else -q[link + one]
+            u_nb = u[link - one] if up else -u[link + one]
+            feeds = (u0 != 0.0) & (q_nb > 0.0)
+            qin = q_nb if feeds else 0.0
+            uin = u_nb if feeds else 0.0
+            uc = 0.5 * (ul + uin) if uin < ul else 0.5 * (qin + math.fabs(q[link])) / a_up
+            advect = (qin > 0.0) & (uc > 0.0)
+            dzl = z2 - z1
+            cb[link] = (b + uc * ilen) if advect else b
+            cs[link] = ((rhs_u + sign * uc * uin * ilen) if advect else rhs_u) - G * ilen * dzl
+            cc2r[link] = friction_c2r(lk_ftype[link], lfric[link], 0.0, cr43[link])  # not Chézy: no radius
+            cdz[link] = dzl
+
+
+@kernel
+def _momentum_other(net, work, link, z, u, q, dt):
+    """The momentum terms of one channel link with flux area > 0, in ``work`` (see :func:`_link_newton`).
+
+    The momentum equation of a link, per unit mass, is ``b u + kappa |u| u = s - g (z2 - z1) / dx`` with
+    b (1/s) the inertia, lateral-inflow and implicit advection terms, kappa = g / (C² R) (1/m), and
+    s (m/s²) the explicit terms; ``cs`` holds s - g (z2 - z1) / dx at the levels of time n, ``cc2r``
+    C² R (m²/s²), ``cb`` b and ``cdz`` z2 - z1 (m).
+    """
+    a_up = work.area[link]
+    if a_up <= 0.0:
+        return
+    lk_type, nl_ptr, nl_link, nl_sign = net.lk_type, net.nl_ptr, net.nl_link, net.nl_sign
+    qlat = work.qlat
+    k1 = np.uint64(net.lk_k1[link])
+    k2 = np.uint64(net.lk_k2[link])
+    u0 = u[link]
+    sign, depth, _ = _upwind(net, link, z, u)
+    per = work.cper[link]
+    ftype = net.lk_ftype[link]
+    radius = (a_up / per if per > 0.0 else depth) if ftype == FRICTION_CHEZY else 0.0
+    inv_dt = 1.0 / dt
+    ql = qlat[k1] + qlat[k2]
+    b = inv_dt + 0.5 * ql / a_up if ql != 0.0 else inv_dt  # skips a division: exact, the term is +0 then
+    rhs_u = u0 * inv_dt
+    ilen = net.lk_ilen[link]
+    if u0 != 0.0:
+        ul = sign * u0
+        qin = 0.0
+        uin = 0.0
+        if sign > 0.0:
+            m, sm, kup = net.lk_nb1[link], net.lk_ns1[link], k1
+        else:
+            m, sm, kup = net.lk_nb2[link], net.lk_ns2[link], k2
+        if m >= 0:  # one feeding channel link
+            mu = np.uint64(m)
+            if sm * q[mu] > 0.0:
+                qin = sm * q[mu]
+                uin = sm * u[mu]
+        elif m == NB_JUNCTION:  # junction: inflow-weighted velocity of the feeding links
+            quin = 0.0
+            blocked = False
+            for c in range(nl_ptr[kup], nl_ptr[kup + np.uint64(1)]):
+                j = nl_link[c]
+                if j == link:
+                    continue
+                qj = nl_sign[c] * q[j]
+                if qj > 0.0:
+                    if lk_type[j] != LINK_CHANNEL:
+                        blocked = True
+                    qin += qj
+                    quin += qj * nl_sign[c] * u[j]
+            if blocked:
+                qin = 0.0
+            elif qin > 0.0:
+                uin = quin / qin
+        if qin > 0.0:
+            if uin < ul:
+                uc = 0.5 * (ul + uin)  # contraction: energy-head conservative
+            else:
+                uc = 0.5 * (qin + math.fabs(q[link])) / a_up  # expansion: momentum conservative
+            if uc > 0.0:
+                b += uc * ilen
+                rhs_u += sign * uc * uin * ilen
+    dzl = z[k2] - z[k1]
+    work.cb[link] = b
+    work.cs[link] = rhs_u - G * ilen * dzl
+    work.cc2r[link] = friction_c2r(ftype, work.lfric[link], radius, work.cr43[link])
+    work.cdz[link] = dzl
+
+
+@kernel
+def _link_newton(lk_ilen, area, cb, cs, cc2r, cdz, fco, rco):
+    """Coefficients f (1/s) and r (m/s) of ``u = r - f (z2 - z1)`` per link with flux area > 0 (0 for the others).
+
+    Newton linearisation of b u + kappa |u| u = s - g (z2 - z1) / dx around its solution u* at the
+    levels of time n: u* = 2 s / (b + sqrt(b² + 4 kappa |s|)), du/d(z2 - z1) = -g / (dx sqrt(...)).
+    Exact in steady flow, and bounded by friction when flow starts from rest. The loop has no
+    branches (links without flow are masked at the end) so that it runs in SIMD lanes; the inputs
+    of a masked link may be stale, which is harmless.
+    """
+    for link in range(area.size):
+        s_u = cs[link]
+        b = cb[link]
+        kappa = G / cc2r[link]
+        root = math.sqrt(b * b + 4.0 * kappa * math.fabs(s_u))
+        f_u = G * lk_ilen[link] / root
+        r_u = 2.0 * s_u / (b + root) + f_u * cdz[link]
+        wet = area[link] > 0.0
+        fco[link] = f_u if wet else 0.0
+        rco[link] = r_u if wet else 0.0
