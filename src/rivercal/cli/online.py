@@ -241,6 +241,9 @@ def print_summary(summary: dict[str, Any]) -> None:
         out_console.print(f"forecast level error (mean |error| over {fe['n']} values at the stations, lead 0-"
                           f"{fe['lead_h']:g} h): rivercal {fe['updated_mae_m'] * 100:.2f} cm, fixed DSS "
                           f"{fe['dss_mae_m'] * 100:.2f} cm" + _ratio_words(fe.get("ratio")), highlight=False)
+    elif fe.get("reason"):
+        out_console.print("forecast level error, rivercal against the fixed DSS: nothing to compare yet — "
+                          + fe["reason"], highlight=False)
     if "files" in summary:
         out_console.print(f"report: {summary['files']['report']}")
 

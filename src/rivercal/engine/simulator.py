@@ -272,8 +272,8 @@ class Simulator:
         interval = float(output_interval or self.settings.output_interval)
         out_every = _ratio(interval, self.dt, "output_interval", "dt")
         n_steps = _ratio((end - start).total_seconds(), interval, "the period", "the output interval") * out_every
-        if n_steps <= 0:
-            raise ValueError(f"end {end} must be after start {start}")
+        if n_steps < 0:  # end == start is a run of no steps: the (hot or cold-start) state at start
+            raise ValueError(f"end {end} is before start {start}")
         crest, fric = self.parameter_arrays(parameters)
         if state is None:
             state = self.initial_state(start)

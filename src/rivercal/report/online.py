@@ -82,33 +82,73 @@ def forecast_errors(store: Any, run: Any, *, after: Any | None = None, lead_h: f
     dict
         ``n`` (compared values per kind), ``lead_h``, ``from`` (ISO time or None), ``updated_mae_m`` and
         ``dss_mae_m`` (m), ``ratio`` (DSS / rivercal; None when rivercal's error is zero or nothing was
-        compared).
+        compared), and ``reason``: why nothing could be compared (None when ``n`` > 0).
     """
     run = store.get_run(run) if isinstance(run, str) else run
     if after is None:
         after = _change_time(run)
+    out: dict[str, Any] = {"n": 0, "lead_h": lead_h, "from": None if after is None else _utc(after).isoformat(),
+                           "updated_mae_m": None, "dss_mae_m": None, "ratio": None, "reason": None}
     cycles = store.cycles(run)
+    if cycles.empty:
+        out["reason"] = "the run has no finished cycle yet"
+        return out
     keep = cycles if after is None else cycles[cycles["window_start"] >= _utc(after)]
+    if keep.empty:
+        out["reason"] = _no_cycle_after(run, cycles, _utc(after))
+        return out
     fc = store.forecasts(run)
     fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] > 0) & (fc["lead_h"] <= lead_h)]
-    fc = fc[fc["series"].str.rpartition(".")[2].isin(_LEVELS)]
-    out: dict[str, Any] = {"n": 0, "lead_h": lead_h, "from": None if after is None else _utc(after).isoformat(),
-                           "updated_mae_m": None, "dss_mae_m": None, "ratio": None}
+    if not fc.empty:
+        fc = fc[fc["series"].str.rpartition(".")[2].isin(_LEVELS)]
     if fc.empty:
+        out["reason"] = f"the scored cycles stored no level forecast with a lead time of at most {lead_h:g} h"
         return out
-    obs = store.observations(sorted(fc["series"].unique()), fc["time"].min(), fc["time"].max())
-    observed = pd.concat({s.id: pd.Series(s.values, index=s.times) for s in obs if len(s)}, names=["series", "time"])
-    joined = fc.join(observed.rename("observed"), on=["series", "time"], how="inner")
+    series = sorted(fc["series"].unique())
+    obs = [s for s in store.observations(series, fc["time"].min(), fc["time"].max()) if len(s)]
+    joined = fc.iloc[:0]
+    if obs:
+        observed = pd.concat({s.id: pd.Series(s.values, index=s.times) for s in obs}, names=["series", "time"])
+        joined = fc.join(observed.rename("observed"), on=["series", "time"], how="inner")
     if joined.empty:
+        out["reason"] = _no_observations(store, series, fc)
         return out
     joined["abs_error"] = (joined["value"] - joined["observed"]).abs()
     mae = joined.groupby("kind")["abs_error"].mean()
     n = joined.groupby("kind").size()
     if "updated" not in mae or "dss" not in mae:
+        missing = "rivercal's" if "updated" not in mae else "the DSS's"
+        out["reason"] = f"no observation falls on {missing} forecasts, so the two cannot be compared"
         return out
     out.update(n=int(n.min()), updated_mae_m=float(mae["updated"]), dss_mae_m=float(mae["dss"]),
                ratio=float(mae["dss"] / mae["updated"]) if mae["updated"] > 0 else None)
     return out
+
+
+def _no_cycle_after(run: Any, cycles: pd.DataFrame, after: pd.Timestamp) -> str:
+    """Why no cycle counts: none has a calibration window that starts at or after ``after``."""
+    window = pd.Timedelta(run.config["window"])
+    period = pd.Timedelta(run.config["period"])
+    first = _utc(run.config.get("first_issue") or cycles["issue_time"].min())
+    k = max(0, -(-(after + window - first) // period))  # the first cycle whose window starts at or after
+    return (f"the comparison counts only cycles whose calibration window ({_span(run.config['window'])}) starts at or "
+            f"after the change at {after:%Y-%m-%d %H:%M}; the first such cycle is issued at "
+            f"{first + k * period:%Y-%m-%d %H:%M}, the last cycle of this run at "
+            f"{cycles['issue_time'].max():%Y-%m-%d %H:%M}")
+
+
+def _no_observations(store: Any, series: list[str], fc: pd.DataFrame) -> str:
+    """Why no forecast meets an observation: the observations end (or start) outside the forecasts' times."""
+    table = store.availability(series)
+    first_fc = fc["time"].min()
+    if table.empty:
+        return "the store holds no observation of the forecast series"
+    last_obs = pd.Timestamp(table["last"].max())
+    if last_obs < first_fc:
+        return (f"the observations end at {last_obs:%Y-%m-%d %H:%M}, before the forecasts' first lead time "
+                f"({first_fc:%Y-%m-%d %H:%M})")
+    return (f"no observation falls on a forecast time between {first_fc:%Y-%m-%d %H:%M} and "
+            f"{fc['time'].max():%Y-%m-%d %H:%M}")
 
 
 # -- continuous runs (twin scenarios) --------------------------------------------------------------------
@@ -319,6 +359,27 @@ def _station_scores(scores: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def _missing_columns(ptable: pd.DataFrame) -> str:
+    """Say why a 'rivercal before/after' column is empty (the run has no cycle on that side of the change)."""
+    empty = [c for c in ("rivercal before", "rivercal after") if c in ptable and ptable[c].isna().all()]
+    words = {"rivercal before": "no cycle's window ends before the transition",
+             "rivercal after": "no cycle's window lies after the transition yet"}
+    return "".join(f" '{c}' is empty: {words[c]}." for c in empty)
+
+
+def _span(text: str) -> str:
+    """'7D' → '7 days', '48h' → '48 hours', '90min' → '90 minutes' (a duration as a reader says it)."""
+    seconds = pd.Timedelta(text).total_seconds()
+    for unit, size in (("day", 86400), ("hour", 3600), ("minute", 60)):
+        if seconds >= size and seconds % size == 0:
+            return _count(int(seconds // size), unit)
+    return _count(int(seconds), "second") if seconds == int(seconds) else f"{seconds:g} s"
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 def _ratio_words(ratio: float | None) -> str:
     if ratio is None:
         return "."
@@ -373,11 +434,11 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
 
         scenario = PRACTICAL_SCENARIOS[meta["scenario"]]
     config = run.config
-    intro = [f"{len(cycles)} cycles from {cycles['issue_time'].min():%Y-%m-%d %H:%M} to "
-             f"{cycles['issue_time'].max():%Y-%m-%d %H:%M} UTC; every {config['period']} the parameters "
+    intro = [f"{_count(len(cycles), 'cycle')} from {cycles['issue_time'].min():%Y-%m-%d %H:%M} to "
+             f"{cycles['issue_time'].max():%Y-%m-%d %H:%M} UTC; every {_span(config['period'])} the parameters "
              f"{', '.join(config['parameters'])} are re-estimated by {config['algorithm']} over the last "
-             f"{config['window']} of observations and the model forecasts {config['horizon']} ahead, beside the "
-             "DSS with its fixed parameters."] if len(cycles) else ["The run has no cycles yet."]
+             f"{_span(config['window'])} of observations and the model forecasts {_span(config['horizon'])} ahead, "
+             "beside the DSS with its fixed parameters."] if len(cycles) else ["The run has no cycles yet."]
     if scenario is not None:
         intro.append(f"Observations: twin truth of scenario {scenario.name} (thesis §5-2): {scenario.description}; "
                      f"the change happens at {change:%Y-%m-%d %H:%M} UTC; noise {meta.get('noise', 'none')}.")
@@ -402,7 +463,8 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
                      paragraph("'before': the last cycle whose window ends before the transition; 'after': the "
                                "last cycle, whose window lies after it. Crest levels in m AD, friction in "
                                "m^(1/3)/s. rivercal moves all adjustable crests alike (Wd) and one global friction "
-                               "(FA), so a local change can only show as a compromise in those two."),
+                               "(FA), so a local change can only show as a compromise in those two."
+                               + _missing_columns(ptable)),
                      table(ptable, "Parameters", float_format=".4g"))
         shown = cycles[["cycle", "issue_time", "status", "algorithm", "model_runs", "wall_time_s", "cost_before",
                         "cost_after", "message"]].set_index("cycle")
@@ -421,7 +483,8 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
         stations = _station_scores(scores)
         stations.to_csv(out / "forecast_scores.csv")
         files["scores_csv"] = str(out / "forecast_scores.csv")
-        words = "No forecast could be compared with observations yet."
+        words = (f"rivercal against the fixed DSS{' after the change' if errors['from'] else ''}: nothing to "
+                 f"compare yet — {errors['reason']}. The figure and table below score every cycle's forecasts.")
         if errors["n"]:
             words = (f"Mean absolute level error of the forecasts at the stations, lead 0–{errors['lead_h']:g} h"
                      + (f", cycles whose window starts after {errors['from'][:16]}" if errors["from"] else "")
