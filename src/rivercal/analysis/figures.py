@@ -1,4 +1,4 @@
-"""Figures of the analyses (PNG, matplotlib Agg backend, imported lazily inside each function).
+"""Figures of the analyses (PNG files; matplotlib figures made without pyplot, imported when drawn).
 
 - :func:`plot_sensitivity`: total cost per scenario (thesis Fig. 4-5);
 - :func:`plot_sensitivity_stations`: the same per station (thesis Figs. C-1 … C-5);
@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal._figure import new_figure, save_figure, subplots
 from rivercal.analysis.identifiability import COMBINATION, IDENTIFIABLE, NOT_IDENTIFIABLE, Identifiability
 from rivercal.analysis.sensitivity import SensitivityResult
 
@@ -23,27 +24,11 @@ __all__ = ["plot_bias", "plot_correlation", "plot_sensitivity", "plot_sensitivit
 VERDICT_COLOURS = {IDENTIFIABLE: "#2f855a", COMBINATION: "#dd6b20", NOT_IDENTIFIABLE: "#c53030"}
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: Any, path: str | Path, dpi: int = 120) -> Path:
-    plt = _pyplot()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path
-
 
 def _step_colours(n: int) -> list:
-    plt = _pyplot()
-    cmap = plt.get_cmap("coolwarm")
+    from matplotlib import colormaps
+
+    cmap = colormaps["coolwarm"]
     return [cmap(0.5 if n == 1 else i / (n - 1)) for i in range(n)]
 
 
@@ -73,24 +58,22 @@ def _grouped_bars(ax: Any, costs: pd.DataFrame, column: str, table: pd.DataFrame
 
 def plot_sensitivity(result: SensitivityResult, path: str | Path, *, title: str = "") -> Path:
     """Total cost (thesis Eq. 2-3) of every one-at-a-time scenario, grouped by parameter (thesis Fig. 4-5)."""
-    plt = _pyplot()
     costs = result.costs("station")
-    fig, ax = plt.subplots(figsize=(10, 4.2))
+    fig, ax = subplots(figsize=(10, 4.2))
     _grouped_bars(ax, costs, "total", result.table, legend=True)
     ax.set_ylabel("total cost S (-)")
     ax.set_xlabel("perturbed parameter (scenarios 1 … 5 as in thesis Table 4-4: crest −0.30 … +0.30 m, "
                   "k_s +4 … −4, i.e. water levels low → high)")
     ax.set_title(title or "one-at-a-time sensitivity: total cost per scenario")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=120)
 
 
 def plot_sensitivity_stations(result: SensitivityResult, path: str | Path, *, title: str = "") -> Path:
     """Cost per station of every scenario, one panel per station (thesis Figs. C-1 … C-5)."""
-    plt = _pyplot()
     costs = result.costs("station")
     stations = [c for c in costs.columns if c not in ("parameter", "value", "total")]
-    fig, axes = plt.subplots(len(stations), 1, figsize=(10, 2.3 * len(stations) + 0.8), squeeze=False)
+    fig, axes = subplots(len(stations), 1, figsize=(10, 2.3 * len(stations) + 0.8), squeeze=False)
     for row, st in enumerate(stations):
         ax = axes[row, 0]
         _grouped_bars(ax, costs, st, result.table, legend=row == 0)
@@ -98,7 +81,7 @@ def plot_sensitivity_stations(result: SensitivityResult, path: str | Path, *, ti
         ax.set_title(f"station {st}", fontsize=9, loc="left")
     fig.suptitle(title or "one-at-a-time sensitivity per station")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=120)
 
 
 def plot_svd(result: Identifiability, path: str | Path, *, title: str = "") -> Path:
@@ -108,11 +91,10 @@ def plot_svd(result: Identifiability, path: str | Path, *, title: str = "") -> P
     dashed). Bottom left: the singular vectors as columns (a parameter's share V_ij, −1 … 1).
     Bottom right: the identifiability index per parameter, coloured by the verdict.
     """
-    plt = _pyplot()
     s = result.singular_values
     names = list(result.names)
     p = len(names)
-    fig = plt.figure(figsize=(max(8.0, 0.75 * p + 4.5), max(6.5, 0.42 * p + 4.2)))
+    fig = new_figure(figsize=(max(8.0, 0.75 * p + 4.5), max(6.5, 0.42 * p + 4.2)))
     grid = fig.add_gridspec(2, 2, height_ratios=[1, 1.6], width_ratios=[max(p, 4), 3.2])
     ax_s = fig.add_subplot(grid[0, 0])
     ax_t = fig.add_subplot(grid[0, 1])
@@ -162,22 +144,25 @@ def plot_svd(result: Identifiability, path: str | Path, *, title: str = "") -> P
     ax_i.axvline(result.options.unidentifiable, ls=":", color="grey", lw=0.8)
     ax_i.set_xlabel(f"identifiability index (k = {result.k})")
     ax_i.tick_params(labelleft=False)
-    handles = [plt.Rectangle((0, 0), 1, 1, color=c) for c in VERDICT_COLOURS.values()]
+    from matplotlib.patches import Rectangle
+
+    handles = [Rectangle((0, 0), 1, 1, color=c) for c in VERDICT_COLOURS.values()]
     ax_i.legend(handles, list(VERDICT_COLOURS), fontsize=7, loc="lower right")
     ax_i.grid(axis="x", alpha=0.3)
     fig.suptitle(title or "singular value decomposition of the Jacobian")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=120)
 
 
 def plot_correlation(result: Identifiability, path: str | Path, *, title: str = "") -> Path:
     """The correlation matrix of the parameters (thesis Eq. 2-13, Fig. 4-7); grey where undefined."""
-    plt = _pyplot()
     corr = np.asarray(result.correlation, dtype=float)
     names = list(result.names)
     p = len(names)
-    fig, ax = plt.subplots(figsize=(0.62 * p + 2.8, 0.55 * p + 1.8))
-    cmap = plt.get_cmap("RdBu_r").copy()
+    fig, ax = subplots(figsize=(0.62 * p + 2.8, 0.55 * p + 1.8))
+    from matplotlib import colormaps
+
+    cmap = colormaps["RdBu_r"].copy()
     cmap.set_bad("#d9d9d9")
     image = ax.imshow(np.ma.masked_invalid(corr), cmap=cmap, vmin=-1, vmax=1)
     for i in range(p):
@@ -193,7 +178,7 @@ def plot_correlation(result: Identifiability, path: str | Path, *, title: str = 
     fig.colorbar(image, ax=ax, fraction=0.046, pad=0.03, label="correlation (-)")
     ax.set_title(title or "parameter correlation (JᵀJ)⁻¹", fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=120)
 
 
 def plot_bias(moving: pd.DataFrame, path: str | Path, *, title: str = "", unit: str = "-") -> Path:
@@ -210,12 +195,11 @@ def plot_bias(moving: pd.DataFrame, path: str | Path, *, title: str = "", unit: 
     unit
         Unit of the squared errors for the axis label (``-`` for weighted errors, ``m²`` for levels).
     """
-    plt = _pyplot()
     if "series" not in moving.columns:
         moving = moving.rename_axis("time").reset_index().assign(series="series")
     series = list(dict.fromkeys(moving["series"]))
     stations = list(dict.fromkeys(s.rpartition(".")[0] or s for s in series))
-    fig, axes = plt.subplots(len(stations), 1, figsize=(12, 2.0 * len(stations) + 0.9), sharex=True, squeeze=False)
+    fig, axes = subplots(len(stations), 1, figsize=(12, 2.0 * len(stations) + 0.9), sharex=True, squeeze=False)
     for row, st in enumerate(stations):
         ax = axes[row, 0]
         for k, sid in enumerate(s for s in series if (s.rpartition(".")[0] or s) == st):
@@ -240,4 +224,4 @@ def plot_bias(moving: pd.DataFrame, path: str | Path, *, title: str = "", unit: 
     fig.suptitle(title or "moving-window bias (Eq. 2-14); dots: significant (bias > 0.1 σ²)")
     fig.autofmt_xdate()
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=120)

@@ -14,9 +14,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal._figure import new_figure, subplots
 from rivercal.network import Network
 
 __all__ = [
+    "case_weir_labels",
     "plot_convergence",
     "plot_cost",
     "plot_network",
@@ -26,14 +28,6 @@ __all__ = [
     "plot_transition_levels",
 ]
 
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _branch_xy(network: Network) -> dict[str, np.ndarray]:
@@ -63,10 +57,11 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     missing = [n.id for n in network.nodes if n.x is None or n.y is None]
     if missing:
         raise ValueError(f"node {missing[0]!r} has no x/y coordinates; the schematic needs them for every node")
-    plt = _pyplot()
+    from matplotlib.lines import Line2D
+
     xy = _branch_xy(network)
     lengths = {b.id: b.length for b in network.branches}
-    fig, ax = plt.subplots(figsize=(11, 7.5))
+    fig, ax = subplots(figsize=(11, 7.5))
     for bid, pts in xy.items():
         ax.plot(pts[:, 0], pts[:, 1], color="#2b6cb0", lw=2.2, zorder=1)
         mx, my = _at(pts, 0.5)
@@ -108,15 +103,15 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
             px, py = _at(xy[lat.branch], lat.chainage / lengths[lat.branch])
         ax.plot(px, py, "v", color="#38a169", ms=6, zorder=4)
     handles = [
-        plt.Line2D([], [], color="#2b6cb0", lw=2.2, label="branch"),
-        plt.Line2D([], [], ls="", marker="|", color="#c53030", ms=12, mew=3, label="weir"),
-        plt.Line2D([], [], ls="", marker="o", mfc="none", mec="black", ms=12, label="station"),
-        plt.Line2D([], [], ls="", marker="v", color="#38a169", label="lateral inflow"),
-        plt.Line2D([], [], ls="", marker=">", color="#2f855a", label="Q boundary"),
-        plt.Line2D([], [], ls="", marker="D", color="#2f855a", label="Q(h) / level boundary"),
+        Line2D([], [], color="#2b6cb0", lw=2.2, label="branch"),
+        Line2D([], [], ls="", marker="|", color="#c53030", ms=12, mew=3, label="weir"),
+        Line2D([], [], ls="", marker="o", mfc="none", mec="black", ms=12, label="station"),
+        Line2D([], [], ls="", marker="v", color="#38a169", label="lateral inflow"),
+        Line2D([], [], ls="", marker=">", color="#2f855a", label="Q boundary"),
+        Line2D([], [], ls="", marker="D", color="#2f855a", label="Q(h) / level boundary"),
     ]
     if network.culverts:
-        handles.append(plt.Line2D([], [], ls="", marker="s", color="#805ad5", label="culvert"))
+        handles.append(Line2D([], [], ls="", marker="s", color="#805ad5", label="culvert"))
     ax.legend(handles=handles, loc="best", fontsize=8)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
@@ -127,15 +122,13 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=130)
-    plt.close(fig)
     return path
 
 
 def plot_series(series: pd.DataFrame, path: str | Path, *, title: str = "") -> Path:
     """Station hydrographs: levels (m AD) on the left panels, discharges (m³/s) on the right."""
-    plt = _pyplot()
     stations = sorted({c.split(".")[0] for c in series.columns})
-    fig, axes = plt.subplots(len(stations), 2, figsize=(12, 1.9 * len(stations) + 0.8), sharex=True, squeeze=False)
+    fig, axes = subplots(len(stations), 2, figsize=(12, 1.9 * len(stations) + 0.8), sharex=True, squeeze=False)
     for row, st in enumerate(stations):
         ax_h, ax_q = axes[row]
         for c in series.columns:
@@ -160,7 +153,6 @@ def plot_series(series: pd.DataFrame, path: str | Path, *, title: str = "") -> P
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -168,8 +160,7 @@ def plot_series(series: pd.DataFrame, path: str | Path, *, title: str = "") -> P
 def plot_convergence(history: list[dict], names: list[str], path: str | Path, *, truth: dict | None = None,
                      units: dict | None = None, title: str = "") -> Path:
     """Parameter values per iteration (thesis Fig. 4-8), with the true values dashed when known."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(len(names), 1, figsize=(7, 2.2 * len(names) + 0.6), sharex=True, squeeze=False)
+    fig, axes = subplots(len(names), 1, figsize=(7, 2.2 * len(names) + 0.6), sharex=True, squeeze=False)
     it = [h["iteration"] for h in history]
     for ax, name in zip(axes[:, 0], names, strict=True):
         ax.plot(it, [h[name] for h in history], "o-", color="#2b6cb0")
@@ -183,14 +174,12 @@ def plot_convergence(history: list[dict], names: list[str], path: str | Path, *,
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def plot_cost(history: list[dict], path: str | Path, *, title: str = "") -> Path:
     """Cost per iteration on a log scale (thesis Fig. 4-9), with the linearised cost where the method has one."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+    fig, ax = subplots(figsize=(7, 3.6))
     it = [h["iteration"] for h in history]
     ax.semilogy(it, [max(h["cost"], 1e-16) for h in history], "o-", color="#2b6cb0", label="cost S")
     lin = [h.get("linear_cost", np.nan) for h in history]
@@ -205,24 +194,17 @@ def plot_cost(history: list[dict], path: str | Path, *, title: str = "") -> Path
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 # -- thesis chapter 5: values on the network map, and the levels around a transition ---------------
 
 
-def _figure(**kwargs: Any):
-    from matplotlib.figure import Figure
-
-    return Figure(**kwargs)
-
-
 def _network_of(case: Any) -> Network:
     return case.network if hasattr(case, "network") else case
 
 
-def _case_weir_labels(case: Any) -> dict[str, str]:
+def case_weir_labels(case: Any) -> dict[str, str]:
     """``"W4 ZL1-5930"`` for a weir that a single-target parameter of the case sets, else nothing."""
     names = {}
     for p in getattr(getattr(case, "spec", None), "parameters", None) or []:
@@ -352,10 +334,10 @@ def plot_network_values(case: Any, values: pd.Series, *, title: str, label: str,
         For a label that is not a calculation point of the network, a node without coordinates, or vmax ≤ 0.
     """
     network = _network_of(case)
-    labels = _case_weir_labels(case) if weir_labels is None else weir_labels
+    labels = case_weir_labels(case) if weir_labels is None else weir_labels
     norm = _symmetric_norm(vmax, values)
     if ax is None:
-        fig = _figure(figsize=(10, 6.5), layout="constrained")
+        fig = new_figure(figsize=(10, 6.5), layout="constrained")
         ax = fig.add_subplot()
     fig = ax.figure
     points = _draw_values(ax, network, values, norm, cmap, labels)
@@ -378,9 +360,9 @@ def plot_network_pair(case: Any, left: pd.Series, right: pd.Series, *, label: st
     matplotlib.figure.Figure
     """
     network = _network_of(case)
-    labels = _case_weir_labels(case) if weir_labels is None else weir_labels
+    labels = case_weir_labels(case) if weir_labels is None else weir_labels
     norm = _symmetric_norm(vmax, left, right)
-    fig = _figure(figsize=(16, 6), layout="constrained")
+    fig = new_figure(figsize=(16, 6), layout="constrained")
     axes = fig.subplots(1, 2)
     for ax, values, title in zip(axes, (left, right), titles, strict=True):
         points = _draw_values(ax, network, values, norm, cmap, labels)
@@ -436,7 +418,7 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
     from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
 
     change = pd.Timestamp(change_time)
-    fig = _figure(figsize=(11, 2.6 * len(series) + 0.8), layout="constrained")
+    fig = new_figure(figsize=(11, 2.6 * len(series) + 0.8), layout="constrained")
     axes = fig.subplots(len(series), 1, sharex=True, squeeze=False)[:, 0]
     for ax, sid in zip(axes, series, strict=True):
         ax.plot(observed.index, observed[sid], "o", mfc="none", mec="#718096", ms=3.5, mew=0.8, label="observed",

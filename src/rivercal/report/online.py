@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal._figure import subplots
 from rivercal.report.html import Page, bullets, figure, paragraph, table
 
 __all__ = ["continuous_runs", "forecast_errors", "write_online_report"]
@@ -33,14 +34,6 @@ log = logging.getLogger(__name__)
 _LEVELS = ("h", "h_up", "h_down")
 _RED, _BLUE, _GREY = "#c53030", "#2b6cb0", "#718096"
 
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _utc(value: Any) -> pd.Timestamp:
@@ -209,9 +202,8 @@ def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> d
 
 def _estimates_figure(est: pd.DataFrame, units: dict[str, str], truth: dict[str, tuple], dss: dict[str, float],
                       change: pd.Timestamp | None, path: Path) -> Path:
-    plt = _pyplot()
     names = list(dict.fromkeys(est["parameter"]))
-    fig, axes = plt.subplots(len(names), 1, figsize=(9.5, 2.6 * len(names)), sharex=True, squeeze=False)
+    fig, axes = subplots(len(names), 1, figsize=(9.5, 2.6 * len(names)), sharex=True, squeeze=False)
     for ax, name in zip(axes[:, 0], names, strict=True):
         e = est[est["parameter"] == name]
         ok, held = e[e["accepted"]], e[~e["accepted"]]
@@ -240,15 +232,13 @@ def _estimates_figure(est: pd.DataFrame, units: dict[str, str], truth: dict[str,
     fig.autofmt_xdate()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def _scores_figure(scores: pd.DataFrame, path: Path) -> Path:
-    plt = _pyplot()
     levels = scores[scores["series"].str.rpartition(".")[2].isin(_LEVELS)]
     table_ = levels.groupby(["kind", "lead_to_h"])["rmse"].mean().unstack("kind")
-    fig, ax = plt.subplots(figsize=(7.5, 3.8))
+    fig, ax = subplots(figsize=(7.5, 3.8))
     width = 0.38
     x = np.arange(len(table_))
     for k, (kind, colour, label) in enumerate((("dss", _RED, "fixed DSS"), ("updated", _BLUE, "rivercal"))):
@@ -262,13 +252,11 @@ def _scores_figure(scores: pd.DataFrame, path: Path) -> Path:
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def _error_time_figure(errors: dict[str, pd.DataFrame], change: pd.Timestamp | None, path: Path) -> Path:
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(9.5, 3.6))
+    fig, ax = subplots(figsize=(9.5, 3.6))
     for key, colour, label in (("dss", _RED, "fixed DSS"), ("rivercal", _BLUE, "rivercal")):
         ax.plot(errors[key].index, errors[key].abs().mean(axis=1) * 100, color=colour, lw=1.3, label=label)
     if change is not None:
@@ -280,7 +268,6 @@ def _error_time_figure(errors: dict[str, pd.DataFrame], change: pd.Timestamp | N
     fig.autofmt_xdate()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal._figure import subplots
 from rivercal.analysis import bias_significance, errors, moving_bias
 from rivercal.twin.reference import THESIS_FIGURES, thesis_row
 from rivercal.twin.suites import SUITES, InitialAnalysis, ScenarioResult
@@ -33,14 +34,6 @@ _COLOURS = {"H": "#c53030", "M": "#2f855a", "L": "#2b6cb0"}
 _MARKERS = {"1": "o", "2": "x", "11": "o", "12": "x", "21": "s", "22": "*"}
 _LINES = {"H": "-", "M": "--", "L": ":"}  # friction letter of two-parameter scenarios
 
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def suite_summary(results: list[ScenarioResult]) -> dict[str, Any]:
@@ -155,9 +148,8 @@ def bias_table(suite: str, results: list[ScenarioResult], window: str = BIAS_WIN
 
 def _bias_figure(suite: str, results: list[ScenarioResult], moving: pd.DataFrame, path: Path) -> Path:
     """Thesis Fig. 4-11 (4-15, 4-25, 4-29, 4-33): b(t) of every scenario, and the observed series below."""
-    plt = _pyplot()
     sid = str(moving["series"].iloc[0]) if len(moving) else ""
-    fig, (ax, ax_h) = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True, height_ratios=[2.2, 1])
+    fig, (ax, ax_h) = subplots(2, 1, figsize=(10, 6.2), sharex=True, height_ratios=[2.2, 1])
     plotted = 0
     for r in results:
         part = moving[moving["scenario"] == r.id]
@@ -191,7 +183,6 @@ def _bias_figure(suite: str, results: list[ScenarioResult], moving: pd.DataFrame
     fig.autofmt_xdate()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -203,9 +194,8 @@ def _style(r: ScenarioResult) -> tuple[str, str]:
 
 
 def _convergence(suite: str, results: list[ScenarioResult], path: Path) -> Path:
-    plt = _pyplot()
     names = list(results[0].truth)
-    fig, axes = plt.subplots(len(names), 1, figsize=(8, 2.6 * len(names) + 0.8), sharex=True, squeeze=False)
+    fig, axes = subplots(len(names), 1, figsize=(8, 2.6 * len(names) + 0.8), sharex=True, squeeze=False)
     for ax, name in zip(axes[:, 0], names, strict=True):
         for r in results:
             colour, marker = _style(r)
@@ -219,13 +209,11 @@ def _convergence(suite: str, results: list[ScenarioResult], path: Path) -> Path:
     fig.suptitle(f"{suite}: parameter convergence (true values dashed; cf. thesis {_fig(suite, 'convergence')})")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def _cost(suite: str, results: list[ScenarioResult], path: Path) -> Path:
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = subplots(figsize=(8, 4))
     for r in results:
         colour, marker = _style(r)
         ax.semilogy([h["iteration"] for h in r.history], [max(h["cost"], 1e-25) for h in r.history], marker=marker,
@@ -238,14 +226,12 @@ def _cost(suite: str, results: list[ScenarioResult], path: Path) -> Path:
     ax.set_title(f"{suite}: cost per iteration (cf. thesis {_fig(suite, 'cost')})")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def _states(suite: str, result: ScenarioResult, path: Path) -> Path:
-    plt = _pyplot()
     ids = [c for c in result.series["calibrated"].columns if not c.endswith(".Q")][:4]
-    fig, axes = plt.subplots(len(ids), 1, figsize=(10, 2.4 * len(ids) + 0.6), sharex=True, squeeze=False)
+    fig, axes = subplots(len(ids), 1, figsize=(10, 2.4 * len(ids) + 0.6), sharex=True, squeeze=False)
     obs = result.series["observed"]
     for ax, sid in zip(axes[:, 0], ids, strict=True):
         ax.plot(obs.index, obs[sid], ".", color="#2b6cb0", ms=3, label="observed")
@@ -259,7 +245,6 @@ def _states(suite: str, result: ScenarioResult, path: Path) -> Path:
     fig.autofmt_xdate()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
