@@ -12,6 +12,7 @@ __all__ = [
     "EngineDivergedError",
     "FieldProblem",
     "ModelRunError",
+    "OptionError",
     "RivercalError",
     "StructureOverlap",
 ]
@@ -99,6 +100,28 @@ class StructureOverlap(CaseError):
         return (StructureOverlap, (self.structure, self.previous, self.branch, self.structure_length))
 
 
+class OptionError(RivercalError, ValueError):
+    """A value given to a command is invalid: a command-line option, or an argument a workflow passes on.
+
+    The message names the option and the value and says what is wrong, e.g.
+    ``--window '2011-01-01/2011-01-08': lies outside the case period``.
+
+    Parameters
+    ----------
+    message
+        What is wrong, naming the option.
+    option
+        The option, e.g. ``--window`` (None when several are involved).
+    """
+
+    def __init__(self, message: str, *, option: str | None = None):
+        self.option = option
+        super().__init__(message)
+
+    def __reduce__(self):  # keep the option when the error crosses a process boundary
+        return (_rebuild_option_error, (str(self), self.option))
+
+
 class ModelRunError(RivercalError):
     """A model run could not be completed (base class of engine failures)."""
 
@@ -128,3 +151,7 @@ class EngineDivergedError(ModelRunError):
 
 def _rebuild_case_error(reason: str, file: str | None, field: str | None) -> CaseError:
     return CaseError(reason, file=file, field=field)
+
+
+def _rebuild_option_error(message: str, option: str | None) -> OptionError:
+    return OptionError(message, option=option)

@@ -73,7 +73,7 @@ def test_restart_with_the_same_arguments_computes_nothing_again(pifg) -> None:
 
 @pytest.mark.parametrize(("args", "message"), [
     (["--scenario", "PI-X"], "--scenario 'PI-X': unknown practical scenario"),
-    (["--scenario", "PI-Fg", "--to", "2010-11-01"], "--to 2010-11-01 is before --from"),
+    (["--scenario", "PI-Fg", "--to", "2010-11-01"], "--to 2010-11-01: before --from"),
     (["--params", "FA,Zz"], "unknown parameter 'Zz'"),
     (["--max-change", "FA"], "--max-change 'FA': expected NAME=VALUE"),
     (["--observations", "nothing.csv"], "--observations nothing.csv: no such file"),

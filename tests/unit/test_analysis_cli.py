@@ -25,7 +25,7 @@ def rivercal(*args: str) -> subprocess.CompletedProcess:
     (["analyse", "dommel", "--params", "W2,Wx"], "unknown parameter 'Wx'"),
     (["analyse", "dommel", "--params", "W2", "--twin", "FA=20"], "'FA' is not in --params"),
     (["analyse", "dommel", "--params", "W2", "--window", "2011-01-01/2011-01-08"], "outside the case period"),
-    (["analyse", "dommel", "--params", "W2", "--sv-threshold", "2"], "sv_threshold must be"),
+    (["analyse", "dommel", "--params", "W2", "--sv-threshold", "2"], "--sv-threshold 2: must be in (0, 1)"),
 ])
 def test_bad_input_exits_2_with_a_message(args: list[str], message: str) -> None:
     run = CliRunner().invoke(app, args)

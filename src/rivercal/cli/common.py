@@ -1,16 +1,27 @@
-"""Pieces shared by the command modules: consoles, common options, JSON output, error handling."""
+"""Pieces shared by the command modules: consoles, common options, JSON output, errors and progress.
+
+Exit status of every command: 0 done; 1 an error rivercal did not expect (an internal error: its type
+and text, and the hint to re-run with ``--debug``) or a purposeful error that is not the input's fault
+(e.g. a store written by a newer version); 2 bad input (:class:`~rivercal.errors.CaseError`,
+:class:`~rivercal.errors.OptionError`; the message names the file, field or option); 3 a failed model
+run (:class:`~rivercal.errors.ModelRunError`); 130 interrupted.
+"""
+
+from __future__ import annotations
 
 import functools
+import os
 import sys
-from typing import Annotated
+from contextlib import contextmanager
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
 
-from rivercal.errors import CaseError, ModelRunError, RivercalError
+from rivercal.errors import CaseError, ModelRunError, OptionError, RivercalError
 
-__all__ = ["CaseArg", "JsonOpt", "QuietOpt", "emit_json", "err_console", "guard", "null_context", "out_console",
-           "parse_assignments", "parse_sets", "parse_window", "select_parameters"]
+__all__ = ["CaseArg", "JsonOpt", "QuietOpt", "Reporter", "debug_enabled", "emit_json", "err_console", "guard",
+           "out_console", "set_debug", "watch_compilation"]
 
 out_console = Console()
 err_console = Console(stderr=True, soft_wrap=True)
@@ -19,128 +30,138 @@ CaseArg = Annotated[str, typer.Argument(help="A case folder or the name of a pac
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary on the terminal.")]
 
+_DEBUG = {"on": False}
+
+
+def set_debug(on: bool) -> None:
+    """Show the traceback of every error (``--debug``; also the environment variable RIVERCAL_DEBUG=1)."""
+    _DEBUG["on"] = on
+
+
+def debug_enabled() -> bool:
+    """Whether ``--debug`` or RIVERCAL_DEBUG=1 asked for tracebacks."""
+    return _DEBUG["on"] or os.environ.get("RIVERCAL_DEBUG", "").strip().lower() in ("1", "true", "yes", "on")
+
 
 def emit_json(obj: dict) -> None:
-    """Print one JSON object on stdout (numpy numbers and timestamps as their str/float)."""
+    """Print one JSON object on stdout (numpy numbers and timestamps as their float/str)."""
     import json
 
     sys.stdout.write(json.dumps(obj, default=lambda v: float(v) if hasattr(v, "__float__") else str(v)) + "\n")
 
 
-def fail(exc: Exception, code: int) -> None:
-    """Print an error on stderr and exit with ``code``."""
-    err_console.print(f"[bold red]error:[/] {exc}", highlight=False)
+def _fail(label: str, text: str, code: int, hint: str = "") -> None:
+    if debug_enabled():
+        import traceback
+
+        sys.stderr.write(traceback.format_exc())
+        hint = ""
+    err_console.print(f"[bold red]{label}[/] {text}" + (f"\n{hint}" if hint else ""), highlight=False)
     raise typer.Exit(code)
 
 
 def guard(func):
-    """Turn rivercal's errors into a message and an exit code: 2 bad input, 3 failed model run, 1 other."""
+    """Turn errors into a message and an exit status (see the module docstring)."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         try:
             return func(*args, **kwargs)
-        except (CaseError, KeyError, ValueError) as exc:
-            fail(exc if not isinstance(exc, KeyError) else ValueError(exc.args[0]), 2)
+        except (typer.Exit, typer.Abort, SystemExit):
+            raise
+        except (CaseError, OptionError) as exc:
+            _fail("error:", str(exc), 2)
         except ModelRunError as exc:
-            fail(exc, 3)
+            _fail("model run failed:", str(exc), 3)
         except RivercalError as exc:
-            fail(exc, 1)
+            _fail("error:", str(exc), 1)
+        except KeyboardInterrupt:
+            _fail("interrupted", "", 130)
+        except Exception as exc:  # everything else is rivercal's fault, never the input's
+            _fail("internal error:", f"{type(exc).__name__}: {exc}", 1,
+                  hint="This is a bug in rivercal, not a problem with your input. Re-run with --debug (or "
+                       "RIVERCAL_DEBUG=1) to see the traceback, and please report it with the command.")
 
     return wrapper
 
 
-class null_context:
-    """A context manager that does nothing (in place of a progress display under --json or --quiet)."""
-
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
+# -- the first run compiles the engine ------------------------------------------------------------
 
 
-def parse_sets(values: list[str]) -> dict[str, float]:
-    """Parse repeated ``--set NAME=VALUE`` options into a dict of floats."""
-    out: dict[str, float] = {}
-    for item in values:
-        out.update(parse_assignments(item, "--set", example="friction:global=20"))
-    return out
+def watch_compilation(show: bool) -> None:
+    """Say on stderr when numba starts compiling rivercal's kernels (a cold cache: the first run only).
+
+    numba announces a compilation (the ``numba:compile`` event) only when it compiles, never when it
+    loads a kernel from its cache, so the note appears exactly when the wait is long. Printed once per
+    process, also under ``--json`` (on stderr), not under ``--quiet``.
+    """
+    if not show or _COMPILE["watching"]:
+        return
+    from numba.core import event
+
+    class CompileNotice(event.Listener):
+        def on_start(self, ev: Any) -> None:
+            if _COMPILE["shown"] or os.getpid() != _COMPILE["pid"]:  # forked workers inherit this; the parent speaks
+                return
+            module = getattr(getattr((ev.data or {}).get("dispatcher"), "py_func", None), "__module__", None) or ""
+            if module.startswith("rivercal."):
+                _COMPILE["shown"] = True
+                err_console.print("compiling the engine (first run only; later runs load it from the cache) …",
+                                  highlight=False)
+
+        def on_end(self, ev: Any) -> None:
+            pass
+
+    _COMPILE.update(watching=True, pid=os.getpid())
+    event.register("numba:compile", CompileNotice())
 
 
-def parse_assignments(text: str | None, what: str, example: str = "FA=20") -> dict[str, float]:
-    """'FA=20,Wc=0.8' → {'FA': 20.0, 'Wc': 0.8}; ``what`` names the option in error messages."""
-    out: dict[str, float] = {}
-    for item in filter(None, (part.strip() for part in (text or "").split(","))):
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            raise ValueError(f"{what} {item!r}: expected NAME=VALUE, e.g. {what} {example}")
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise ValueError(f"{what} {item!r}: {value!r} is not a number") from None
-    return out
+_COMPILE: dict[str, Any] = {"watching": False, "shown": False, "pid": None}
 
 
-def parse_window(case, text: str):
-    """A window of the case by name, or ``START/END``, as UTC timestamps inside the case period."""
-    import pandas as pd
-
-    named = {w.name: (w.start, w.end) for w in case.spec.windows}
-    if text in named:
-        a, b = named[text]
-    else:
-        first, sep, second = text.partition("/")
-        if not sep:
-            known = ", ".join(named) or "none"
-            raise ValueError(f"--window {text!r}: expected START/END (e.g. 2010-09-27/2010-10-04) or a window of "
-                             f"the case ({known})")
-        try:
-            a, b = pd.Timestamp(first), pd.Timestamp(second)
-        except ValueError:
-            raise ValueError(f"--window {text!r}: not two dates START/END") from None
-    a = pd.Timestamp(a).tz_localize("UTC") if pd.Timestamp(a).tzinfo is None else pd.Timestamp(a).tz_convert("UTC")
-    b = pd.Timestamp(b).tz_localize("UTC") if pd.Timestamp(b).tzinfo is None else pd.Timestamp(b).tz_convert("UTC")
-    if not b > a:
-        raise ValueError(f"--window {text!r}: the end is not after the start")
-    if a < case.start or b > case.end:
-        raise ValueError(f"--window {text!r}: lies outside the case period {case.start} .. {case.end}")
-    return a, b
+# -- progress -------------------------------------------------------------------------------------
 
 
-def select_parameters(case, names: str, start: dict[str, float], bounds: list[str]):
-    """The case's parameters named in ``names`` (comma-separated), with start values and bounds overridden."""
-    from rivercal.parameters import ParameterSet
+class Reporter:
+    """Renders a workflow's progress on stderr (a spinner, a bar with totals) unless it is off.
 
-    wanted = [n.strip() for n in names.split(",") if n.strip()]
-    if not wanted:
-        raise ValueError("--params: give at least one parameter name")
-    known = {p.name: p for p in case.spec.parameters}
-    for n in wanted:
-        if n not in known:
-            raise ValueError(f"--params: unknown parameter {n!r}; the case defines {', '.join(known) or 'none'}")
-    updates: dict[str, dict[str, float]] = {n: {} for n in wanted}
-    for item in bounds:
-        name, sep, rng = item.partition("=")
-        low, colon, high = rng.partition(":")
-        if not sep or not colon or name not in updates:
-            raise ValueError(f"--bounds {item!r}: expected NAME=MIN:MAX for a parameter in --params")
-        try:
-            updates[name].update(min=float(low), max=float(high))
-        except ValueError:
-            raise ValueError(f"--bounds {item!r}: MIN and MAX must be numbers") from None
-        if not updates[name]["min"] < updates[name]["max"]:
-            raise ValueError(f"--bounds {item!r}: min must be below max")
-    for name, value in start.items():
-        if name not in updates:
-            raise ValueError(f"--start {name}={value}: {name!r} is not in --params")
-        updates[name]["initial"] = value
-    chosen = []
-    for n in wanted:
-        p = known[n]
-        merged = {**p.model_dump(), **updates[n]}
-        lo, hi, x0 = merged["min"], merged["max"], merged["initial"]
-        if not lo <= x0 <= hi:
-            raise ValueError(f"parameter {n}: start value {x0:g} lies outside its bounds [{lo:g}, {hi:g}]")
-        chosen.append(type(p).model_validate(merged))
-    return ParameterSet(chosen)
+    Implements :class:`rivercal.workflows.Progress`: ``stage`` (what happens now), ``step`` (done of
+    total, with a bar) and ``note`` (a line that stays above the display).
+    """
+
+    def __init__(self, show: bool):
+        self.show = show
+        self._progress = None
+        self._task = None
+
+    @contextmanager
+    def running(self, first: str = "starting"):
+        """Show the display while the block runs (nothing when off)."""
+        if not self.show:
+            yield self
+            return
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+        with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(bar_width=24),
+                      MofNCompleteColumn(), TimeElapsedColumn(), console=err_console, transient=True) as progress:
+            self._progress = progress
+            self._task = progress.add_task(first, total=None)
+            try:
+                yield self
+            finally:
+                self._progress = self._task = None
+
+    def stage(self, text: str) -> None:
+        """What the workflow does now (no count)."""
+        if self._progress is not None:
+            self._progress.update(self._task, description=text, total=None, completed=0)
+
+    def step(self, done: int, total: int | None, text: str) -> None:
+        """``done`` of ``total`` units of work (a bar when the total is known)."""
+        if self._progress is not None:
+            self._progress.update(self._task, description=text, total=total, completed=done)
+
+    def note(self, text: str) -> None:
+        """A line that stays (a finished cycle, a skipped file)."""
+        if self.show:
+            err_console.print(text, highlight=False)

@@ -1,25 +1,26 @@
 """``rivercal twin``: the twin experiments and the initial model analysis of the reference study (chapter 4).
 
-Every run writes, under ``--out``: per suite the tables and figures of
-:func:`rivercal.report.twin.write_suite`; for ``sensitivity`` those of
-:func:`rivercal.report.twin.write_initial_analysis`; ``summary.json`` (what ``--json`` prints); and
-``index.html`` (:func:`rivercal.report.thesis.write_report`), our numbers beside the thesis'.
+The work and the files are :func:`rivercal.workflows.twin.run_thesis`'s; this module checks the options
+and prints.
 """
 
-import json
+from __future__ import annotations
+
 import shlex
 import sys
-import time
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.table import Table
 
-from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, emit_json, err_console, null_context, out_console
+from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.options import check_number, open_model, output_dir, parse_names, parse_time
+from rivercal.errors import OptionError
+from rivercal.workflows.twin import SCENARIO_SUITES, SENSITIVITY
 
-SCENARIO_SUITES = ("F1W0", "F0W1", "FaWc", "FaWcP", "FaWcN")
-SENSITIVITY = "sensitivity"
+__all__ = ["twin"]
+
 THESIS = "thesis"
 SUITE_HELP = ("F1W0, F0W1, FaWc, FaWcP, FaWcN (thesis §4-4), 'sensitivity' (the initial model analysis of thesis "
               "§4-5-1: the one-at-a-time sensitivity of Table 4-4 AND the identifiability analysis, Figs. 4-5 … 4-7; "
@@ -44,77 +45,36 @@ def twin(
     quiet: QuietOpt = False,
 ) -> None:
     """Twin experiments of the thesis: truths, perturbed starts, DuD, indicators; sensitivity; one HTML report."""
-    from rivercal.model import load_model
+    from rivercal.evaluate import default_workers
+    from rivercal.workflows.twin import run_thesis
 
-    t0 = time.perf_counter()
     names = _suites(suite)
     scenario_names = [n for n in names if n in SCENARIO_SUITES]
     _check_window(window)
     chosen = _scenarios(scenario_names, scenarios, window)
-    wanted = [p.strip() for p in params.split(",") if p.strip()]
+    wanted = parse_names(params, "--params")
     if SENSITIVITY in names and not wanted:
-        raise ValueError("--params: give at least one parameter for the sensitivity analysis")
-    if workers is not None and workers < 1:
-        raise ValueError(f"--workers {workers}: must be at least 1")
-    show = not (quiet or as_json)
-    from rivercal.evaluate import default_workers
-
-    workers = workers or default_workers()
-    sim = load_model(case)
-    _check_case(sim, names, wanted if SENSITIVITY in names else [], window)
-
-    summary: dict = {"case": sim.case.name, "suites": {}, "workers": workers}
-    results_by_suite, files_by_suite, analysis, analysis_files = {}, {}, None, {}
-    if SENSITIVITY in names:
-        analysis, analysis_files = _run_analysis(sim, wanted, window, workers, out, show)
-        summary[SENSITIVITY] = _analysis_summary(analysis, analysis_files)
-    if chosen:
-        results = _run_suites(sim, chosen, workers, show)
-        for name in scenario_names:
-            results_by_suite[name] = [r for r in results if r.suite == name]
-    from rivercal.report.twin import suite_summary, write_suite
-
-    for name, results in results_by_suite.items():
-        files_by_suite[name] = write_suite(name, results, out)
-        summary["suites"][name] = {**suite_summary(results), "files": files_by_suite[name]}
-        if show:
-            _print_suite(name, results, summary["suites"][name])
-    summary["wall_s"] = round(time.perf_counter() - t0, 1)
+        raise OptionError("--params: give at least one parameter for the sensitivity analysis", option="--params")
+    check_number(workers, "--workers", low=1)
+    output_dir(out)
+    model = open_model(case, show_compilation=not quiet)
+    _check_case(model, names, wanted if SENSITIVITY in names else [], window)
     complete = (set(SCENARIO_SUITES) | {SENSITIVITY}) <= set(names) and scenarios is None and window is None \
         and params == PARAMS_DEFAULT
-    from rivercal.report.thesis import targets, write_report
-
-    report = write_report(out, case=sim.case.name, command=_command(), suites=results_by_suite,
-                          files=files_by_suite, analysis=analysis, analysis_files=analysis_files,
-                          wall_s=summary["wall_s"], workers=workers, complete=complete)
-    summary["targets"] = [{"target": t, "measured": row["measured"], "met": row["met"]}
-                          for t, row in targets(results_by_suite, wall_s=summary["wall_s"], complete=complete,
-                                                workers=workers).iterrows()]
-    summary["report"] = str(report)
-    summary = _clean(summary)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    show = not (quiet or as_json)
+    reporter = Reporter(show)
+    with reporter.running("starting"):
+        done = run_thesis(model, names, chosen, wanted, out, window=window, workers=workers or default_workers(),
+                          command=_command(), complete=complete, progress=reporter)
     if as_json:
-        emit_json(summary)
-    elif not quiet:
-        out_console.print(f"{', '.join(names)} in {summary['wall_s']:.0f} s; report {report}")
-
-
-def _clean(value):
-    """JSON-safe: numpy scalars to Python, NaN and ±inf to None, containers recursively, the rest as str."""
-    import math
-
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    if hasattr(value, "item") and getattr(value, "ndim", 1) == 0:
-        value = value.item()
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if value is None or isinstance(value, bool | int | str):
-        return value
-    return str(value)
+        emit_json(done.summary)
+        return
+    if show:
+        _print_analysis(done.analysis)
+        for name, results in done.suites.items():
+            _print_suite(name, results, done.summary["suites"][name])
+    if not quiet:
+        out_console.print(f"{', '.join(names)} in {done.summary['wall_s']:.0f} s; report {done.summary['report']}")
 
 
 def _command() -> str:
@@ -122,6 +82,7 @@ def _command() -> str:
 
 
 def _suites(text: str) -> list[str]:
+    every = (*SCENARIO_SUITES, SENSITIVITY, THESIS)
     names = []
     for item in (s.strip() for s in text.split(",")):
         if not item:
@@ -129,109 +90,80 @@ def _suites(text: str) -> list[str]:
         expanded = [*SCENARIO_SUITES, SENSITIVITY] if item == THESIS else [item]
         for n in expanded:
             if n not in (*SCENARIO_SUITES, SENSITIVITY):
-                raise ValueError(f"--suite {item!r}: choose from {', '.join((*SCENARIO_SUITES, SENSITIVITY, THESIS))} "
-                                 "(several joined by commas)")
+                raise OptionError(f"--suite {item!r}: choose from {', '.join(every)} (several joined by commas)",
+                                  option="--suite")
             if n not in names:
                 names.append(n)
     if not names:
-        raise ValueError(f"--suite {text!r}: give at least one of {', '.join((*SCENARIO_SUITES, SENSITIVITY, THESIS))}")
+        raise OptionError(f"--suite {text!r}: give at least one of {', '.join(every)}", option="--suite")
     return names
 
 
 def _check_window(window: str | None) -> None:
     if window is None or "/" not in window:
         return
-    import pandas as pd
-
     a, _, b = window.partition("/")
-    try:
-        ok = pd.Timestamp(b) > pd.Timestamp(a)
-    except ValueError:
-        ok = False
-    if not ok:
-        raise ValueError(f"--window {window!r}: expected START/END with END after START")
+    if not parse_time(b, "--window") > parse_time(a, "--window"):
+        raise OptionError(f"--window {window!r}: expected START/END with END after START", option="--window")
 
 
 def _scenarios(suites: list[str], scenarios: str | None, window: str | None) -> list:
     """The scenarios to run; unknown ids fail here, before any model run."""
     from rivercal.twin.suites import suite_scenarios
 
-    ids = [s.strip() for s in scenarios.split(",") if s.strip()] if scenarios else None
+    ids = parse_names(scenarios, "--scenarios") if scenarios is not None else None
+    if ids == []:
+        raise OptionError("--scenarios: give at least one scenario id, e.g. H1,L2", option="--scenarios")
     chosen = []
     for name in suites:
         available = [s.id for s in suite_scenarios(name)]
         keep = [i for i in ids if i in available] if ids is not None else None
         if keep == []:
-            raise ValueError(f"--scenarios {scenarios!r}: suite {name} has none of them (it has "
-                             f"{', '.join(available)})")
+            raise OptionError(f"--scenarios {scenarios!r}: suite {name} has none of them (it has "
+                              f"{', '.join(available)})", option="--scenarios")
         chosen += suite_scenarios(name, ids=keep, window=window)
     if ids is not None:
         every = {s.id for n in suites for s in suite_scenarios(n)}
         unknown = [i for i in ids if i not in every]
         if unknown:
-            raise ValueError(f"--scenarios: no chosen suite has a scenario {unknown[0]!r}")
+            raise OptionError(f"--scenarios: no chosen suite has a scenario {unknown[0]!r}", option="--scenarios")
     return chosen
 
 
-def _check_case(sim, names: list[str], params: list[str], window: str | None) -> None:
+def _check_case(model, names: list[str], params: list[str], window: str | None) -> None:
     from rivercal.twin.suites import SUITES
 
-    known = [w.name for w in sim.case.spec.windows]
+    case = model.case
+    known = [w.name for w in case.spec.windows]
     if window is not None and "/" not in window and window not in known:
-        raise ValueError(f"--window {window!r}: the case has windows {', '.join(known)}")
-    defined = {p.name for p in sim.case.spec.parameters}
+        raise OptionError(f"--window {window!r}: the case has windows {', '.join(known)}", option="--window")
+    if window is not None and "/" in window:
+        a, _, b = window.partition("/")
+        if parse_time(a, "--window") < model.start or parse_time(b, "--window") > model.end:
+            raise OptionError(f"--window {window!r}: lies outside the case period {model.start:%Y-%m-%d %H:%M} .. "
+                              f"{model.end:%Y-%m-%d %H:%M}", option="--window")
+    defined = {p.name for p in case.spec.parameters}
     missing = sorted({p for n in names if n in SUITES for p in SUITES[n].truths} - defined)
     if missing:
-        raise ValueError(f"case {sim.case.name!r} does not define the parameters {missing} the suites need")
+        raise OptionError(f"case {case.name!r} does not define the parameters {missing} the suites need")
     unknown = [p for p in params if p not in defined]
     if unknown:
-        raise ValueError(f"--params: unknown parameter {unknown[0]!r}; the case defines {', '.join(sorted(defined))}")
+        raise OptionError(f"--params: unknown parameter {unknown[0]!r}; the case defines {', '.join(sorted(defined))}",
+                          option="--params")
     if window is None and "moderate" not in known and SENSITIVITY in names:
-        raise ValueError(f"case {sim.case.name!r} has no 'moderate' window for the sensitivity; give --window")
+        raise OptionError(f"--window: case {case.name!r} has no 'moderate' window for the sensitivity; give one",
+                          option="--window")
 
 
-def _run_analysis(sim, params: list[str], window: str | None, workers: int | None, out: Path, show: bool):
-    from rivercal.report.twin import write_initial_analysis
-    from rivercal.twin.suites import initial_analysis
-
-    status = err_console.status(f"initial analysis: sensitivity and identifiability of {', '.join(params)}",
-                                spinner="dots") if show else null_context()
-    with status:
-        analysis = initial_analysis(sim, params, window or "moderate", workers=workers)
-    files = write_initial_analysis(analysis, out, sim.case.name)
-    if show:
-        rank = analysis.sensitivity.ranking()
-        out_console.print(f"initial analysis: {analysis.model_runs} runs in {analysis.wall_s:.0f} s; strongest "
-                          f"{', '.join(rank.index[:4])}")
-        if analysis.identifiability is not None:
-            v = analysis.identifiability.verdict["verdict"]
-            out_console.print("identifiability: " + ", ".join(f"{n} {v[n]}" for n in v.index), highlight=False)
-    return analysis, files
-
-
-def _analysis_summary(analysis, files: dict) -> dict:
-    out = {"parameters": list(analysis.parameters), "window": [t.isoformat() for t in analysis.window],
-           "model_runs": analysis.model_runs, "wall_s": round(analysis.wall_s, 1),
-           "sensitivity": analysis.sensitivity.summary(), "files": files}
+def _print_analysis(analysis) -> None:
+    if analysis is None:
+        return
+    rank = analysis.sensitivity.ranking()
+    out_console.print(f"initial analysis: {analysis.model_runs} runs in {analysis.wall_s:.0f} s; strongest "
+                      f"{', '.join(rank.index[:4])}")
     if analysis.identifiability is not None:
-        out["identifiability"] = analysis.identifiability.summary()
-    return out
-
-
-def _run_suites(sim, chosen: list, workers: int | None, show: bool) -> list:
-    from rivercal.twin.suites import run_scenarios
-
-    total = len(chosen)
-    done: list = []
-    status = err_console.status(f"0/{total} scenarios", spinner="dots") if show else null_context()
-    with status as live:
-        def progress(result):
-            done.append(result)
-            if live is not None and hasattr(live, "update"):
-                live.update(f"{len(done)}/{total} scenarios ({result.suite} {result.id}: {result.iterations} "
-                            "iterations)")
-
-        return run_scenarios(sim, chosen, workers=workers, progress=progress)
+        v = analysis.identifiability.verdict["verdict"]
+        out_console.print("identifiability: " + ", ".join(f"{n} {v[n]}" for n in v.index), highlight=False)
 
 
 def _print_suite(name: str, results, s: dict) -> None:

@@ -1,0 +1,135 @@
+"""``rivercal bench``: the benchmarks of the engine, the calibration, the rainfall-runoff model and the service."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from rivercal.cli.common import JsonOpt, emit_json, guard, out_console, watch_compilation
+from rivercal.cli.options import check_choice, check_number, parse_names, parse_time
+
+__all__ = ["app"]
+
+app = typer.Typer(help="Benchmarks (JSON output).", no_args_is_help=True)
+
+
+@app.command("engine")
+@guard
+def engine(
+    case: Annotated[str, typer.Option(help="Case to time.")] = "synthetic",
+    days: Annotated[float, typer.Option(help="Simulated days.")] = 7.0,
+    repeats: Annotated[int, typer.Option(help="Timed runs after warm-up (median reported).")] = 7,
+    as_json: JsonOpt = False,
+) -> None:
+    """Time one simulated week of the synthetic benchmark network (Δt = 60 s)."""
+    from rivercal.bench.engine import bench_engine
+    from rivercal.cli.options import open_model
+
+    check_number(days, "--days", low=0, high=366, low_open=True)
+    check_number(repeats, "--repeats", low=1, high=1000)
+    model = open_model(case)  # a bad case fails here, with its file and field
+    span = (model.end - model.start).total_seconds() / 86400
+    check_number(days, "--days", high=span)
+    result = bench_engine(case, days=days, repeats=repeats).to_dict()
+    if as_json:
+        emit_json(result)
+        return
+    table = Table(title="engine benchmark", show_header=False)
+    for key, value in result.items():
+        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+    out_console.print(table)
+
+
+@app.command("calibrate")
+@guard
+def calibrate(
+    algorithms: Annotated[str | None, typer.Option(help="Comma-separated algorithms (default: all).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """FaWc twin calibration of the default case (truth 20/0.8, start 14/0.1, moderate window) per algorithm."""
+    from rivercal.bench.calibrate import bench_calibrate
+    from rivercal.optimise import OPTIMISERS
+
+    names = parse_names(algorithms, "--algorithms") if algorithms is not None else None
+    for name in names or []:
+        check_choice(name, "--algorithms", sorted(OPTIMISERS))
+    check_number(workers, "--workers", low=1)
+    watch_compilation(True)
+    result = bench_calibrate(names or None, workers=workers)
+    if as_json:
+        emit_json(result)
+        return
+    table = Table(title="FaWc twin calibration (truth FA=20, Wc=0.8; start 14, 0.1; moderate window)")
+    for col in ("algorithm", "runs", "iterations", "wall s", "FA", "Wc", "ΔFA", "ΔWc"):
+        table.add_column(col, justify="right")
+    for r in result["results"]:
+        table.add_row(r["algorithm"], str(r["model_runs"]), str(r["iterations"]), f"{r['wall_s']:.2f}",
+                      f"{r['fa']:.4f}", f"{r['wc']:.5f}", f"{r['error_fa']:+.1e}", f"{r['error_wc']:+.1e}")
+    out_console.print(table)
+
+
+@app.command("hupsel")
+@guard
+def hupsel(as_json: JsonOpt = False) -> None:
+    """Calibrate the rainfall-runoff model on Hupsel 2011/12, validate on 2012/13: DuD, LM, Nelder-Mead, SCE-UA."""
+    from rivercal.bench.hupsel import HUPSEL_METHODS, calibrate_hupsel
+
+    watch_compilation(True)
+    rows = [calibrate_hupsel(m).to_dict() for m in HUPSEL_METHODS]
+    if as_json:
+        emit_json({"hupsel": rows})
+        return
+    table = Table(title="Hupsel Brook: calibration 2011-04..2012-03, validation 2012-04..2013-03")
+    for col in ("method", "runs", "wall s", "NSE cal", "NSE val", "KGE cal", "KGE val"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        table.add_row(r["method"], str(r["model_runs"]), f"{r['wall_s']:.2f}", f"{r['nse_calibration']:.3f}",
+                      f"{r['nse_validation']:.3f}", f"{r['kge_calibration']:.3f}", f"{r['kge_validation']:.3f}")
+    out_console.print(table)
+    out_console.print(f"a-priori parameters: NSE cal {rows[0]['nse_calibration_default']:.3f}, "
+                      f"val {rows[0]['nse_validation_default']:.3f}")
+
+
+@app.command("online")
+@guard
+def online(
+    scenario: Annotated[str, typer.Option(help="Practical scenario that makes the observations.")] = "PI-Fg",
+    first_issue: Annotated[str, typer.Option("--from", help="Issue time of the first (untimed) cycle.")] = "2010-11-09",
+    cycles: Annotated[int, typer.Option(help="Timed warm-started cycles (median reported).")] = 5,
+    workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
+    replay: Annotated[bool, typer.Option(help="Also time the four-week replay 2010-10-18 .. 2010-11-15.")] = False,
+    replay_repeats: Annotated[int, typer.Option(help="Timed replays (median reported).")] = 3,
+    as_json: JsonOpt = False,
+) -> None:
+    """Time one warm-started cycle of the on-line service (7-day window, FA and Wd, DuD) on dommel."""
+    import pandas as pd
+
+    from rivercal.bench.online import bench_online
+    from rivercal.cli.options import open_model
+    from rivercal.errors import OptionError
+    from rivercal.twin.practical import PRACTICAL_SCENARIOS
+
+    check_choice(scenario, "--scenario", PRACTICAL_SCENARIOS)
+    first = parse_time(first_issue, "--from")
+    check_number(cycles, "--cycles", low=1, high=1000)
+    check_number(workers, "--workers", low=1)
+    check_number(replay_repeats, "--replay-repeats", low=1, high=100)
+    model = open_model("dommel")
+    earliest = model.start + pd.Timedelta("8D")  # the 7-day window and the 24 h warm-up
+    latest = model.end - pd.Timedelta("1D") * cycles
+    if not earliest <= first <= latest:
+        raise OptionError(f"--from {first_issue}: the first cycle must be issued between {earliest:%Y-%m-%d %H:%M} "
+                          f"and {latest:%Y-%m-%d %H:%M} for {cycles} more daily cycles in the case period",
+                          option="--from")
+    result = bench_online("dommel", scenario, first_issue=first_issue, cycles=cycles, workers=workers,
+                          replay=replay, replay_repeats=replay_repeats).to_dict()
+    if as_json:
+        emit_json(result)
+        return
+    table = Table(title="on-line service benchmark", show_header=False)
+    for key, value in result.items():
+        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+    out_console.print(table)

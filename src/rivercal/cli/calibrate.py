@@ -1,0 +1,132 @@
+"""``rivercal calibrate``: estimate parameters over a window, from observations or in a twin experiment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.options import (
+    check_choice,
+    check_number,
+    input_file,
+    open_model,
+    optimiser_options,
+    output_dir,
+    parse_assignments,
+    parse_window,
+    select_parameters,
+)
+from rivercal.errors import OptionError
+
+__all__ = ["calibrate"]
+
+
+def calibrate(
+    case: CaseArg,
+    params: Annotated[str, typer.Option("--params", help="Parameters to estimate, e.g. FA,Wc (defined by the case).")],
+    window: Annotated[str, typer.Option(help="START/END (UTC dates) or a window of the case (e.g. moderate).")],
+    observations: Annotated[Path | None, typer.Option(
+        help="Observation CSV (time + '<station>.<quantity>' columns).")] = None,
+    twin: Annotated[str | None, typer.Option(help="Twin experiment: true values, e.g. 'FA=20,Wc=0.8'.")] = None,
+    start: Annotated[str | None, typer.Option(help="Start values, e.g. 'FA=14,Wc=0.1' (default: the case's).")] = None,
+    bounds: Annotated[list[str], typer.Option("--bounds", help="Override bounds NAME=MIN:MAX; repeatable.")] = [],  # noqa: B006
+    algorithm: Annotated[str | None, typer.Option(help="Optimiser (default: the case's, usually dud).")] = None,
+    option: Annotated[list[str], typer.Option("--option", help="Optimiser option KEY=VALUE; repeatable.")] = [],  # noqa: B006
+    noise: Annotated[str, typer.Option(help="Twin noise: none, white, gaussian or pink.")] = "none",
+    seed: Annotated[int, typer.Option(help="Seed of the twin noise (≥ 0).")] = 0,
+    warmup: Annotated[float, typer.Option(help="Hours simulated before the window in every run.")] = 24.0,
+    workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
+    max_nfev: Annotated[int | None, typer.Option("--max-nfev", help="Cap on model runs.")] = None,
+    deadline: Annotated[float | None, typer.Option(help="Wall-clock limit, s.")] = None,
+    on_failure: Annotated[str, typer.Option(help="Failed model run: raise or penalty.")] = "raise",
+    out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/calibrate"),
+    as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
+) -> None:
+    """Estimate parameters from observations (or a twin experiment) over a window."""
+    import pandas as pd
+
+    from rivercal.optimise import OPTIMISERS
+    from rivercal.twin import NOISE_MODELS
+    from rivercal.workflows.calibrate import calibrate_window
+    from rivercal.workflows.online import read_observation_file
+
+    # -- everything is checked before the first model run: first what needs no case
+    if (observations is None) == (twin is None):
+        raise OptionError("give either --observations FILE or --twin 'NAME=VALUE,...'")
+    check_choice(noise, "--noise", NOISE_MODELS)
+    if observations is not None and noise != "none":
+        raise OptionError("--noise applies to twin experiments (--twin) only", option="--noise")
+    check_number(seed, "--seed", low=0)
+    check_number(warmup, "--warmup", low=0, high=8784)  # at most a (leap) year, in hours
+    check_number(workers, "--workers", low=1)
+    check_number(max_nfev, "--max-nfev", low=1)
+    check_number(deadline, "--deadline", low=0, low_open=True)
+    check_choice(on_failure, "--on-failure", ("raise", "penalty"))
+    if algorithm is not None:
+        check_choice(algorithm, "--algorithm", sorted(OPTIMISERS))
+    truth = parse_assignments(twin, "--twin") if twin is not None else None
+    start_values = parse_assignments(start, "--start")
+    if observations is not None:
+        input_file(observations, "--observations", (".csv", ".xml"))
+    output_dir(out)
+    # -- then what needs the case
+    model = open_model(case, show_compilation=not quiet)
+    c = model.case
+    algo = algorithm or c.spec.calibration.algorithm
+    pset = select_parameters(c, params, start_values, bounds)
+    defaults = dict(c.spec.calibration.options) if algo == c.spec.calibration.algorithm else {}
+    opts = optimiser_options(algo, option, defaults, pset)
+    hours = pd.Timedelta(hours=warmup)
+    win = parse_window(c, window, warmup=hours)
+    for name, value in (truth or {}).items():
+        if name not in pset.names:
+            raise OptionError(f"--twin {name}={value:g}: {name!r} is not in --params", option="--twin")
+        p = pset[name]
+        if not p.min <= value <= p.max:
+            raise OptionError(f"--twin {name}={value:g}: outside the bounds [{p.min:g}, {p.max:g}] of {name}",
+                              option="--twin")
+    obs = None
+    if observations is not None:
+        obs = read_observation_file(observations).within(*win)
+        if obs.n_values == 0:
+            raise OptionError(f"--observations {observations}: no observations in the window {win[0]:%Y-%m-%d %H:%M}"
+                              f" .. {win[1]:%Y-%m-%d %H:%M}", option="--observations")
+        unknown = [s for s in obs.ids if s not in model.observables]
+        if unknown:
+            raise OptionError(f"--observations {observations}: series {unknown[0]!r} is not simulated by case "
+                              f"{c.name!r} (it simulates {', '.join(model.observables)})", option="--observations")
+
+    reporter = Reporter(not (quiet or as_json))
+    with reporter.running("calibrating"):
+        summary, cal = calibrate_window(model, pset, win, out, observations=obs, truth=truth, noise=noise, seed=seed,
+                                        warmup=hours, algorithm=algo, options=opts, workers=workers,
+                                        max_nfev=max_nfev, deadline=deadline, on_failure=on_failure,
+                                        progress=reporter)
+    if as_json:
+        emit_json(summary)
+    elif not quiet:
+        _print(summary, cal, pset, win)
+
+
+def _print(summary: dict, cal, pset, win) -> None:
+    twin = "truth" in summary
+    table = Table(title=f"{summary['case']}: {summary['algorithm']} over {win[0]:%Y-%m-%d %H:%M} .. "
+                        f"{win[1]:%Y-%m-%d %H:%M}")
+    for col in ("parameter", "start", "estimate", "std", *(["true"] if twin else [])):
+        table.add_column(col, justify="right" if col != "parameter" else "left")
+    for p in pset:
+        row = [p.name, f"{cal.initial[p.name]:.4f}", f"{cal.estimates[p.name]:.4f}",
+               f"{cal.std[p.name]:.2g}" if p.name in cal.std else "-"]
+        if twin:
+            row.append(f"{summary['truth'][p.name]:.4f}" if p.name in summary["truth"] else "-")
+        table.add_row(*row)
+    out_console.print(table)
+    r = cal.result
+    out_console.print(f"cost {r.cost:.4g} after {r.nit} iterations, {r.nfev} model runs, {cal.wall_time:.1f} s; "
+                      f"{r.message}" + (" [aborted]" if r.aborted else ""), highlight=False)
+    out_console.print("wrote " + ", ".join(summary["files"].values()))

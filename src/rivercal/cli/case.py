@@ -1,0 +1,79 @@
+"""``rivercal case``: print the case schema, validate and summarise a case, draw its network."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from rivercal.cli.common import CaseArg, JsonOpt, emit_json, guard, out_console
+from rivercal.cli.options import open_model, output_file
+
+__all__ = ["app"]
+
+app = typer.Typer(help="Inspect and validate cases.", no_args_is_help=True)
+
+
+@app.command("schema")
+@guard
+def schema() -> None:
+    """Print the JSON Schema of case.toml."""
+    from rivercal.case.schema import CaseFile
+
+    emit_json(CaseFile.model_json_schema())
+
+
+@app.command("check")
+@guard
+def check(case: CaseArg, as_json: JsonOpt = False) -> None:
+    """Validate a case and summarise it."""
+    model = open_model(case, show_compilation=not as_json)
+    c = model.case
+    net = c.network
+    compiled = model.compiled
+    summary = {
+        "case": c.name,
+        "folder": str(c.root),
+        "start": c.start.isoformat(),
+        "end": c.end.isoformat(),
+        "branches": len(net.branches),
+        "calculation_points": compiled.n_hpoints,
+        "links": compiled.n_links,
+        "weirs": len(net.weirs),
+        "culverts": len(net.culverts),
+        "pumps": len(net.pumps),
+        "boundaries": len(net.boundaries),
+        "laterals": len(net.laterals),
+        "catchments": len(c.spec.catchments),
+        "catchment_area_km2": round(sum(x.area for x in c.spec.catchments) / 100.0, 1),
+        "observables": compiled.observables,
+    }
+    if as_json:
+        emit_json(summary)
+        return
+    table = Table(title=f"case {c.name} — valid", show_header=False)
+    for key, value in summary.items():
+        table.add_row(key, ", ".join(value) if isinstance(value, list) else str(value))
+    out_console.print(table)
+
+
+@app.command("plot")
+@guard
+def plot(
+    case: CaseArg,
+    out: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("network.png"),
+) -> None:
+    """Draw the network: branches, weirs (labelled), stations, laterals, boundaries."""
+    from rivercal.report.figures import case_weir_labels, plot_network
+
+    if out.suffix.lower() != ".png":
+        from rivercal.errors import OptionError
+
+        raise OptionError(f"--out {out}: expected a .png file", option="--out")
+    output_file(out, "--out")
+    c = open_model(case).case
+    path = plot_network(c.network, out, title=f"{c.name}: {c.spec.case.description}"[:110],
+                        weir_labels=case_weir_labels(c))
+    out_console.print(f"wrote {path}")

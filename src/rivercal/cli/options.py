@@ -1,0 +1,355 @@
+"""The command line's own checks of option values: everything is parsed and checked before the first run.
+
+Every function here raises :class:`~rivercal.errors.OptionError` with a message that names the option
+and the value (the command then exits with status 2). Only pure validation of the user's values is
+done here; running a model is the workflows' job (:mod:`rivercal.workflows`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from rivercal.errors import OptionError
+
+__all__ = [
+    "check_choice",
+    "check_number",
+    "input_file",
+    "open_model",
+    "optimiser_options",
+    "output_dir",
+    "output_file",
+    "parse_assignments",
+    "parse_duration",
+    "parse_names",
+    "parse_sets",
+    "parse_time",
+    "parse_window",
+    "select_parameters",
+]
+
+
+def open_model(argument: str, *, show_compilation: bool = True) -> Any:
+    """The model a CASE argument names: a case folder, its ``case.toml``, or the name of a packaged case.
+
+    Every command takes its CASE through here, so that another kind of model description is added in
+    one place. A bad case raises :class:`~rivercal.errors.CaseError` (file, field, problem).
+    """
+    from rivercal.cli.common import watch_compilation
+    from rivercal.model import load_model
+
+    watch_compilation(show_compilation)
+    return load_model(argument)
+
+
+# -- numbers, names and choices -------------------------------------------------------------------
+
+
+def check_number(value: float | None, option: str, *, low: float | None = None, high: float | None = None,
+                 low_open: bool = False, high_open: bool = False) -> None:
+    """A finite number inside [low, high] (an open end with ``low_open``/``high_open``); None passes."""
+    if value is None:
+        return
+    if not math.isfinite(value):
+        raise OptionError(f"{option} {value}: must be a finite number", option=option)
+    too_low = low is not None and (value <= low if low_open else value < low)
+    too_high = high is not None and (value >= high if high_open else value > high)
+    if too_low or too_high:
+        lo = "" if low is None else f"{'(' if low_open else '['}{low:g}"
+        hi = "" if high is None else f"{high:g}{')' if high_open else ']'}"
+        where = f"in {lo}, {hi}" if low is not None and high is not None else (
+            f"{'above' if low_open else 'at least'} {low:g}" if low is not None else
+            f"{'below' if high_open else 'at most'} {high:g}")
+        raise OptionError(f"{option} {value:g}: must be {where}", option=option)
+
+
+def check_choice(value: str, option: str, choices: Iterable[str], what: str = "choice") -> str:
+    """``value`` if it is one of ``choices`` (``what`` names them in the message, e.g. 'practical scenario')."""
+    choices = list(choices)
+    if value not in choices:
+        raise OptionError(f"{option} {value!r}: unknown {what}; choose one of {', '.join(choices)}", option=option)
+    return value
+
+
+def parse_names(text: str | None, option: str) -> list[str]:
+    """'FA, Wc' → ['FA', 'Wc'] (comma-separated, blanks dropped, no duplicates)."""
+    names = [n.strip() for n in (text or "").split(",") if n.strip()]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise OptionError(f"{option} {text!r}: {twice[0]!r} is named twice", option=option)
+    return names
+
+
+def parse_assignments(text: str | None, option: str, example: str = "FA=20") -> dict[str, float]:
+    """'FA=20,Wc=0.8' → {'FA': 20.0, 'Wc': 0.8}: finite numbers, each name once."""
+    out: dict[str, float] = {}
+    for item in filter(None, (part.strip() for part in (text or "").split(","))):
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise OptionError(f"{option} {item!r}: expected NAME=VALUE, e.g. {option} {example}", option=option)
+        try:
+            number = float(value)
+        except ValueError:
+            raise OptionError(f"{option} {item!r}: {value.strip()!r} is not a number", option=option) from None
+        if not math.isfinite(number):
+            raise OptionError(f"{option} {item!r}: the value must be a finite number", option=option)
+        if name in out:
+            raise OptionError(f"{option} {item!r}: {name!r} is given twice", option=option)
+        out[name] = number
+    return out
+
+
+def parse_sets(values: list[str], model: Any | None = None) -> dict[str, float]:
+    """Repeated ``--set TARGET=VALUE`` → {target: value}; checked against the model when it is given."""
+    out: dict[str, float] = {}
+    for item in values:
+        for name, value in parse_assignments(item, "--set", example="friction:global=20").items():
+            if name in out:
+                raise OptionError(f"--set {name}: given twice", option="--set")
+            out[name] = value
+    if model is not None and out and hasattr(model, "parameter_arrays"):
+        for name, value in out.items():
+            try:  # the model's own check of a target and its value; pure, it runs nothing
+                model.parameter_arrays({name: value})
+            except (KeyError, ValueError) as exc:
+                text = str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc).removeprefix(f"{name}: ")
+                raise OptionError(f"--set {name}={value:g}: {text}", option="--set") from None
+    return out
+
+
+# -- times -----------------------------------------------------------------------------------------
+
+
+def parse_time(text: str, option: str) -> Any:
+    """An ISO 8601 time as a UTC timestamp (a time without zone is UTC)."""
+    import pandas as pd
+
+    try:
+        ts = pd.Timestamp(text)
+    except (ValueError, TypeError, OverflowError):
+        ts = None
+    if ts is None or ts is pd.NaT:
+        raise OptionError(f"{option} {text!r}: not a date or time (ISO 8601, e.g. 2010-10-18 or "
+                          "2010-10-18T06:00Z)", option=option)
+    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+
+
+def parse_duration(text: str, option: str, *, allow_zero: bool = False) -> Any:
+    """A positive duration such as '7D', '48h' or '90min' (zero too with ``allow_zero``)."""
+    import pandas as pd
+
+    try:
+        value = pd.Timedelta(text)
+    except (ValueError, TypeError, OverflowError):
+        value = None
+    if value is None or value is pd.NaT:
+        raise OptionError(f"{option} {text!r}: not a duration (e.g. 7D, 48h, 90min)", option=option)
+    if value < pd.Timedelta(0) or (value == pd.Timedelta(0) and not allow_zero):
+        raise OptionError(f"{option} {text!r}: must be {'zero or ' if allow_zero else ''}positive", option=option)
+    return value
+
+
+def parse_window(case: Any, text: str, *, option: str = "--window", warmup: Any = None) -> tuple[Any, Any]:
+    """A window of the case by name, or ``START/END``, as UTC timestamps inside the case period.
+
+    With ``warmup`` (a Timedelta) the runs start that long before the window; that start must lie in
+    the case period too.
+    """
+    import pandas as pd
+
+    named = {w.name: (w.start, w.end) for w in case.spec.windows}
+    if text in named:
+        a, b = (parse_time(str(t), option) for t in named[text])
+    else:
+        first, sep, second = text.partition("/")
+        if not sep:
+            known = ", ".join(named) or "none"
+            raise OptionError(f"{option} {text!r}: expected START/END (e.g. 2010-09-27/2010-10-04) or a window of "
+                              f"the case ({known})", option=option)
+        a, b = parse_time(first, option), parse_time(second, option)
+    if not b > a:
+        raise OptionError(f"{option} {text!r}: the end is not after the start", option=option)
+    if a < case.start or b > case.end:
+        raise OptionError(f"{option} {text!r}: lies outside the case period {case.start:%Y-%m-%d %H:%M} .. "
+                          f"{case.end:%Y-%m-%d %H:%M}", option=option)
+    if warmup is not None and a - warmup < case.start:
+        hours = pd.Timedelta(warmup).total_seconds() / 3600
+        raise OptionError(f"{option} {text!r}: the runs start {hours:g} h (--warmup) before the window, "
+                          f"at {a - warmup:%Y-%m-%d %H:%M}, before the case starts ({case.start:%Y-%m-%d %H:%M}); "
+                          f"start the window at {case.start + warmup:%Y-%m-%d %H:%M} or later, or shorten --warmup",
+                          option=option)
+    return a, b
+
+
+# -- parameters ------------------------------------------------------------------------------------
+
+
+def select_parameters(case: Any, names: str, start: Mapping[str, float], bounds: list[str]) -> Any:
+    """The case's parameters named in ``names`` (``--params``), with ``--start`` and ``--bounds`` applied."""
+    from rivercal.parameters import ParameterSet
+
+    wanted = parse_names(names, "--params")
+    if not wanted:
+        raise OptionError("--params: give at least one parameter name", option="--params")
+    known = {p.name: p for p in case.spec.parameters}
+    for n in wanted:
+        if n not in known:
+            raise OptionError(f"--params: unknown parameter {n!r}; the case defines {', '.join(known) or 'none'}",
+                              option="--params")
+    updates: dict[str, dict[str, float]] = {n: {} for n in wanted}
+    for item in bounds:
+        name, sep, rng = item.partition("=")
+        low, colon, high = rng.partition(":")
+        if not sep or not colon or name.strip() not in updates:
+            raise OptionError(f"--bounds {item!r}: expected NAME=MIN:MAX for a parameter in --params",
+                              option="--bounds")
+        try:
+            lo, hi = float(low), float(high)
+        except ValueError:
+            raise OptionError(f"--bounds {item!r}: MIN and MAX must be numbers", option="--bounds") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise OptionError(f"--bounds {item!r}: MIN and MAX must be finite with MIN below MAX", option="--bounds")
+        updates[name.strip()].update(min=lo, max=hi)
+    for name, value in start.items():
+        if name not in updates:
+            raise OptionError(f"--start {name}={value:g}: {name!r} is not in --params", option="--start")
+        updates[name]["initial"] = value
+    chosen = []
+    for n in wanted:
+        p = known[n]
+        merged = {**p.model_dump(), **updates[n]}
+        lo, hi, x0 = merged["min"], merged["max"], merged["initial"]
+        if not lo <= x0 <= hi:
+            option = "--start" if "initial" in updates[n] else "--bounds"
+            raise OptionError(f"{option}: the start value {x0:g} of {n} lies outside its bounds [{lo:g}, {hi:g}]"
+                              + (" (the case's start value; give --start too)" if option == "--bounds" else ""),
+                              option=option)
+        try:
+            chosen.append(type(p).model_validate(merged))
+        except ValueError as exc:  # the parameter's own rules, e.g. a cluster lives in [0, 1]
+            option = "--bounds" if "min" in updates[n] else "--start"
+            raise OptionError(f"{option}: parameter {n}: {_first_problem(exc)}", option=option) from None
+    return ParameterSet(chosen)
+
+
+def _first_problem(exc: ValueError) -> str:
+    errors = getattr(exc, "errors", None)
+    if callable(errors):
+        first = errors()[0]
+        return str(first.get("ctx", {}).get("error") or first.get("msg"))
+    return str(exc)
+
+
+# -- files and folders -----------------------------------------------------------------------------
+
+
+def input_file(path: Path, option: str, suffixes: Iterable[str] | None = None) -> Path:
+    """An existing, readable file (with one of ``suffixes`` when given)."""
+    if not path.is_file():
+        what = "is a folder, not a file" if path.is_dir() else "no such file"
+        raise OptionError(f"{option} {path}: {what}", option=option)
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        raise OptionError(f"{option} {path}: expected a file ending in {' or '.join(suffixes)}", option=option)
+    return path
+
+
+def output_dir(path: Path, option: str = "--out") -> Path:
+    """A folder to write into: created if missing; an error when it cannot be."""
+    if path.exists() and not path.is_dir():
+        raise OptionError(f"{option} {path}: exists and is not a folder", option=option)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OptionError(f"{option} {path}: cannot create the folder ({exc.strerror or exc})", option=option) from None
+    return path
+
+
+def output_file(path: Path, option: str) -> Path:
+    """A file to write: its folder is created; an existing folder of that name is an error."""
+    if path.is_dir():
+        raise OptionError(f"{option} {path}: is a folder; give a file name", option=option)
+    output_dir(path.parent, option)
+    return path
+
+
+# -- optimiser options -----------------------------------------------------------------------------
+
+
+def optimiser_options(algorithm: str, items: list[str], defaults: Mapping[str, Any], parameters: Any) -> dict:
+    """``--option KEY=VALUE`` (repeatable) over ``defaults``, typed by the algorithm's options dataclass.
+
+    The optimiser's own checks then run on a stand-in problem of the same size (the residuals x − x0,
+    one evaluation, no model), so that a bad value fails here, before any model run.
+    """
+    import dataclasses
+    import typing
+
+    import numpy as np
+
+    from rivercal.optimise import OPTIMISERS
+
+    cls = _options_class(algorithm)
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: hints[f.name] for f in dataclasses.fields(cls)}
+    opts = dict(defaults)
+    for item in items:
+        key, sep, text = (part.strip() for part in item.partition("="))
+        if not sep or not key:
+            raise OptionError(f"--option {item!r}: expected KEY=VALUE, e.g. --option max_outer=10", option="--option")
+        if key not in fields:
+            raise OptionError(f"--option {item!r}: {algorithm} has no option {key!r}; it has "
+                              f"{', '.join(fields)}", option="--option")
+        opts[key] = _typed(item, text, fields[key])
+    x0 = np.asarray(parameters.to_x(), dtype=float)
+    lb, ub = parameters.bounds()
+    try:
+        OPTIMISERS[algorithm](lambda x: np.asarray(x, dtype=float) - x0, x0, lb, ub, options=opts, max_nfev=1)
+    except (ValueError, TypeError) as exc:
+        source = "--option" if items else "the case's [calibration] options"
+        raise OptionError(f"{source}: {algorithm} refuses its options: {exc}", option="--option") from None
+    return opts
+
+
+def _options_class(algorithm: str) -> type:
+    from rivercal import optimise as o
+
+    classes = {"dud": o.DudOptions, "sparse_dud": o.SparseDudOptions, "lm": o.LmOptions, "sce_ua": o.SceOptions,
+               "dds": o.DdsOptions, "nelder_mead": o.NelderMeadOptions, "powell": o.PowellOptions, "cg": o.CgOptions,
+               "bfgs": o.BfgsOptions, "grid": o.GridOptions, "glue": o.GlueOptions}
+    return classes[algorithm]
+
+
+def _typed(item: str, text: str, kind: Any) -> Any:
+    """The value of ``--option KEY=TEXT`` as the field's type (int, float, bool or str)."""
+    import typing
+
+    args = [a for a in typing.get_args(kind) if a is not type(None)]
+    base = args[0] if len(args) == 1 else kind
+    if text.lower() == "none" and type(None) in typing.get_args(kind):
+        return None
+    if base is bool:
+        if text.lower() in ("true", "yes", "1", "on"):
+            return True
+        if text.lower() in ("false", "no", "0", "off"):
+            return False
+        raise OptionError(f"--option {item!r}: expected true or false", option="--option")
+    if base in (int, float):
+        try:
+            value = float(text)
+        except ValueError:
+            raise OptionError(f"--option {item!r}: {text!r} is not a number", option="--option") from None
+        if not math.isfinite(value):
+            raise OptionError(f"--option {item!r}: the value must be a finite number", option="--option")
+        if base is int:
+            if value != int(value):
+                raise OptionError(f"--option {item!r}: expected a whole number", option="--option")
+            return int(value)
+        return value
+    if base is str:
+        return text
+    raise OptionError(f"--option {item!r}: this option takes an array or a function and cannot be set on the "
+                      "command line", option="--option")

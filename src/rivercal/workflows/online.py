@@ -1,0 +1,195 @@
+"""The on-line service over a replay or a watched folder, with its summary and report.
+
+Observations reach the store from a twin scenario of thesis chapter 5, from files (CSV or Delft-FEWS
+PI-XML), or from a folder that is watched; the service then runs every cycle that is due. A restart
+with the same store and run resumes at the first unfinished cycle.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from rivercal.workflows.progress import NO_PROGRESS, Progress
+
+__all__ = ["format_value", "online_summary", "read_observation_file", "run_online"]
+
+log = logging.getLogger(__name__)
+
+
+def read_observation_file(path: str | Path) -> Any:
+    """Observations from a CSV file or a Delft-FEWS PI-XML file (by its suffix).
+
+    Raises
+    ------
+    CaseError
+        For a file that cannot be read or holds bad values (named, with the line).
+    """
+    from rivercal.errors import CaseError
+    from rivercal.io import read_observations_csv, read_pixml
+
+    path = Path(path)
+    if path.suffix.lower() == ".xml":
+        return read_pixml(path)
+    if path.suffix.lower() == ".csv":
+        return read_observations_csv(path)
+    raise CaseError("expected a .csv or a PI-XML .xml file", file=str(path))
+
+
+def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Timestamp, last: pd.Timestamp, *,
+               scenario: str | None = None, noise: str = "none", seed: int = 0,
+               observations: Sequence[tuple[str, Any]] = (), follow: str | Path | None = None, poll: float = 10.0,
+               max_cycles: int | None = None, report: str | Path | None = None,
+               progress: Progress = NO_PROGRESS) -> dict[str, Any]:
+    """Run the cycles issued from ``first`` to ``last`` and return the summary (:func:`online_summary`).
+
+    Parameters
+    ----------
+    model
+        A loaded model (:func:`rivercal.model.load_model`).
+    db
+        The SQLite store (created if missing).
+    run
+        The run's name in the store; a run that exists resumes (with the same configuration only).
+    config
+        The :class:`~rivercal.online.service.OnlineConfig`.
+    first, last
+        Issue times (UTC) of the first and the last cycle.
+    scenario, noise, seed
+        Twin observations of a practical scenario of thesis chapter 5, with noise.
+    observations
+        (source name, :class:`~rivercal.observations.ObservationSet`) pairs to ingest.
+    follow, poll
+        Watch this folder for new CSV / PI-XML files, looking every ``poll`` s, and run each cycle when
+        its data are in; stops after ``last`` or on Ctrl-C (finished cycles stay stored).
+    max_cycles
+        Stop after this many cycles.
+    report
+        Folder for the HTML report and the exports (None: no report).
+    progress
+        Where to say what happens: one step per cycle, a note per finished cycle.
+    """
+    from rivercal.online.service import OnlineService
+    from rivercal.store import FINAL_STATUSES, Store
+
+    t_start = time.perf_counter()
+    meta: dict[str, Any] = {"scenario": scenario, "noise": noise, "seed": seed} if scenario else {}
+    Path(db).parent.mkdir(parents=True, exist_ok=True)
+    with Store(db) as store:
+        service = OnlineService(model, store, run, config, first, meta=meta)
+        if scenario is not None:
+            from rivercal.twin.practical import practical_truth
+
+            progress.stage(f"{scenario}: running the truth")
+            truth = practical_truth(model, scenario, *service.data_period(last), noise=noise, seed=seed,
+                                    series=service.series)
+            store.ingest(truth.observations, source=f"twin:{scenario}")
+        for source, obs in observations:
+            store.ingest(obs, source=source)
+        finished = int(store.cycles(service.run)["status"].isin(FINAL_STATUSES).sum())
+        total = int((last - service.schedule.first_issue) // service.period) + 1
+        if max_cycles is not None:
+            total = min(total, finished + max_cycles)
+        outcomes: list[Any] = []
+        units = {p.name: p.unit for p in model.case.spec.parameters}
+
+        def on_cycle(o: Any) -> None:
+            outcomes.append(o)
+            values = ", ".join(f"{k} {format_value(v, units.get(k, ''))}" + ("*" if k in o.held else "")
+                               for k, v in o.accepted.items())
+            progress.step(finished + len(outcomes), max(total, finished + len(outcomes)),
+                          f"cycle {o.cycle} ({o.issue_time:%Y-%m-%d %H:%M}) {o.status}; cycles")
+            progress.note(f"cycle {o.cycle:>3} {o.issue_time:%Y-%m-%d %H:%M}  {o.status:<7} {values}  "
+                          f"{o.model_runs} runs {o.wall_s:.1f} s"
+                          + "".join(f"\n    {a.kind}: {a.message}" for a in o.alerts))
+
+        progress.step(finished, total, "first cycle; cycles")
+        if follow is None:
+            service.replay(last, progress=on_cycle, max_cycles=max_cycles)
+        else:
+            _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress)
+        summary = online_summary(store, service, outcomes, time.perf_counter() - t_start)
+        if report is not None:
+            from rivercal.report.online import write_online_report
+
+            progress.stage("writing the report")
+            summary["files"] = write_online_report(store, service.run.name, report, model=model)
+    return summary
+
+
+def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: float, on_cycle: Callable[[Any], None],
+            max_cycles: int | None, progress: Progress) -> None:
+    """Ingest new files from ``folder`` and run each cycle when the newest data reach its issue time."""
+    seen: dict[Path, tuple[float, int]] = {}
+    done = 0
+    try:
+        while True:
+            for path in sorted(folder.iterdir()):
+                if path.suffix.lower() not in (".csv", ".xml") or not path.is_file():
+                    continue
+                stamp = (path.stat().st_mtime, path.stat().st_size)
+                if seen.get(path) == stamp:
+                    continue
+                try:
+                    store.ingest(read_observation_file(path), source=path.name)
+                except ValueError as exc:  # a bad file (CaseError) is reported and skipped; the service goes on
+                    log.warning("skipped %s: %s", path.name, exc)
+                    progress.note(f"skipped {path.name}: {exc}")
+                seen[path] = stamp
+            newest = service.latest_observation()
+            while newest is not None and (max_cycles is None or done < max_cycles):
+                spec = service.next_cycle(now=min(newest, last))
+                if spec is None:
+                    break
+                on_cycle(service.run_cycle(spec))
+                done += 1
+            nxt = service.next_cycle()
+            if nxt is None or nxt.issue_time > last or (max_cycles is not None and done >= max_cycles):
+                return
+            progress.stage(f"waiting for observations up to {nxt.issue_time:%Y-%m-%d %H:%M} in {folder}")
+            time.sleep(poll)
+    except KeyboardInterrupt:
+        progress.note("stopped; the store holds every finished cycle, a restart resumes after the last one")
+
+
+def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: float) -> dict[str, Any]:
+    """JSON-friendly summary of a run: cycles, estimates, alerts and forecast errors (updated vs DSS).
+
+    ``forecast_errors`` is :func:`rivercal.report.online.forecast_errors` (with its ``reason`` when
+    nothing could be compared yet); ``wall_s`` in s; estimates in the parameters' units.
+    """
+    from rivercal.report.online import forecast_errors
+
+    cycles = store.cycles(service.run)
+    est = store.estimates(service.run)
+    alerts = store.alerts(service.run)
+    return {
+        "run": service.run.name,
+        "case": service.model.case.name,
+        "db": str(store.path),
+        "cycles_done_now": len(outcomes),
+        "cycles": len(cycles),
+        "status": cycles["status"].value_counts().to_dict(),
+        "wall_s": round(wall, 2),
+        "units": {p.name: p.unit for p in service.parameters},
+        "cycle_wall_s_median": float(cycles["wall_time_s"].median()) if len(cycles) else None,
+        "model_runs_median": float(cycles["model_runs"].median()) if len(cycles) else None,
+        "estimates": [
+            {"cycle": int(c), "issue_time": g["issue_time"].iloc[0].isoformat(),
+             **{r.parameter: float(r.value) for r in g.itertuples()},
+             "held": [r.parameter for r in g.itertuples() if not r.accepted]}
+            for c, g in est.groupby("cycle")],
+        "alerts": [{"cycle": int(r.cycle), "kind": r.kind, "parameter": r.parameter, "message": r.message}
+                   for r in alerts.itertuples()],
+        "forecast_errors": forecast_errors(store, service.run),
+    }
+
+
+def format_value(value: float, unit: str) -> str:
+    """A parameter value to the precision that matters: 0.1 mm for levels, 0.01 for the rest."""
+    return f"{value:.4f}" if unit in ("m", "m AD") else f"{value:.2f}"
