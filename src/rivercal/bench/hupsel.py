@@ -27,7 +27,7 @@ from rivercal.optimise import get_optimiser
 
 __all__ = ["HUPSEL_METHODS", "HupselCalibration", "calibrate_hupsel"]
 
-#: Methods compared in the issue, with the options they need here.
+#: Methods compared on the Hupsel Brook, with the options they need here.
 HUPSEL_METHODS: dict[str, dict] = {
     "dud": {},
     "lm": {"options": {"rel_step": 1e-3}},  # the model has adaptive sub-steps: a 1.5e-8 step sees only noise

@@ -2,7 +2,7 @@
 
 :func:`write_report` assembles what ``rivercal twin --suite thesis`` (or any subset of its suites) produced:
 
-- the targets of issue 5 (robustness, DuD iterations, wall time) with what was measured;
+- the targets of this reproduction (robustness, DuD iterations, wall time) with what was measured;
 - where and why our results differ from the thesis (:data:`DIFFERENCES`, plus remarks computed from the
   numbers of each part);
 - the initial model analysis (thesis §4-5-1): the sensitivity ranking and the per-station statements of
@@ -54,9 +54,9 @@ __all__ = [
     "write_report",
 ]
 
-#: Wall-time target of the whole ``--suite thesis`` run on 2 cores, s (issue 5).
+#: Wall-time target of the whole ``--suite thesis`` run on 2 cores, s (a target of this reproduction).
 TARGET_WALL_S = 600.0
-#: Iteration target of the one-parameter suites (issue 5; the thesis needed ≤ 5 and ≤ 2).
+#: Iteration target of the one-parameter suites (a target of this reproduction; the thesis needed ≤ 5 and ≤ 2).
 TARGET_ITERATIONS = 6
 #: A station "sees" the crests when the largest crest-scenario cost there is at least this share of the
 #: largest scenario cost there (our reading of "seems to be influenced" in thesis §4-5-1).
@@ -335,7 +335,7 @@ def verdict_comparison(analysis: InitialAnalysis) -> pd.DataFrame:
 
 def targets(suites: Mapping[str, Sequence[ScenarioResult]], *, wall_s: float | None = None,
             complete: bool = False, workers: int | None = None) -> pd.DataFrame:
-    """The measurable targets of issue 5 with what this run measured.
+    """The measurable targets of this reproduction of chapter 4 with what this run measured.
 
     ``met`` is None where the run does not allow a judgement (the suite did not run; the wall-time target
     only for a complete ``--suite thesis`` run, all scenarios in their own windows, on 2 workers).
@@ -536,7 +536,7 @@ def write_report(out: str | Path, *, case: str, command: str, suites: Mapping[st
         "Every number marked 'thesis' is typed in from the thesis (seed/thesis-online-parameter-updating.txt) as "
         "cited reference data (rivercal.twin.reference); everything else was computed by this run.",
     )
-    page.section("Targets (issue 5)", table(targets(suites, wall_s=wall_s, complete=complete, workers=workers),
+    page.section("Targets of this reproduction", table(targets(suites, wall_s=wall_s, complete=complete, workers=workers),
                                             "Targets and what this run measured"))
     page.section("Where and why our results differ from the thesis", bullets(DIFFERENCES))
     if analysis is not None:
