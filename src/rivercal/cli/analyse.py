@@ -17,13 +17,13 @@ from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json,
 from rivercal.cli.options import (
     check_choice,
     check_number,
-    input_file,
     open_model,
     output_dir,
     parse_assignments,
     parse_duration,
     parse_names,
     parse_window,
+    read_observations,
     select_parameters,
 )
 from rivercal.errors import OptionError
@@ -69,7 +69,6 @@ def analyse(
     from rivercal.analysis import IdentifiabilityOptions
     from rivercal.twin import NOISE_MODELS
     from rivercal.workflows.analyse import ANALYSES, analyse_window
-    from rivercal.workflows.online import read_observation_file
 
     # -- everything is checked before the first model run: first what needs no case
     tasks = parse_names(what, "--what")
@@ -92,8 +91,6 @@ def analyse(
     parse_duration(bias_window, "--bias-window")
     truth = parse_assignments(twin, "--twin") if twin is not None else {}
     start_values = parse_assignments(start, "--start")
-    if observations is not None:
-        input_file(observations, "--observations", (".csv", ".xml"))
     output_dir(out)
     try:
         options = IdentifiabilityOptions(sv_threshold=sv_threshold, k=k, correlation=corr_threshold)
@@ -122,7 +119,7 @@ def analyse(
                               option="--twin")
     obs = None
     if observations is not None:
-        obs = read_observation_file(observations).within(*win)
+        obs = read_observations(observations).within(*win)
         if obs.n_values == 0:
             raise OptionError(f"--observations {observations}: no observations in the window "
                               f"{win[0]:%Y-%m-%d %H:%M} .. {win[1]:%Y-%m-%d %H:%M}", option="--observations")

@@ -12,12 +12,12 @@ from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json,
 from rivercal.cli.options import (
     check_choice,
     check_number,
-    input_file,
     open_model,
     optimiser_options,
     output_dir,
     parse_assignments,
     parse_window,
+    read_observations,
     select_parameters,
 )
 from rivercal.errors import OptionError
@@ -53,7 +53,6 @@ def calibrate(
     from rivercal.optimise import OPTIMISERS
     from rivercal.twin import NOISE_MODELS
     from rivercal.workflows.calibrate import calibrate_window
-    from rivercal.workflows.online import read_observation_file
 
     # -- everything is checked before the first model run: first what needs no case
     if (observations is None) == (twin is None):
@@ -71,8 +70,6 @@ def calibrate(
         check_choice(algorithm, "--algorithm", sorted(OPTIMISERS))
     truth = parse_assignments(twin, "--twin") if twin is not None else None
     start_values = parse_assignments(start, "--start")
-    if observations is not None:
-        input_file(observations, "--observations", (".csv", ".xml"))
     output_dir(out)
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
@@ -92,7 +89,7 @@ def calibrate(
                               option="--twin")
     obs = None
     if observations is not None:
-        obs = read_observation_file(observations).within(*win)
+        obs = read_observations(observations).within(*win)
         if obs.n_values == 0:
             raise OptionError(f"--observations {observations}: no observations in the window {win[0]:%Y-%m-%d %H:%M}"
                               f" .. {win[1]:%Y-%m-%d %H:%M}", option="--observations")

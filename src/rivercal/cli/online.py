@@ -15,7 +15,6 @@ from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json,
 from rivercal.cli.options import (
     check_choice,
     check_number,
-    input_file,
     open_model,
     output_dir,
     output_file,
@@ -23,6 +22,7 @@ from rivercal.cli.options import (
     parse_duration,
     parse_names,
     parse_time,
+    read_observations,
 )
 from rivercal.errors import OptionError
 
@@ -66,7 +66,7 @@ def online(
     from rivercal.optimise import OPTIMISERS
     from rivercal.twin import NOISE_MODELS
     from rivercal.twin.practical import PRACTICAL_SCENARIOS
-    from rivercal.workflows.online import read_observation_file, run_online
+    from rivercal.workflows.online import run_online
 
     # -- everything is checked before the first model run: first what needs no case
     first, last = parse_time(date_from, "--from"), parse_time(date_to, "--to")
@@ -102,7 +102,7 @@ def online(
     check_number(seed, "--seed", low=0)
     check_number(max_cycles, "--max-cycles", low=1)
     check_number(workers, "--workers", low=1)
-    files = [(p.name, read_observation_file(input_file(p, "--observations", (".csv", ".xml")))) for p in observations]
+    files = [(p.name, read_observations(p)) for p in observations]
     _store_file(db, "--db")
     if out is not None:
         output_dir(out)

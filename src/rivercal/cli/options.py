@@ -28,6 +28,7 @@ __all__ = [
     "parse_sets",
     "parse_time",
     "parse_window",
+    "read_observations",
     "select_parameters",
 ]
 
@@ -255,6 +256,18 @@ def input_file(path: Path, option: str, suffixes: Iterable[str] | None = None) -
     if suffixes is not None and path.suffix.lower() not in suffixes:
         raise OptionError(f"{option} {path}: expected a file ending in {' or '.join(suffixes)}", option=option)
     return path
+
+
+def read_observations(path: Path, option: str = "--observations") -> Any:
+    """The observations of a CSV or PI-XML file; a bad file names the option, the file and the line."""
+    from rivercal.errors import CaseError
+    from rivercal.workflows.online import read_observation_file
+
+    input_file(path, option, (".csv", ".xml"))
+    try:
+        return read_observation_file(path)
+    except CaseError as exc:
+        raise OptionError(f"{option} {exc}", option=option) from None
 
 
 def output_dir(path: Path, option: str = "--out") -> Path:
