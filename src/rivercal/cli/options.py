@@ -154,11 +154,12 @@ def parse_duration(text: str, option: str, *, allow_zero: bool = False) -> Any:
     return value
 
 
-def parse_window(case: Any, text: str, *, option: str = "--window", warmup: Any = None) -> tuple[Any, Any]:
+def parse_window(case: Any, text: str, *, option: str = "--window", warmup: Any = None,
+                 warmup_option: str | None = "--warmup") -> tuple[Any, Any]:
     """A window of the case by name, or ``START/END``, as UTC timestamps inside the case period.
 
     With ``warmup`` (a Timedelta) the runs start that long before the window; that start must lie in
-    the case period too.
+    the case period too (``warmup_option`` names the option that sets it, None when none does).
     """
     import pandas as pd
 
@@ -179,10 +180,11 @@ def parse_window(case: Any, text: str, *, option: str = "--window", warmup: Any 
                           f"{case.end:%Y-%m-%d %H:%M}", option=option)
     if warmup is not None and a - warmup < case.start:
         hours = pd.Timedelta(warmup).total_seconds() / 3600
-        raise OptionError(f"{option} {text!r}: the runs start {hours:g} h (--warmup) before the window, "
+        which = f" ({warmup_option})" if warmup_option else ""
+        raise OptionError(f"{option} {text!r}: the runs start {hours:g} h{which} before the window, "
                           f"at {a - warmup:%Y-%m-%d %H:%M}, before the case starts ({case.start:%Y-%m-%d %H:%M}); "
-                          f"start the window at {case.start + warmup:%Y-%m-%d %H:%M} or later, or shorten --warmup",
-                          option=option)
+                          f"start the window at {case.start + warmup:%Y-%m-%d %H:%M} or later"
+                          + (f", or shorten {warmup_option}" if warmup_option else ""), option=option)
     return a, b
 
 

@@ -15,7 +15,7 @@ import typer
 from rich.table import Table
 
 from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
-from rivercal.cli.options import check_number, open_model, output_dir, parse_names, parse_time
+from rivercal.cli.options import check_number, open_model, output_dir, parse_names, parse_time, parse_window
 from rivercal.errors import OptionError
 from rivercal.workflows.twin import SCENARIO_SUITES, SENSITIVITY
 
@@ -131,17 +131,16 @@ def _scenarios(suites: list[str], scenarios: str | None, window: str | None) -> 
 
 
 def _check_case(model, names: list[str], params: list[str], window: str | None) -> None:
+    import pandas as pd
+
     from rivercal.twin.suites import SUITES
 
     case = model.case
     known = [w.name for w in case.spec.windows]
     if window is not None and "/" not in window and window not in known:
         raise OptionError(f"--window {window!r}: the case has windows {', '.join(known)}", option="--window")
-    if window is not None and "/" in window:
-        a, _, b = window.partition("/")
-        if parse_time(a, "--window") < model.start or parse_time(b, "--window") > model.end:
-            raise OptionError(f"--window {window!r}: lies outside the case period {model.start:%Y-%m-%d %H:%M} .. "
-                              f"{model.end:%Y-%m-%d %H:%M}", option="--window")
+    if window is not None:  # the suites' and the analysis' runs start 24 h before their window (twin_truth)
+        parse_window(case, window, warmup=pd.Timedelta(hours=24), warmup_option=None)
     defined = {p.name for p in case.spec.parameters}
     missing = sorted({p for n in names if n in SUITES for p in SUITES[n].truths} - defined)
     if missing:

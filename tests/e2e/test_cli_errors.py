@@ -1,0 +1,116 @@
+"""Exit statuses and messages: bad input (2) is told apart from rivercal's own bugs (1); --version; --debug.
+
+An internal error is injected by replacing a library function the command calls with one that fails
+the way a programming error does (a KeyError, a ValueError), in-process on the real app.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from importlib.metadata import version
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from rivercal.cli.main import app
+
+
+def rivercal(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True, env=env)
+
+
+def test_version_and_versions_of_the_numeric_stack() -> None:
+    run = rivercal("--version")
+    assert run.returncode == 0 and run.stdout.strip() == f"rivercal {version('rivercal')}"
+    run = rivercal("--version", "--verbose")
+    assert run.returncode == 0
+    lines = dict(line.split(" ", 1) for line in run.stdout.strip().splitlines())
+    assert lines["rivercal"] == version("rivercal")
+    assert lines["numpy"] == version("numpy") and lines["numba"] == version("numba")
+    assert lines["python"].startswith(".".join(map(str, sys.version_info[:2])))
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--start",
+      "FA=999"], "--start: the start value 999 of FA lies outside its bounds [8, 40]"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=99"],
+     "--twin FA=99: outside the bounds [8, 40] of FA"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--option",
+      "max_outer=-1"], "--option: dud refuses its options: max_outer must be an integer >= 0"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--seed",
+      "-3"], "--seed -3: must be at least 0"),
+    (["simulate", "synthetic", "--set", "weir:W99.crest_level=3"], "--set weir:W99.crest_level=3: no weir 'W99'"),
+])
+def test_bad_values_exit_2_naming_the_option(args: list[str], message: str) -> None:
+    run = CliRunner().invoke(app, args)
+    assert run.exit_code == 2, run.output
+    assert message in run.stderr
+    assert "internal error" not in run.stderr and "Traceback" not in run.output
+
+
+@pytest.mark.parametrize("error", [KeyError(2), ValueError("could not convert string to float: 'x'")])
+def test_an_internal_error_exits_1_and_says_so(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+                                               error: Exception) -> None:
+    import rivercal.workflows.simulate as workflow
+
+    def broken(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(workflow, "simulate_case", broken)
+    monkeypatch.delenv("RIVERCAL_DEBUG", raising=False)
+    args = ["simulate", "synthetic", "--end", "2020-01-02", "--out", str(tmp_path)]
+    run = CliRunner().invoke(app, args)
+    assert run.exit_code == 1, run.output
+    assert f"internal error: {type(error).__name__}: {error}" in run.stderr
+    assert "--debug" in run.stderr and "RIVERCAL_DEBUG=1" in run.stderr
+    assert "Traceback" not in run.stderr
+    debug = CliRunner().invoke(app, ["--debug", *args])
+    assert debug.exit_code == 1
+    assert "Traceback (most recent call last)" in debug.stderr and "in broken" in debug.stderr
+    monkeypatch.setenv("RIVERCAL_DEBUG", "1")
+    env = CliRunner().invoke(app, args)
+    assert env.exit_code == 1 and "Traceback (most recent call last)" in env.stderr
+
+
+def test_a_failed_model_run_exits_3(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from rivercal.engine.simulator import Simulator
+    from rivercal.errors import EngineDivergedError
+
+    def diverge(self, *args, **kwargs):
+        raise EngineDivergedError("2020-01-01T01:00:00+00:00", "branch B1 at 100 m", "non-finite level")
+
+    monkeypatch.setattr(Simulator, "simulate", diverge)
+    run = CliRunner().invoke(app, ["simulate", "synthetic", "--end", "2020-01-02", "--out", str(tmp_path)])
+    assert run.exit_code == 3
+    assert "model run failed: engine diverged at 2020-01-01T01:00:00+00:00 at branch B1 at 100 m" in run.stderr
+
+
+def test_the_engine_compiles_once_and_says_so_only_then(tmp_path: Path) -> None:
+    """A cold numba cache is announced on stderr (also under --json); a run that loads the cache is silent."""
+    args = ("simulate", "synthetic", "--end", "2020-01-02", "--out", str(tmp_path), "--json")
+    rivercal(*args)  # compiles if the cache is cold (a fresh clone), else loads it
+    again = rivercal(*args)
+    assert again.returncode == 0, again.stderr
+    assert "compiling" not in again.stderr
+
+
+def test_the_compile_notice_follows_numba_compilations(capsys: pytest.CaptureFixture) -> None:
+    """The notice is numba's compile event for a rivercal kernel: printed at the first compilation, once."""
+    import numba
+
+    from rivercal.cli import common
+
+    common._COMPILE["shown"] = False
+    common.watch_compilation(True)
+
+    def add_one(x):
+        return x + 1
+
+    add_one.__module__ = "rivercal.probe"
+    kernel = numba.njit(add_one)  # no cache: compiles on the first call
+    assert kernel(1) == 2
+    assert kernel(2.5) == 3.5  # a second signature compiles again: still one notice
+    err = capsys.readouterr().err
+    assert err.count("compiling the engine (first run only") == 1

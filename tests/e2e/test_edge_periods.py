@@ -1,0 +1,99 @@
+"""Edge periods on the dommel case (2010-09-01 … 2010-12-01): short replays, single cycles, case start and end.
+
+- the replay of 2010-10-28 … 2010-11-06 (ten cycles, none of whose windows has left the change of
+  2010-11-01) ends with exit 0, a summary that says why no forecast could be compared yet, and a report;
+- a single cycle on observations that end at its issue time: its forecasts cannot be scored, and the
+  summary says that the observations end before the forecasts' first lead time;
+- the earliest first cycle (its window and warm-up start exactly at the case start) runs; an hour
+  earlier is refused naming --from;
+- a replay shorter than the forecast horizon whose last cycle is issued at the case end runs; past the
+  end is refused naming --to;
+- a calibration window whose runs start exactly at the case start runs and finds the twin truth; one
+  whose warm-up would start before the case is refused naming --window.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+
+def rivercal(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
+
+
+def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:
+    db, out = tmp_path / "run.sqlite", tmp_path / "x"
+    args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-10-28", "--to", "2010-11-06", "--db", str(db),
+            "--out", str(out), "--workers", "2")
+    run = rivercal(*args, "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["cycles"] == 10 and summary["status"] == {"done": 10}
+    fe = summary["forecast_errors"]
+    assert fe["n"] == 0 and fe["updated_mae_m"] is None
+    assert "starts at or after the change at 2010-11-01 00:00" in fe["reason"]
+    assert "the first such cycle is issued at 2010-11-08 00:00" in fe["reason"]
+    page = html.unescape((out / "index.html").read_text(encoding="utf-8"))
+    assert "nothing to compare yet" in page and "'rivercal after' is empty" in page
+    again = rivercal(*args)  # the same command resumes: nothing left to run, the summary is printed
+    assert again.returncode == 0, again.stderr
+    assert "nothing to compare yet" in again.stdout and "report:" in again.stdout
+
+
+def test_a_single_cycle_on_observations_that_end_at_its_issue_time(tmp_path: Path) -> None:
+    sim = rivercal("simulate", "dommel", "--start", "2010-11-01", "--end", "2010-11-10", "--out", str(tmp_path / "o"))
+    assert sim.returncode == 0, sim.stderr
+    run = rivercal("online", "dommel", "--observations", str(tmp_path / "o" / "series.csv"), "--from", "2010-11-10",
+                   "--to", "2010-11-10", "--db", str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"),
+                   "--workers", "2", "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
+    assert summary["forecast_errors"]["reason"] == ("the observations end at 2010-11-10 00:00, before the forecasts' "
+                                                    "first lead time (2010-11-10 01:00)")
+    assert (tmp_path / "r" / "index.html").is_file()
+
+
+def test_the_first_window_touching_the_case_start(tmp_path: Path) -> None:
+    run = rivercal("online", "dommel", "--scenario", "PI-0", "--from", "2010-09-09", "--to", "2010-09-09", "--db",
+                   str(tmp_path / "run.sqlite"), "--workers", "2", "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
+    early = rivercal("online", "dommel", "--scenario", "PI-0", "--from", "2010-09-08T23:00", "--to", "2010-09-09",
+                     "--db", str(tmp_path / "early.sqlite"))
+    assert early.returncode == 2
+    assert "--from 2010-09-08T23:00" in early.stderr and "issue the first cycle at 2010-09-09 00:00 or later" in \
+        early.stderr
+
+
+def test_a_replay_shorter_than_the_horizon_up_to_the_case_end(tmp_path: Path) -> None:
+    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01", "--db",
+                   str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2", "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["cycles"] == 2 and summary["status"] == {"done": 2}
+    assert summary["forecast_errors"]["n"] > 0  # the first cycle's first day is observed
+    assert [round(e["FA"]) for e in summary["estimates"]] == [25, 25]
+    late = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01T01:00",
+                    "--db", str(tmp_path / "late.sqlite"))
+    assert late.returncode == 2 and "--to 2010-12-01T01:00: after the end of the case" in late.stderr
+
+
+def test_a_calibration_window_whose_runs_start_at_the_case_start(tmp_path: Path) -> None:
+    run = rivercal("calibrate", "dommel", "--params", "FA", "--window", "2010-09-02/2010-09-03", "--twin", "FA=20",
+                   "--workers", "2", "--out", str(tmp_path), "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["estimates"]["FA"] == pytest.approx(20.0, abs=0.01)
+    early = rivercal("calibrate", "dommel", "--params", "FA", "--window", "2010-09-01/2010-09-03", "--twin", "FA=20",
+                     "--out", str(tmp_path))
+    assert early.returncode == 2
+    assert "--window '2010-09-01/2010-09-03': the runs start 24 h (--warmup) before the window" in early.stderr
