@@ -4,8 +4,8 @@
 m^(1/3)/s on 2010-11-01) on the dommel case from an issue time after the change has left the window,
 so that every cycle after the first is a warm start from the previous estimate with a hot-started
 engine state: the steady regime of a service in operation. The first cycle (cold: DSS start, JIT load,
-spin-up) is reported apart. ``--replay`` adds the four-week daily replay of ``make demo`` (2010-10-18 … 2010-11-15: truth,
-ingestion and every cycle, no report), timed as a whole.
+spin-up) is reported apart. ``--replay`` adds the four-week daily replay of ``make demo``
+(2010-10-18 … 2010-11-15: truth, ingestion and every cycle, no report), timed as a whole.
 
 Times are wall-clock seconds of the machine it runs on; report medians.
 """

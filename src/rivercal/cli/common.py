@@ -140,12 +140,13 @@ class Reporter:
         if not self.show:
             yield self
             return
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
         with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(bar_width=24),
-                      MofNCompleteColumn(), TimeElapsedColumn(), console=err_console, transient=True) as progress:
+                      TextColumn("{task.fields[count]}"), TimeElapsedColumn(), console=err_console,
+                      transient=True) as progress:
             self._progress = progress
-            self._task = progress.add_task(first, total=None)
+            self._task = progress.add_task(first, total=None, count="")
             try:
                 yield self
             finally:
@@ -154,12 +155,13 @@ class Reporter:
     def stage(self, text: str) -> None:
         """What the workflow does now (no count)."""
         if self._progress is not None:
-            self._progress.update(self._task, description=text, total=None, completed=0)
+            self._progress.update(self._task, description=text, total=None, completed=0, count="")
 
     def step(self, done: int, total: int | None, text: str) -> None:
-        """``done`` of ``total`` units of work (a bar when the total is known)."""
+        """``done`` of ``total`` units of work (a bar when the total is known), e.g. '3/10 cycles'."""
         if self._progress is not None:
-            self._progress.update(self._task, description=text, total=total, completed=done)
+            count = f"{done}/{total}" if total else f"{done}"
+            self._progress.update(self._task, description=text, total=total, completed=done, count=count)
 
     def note(self, text: str) -> None:
         """A line that stays (a finished cycle, a skipped file)."""

@@ -536,8 +536,9 @@ def write_report(out: str | Path, *, case: str, command: str, suites: Mapping[st
         "Every number marked 'thesis' is typed in from the thesis (seed/thesis-online-parameter-updating.txt) as "
         "cited reference data (rivercal.twin.reference); everything else was computed by this run.",
     )
-    page.section("Targets of this reproduction", table(targets(suites, wall_s=wall_s, complete=complete, workers=workers),
-                                            "Targets and what this run measured"))
+    page.section("Targets of this reproduction",
+                 table(targets(suites, wall_s=wall_s, complete=complete, workers=workers),
+                       "Targets and what this run measured"))
     page.section("Where and why our results differ from the thesis", bullets(DIFFERENCES))
     if analysis is not None:
         page.section("Initial model analysis: sensitivity (thesis §4-5-1, Table 4-4, Fig. 4-5, C-1 … C-5)",

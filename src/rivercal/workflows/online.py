@@ -103,12 +103,12 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             values = ", ".join(f"{k} {format_value(v, units.get(k, ''))}" + ("*" if k in o.held else "")
                                for k, v in o.accepted.items())
             progress.step(finished + len(outcomes), max(total, finished + len(outcomes)),
-                          f"cycle {o.cycle} ({o.issue_time:%Y-%m-%d %H:%M}) {o.status}; cycles")
+                          f"cycles (last: {o.issue_time:%Y-%m-%d %H:%M}, {o.status})")
             progress.note(f"cycle {o.cycle:>3} {o.issue_time:%Y-%m-%d %H:%M}  {o.status:<7} {values}  "
                           f"{o.model_runs} runs {o.wall_s:.1f} s"
                           + "".join(f"\n    {a.kind}: {a.message}" for a in o.alerts))
 
-        progress.step(finished, total, "first cycle; cycles")
+        progress.step(finished, total, "cycles")
         if follow is None:
             service.replay(last, progress=on_cycle, max_cycles=max_cycles)
         else:

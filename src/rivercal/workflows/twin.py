@@ -87,8 +87,8 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
 
         def on_scenario(result: Any) -> None:
             finished.append(result)
-            progress.step(len(finished), total, f"{result.suite} {result.id}: {result.iterations} iterations; "
-                                                "scenarios")
+            progress.step(len(finished), total, f"scenarios (last: {result.suite} {result.id}, "
+                                                f"{result.iterations} iterations)")
 
         results = run_scenarios(model, list(scenarios), workers=workers, progress=on_scenario)
         for name in suites:
