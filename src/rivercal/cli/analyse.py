@@ -129,7 +129,7 @@ def analyse(
                               f"{c.name!r} (it simulates {', '.join(model.observables)})", option="--observations")
 
     reporter = Reporter(not (quiet or as_json))
-    with reporter.running("loading the model"):
+    with reporter.running("starting"):
         summary = analyse_window(model, pset, win, out, analyses=tasks, observations=obs,
                                  source={"file": str(observations)} if observations is not None else None,
                                  truth=truth, noise=noise, seed=seed, warmup=hours, workers=workers,

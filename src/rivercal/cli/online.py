@@ -125,7 +125,7 @@ def online(
                           algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
                           workers=workers)
     reporter = Reporter(not (quiet or as_json))
-    with reporter.running("loading the model"):
+    with reporter.running("starting"):
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter)
