@@ -33,13 +33,7 @@ def engine(
     span = (model.end - model.start).total_seconds() / 86400
     check_number(days, "--days", high=span)
     result = bench_engine(case, days=days, repeats=repeats).to_dict()
-    if as_json:
-        emit_json(result)
-        return
-    table = Table(title="engine benchmark", show_header=False)
-    for key, value in result.items():
-        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
-    out_console.print(table)
+    _print_flat(result, "engine benchmark", as_json)
 
 
 @app.command("calibrate")
@@ -126,10 +120,15 @@ def online(
                           option="--from")
     result = bench_online("dommel", scenario, first_issue=first_issue, cycles=cycles, workers=workers,
                           replay=replay, replay_repeats=replay_repeats).to_dict()
+    _print_flat(result, "on-line service benchmark", as_json)
+
+
+def _print_flat(result: dict, title: str, as_json: bool) -> None:
+    """One benchmark's numbers: a JSON object, or a two-column table."""
     if as_json:
         emit_json(result)
         return
-    table = Table(title="on-line service benchmark", show_header=False)
+    table = Table(title=title, show_header=False)
     for key, value in result.items():
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out_console.print(table)

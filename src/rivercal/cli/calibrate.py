@@ -12,13 +12,14 @@ from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json,
 from rivercal.cli.options import (
     check_choice,
     check_number,
+    check_truth,
     open_model,
     optimiser_options,
     output_dir,
     parse_assignments,
     parse_window,
-    read_observations,
     select_parameters,
+    window_observations,
 )
 from rivercal.errors import OptionError
 
@@ -80,23 +81,8 @@ def calibrate(
     opts = optimiser_options(algo, option, defaults, pset)
     hours = pd.Timedelta(hours=warmup)
     win = parse_window(c, window, warmup=hours)
-    for name, value in (truth or {}).items():
-        if name not in pset.names:
-            raise OptionError(f"--twin {name}={value:g}: {name!r} is not in --params", option="--twin")
-        p = pset[name]
-        if not p.min <= value <= p.max:
-            raise OptionError(f"--twin {name}={value:g}: outside the bounds [{p.min:g}, {p.max:g}] of {name}",
-                              option="--twin")
-    obs = None
-    if observations is not None:
-        obs = read_observations(observations).within(*win)
-        if obs.n_values == 0:
-            raise OptionError(f"--observations {observations}: no observations in the window {win[0]:%Y-%m-%d %H:%M}"
-                              f" .. {win[1]:%Y-%m-%d %H:%M}", option="--observations")
-        unknown = [s for s in obs.ids if s not in model.observables]
-        if unknown:
-            raise OptionError(f"--observations {observations}: series {unknown[0]!r} is not simulated by case "
-                              f"{c.name!r} (it simulates {', '.join(model.observables)})", option="--observations")
+    check_truth(pset, truth or {})
+    obs = window_observations(observations, model, win) if observations is not None else None
 
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("calibrating"):

@@ -17,6 +17,7 @@ from rivercal.errors import OptionError
 __all__ = [
     "check_choice",
     "check_number",
+    "check_truth",
     "input_file",
     "open_model",
     "optimiser_options",
@@ -30,6 +31,7 @@ __all__ = [
     "parse_window",
     "read_observations",
     "select_parameters",
+    "window_observations",
 ]
 
 
@@ -239,6 +241,17 @@ def select_parameters(case: Any, names: str, start: Mapping[str, float], bounds:
     return ParameterSet(chosen)
 
 
+def check_truth(parameters: Any, truth: Mapping[str, float], option: str = "--twin") -> None:
+    """True values of a twin experiment: each names a parameter of ``--params`` and lies in its bounds."""
+    for name, value in truth.items():
+        if name not in parameters.names:
+            raise OptionError(f"{option} {name}={value:g}: {name!r} is not in --params", option=option)
+        p = parameters[name]
+        if not p.min <= value <= p.max:
+            raise OptionError(f"{option} {name}={value:g}: outside the bounds [{p.min:g}, {p.max:g}] of {name}",
+                              option=option)
+
+
 def _first_problem(exc: ValueError) -> str:
     errors = getattr(exc, "errors", None)
     if callable(errors):
@@ -270,6 +283,19 @@ def read_observations(path: Path, option: str = "--observations") -> Any:
         return read_observation_file(path)
     except CaseError as exc:
         raise OptionError(f"{option} {exc}", option=option) from None
+
+
+def window_observations(path: Path, model: Any, window: tuple[Any, Any], option: str = "--observations") -> Any:
+    """The observations of a file inside ``window``: at least one value, every series simulated by ``model``."""
+    obs = read_observations(path, option).within(*window)
+    if obs.n_values == 0:
+        raise OptionError(f"{option} {path}: no observations in the window {window[0]:%Y-%m-%d %H:%M} .. "
+                          f"{window[1]:%Y-%m-%d %H:%M}", option=option)
+    unknown = [s for s in obs.ids if s not in model.observables]
+    if unknown:
+        raise OptionError(f"{option} {path}: series {unknown[0]!r} is not simulated by case {model.case.name!r} (it "
+                          f"simulates {', '.join(model.observables)})", option=option)
+    return obs
 
 
 def output_dir(path: Path, option: str = "--out") -> Path:
