@@ -29,7 +29,7 @@ def schema() -> None:
 @guard
 def check(case: CaseArg, as_json: JsonOpt = False) -> None:
     """Validate a case and summarise it."""
-    model = open_model(case, show_compilation=not as_json)
+    model = open_model(case)
     c = model.case
     net = c.network
     compiled = model.compiled

@@ -227,7 +227,7 @@ def report(
         stored = store.get_run(name)
         if stored is None:
             raise OptionError(f"--run {name!r}: not in {db} (it has {', '.join(runs['name'])})", option="--run")
-        files = write_online_report(store, name, out, model=open_model(stored.case, show_compilation=not as_json))
+        files = write_online_report(store, name, out, model=open_model(stored.case))
     if as_json:
         emit_json({"run": name, "files": files})
     else:
