@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 import xarray as xr
 
+from rivercal.analysis.forecast import score_forecasts
 from rivercal.observations import ObservationSet
 from rivercal.store import (
     AlertRecord,
@@ -20,6 +21,9 @@ from rivercal.store import (
     Schedule,
     Store,
     StoreError,
+    export_estimates_csv,
+    export_forecasts_csv,
+    to_netcdf,
 )
 
 T0 = pd.Timestamp("2010-11-01T06:00:00Z")
@@ -278,22 +282,40 @@ def test_availability_shows_counts_and_gaps(store: Store) -> None:
 # -- scores ---------------------------------------------------------------------------------------------------
 
 
+def score(store: Store, run_id: int, buckets_h=(0, 6, 12, 24)) -> pd.DataFrame:
+    """Score every stored forecast against the stored observations and store the scores."""
+    fc = store.forecasts(run_id)
+    observed = store.observation_table(fc["series"].unique(), fc["time"].min(), fc["time"].max())
+    scores = score_forecasts(fc, observed, buckets_h)
+    store.put_scores(run_id, scores)
+    return scores
+
+
 def test_forecasts_are_scored_per_lead_time_bucket_against_stored_observations(store: Store, run_id: int) -> None:
     spec = store.begin_cycle(run_id, store.next_cycle(run_id, SCHEDULE))
     fc = hourly(spec.issue_time, 24, **{"a.h": 1.0})
     store.commit_cycle(run_id, record(spec, forecasts={"updated": fc + 0.1, "dss": fc - 0.3}))
-    assert store.score_forecasts(run_id).empty  # no observations yet
+    assert score(store, run_id).empty  # no observations yet
+    assert store.scores(run_id).empty
     store.ingest(obs_set("2010-11-01T06:00", 12, **{"a.h": 1.0}), "telemetry")  # leads 0..12 h
-    scores = store.score_forecasts(run_id, buckets_h=(0, 6, 12, 24))
+    scores = score(store, run_id)
     assert scores[["kind", "lead_from_h", "lead_to_h", "n"]].values.tolist() == [
         ["dss", 0.0, 6.0, 7], ["dss", 6.0, 12.0, 6], ["updated", 0.0, 6.0, 7], ["updated", 6.0, 12.0, 6]]
     assert scores["rmse"].tolist() == pytest.approx([0.3, 0.3, 0.1, 0.1])
     assert scores["bias"].tolist() == pytest.approx([-0.3, -0.3, 0.1, 0.1])
     store.ingest(obs_set("2010-11-01T18:00", 12, **{"a.h": 1.0}), "telemetry")  # the rest arrives: score again
-    store.score_forecasts(run_id, buckets_h=(0, 6, 12, 24))
+    score(store, run_id)
     stored = store.scores(run_id)
     assert stored.groupby("kind")["n"].sum().to_dict() == {"dss": 25, "updated": 25}
     assert len(stored) == 6
+
+
+def test_scores_of_an_unknown_cycle_are_refused_whole(store: Store, run_id: int) -> None:
+    run_cycles(store, run_id, 1)
+    row = {"kind": "dss", "series": "a.h", "lead_from_h": 0.0, "lead_to_h": 6.0, "rmse": 0.1, "bias": 0.1, "n": 3}
+    with pytest.raises(CycleStateError, match="no cycle 7"):
+        store.put_scores(run_id, pd.DataFrame([{"cycle": 0, **row}, {"cycle": 7, **row}]))
+    assert store.scores(run_id).empty  # one transaction: cycle 0's row was not kept either
 
 
 # -- exports --------------------------------------------------------------------------------------------------
@@ -301,12 +323,12 @@ def test_forecasts_are_scored_per_lead_time_bucket_against_stored_observations(s
 
 def test_csv_exports_round_trip(store: Store, run_id: int, tmp_path: Path) -> None:
     run_cycles(store, run_id, 2, forecasts={"updated": hourly(T0 + pd.Timedelta(days=3), 2, **{"a.h": 1.0})})
-    est = pd.read_csv(store.export_estimates_csv(run_id, tmp_path / "estimates.csv"))
+    est = pd.read_csv(export_estimates_csv(store, run_id, tmp_path / "estimates.csv"))
     assert est.columns.tolist() == ["cycle", "issue_time", "window_start", "window_end", "status", "parameter",
                                     "value", "std", "unit", "accepted", "reason"]
     assert est["issue_time"].tolist()[::2] == ["2010-11-01T06:00:00Z", "2010-11-02T06:00:00Z"]
     assert est["value"].tolist()[::2] == [16.0, 17.0]
-    fc = pd.read_csv(store.export_forecasts_csv(run_id, tmp_path / "forecasts.csv", cycle=1))
+    fc = pd.read_csv(export_forecasts_csv(store, run_id, tmp_path / "forecasts.csv", cycle=1))
     assert fc.columns.tolist() == ["cycle", "issue_time", "kind", "series", "lead_h", "time", "value"]
     assert fc["time"].tolist() == ["2010-11-04T06:00:00Z", "2010-11-04T07:00:00Z", "2010-11-04T08:00:00Z"]
     assert fc["lead_h"].tolist() == [48.0, 49.0, 50.0]
@@ -318,7 +340,7 @@ def test_netcdf_export_follows_cf(store: Store, run_id: int, tmp_path: Path) -> 
         fc = hourly(spec.issue_time, 48, **{"ZL1-5930.h_up": 7.0 + k, "ZL1-5930.h_down": 6.5, "ZL1-3014.Q": 1.2})
         store.commit_cycle(run_id, record(spec, friction=16.0 + k, forecasts={"updated": fc, "dss": fc + 0.2},
                                           model_runs=5))
-    path = store.to_netcdf(run_id, tmp_path / "run.nc")
+    path = to_netcdf(store, run_id, tmp_path / "run.nc")
     with xr.open_dataset(path) as ds:
         assert ds.attrs["Conventions"] == "CF-1.8"
         assert ds["friction_global"].attrs["units"] == "m1/3 s-1"

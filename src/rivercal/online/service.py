@@ -46,6 +46,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from rivercal.analysis.forecast import score_forecasts
 from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
 from rivercal.engine.state import EngineState
 from rivercal.errors import ModelRunError
@@ -385,12 +386,22 @@ class OnlineService:
             alerts=tuple(alerts), forecasts=forecasts, states=states))
         scored = [c for c in range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)]
         if scored:
-            self.store.score_forecasts(self.run, cycles=scored, sources=self.config.sources)
+            self._score(scored)
         log.info("cycle %d (%s): %s, %s in %.1f s, %d runs", spec.cycle, t0, status,
                  ", ".join(f"{k}={v:.4g}" for k, v in accepted.items()), wall, model_runs)
         return CycleOutcome(cycle=spec.cycle, issue_time=t0, status=status, estimates=estimates, accepted=accepted,
                             held=held, std=std, alerts=tuple(alerts), model_runs=model_runs, wall_s=wall,
                             cost_before=cost_before, cost_after=cost_after, message=message, hot_start=hot)
+
+    def _score(self, cycles: list[int]) -> None:
+        """Score the forecasts of these cycles against the observations stored so far; store the scores."""
+        fc = self.store.forecasts(self.run)
+        fc = fc[fc["cycle"].isin(cycles)]
+        if fc.empty:
+            return
+        observed = self.store.observation_table(sorted(fc["series"].unique()), fc["time"].min(), fc["time"].max(),
+                                                sources=self.config.sources)
+        self.store.put_scores(self.run, score_forecasts(fc, observed))
 
     def _cycles_per_horizon(self) -> int:
         return math.ceil(self.horizon / self.period) + 1

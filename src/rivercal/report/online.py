@@ -26,6 +26,7 @@ import pandas as pd
 
 from rivercal._figure import subplots
 from rivercal.report.html import Page, bullets, figure, paragraph, table
+from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_netcdf
 
 __all__ = ["continuous_runs", "forecast_errors", "write_online_report"]
 
@@ -408,9 +409,9 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     alerts = store.alerts(run)
     scores = store.scores(run)
     units = {p.name: p.unit for p in model.case.spec.parameters}
-    files["estimates_csv"] = str(store.export_estimates_csv(run, out / "estimates.csv"))
-    files["forecasts_csv"] = str(store.export_forecasts_csv(run, out / "forecasts.csv"))
-    files["netcdf"] = str(store.to_netcdf(run, out / "run.nc"))
+    files["estimates_csv"] = str(export_estimates_csv(store, run, out / "estimates.csv"))
+    files["forecasts_csv"] = str(export_forecasts_csv(store, run, out / "forecasts.csv"))
+    files["netcdf"] = str(to_netcdf(store, run, out / "run.nc"))
     cycles.to_csv(out / "cycles.csv", index=False)
     files["cycles_csv"] = str(out / "cycles.csv")
 

@@ -5,7 +5,8 @@
     from rivercal.store import Store, Schedule, CycleRecord, EstimateRecord, AlertRecord
 
 See :mod:`rivercal.store.sqlite` for the crash-safety design, :mod:`rivercal.store.schema` for the tables
-and their units, and :mod:`rivercal.store.export` for the CSV and NetCDF exports.
+and their units, and :mod:`rivercal.store.export` for the CSV and NetCDF exports (functions over a store).
+Forecast scores are computed by :mod:`rivercal.analysis.forecast` and kept here.
 """
 
 from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_netcdf, to_xarray

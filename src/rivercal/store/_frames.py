@@ -9,7 +9,6 @@ from __future__ import annotations
 import datetime as dt
 import json
 import logging
-import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import PurePath
 from typing import Any
@@ -172,41 +171,6 @@ def resolve_sources(rows: pd.DataFrame, sources: Sequence[str] | None) -> pd.Dat
     if n > len(rows):
         log.debug("%d values at times another source also covers were set aside", n - len(rows))
     return rows[["series", "time", "value"]].reset_index(drop=True)
-
-
-def score_table(forecasts: pd.DataFrame, observed: pd.DataFrame, buckets_h: Sequence[float]) -> pd.DataFrame:
-    """RMSE and bias of forecast − observation per (cycle, kind, series, lead bucket).
-
-    Parameters
-    ----------
-    forecasts
-        Columns cycle_id, kind, series, time [s], lead_h [h], value.
-    observed
-        Columns series, time [s], value (one value per series and time); matched to forecasts at equal times.
-    buckets_h
-        Increasing bucket edges, h; bucket (a, b] (the first includes a). Leads outside are not scored.
-
-    Returns
-    -------
-    DataFrame
-        Columns cycle_id, kind, series, lead_from_h, lead_to_h, rmse, bias (m or m³/s), n.
-    """
-    edges = np.asarray(buckets_h, dtype=float)
-    if edges.ndim != 1 or edges.size < 2 or not (np.diff(edges) > 0).all():
-        raise ValueError(f"lead-time buckets must be at least two increasing edges (h), got {list(buckets_h)}")
-    columns = ["cycle_id", "kind", "series", "lead_from_h", "lead_to_h", "rmse", "bias", "n"]
-    pairs = forecasts.merge(observed, on=["series", "time"], suffixes=("", "_obs"))
-    if pairs.empty:
-        return pd.DataFrame(columns=columns)
-    k = np.searchsorted(edges, pairs["lead_h"].to_numpy(), side="left")
-    k = np.where(pairs["lead_h"].to_numpy() == edges[0], 1, k)
-    inside = (k >= 1) & (k < edges.size)
-    pairs = pairs[inside].assign(bucket=k[inside], err=lambda f: f["value"] - f["value_obs"])
-    grouped = pairs.groupby(["cycle_id", "kind", "series", "bucket"], sort=True)["err"]
-    out = grouped.agg(rmse=lambda e: math.sqrt(float(np.mean(np.square(e)))), bias="mean", n="size").reset_index()
-    out["lead_from_h"] = edges[out["bucket"].to_numpy() - 1]
-    out["lead_to_h"] = edges[out["bucket"].to_numpy()]
-    return out[columns]
 
 
 def frame(rows: Iterable[Sequence[Any]], columns: Sequence[str]) -> pd.DataFrame:

@@ -99,6 +99,28 @@ class ObservationTables(StoreBase):
             params.append(end)
         return fr.frame(self._query(sql, params), ["series", "time", "source", "value", "ingested"])
 
+    def observation_table(self, series_ids: Iterable[str], start: Any, end: Any, *,
+                          sources: Sequence[str] | None = None) -> pd.DataFrame:
+        """Stored observations of some series in [start, end] as a long table, one value per series and time.
+
+        Parameters
+        ----------
+        series_ids
+            Series ``"<station>.<quantity>"``.
+        start, end
+            Window (UTC; naive = UTC), both ends included.
+        sources
+            Sources to use, in priority order (default all; where sources overlap, the latest ingested wins).
+
+        Returns
+        -------
+        DataFrame
+            Columns series, time (UTC), value (m AD or m³/s).
+        """
+        rows = fr.resolve_sources(
+            self._observation_rows(list(series_ids), fr.to_unix(start, "start"), fr.to_unix(end, "end")), sources)
+        return rows.assign(time=fr.from_unix(rows["time"].to_numpy("int64")))
+
     def observations(self, series_ids: Iterable[str], start: Any, end: Any, *, sources: Sequence[str] | None = None,
                      sigma: Mapping[str, float | None] | None = None) -> ObservationSet:
         """Stored observations of some series in [start, end], as the calibration problem takes them.
@@ -116,13 +138,12 @@ class ObservationTables(StoreBase):
             σ per series id or quantity (default :data:`rivercal.observations.DEFAULT_SIGMA`).
         """
         ids = list(series_ids)
-        rows = fr.resolve_sources(self._observation_rows(ids, fr.to_unix(start, "start"), fr.to_unix(end, "end")),
-                                  sources)
+        rows = self.observation_table(ids, start, end, sources=sources)
         sigma = dict(DEFAULT_SIGMA if sigma is None else sigma)
         out = []
         for series_id in ids:
             part = rows[rows["series"] == series_id]
-            values = pd.Series(part["value"].to_numpy(float), index=fr.from_unix(part["time"].to_numpy("int64")))
+            values = pd.Series(part["value"].to_numpy(float), index=pd.DatetimeIndex(part["time"]))
             s = sigma.get(series_id, sigma.get(series_id.rpartition(".")[2]))
             out.append(ObservationSeries.from_series(values, id=series_id, sigma=s, source=f"store:{self.path}"))
         return ObservationSet(tuple(out))

@@ -1,5 +1,7 @@
 """Results of the on-line service's cycles: estimates, alerts, forecasts and forecast scores.
 
+The scores are computed by :mod:`rivercal.analysis.forecast`; the store only keeps them.
+
 Part of :class:`rivercal.store.Store` (this module holds the queries; the connection, transactions and
 cycle bookkeeping are in :mod:`rivercal.store.sqlite`, the only module that imports :mod:`sqlite3`).
 """
@@ -7,7 +9,7 @@ cycle bookkeeping are in :mod:`rivercal.store.sqlite`, the only module that impo
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable
 from typing import Any
 
 import pandas as pd
@@ -116,15 +118,23 @@ class ResultTables(StoreBase):
         out["value"] = out["value"].astype(float)
         return out
 
-    def put_scores(self, run: int | Run, cycle: int, scores: pd.DataFrame) -> None:
-        """Replace a cycle's forecast scores (columns kind, series, lead_from_h, lead_to_h, rmse, bias, n)."""
-        self._put_scores(self._run_id(run), {int(cycle): scores})
+    def put_scores(self, run: int | Run, scores: pd.DataFrame) -> None:
+        """Store forecast scores in one transaction; each cycle in ``scores`` has its earlier scores replaced.
 
-    def _put_scores(self, run_id: int, by_cycle: Mapping[int, pd.DataFrame]) -> None:
+        Parameters
+        ----------
+        run
+            Run id.
+        scores
+            Columns cycle, kind, series, lead_from_h, lead_to_h (h), rmse, bias (m or m³/s), n, as
+            :func:`rivercal.analysis.forecast.score_forecasts` computes them. Cycles not in the table keep
+            their scores.
+        """
+        run_id = self._run_id(run)
         stamp = fr.now_stamp()
         with self._transaction() as conn:
-            for cycle, table in by_cycle.items():
-                row = self._cycle_row(conn, run_id, cycle)
+            for cycle, table in scores.groupby("cycle", sort=True):
+                row = self._cycle_row(conn, run_id, int(cycle))
                 if row is None:
                     raise CycleStateError(f"{self.path}: run {run_id} has no cycle {cycle}")
                 conn.execute("DELETE FROM forecast_scores WHERE cycle_id = ?", (row[0],))
@@ -133,48 +143,8 @@ class ResultTables(StoreBase):
                     "scored) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                     [(row[0], r.kind, r.series, float(r.lead_from_h), float(r.lead_to_h), float(r.rmse),
                       float(r.bias), int(r.n), stamp) for r in table.itertuples(index=False)])
-
-    def score_forecasts(self, run: int | Run, *, buckets_h: Sequence[float] = (0, 6, 12, 24, 48),
-                        sources: Sequence[str] | None = None, cycles: Iterable[int] | None = None) -> pd.DataFrame:
-        """Score stored forecasts against stored observations and store the scores (one transaction).
-
-        A forecast value is compared with the observation of the same series at the same time (no
-        interpolation); RMSE, bias (forecast − observation, m or m³/s) and n per lead-time bucket
-        (a, b] h. Scoring again later, when more observations have arrived, replaces a cycle's scores.
-
-        Parameters
-        ----------
-        run
-            Run id.
-        buckets_h
-            Increasing lead-time bucket edges, h.
-        sources
-            Observation sources to use, in priority order (default all; the latest ingested value wins).
-        cycles
-            Cycle indices to score (default every cycle with forecasts).
-
-        Returns
-        -------
-        DataFrame
-            The stored scores: cycle, kind, series, lead_from_h, lead_to_h, rmse, bias, n.
-        """
-        run_id = self._run_id(run)
-        wanted = None if cycles is None else {int(c) for c in cycles}
-        rows = self._forecast_rows(run_id, None, None, None)
-        fc = fr.frame(rows, ["cycle", "cycle_id", "issue_time", "kind", "series", "lead_h", "time", "value"])
-        if wanted is not None:
-            fc = fc[fc["cycle"].isin(wanted)]
-        columns = ["cycle", "kind", "series", "lead_from_h", "lead_to_h", "rmse", "bias", "n"]
-        if fc.empty:
-            return pd.DataFrame(columns=columns)
-        obs = self._observation_rows(sorted(fc["series"].unique()), int(fc["time"].min()), int(fc["time"].max()))
-        table = fr.score_table(fc, fr.resolve_sources(obs, sources), buckets_h)
-        cycle_of = dict(zip(fc["cycle_id"], fc["cycle"], strict=False))
-        table.insert(0, "cycle", table["cycle_id"].map(cycle_of))
-        by_cycle = {int(c): g for c, g in table.groupby("cycle")}
-        self._put_scores(run_id, by_cycle)
-        log.info("%s: run %d: scored %d cycles (%d score rows)", self.path, run_id, len(by_cycle), len(table))
-        return table[columns].reset_index(drop=True)
+        log.info("%s: run %d: stored the scores of %d cycles (%d rows)", self.path, run_id,
+                 scores["cycle"].nunique(), len(scores))
 
     def scores(self, run: int | Run) -> pd.DataFrame:
         """Stored scores: cycle, issue_time, kind, series, lead_from_h, lead_to_h (h), rmse, bias, n, scored."""

@@ -526,26 +526,6 @@ class Store(ResultTables, ObservationTables):
                          "finished = NULL WHERE id = ?", (row[0],))
         log.info("%s: run %d: cycle %d re-opened", self.path, run_id, cycle)
 
-    # -- exports --------------------------------------------------------------------------------------------
-
-    def export_estimates_csv(self, run: int | Run, path: str | Path) -> Path:
-        """Write the run's estimates to CSV (see :func:`rivercal.store.export.export_estimates_csv`)."""
-        from rivercal.store.export import export_estimates_csv
-
-        return export_estimates_csv(self, run, path)
-
-    def export_forecasts_csv(self, run: int | Run, path: str | Path, **select: Any) -> Path:
-        """Write the run's forecasts to CSV (see :func:`rivercal.store.export.export_forecasts_csv`)."""
-        from rivercal.store.export import export_forecasts_csv
-
-        return export_forecasts_csv(self, run, path, **select)
-
-    def to_netcdf(self, run: int | Run, path: str | Path) -> Path:
-        """Write the run's estimates and forecasts as CF-1.8 NetCDF (see :func:`rivercal.store.export.to_netcdf`)."""
-        from rivercal.store.export import to_netcdf
-
-        return to_netcdf(self, run, path)
-
     def run_by_id(self, run_id: int) -> Run:
         """The run with this id."""
         row = self._conn.execute("SELECT name FROM runs WHERE id = ?", (int(run_id),)).fetchone()
