@@ -24,11 +24,9 @@ from __future__ import annotations
 
 import itertools
 import logging
-import multiprocessing
-import sys
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -43,7 +41,7 @@ from rivercal.analysis import (
     sensitivity,
     thesis_scenarios,
 )
-from rivercal.evaluate import Evaluator, default_workers
+from rivercal.evaluate import Evaluator, default_workers, process_pool
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin.truth import TwinTruth, twin_truth
@@ -283,9 +281,8 @@ def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: int | N
             if progress:
                 progress(results[-1])
         return results
-    context = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
     out: list[ScenarioResult | None] = [None] * len(scenarios)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_setup, initargs=(model,)) as pool:
+    with process_pool(workers, _setup, (model,)) as pool:
         order = sorted(keys, key=lambda k: -_expected_work(keys[k]))
         truths = dict(zip(order, pool.map(_truth, [keys[k] for k in order]), strict=True))
         log.info("%d truths in %.1f s", len(truths), time.perf_counter() - t0)
