@@ -318,6 +318,21 @@ def test_scores_of_an_unknown_cycle_are_refused_whole(store: Store, run_id: int)
     assert store.scores(run_id).empty  # one transaction: cycle 0's row was not kept either
 
 
+def test_a_cycle_commits_the_scores_of_earlier_cycles_with_its_own_results(store: Store, run_id: int) -> None:
+    run_cycles(store, run_id, 2)
+    row = {"kind": "dss", "series": "a.h", "lead_from_h": 0.0, "lead_to_h": 6.0, "rmse": 0.1, "bias": 0.1, "n": 3}
+    store.put_scores(run_id, pd.DataFrame([{"cycle": 0, **row}]))
+    spec = store.begin_cycle(run_id, store.next_cycle(run_id, SCHEDULE))
+    bad = pd.DataFrame([{"cycle": 1, **row, "rmse": 0.2}, {"cycle": 9, **row}])
+    with pytest.raises(CycleStateError, match="no cycle 9"):
+        store.commit_cycle(run_id, record(spec, scores=bad))
+    assert store.cycles(run_id)["status"].tolist() == ["done", "done", "running"]  # nothing of the commit kept
+    assert store.scores(run_id)[["cycle", "rmse"]].values.tolist() == [[0, 0.1]]
+    good = pd.DataFrame([{"cycle": 0, **row, "rmse": 0.3}, {"cycle": 1, **row, "rmse": 0.2}])
+    store.commit_cycle(run_id, record(spec, scores=good))
+    assert store.scores(run_id)[["cycle", "rmse"]].values.tolist() == [[0, 0.3], [1, 0.2]]  # cycle 0's replaced
+
+
 # -- exports --------------------------------------------------------------------------------------------------
 
 

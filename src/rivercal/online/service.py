@@ -15,9 +15,9 @@ Every cycle (thesis §6-2: daily, over the last week of hourly observations) the
    raises a ``limit`` alert;
 5. runs the model with the accepted values through the window to t₀ and forecasts ``horizon`` ahead,
    and forecasts with the fixed parameters of the DSS from the DSS's own state at t₀;
-6. commits everything — status, estimates (accepted or held, with the reason), alerts, forecasts and
-   the states for the next cycle — in one transaction; then scores the earlier forecasts against the
-   observations that have arrived since.
+6. scores the earlier cycles' forecasts against the observations that have arrived since, and commits
+   everything — status, estimates (accepted or held, with the reason), alerts, forecasts, the states
+   for the next cycle and those scores — in one transaction.
 
 Identifiability gate
     The final Jacobian J of the weighted residuals (the DuD secant matrix, or the optimiser's
@@ -378,30 +378,28 @@ class OnlineService:
                            std=float(std[n]) if n in std and math.isfinite(std[n]) else None,
                            accepted=n not in held, reason=held.get(n))
             for n in warm)
+        scored = [c for c in range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)]
         wall = time.perf_counter() - t_wall
         self.store.commit_cycle(self.run, CycleRecord(
             spec.cycle, spec.window_start, spec.window_end, t0, status=status, algorithm=self.config.algorithm,
             model_runs=model_runs, wall_time_s=wall, cost_before=cost_before, cost_after=cost_after,
             message=message + ("" if hot else "; cold start (no stored state)"), estimates=records,
-            alerts=tuple(alerts), forecasts=forecasts, states=states))
-        scored = [c for c in range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)]
-        if scored:
-            self._score(scored)
+            alerts=tuple(alerts), forecasts=forecasts, states=states, scores=self._scores(scored)))
         log.info("cycle %d (%s): %s, %s in %.1f s, %d runs", spec.cycle, t0, status,
                  ", ".join(f"{k}={v:.4g}" for k, v in accepted.items()), wall, model_runs)
         return CycleOutcome(cycle=spec.cycle, issue_time=t0, status=status, estimates=estimates, accepted=accepted,
                             held=held, std=std, alerts=tuple(alerts), model_runs=model_runs, wall_s=wall,
                             cost_before=cost_before, cost_after=cost_after, message=message, hot_start=hot)
 
-    def _score(self, cycles: list[int]) -> None:
-        """Score the forecasts of these cycles against the observations stored so far; store the scores."""
+    def _scores(self, cycles: list[int]) -> pd.DataFrame | None:
+        """Scores of the forecasts of earlier cycles against the observations stored so far (None: none)."""
         fc = self.store.forecasts(self.run)
         fc = fc[fc["cycle"].isin(cycles)]
         if fc.empty:
-            return
+            return None
         observed = self.store.observation_table(sorted(fc["series"].unique()), fc["time"].min(), fc["time"].max(),
                                                 sources=self.config.sources)
-        self.store.put_scores(self.run, score_forecasts(fc, observed))
+        return score_forecasts(fc, observed)
 
     def _cycles_per_horizon(self) -> int:
         return math.ceil(self.horizon / self.period) + 1

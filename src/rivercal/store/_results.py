@@ -131,20 +131,22 @@ class ResultTables(StoreBase):
             their scores.
         """
         run_id = self._run_id(run)
-        stamp = fr.now_stamp()
         with self._transaction() as conn:
-            for cycle, table in scores.groupby("cycle", sort=True):
-                row = self._cycle_row(conn, run_id, int(cycle))
-                if row is None:
-                    raise CycleStateError(f"{self.path}: run {run_id} has no cycle {cycle}")
-                conn.execute("DELETE FROM forecast_scores WHERE cycle_id = ?", (row[0],))
-                conn.executemany(
-                    "INSERT INTO forecast_scores (cycle_id, kind, series, lead_from_h, lead_to_h, rmse, bias, n, "
-                    "scored) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                    [(row[0], r.kind, r.series, float(r.lead_from_h), float(r.lead_to_h), float(r.rmse),
-                      float(r.bias), int(r.n), stamp) for r in table.itertuples(index=False)])
-        log.info("%s: run %d: stored the scores of %d cycles (%d rows)", self.path, run_id,
-                 scores["cycle"].nunique(), len(scores))
+            self._write_scores(conn, run_id, scores, fr.now_stamp())
+
+    def _write_scores(self, conn: Any, run_id: int, scores: pd.DataFrame, stamp: str) -> None:
+        for cycle, table in scores.groupby("cycle", sort=True):
+            row = self._cycle_row(conn, run_id, int(cycle))
+            if row is None:
+                raise CycleStateError(f"{self.path}: run {run_id} has no cycle {cycle}")
+            conn.execute("DELETE FROM forecast_scores WHERE cycle_id = ?", (row[0],))
+            conn.executemany(
+                "INSERT INTO forecast_scores (cycle_id, kind, series, lead_from_h, lead_to_h, rmse, bias, n, "
+                "scored) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                [(row[0], r.kind, r.series, float(r.lead_from_h), float(r.lead_to_h), float(r.rmse),
+                  float(r.bias), int(r.n), stamp) for r in table.itertuples(index=False)])
+        log.info("%s: run %d: scores of %d cycles written (%d rows)", self.path, run_id, scores["cycle"].nunique(),
+                 len(scores))
 
     def scores(self, run: int | Run) -> pd.DataFrame:
         """Stored scores: cycle, issue_time, kind, series, lead_from_h, lead_to_h (h), rmse, bias, n, scored."""

@@ -280,6 +280,11 @@ class CycleRecord:
     states
         Model states handed to the next cycle, by name: (time (UTC), format, data bytes). The store
         keeps them opaque (see :meth:`EngineState.to_bytes <rivercal.engine.EngineState.to_bytes>`).
+    scores
+        Scores of the forecasts of earlier cycles, computed by this cycle (columns cycle, kind, series,
+        lead_from_h, lead_to_h, rmse, bias, n, as :func:`rivercal.analysis.forecast.score_forecasts` gives
+        them); stored in the same transaction, replacing the earlier scores of each cycle listed, so that
+        a kill between the commit and the scoring cannot leave a cycle unscored.
     """
 
     cycle: int
@@ -297,6 +302,7 @@ class CycleRecord:
     alerts: tuple[AlertRecord, ...] = ()
     forecasts: Mapping[str, pd.DataFrame] = field(default_factory=dict)
     states: Mapping[str, tuple[Any, str, bytes]] = field(default_factory=dict)
+    scores: pd.DataFrame | None = None
 
     def __post_init__(self) -> None:
         for name, value in self.states.items():

@@ -455,7 +455,7 @@ class Store(ResultTables, ObservationTables):
         return CycleSpec(spec.cycle, spec.window_start, spec.window_end, spec.issue_time, "running", attempts)
 
     def commit_cycle(self, run: int | Run, record: CycleRecord) -> None:
-        """Store a cycle's final status, estimates, alerts and forecasts in ONE transaction.
+        """Store a cycle's final status, estimates, alerts, forecasts, states and scores in ONE transaction.
 
         Either all of it is stored or none (a kill during the commit leaves the cycle as it was: running,
         without results). A cycle that was not begun is inserted (it must be the next index).
@@ -506,6 +506,8 @@ class Store(ResultTables, ObservationTables):
             conn.executemany("INSERT INTO model_states (cycle_id, name, time, format, data) VALUES (?, ?, ?, ?, ?)",
                              [(cycle_id, name, fr.to_unix(t, f"state {name} time"), fmt, bytes(data))
                               for name, (t, fmt, data) in record.states.items()])
+            if record.scores is not None:
+                self._write_scores(conn, run_id, record.scores, finished)
         log.info("%s: run %d: cycle %d committed (%s; %d estimates, %d alerts, %d forecast values)", self.path,
                  run_id, record.cycle, record.status, len(record.estimates), len(record.alerts), len(rows))
 
