@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from rivercal.evaluate import Evaluator
+from tests.processes import descendants, kill_left, survivors
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -58,38 +59,6 @@ def parent(mode: str) -> None:
     time.sleep(600)
 
 
-def children(pid: int) -> list[int]:
-    """Pids of the live processes whose parent is ``pid``."""
-    out = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / "stat").read_text()
-            except OSError:
-                continue
-            fields = stat.rpartition(")")[2].split()
-            if int(fields[1]) == pid and fields[0] not in "ZX":
-                out.append(int(entry.name))
-    return out
-
-
-def alive(pid: int) -> bool:
-    """Whether a process exists and is not a zombie (PID 1 in a container may not reap orphans)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rpartition(")")[2].split()[0] not in "ZX"
-
-
-def survivors(pids: list[int], within_s: float) -> list[int]:
-    """The processes among ``pids`` still alive after waiting up to ``within_s`` seconds for them to end."""
-    deadline = time.monotonic() + within_s
-    while (left := [p for p in pids if alive(p)]) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    return left
-
-
 def kill_parent(mode: str) -> list[int]:
     """Start a parent in ``mode``, SIGKILL it once its pool works; return its workers' pids."""
     proc = subprocess.Popen([sys.executable, "-m", "tests.unit.test_evaluate_workers", mode], cwd=ROOT,
@@ -97,7 +66,7 @@ def kill_parent(mode: str) -> list[int]:
     try:
         line = proc.stdout.readline()
         assert line.strip() == "ready", proc.stderr.read()[-2000:]
-        workers = children(proc.pid)
+        workers = sorted(descendants(proc.pid))
         assert len(workers) == 2, workers
     finally:
         os.kill(proc.pid, signal.SIGKILL)
@@ -105,13 +74,6 @@ def kill_parent(mode: str) -> list[int]:
         proc.stdout.close()
         proc.stderr.close()
     return workers
-
-
-def kill_left(pids: list[int]) -> None:
-    """SIGKILL whichever of these processes (started by the test) are still alive."""
-    for pid in pids:
-        if alive(pid):
-            os.kill(pid, signal.SIGKILL)
 
 
 @pytest.mark.parametrize("mode", ["main", "thread"])

@@ -1,0 +1,165 @@
+"""SIGKILL ``rivercal online`` at random moments, resume it each time: the store ends as if never killed.
+
+A short PI-Fg replay of the dommel case runs once uninterrupted (the reference). Then the same command
+is started, killed with SIGKILL after a random delay, and started again with the same arguments, over
+and over; the last start runs to its end. Each delay is drawn (seeded) uniformly over the time the start
+would take to finish, judged from the reference's timeline and the cycles already stored, so that kills
+land anywhere in it: in the start-up, in cycles, in commits, between cycles. The store must then hold
+exactly what the reference holds, apart from wall-clock stamps, owners and attempt counts; and after
+every kill, every process of the killed run (its evaluation workers) must be gone within seconds.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+
+from tests.processes import descendants, kill_left, survivors
+
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the process table in /proc")]
+
+SEED = 20101101
+KILLS = 10
+#: Content of each table: columns compared, with the cycle index in place of internal row ids. Left out:
+#: wall-clock stamps (created, started, finished, ingested, scored, applied), owners, attempt counts and
+#: the cycles' wall time.
+CONTENT = {
+    "runs": "SELECT name, case_name, config, status FROM runs",
+    "cycles": "SELECT cycle, window_start, window_end, issue_time, status, algorithm, model_runs, cost_before, "
+              "cost_after, message FROM cycles",
+    "estimates": "SELECT c.cycle, e.parameter, e.value, e.std, e.unit, e.accepted, e.reason FROM estimates e "
+                 "JOIN cycles c ON c.id = e.cycle_id",
+    "alerts": "SELECT c.cycle, a.parameter, a.kind, a.message, a.magnitude FROM alerts a JOIN cycles c "
+              "ON c.id = a.cycle_id",
+    "observations": "SELECT series, time, source, value FROM observations",
+    "forecasts": "SELECT c.cycle, f.kind, f.series, f.time, f.lead_h, f.value FROM forecasts f JOIN cycles c "
+                 "ON c.id = f.cycle_id",
+    "forecast_scores": "SELECT c.cycle, s.kind, s.series, s.lead_from_h, s.lead_to_h, s.rmse, s.bias, s.n "
+                       "FROM forecast_scores s JOIN cycles c ON c.id = s.cycle_id",
+    "model_states": "SELECT c.cycle, m.name, m.time, m.format, m.data FROM model_states m JOIN cycles c "
+                    "ON c.id = m.cycle_id",
+    "schema_version": "SELECT version, description, rivercal_version FROM schema_version",
+}
+
+
+def command(folder: Path) -> list[str]:
+    return [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-05",
+            "--to", "2010-11-12", "--db", str(folder / "run.sqlite"), "--workers", "2", "--quiet"]
+
+
+def contents(db: Path) -> dict[str, list[tuple]]:
+    """Every table's rows (see CONTENT), sorted."""
+    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
+        tables = {name for (name,) in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        assert tables == set(CONTENT), f"tables changed: compare {sorted(tables ^ set(CONTENT))} too"
+        return {table: sorted(con.execute(sql).fetchall(), key=repr) for table, sql in CONTENT.items()}
+
+
+def differences(got: dict[str, list[tuple]], want: dict[str, list[tuple]]) -> list[str]:
+    """One line per row that is in one store and not the other."""
+    out = []
+    for table, rows in want.items():
+        mine, theirs = set(got[table]), set(rows)
+        out += [f"{table}: missing {row!r}"[:300] for row in sorted(theirs - mine, key=repr)]
+        out += [f"{table}: extra {row!r}"[:300] for row in sorted(mine - theirs, key=repr)]
+        if len(got[table]) != len(rows):
+            out.append(f"{table}: {len(got[table])} rows, the reference has {len(rows)}")
+    return out
+
+
+def stamp(text: str) -> float:
+    """A stored wall-clock stamp as Unix seconds."""
+    return datetime.fromisoformat(text.replace("Z", "+00:00")).timestamp()
+
+
+def timeline(db: Path, started: float, ended: float) -> tuple[float, list[float]]:
+    """The reference's start-up (s from its start to its first cycle) and the time left after each cycle, s."""
+    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
+        rows = con.execute("SELECT started, finished FROM cycles ORDER BY cycle").fetchall()
+    return stamp(rows[0][0]) - started, [ended - stamp(finished) for _, finished in rows]
+
+
+def cycles_done(db: Path) -> int:
+    if not db.exists():
+        return 0
+    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
+        try:
+            return con.execute("SELECT count(*) FROM cycles WHERE status = 'done'").fetchone()[0]
+        except sqlite3.OperationalError:  # killed while the tables were being created
+            return 0
+
+
+def phase(db: Path, since: float) -> str:
+    """Where a start killed at wall time ``since`` or later stopped: in its start-up, in a cycle, after one."""
+    if not db.exists():
+        return "start-up"
+    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
+        try:
+            rows = con.execute("SELECT cycle, status, started FROM cycles ORDER BY cycle").fetchall()
+        except sqlite3.OperationalError:  # killed while the tables were being created
+            return "start-up"
+    begun = [(cycle, status) for cycle, status, started in rows if started and stamp(started) >= since]
+    if not begun:
+        return "start-up"
+    cycle, status = begun[-1]
+    return f"in cycle {cycle}" if status == "running" else f"after cycle {cycle}"
+
+
+def test_random_sigkills_then_resume_store_equals_an_uninterrupted_run(tmp_path: Path) -> None:
+    reference = tmp_path / "reference"
+    started = time.time()
+    run = subprocess.run(command(reference), capture_output=True, text=True, timeout=600)
+    ended = time.time()
+    assert run.returncode == 0, run.stderr[-3000:]
+    startup, left = timeline(reference / "run.sqlite", started, ended)
+
+    killed = tmp_path / "killed"
+    log = tmp_path / "stderr.txt"
+    rng = random.Random(SEED)
+    phases, orphans, tracked, starts = [], [], 0, 0
+    while len(phases) < KILLS:
+        assert starts < 3 * KILLS, f"{starts} starts but only {len(phases)} kills: the runs end too soon"
+        done = cycles_done(killed / "run.sqlite")
+        with log.open("w") as err:
+            since = time.time()
+            proc = subprocess.Popen(command(killed), stdout=subprocess.DEVNULL, stderr=err)
+        starts += 1
+        seen: set[int] = set()
+        expected = startup + left[done - 1] if done else ended - started  # how long this start would take
+        deadline = time.monotonic() + rng.uniform(0.02, 1.0) * expected
+        while time.monotonic() < deadline and proc.poll() is None:
+            seen |= descendants(proc.pid)  # the workers forked so far
+            time.sleep(0.05)
+        if proc.poll() is not None:  # it ended before its kill came (nothing left to do): start again
+            assert proc.returncode == 0, log.read_text()[-3000:]
+            continue
+        seen |= descendants(proc.pid)
+        tracked += len(seen)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        phases.append(phase(killed / "run.sqlite", since))
+        try:
+            orphans += survivors(seen, within_s=5.0)
+        finally:
+            kill_left(seen)
+    final = subprocess.run(command(killed), capture_output=True, text=True, timeout=600)
+    starts += 1
+    assert final.returncode == 0, final.stderr[-3000:]
+
+    diff = differences(contents(killed / "run.sqlite"), contents(reference / "run.sqlite"))
+    print(f"\nreference {ended - started:.1f} s (start-up {startup:.1f} s); {len(phases)} kills "
+          f"({', '.join(phases)}); {tracked} worker processes of killed runs, {len(orphans)} alive 5 s later; "
+          f"{starts - 1} resumes; {len(diff)} differences")
+    assert orphans == [], f"processes of a killed run still alive 5 s after the kill: {orphans}"
+    assert tracked > 0, "no kill came while the evaluation workers were alive"
+    assert diff == []
