@@ -9,12 +9,53 @@ import pytest
 from hypothesis import settings
 
 from rivercal.case import case_from_dict
+from rivercal.hydrology.hupsel import ENV_VAR as HUPSEL_ENV_VAR
+
+#: The repository's root folder.
+REPOSITORY = Path(__file__).resolve().parents[1]
+#: The shared data (GPL/LGPL data sets, never copied into the repository) lie beside the repository, as
+#: CI lays them out: ``../shared`` from the repository root.
+SHARED_DATA = REPOSITORY.parent / "shared" / "data"
+#: Set (by ``.ci/run``) to make tests that need the Hupsel data fail instead of skip without them.
+REQUIRE_HUPSEL = "RIVERCAL_REQUIRE_HUPSEL"
 
 # Property tests draw the same examples on every run, so CI is reproducible; explore new ones locally with
 # HYPOTHESIS_PROFILE=explore (random draws, remembered failures).
 settings.register_profile("reproducible", derandomize=True, database=None)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "reproducible"))
+
+
+def hupsel_location() -> tuple[Path, str]:
+    """Where the tests look for ``PEQ_Hupsel.dat``, and why there."""
+    if os.environ.get(HUPSEL_ENV_VAR):
+        return Path(os.environ[HUPSEL_ENV_VAR]).expanduser(), f"${HUPSEL_ENV_VAR}"
+    return SHARED_DATA / "walrus-hupsel-hourly" / "PEQ_Hupsel.dat", "../shared beside the repository"
+
+
+def hupsel_missing() -> str | None:
+    """Why the Hupsel Brook data cannot be read, or None when they can."""
+    path, origin = hupsel_location()
+    if path.is_file():
+        return None
+    return (f"the Hupsel Brook data (WALRUS demo, GPL-3, never copied into the repository) are not at {path} "
+            f"({origin}); put the shared data beside the repository (../shared/data/walrus-hupsel-hourly/"
+            f"PEQ_Hupsel.dat from the repository root, as CI clones it) or set {HUPSEL_ENV_VAR} to the file")
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """With ``RIVERCAL_REQUIRE_HUPSEL`` set (CI), stop at once, with the reason, when the Hupsel data are missing."""
+    if os.environ.get(REQUIRE_HUPSEL) and (reason := hupsel_missing()):
+        pytest.exit(f"{REQUIRE_HUPSEL} is set but {reason}", returncode=pytest.ExitCode.USAGE_ERROR)
+
+
+@pytest.fixture(scope="session")
+def hupsel_file() -> Path:
+    """``PEQ_Hupsel.dat`` (see :func:`hupsel_location`); the test is skipped with the reason when it is missing."""
+    reason = hupsel_missing()
+    if reason is not None:
+        pytest.skip(reason)
+    return hupsel_location()[0]
 
 
 def channel_case(

@@ -1,33 +1,23 @@
 """Real data: the rainfall-runoff model calibrated on one Hupsel Brook year and validated on the next.
 
 The data are GPL-3 and never copied into the repository; without them the test is skipped with the
-reason, except in CI, where ``.ci/run`` sets ``RIVERCAL_REQUIRE_HUPSEL`` and the test must run.
+reason, except in CI, where ``.ci/run`` sets ``RIVERCAL_REQUIRE_HUPSEL`` and the suite stops at once
+without them (``tests/conftest.py`` finds them beside the repository, in ``../shared``).
 """
 
 from __future__ import annotations
 
-import os
+from pathlib import Path
 
 import pytest
 
 from rivercal.bench.hupsel import HUPSEL_METHODS, calibrate_hupsel
-from rivercal.hydrology.hupsel import hupsel_path
-
-
-@pytest.fixture(scope="module")
-def hupsel_file() -> str:
-    try:
-        return str(hupsel_path())
-    except FileNotFoundError as exc:
-        if os.environ.get("RIVERCAL_REQUIRE_HUPSEL"):
-            pytest.fail(f"RIVERCAL_REQUIRE_HUPSEL is set but {exc}")
-        pytest.skip(str(exc))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("method", list(HUPSEL_METHODS))
-def test_calibration_improves_the_validation_year(method: str, hupsel_file: str) -> None:
-    result = calibrate_hupsel(method, hupsel_file)
+def test_calibration_improves_the_validation_year(method: str, hupsel_file: Path) -> None:
+    result = calibrate_hupsel(method, str(hupsel_file))
     # the fit improves on the a-priori parameters in the calibration year ...
     assert result.nse_calibration > result.nse_calibration_default + 0.1
     assert result.nse_calibration > 0.85 and result.kge_calibration > 0.8
@@ -36,8 +26,8 @@ def test_calibration_improves_the_validation_year(method: str, hupsel_file: str)
     assert result.nse_validation > 0.8 and result.kge_validation > 0.75
 
 
-def test_methods_agree_on_the_optimum(hupsel_file: str) -> None:
+def test_methods_agree_on_the_optimum(hupsel_file: Path) -> None:
     """DuD and LM (the two fast methods) reach the same validation score."""
-    dud, lm = calibrate_hupsel("dud", hupsel_file), calibrate_hupsel("lm", hupsel_file)
+    dud, lm = calibrate_hupsel("dud", str(hupsel_file)), calibrate_hupsel("lm", str(hupsel_file))
     assert dud.nse_validation == pytest.approx(lm.nse_validation, abs=0.005)
     assert dud.model_runs < 100

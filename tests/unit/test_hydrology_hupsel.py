@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -16,14 +15,8 @@ from rivercal.hydrology.runoff import WalrusParameters, simulate
 
 
 @pytest.fixture(scope="module")
-def hupsel() -> pd.DataFrame:
-    try:
-        path = hupsel_path()
-    except FileNotFoundError as exc:
-        if os.environ.get("RIVERCAL_REQUIRE_HUPSEL"):  # set by .ci/run: CI must not skip
-            pytest.fail(f"RIVERCAL_REQUIRE_HUPSEL is set but {exc}")
-        pytest.skip(str(exc))  # "Hupsel data not found at ...; set RIVERCAL_HUPSEL_FILE ..."
-    return read_hupsel(path)
+def hupsel(hupsel_file: Path) -> pd.DataFrame:
+    return read_hupsel(hupsel_file)
 
 
 def test_hupsel_record(hupsel: pd.DataFrame) -> None:
