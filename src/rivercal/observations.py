@@ -17,12 +17,51 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-__all__ = ["DEFAULT_SIGMA", "ObservationSeries", "ObservationSet"]
+__all__ = ["CF_VARIABLES", "DEFAULT_SIGMA", "CFVariable", "ObservationSeries", "ObservationSet"]
 
 #: Default standard deviations by quantity: ±2.5 cm for levels and ±0.1 m³/s for discharges, the noise
 #: amplitudes of the reference study's twin experiments (thesis §4-2-3).
 DEFAULT_SIGMA = {"h": 0.025, "h_up": 0.025, "h_down": 0.025, "Q": 0.1}
 QUANTITIES = ("h", "h_up", "h_down", "Q")
+
+
+@dataclass(frozen=True)
+class CFVariable:
+    """How series of some quantities are written to CF-1.8 NetCDF: one variable over a dimension of series ids.
+
+    Attributes
+    ----------
+    name
+        Variable name (``water_level``).
+    dimension
+        Name of the dimension whose coordinate holds the series ids ``"<station>.<quantity>"``.
+    quantities
+        The quantities it holds (``h``, ``h_up``, ``h_down``).
+    units, standard_name
+        CF units and standard name.
+    """
+
+    name: str
+    dimension: str
+    quantities: tuple[str, ...]
+    units: str
+    standard_name: str
+
+    def attrs(self, long_name: str) -> dict[str, str]:
+        """The variable's attributes, with a ``long_name`` that says what the values are."""
+        return {"standard_name": self.standard_name, "units": self.units, "long_name": long_name}
+
+    def columns(self, series_ids: Iterable[str]) -> list[str]:
+        """The series ids among ``series_ids`` that this variable holds, in their order."""
+        return [s for s in series_ids if str(s).rpartition(".")[2] in self.quantities]
+
+
+#: Levels (m) and discharges (m³/s) in CF-1.8 NetCDF files (simulations, forecasts).
+CF_VARIABLES = (
+    CFVariable("water_level", "level_series", ("h", "h_up", "h_down"), "m",
+               "water_surface_height_above_reference_datum"),
+    CFVariable("discharge", "discharge_series", ("Q",), "m3 s-1", "water_volume_transport_in_river_channel"),
+)
 
 
 @dataclass(frozen=True)

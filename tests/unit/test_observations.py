@@ -42,10 +42,24 @@ def test_csv_round_trip_keeps_gaps(tmp_path) -> None:
     np.testing.assert_allclose(back["S.Q"].values, 0.1)
 
 
+def test_csv_with_gaps_and_empty_cells_reads_them_as_missing(tmp_path) -> None:
+    path = tmp_path / "obs.csv"
+    path.write_text("time,S.h,S.Q\n2020-01-01T00:00Z,1.0,\n2020-01-01T01:00Z,,0.5\n2020-01-01T02:00Z,1.2,0.6\n"
+                    "2020-01-01T03:00Z,1.3,0.7\n2020-01-01T09:00+01:00,1.4,0.8\n", encoding="utf-8")
+    obs = read_observations_csv(path)  # the last line is 08:00 UTC: a gap of 5 h in an hourly series
+    assert obs["S.h"].times[-1] == pd.Timestamp("2020-01-01T08:00Z")
+    assert (obs["S.h"].n_missing, obs["S.Q"].n_missing) == (1, 1)
+    np.testing.assert_array_equal(obs["S.h"].values, [1.0, 1.2, 1.3, 1.4])
+
+
 @pytest.mark.parametrize(("text", "message"), [
     ("time,S.h\n2020-01-01T00:00Z,1.0\n2020-01-01T01:00Z,abc\n", "line 3 .*'abc' is not a number"),
-    ("time,S.h\nyesterday,1.0\n", "line 2: not a time"),
-    ("time,S.h\n2020-01-01T01:00Z,1.0\n2020-01-01T00:00Z,1.0\n", "line 3: time .* is not after"),
+    ("time,S.h\nyesterday,1.0\n", "line 2: 'yesterday' is not a time"),
+    ("time,S.h\n2020-01-01T01:00Z,1.0\n2020-01-01T00:00Z,1.0\n", "line 3: the time .* is earlier than"),
+    ("time,S.h\n2020-01-01T01:00Z,1.0\n2020-01-01T01:00Z,1.0\n", "line 3: the time .* appears twice"),
+    ("time,S.h,S.h\n2020-01-01T00:00Z,1.0,2.0\n", "names column 'S.h' twice"),
+    ("time,S.h\n2020-01-01T00:00Z,inf\n", "line 2 .*'inf' is not a finite number"),
+    ("time,S.h\n", "no data lines"),
     ("time,S.level\n2020-01-01T00:00Z,1.0\n", "<station>.<quantity>"),
 ])
 def test_csv_errors_name_file_line_and_column(tmp_path, text: str, message: str) -> None:

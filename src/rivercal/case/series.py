@@ -1,4 +1,4 @@
-"""Reading and checking the CSV time series of a case.
+"""Reading and checking CSV time series: the series of a case, and observation files.
 
 A series file has a header row; its first column holds times (ISO 8601; times without an offset
 are UTC), every other column holds numbers. Problems are reported with the file, the column, the
@@ -6,9 +6,11 @@ line and the offending text, never guessed away:
 
 - a time that cannot be parsed, times that are not strictly increasing (duplicates, disorder);
 - a gap: in a regular series (at least 90 % of the intervals equal), an interval longer than the
-  regular step. Irregular series (breakpoints of a hydrograph) are accepted as they are;
+  regular step. Irregular series (breakpoints of a hydrograph) are accepted as they are. Observation
+  files (:func:`rivercal.io.read_observations_csv`) may have gaps and skip this check;
 - an empty cell or a value that is not a finite number (only in the columns a case uses, so a
-  file may carry other columns, e.g. remarks).
+  file may carry other columns, e.g. remarks). In an observation file an empty cell is a missing
+  observation, not an error.
 
 Line numbers are those an editor shows: the header is line 1.
 """
@@ -56,7 +58,8 @@ class SeriesTable:
         return list(self.text.columns)
 
 
-def read_series_table(path: Path, *, label: str | None = None, used_by: str | None = None) -> SeriesTable:
+def read_series_table(path: Path, *, label: str | None = None, used_by: str | None = None,
+                      allow_gaps: bool = False) -> SeriesTable:
     """Read a series CSV and check its header and times (not yet its values).
 
     Parameters
@@ -67,6 +70,8 @@ def read_series_table(path: Path, *, label: str | None = None, used_by: str | No
         Name used for the file in error messages (default: the file name).
     used_by
         The case field that refers to the file (``boundaries[0].series``), for the messages.
+    allow_gaps
+        Accept gaps in a regular series (observations); by default a gap is an error.
 
     Returns
     -------
@@ -107,13 +112,15 @@ def read_series_table(path: Path, *, label: str | None = None, used_by: str | No
     if body.shape[0] < 1:
         raise CaseError(f"has a header but no data lines{suffix}", file=name)
     times = _parse_times(body[header[0]].to_numpy(), name, header[0], suffix)
-    _check_gaps(times, name, header[0], suffix)
+    if not allow_gaps:
+        _check_gaps(times, name, header[0], suffix)
     text = body[header[1:]]
     text.index = times
     return SeriesTable(label=name, time_column=header[0], times=times, text=text)
 
 
-def series_column(table: SeriesTable, column: str, *, used_by: str | None = None) -> pd.Series:
+def series_column(table: SeriesTable, column: str, *, used_by: str | None = None,
+                  allow_missing: bool = False) -> pd.Series:
     """The numbers of one column of a series file.
 
     Parameters
@@ -124,6 +131,8 @@ def series_column(table: SeriesTable, column: str, *, used_by: str | None = None
         Header of the value column.
     used_by
         The case field that refers to the column, for the messages.
+    allow_missing
+        An empty cell is a missing value (NaN) instead of an error (observations).
 
     Returns
     -------
@@ -133,7 +142,8 @@ def series_column(table: SeriesTable, column: str, *, used_by: str | None = None
     Raises
     ------
     CaseError
-        When the column does not exist, a cell is empty or holds anything but a finite number.
+        When the column does not exist, a cell is empty (unless ``allow_missing``) or holds anything but a
+        finite number.
     """
     suffix = f" (referenced by {used_by})" if used_by else ""
     if column not in table.text.columns:
@@ -144,7 +154,7 @@ def series_column(table: SeriesTable, column: str, *, used_by: str | None = None
         raise CaseError(reason + suffix, file=table.label, field=column)
     text = table.text[column]
     values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
-    bad = np.flatnonzero(~np.isfinite(values))
+    bad = np.flatnonzero(~np.isfinite(values) & ~(allow_missing & (text == "").to_numpy()))
     if bad.size:
         i = int(bad[0])
         cell = str(text.iloc[i])

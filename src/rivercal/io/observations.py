@@ -3,7 +3,8 @@
 Columns are named ``"<station>.<quantity>"`` (``h``, ``h_up``, ``h_down`` in m AD; ``Q`` in m³/s). An empty
 cell is a missing observation: it is dropped and counted, never read as zero. Text that is not a
 number, an unparsable or repeated time, or times out of order are errors that name the file, the line
-and the column.
+and the column (the checks of the case's series files, :mod:`rivercal.case.series`, without the gap
+rule: observations may have gaps).
 """
 
 from __future__ import annotations
@@ -11,9 +12,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
+from rivercal.case.series import read_series_table, series_column
 from rivercal.errors import CaseError
 from rivercal.observations import ObservationSet
 
@@ -36,38 +37,9 @@ def read_observations_csv(path: str | Path, *, sigma: Mapping[str, float | None]
         Naming the file, line and column of the first problem.
     """
     path = Path(path)
-    if not path.is_file():
-        raise CaseError("file not found", file=str(path))
-    try:
-        raw = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise CaseError(f"not a readable CSV file ({exc})", file=str(path)) from None
-    if raw.shape[1] < 2 or raw.shape[0] < 1:
-        raise CaseError("needs a time column, at least one series column and one data line", file=str(path))
-    time_col = raw.columns[0]
-    times = pd.to_datetime(raw[time_col].str.strip(), utc=True, errors="coerce", format="ISO8601")
-    bad = np.flatnonzero(times.isna().to_numpy())
-    if bad.size:
-        i = int(bad[0])
-        raise CaseError(f"line {i + 2}: not a time: {raw[time_col].iloc[i]!r} (ISO 8601, e.g. 2010-09-27T00:00:00Z)",
-                        file=str(path), field=time_col)
-    index = pd.DatetimeIndex(times)
-    step = np.diff(index.asi8)
-    if (step <= 0).any():
-        i = int(np.flatnonzero(step <= 0)[0]) + 1
-        raise CaseError(f"line {i + 2}: time {index[i].isoformat()} is not after the previous line",
-                        file=str(path), field=time_col)
-    data = {}
-    for col in raw.columns[1:]:
-        text = raw[col].str.strip()
-        values = pd.to_numeric(text.replace("", np.nan), errors="coerce")
-        wrong = np.flatnonzero(values.isna().to_numpy() & (text != "").to_numpy())
-        if wrong.size:
-            i = int(wrong[0])
-            raise CaseError(f"line {i + 2} ({index[i].isoformat()}): {raw[col].iloc[i]!r} is not a number",
-                            file=str(path), field=str(col))
-        data[str(col)] = values.to_numpy(dtype=float)
-    frame = pd.DataFrame(data, index=index)
+    table = read_series_table(path, label=str(path), allow_gaps=True)
+    data = {c: series_column(table, c, allow_missing=True) for c in table.columns}
+    frame = pd.DataFrame(data, index=table.times)
     try:
         return ObservationSet.from_frame(frame, sigma=sigma, source=str(path))
     except ValueError as exc:

@@ -55,6 +55,7 @@ import defusedxml.ElementTree as SafeET
 import numpy as np
 import pandas as pd
 
+from rivercal._time import utc, utc_index
 from rivercal.errors import CaseError
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
 
@@ -423,8 +424,7 @@ def write_pixml(path: str | Path, frame: pd.DataFrame, *, ids: Mapping[str, tupl
     module_instance_id, series_type
         Header ``moduleInstanceId`` and ``type``.
     """
-    index = pd.DatetimeIndex(frame.index)
-    index = index.tz_localize("UTC") if index.tz is None else index.tz_convert("UTC")
+    index = utc_index(frame.index)
     local = (index + pd.Timedelta(hours=time_zone)).tz_localize(None)
     step = np.diff(index.as_unit("ns").asi8) // 1_000_000_000 if len(index) > 1 else np.array([])
     ET.register_namespace("", PI_NAMESPACE)
@@ -454,9 +454,7 @@ def write_pixml(path: str | Path, frame: pd.DataFrame, *, ids: Mapping[str, tupl
             _pi_datetime(header, _q("startDate", PI_NAMESPACE), local[0])
             _pi_datetime(header, _q("endDate", PI_NAMESPACE), local[-1])
         if forecast_date is not None:
-            t0 = pd.Timestamp(forecast_date)
-            t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
-            t0_local = (t0 + pd.Timedelta(hours=time_zone)).tz_localize(None)
+            t0_local = (utc(forecast_date) + pd.Timedelta(hours=time_zone)).tz_localize(None)
             _pi_datetime(header, _q("forecastDate", PI_NAMESPACE), t0_local)
         add("missVal", repr(float(miss_val)))
         add("units", (units or {}).get(series_id, EXPECTED_UNITS.get(quantity, "-")))

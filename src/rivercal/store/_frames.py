@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.store.records import FORECAST_KINDS, utc
+from rivercal._time import utc, utc_index
+from rivercal.store.records import FORECAST_KINDS
 
 log = logging.getLogger("rivercal.store")
 
@@ -50,8 +51,7 @@ def to_unix(time: Any, what: str = "time") -> int:
 
 def index_to_unix(index: Any, what: str) -> np.ndarray:
     """A time index (naive = UTC) as int64 Unix seconds; refuses fractions of a second."""
-    times = pd.DatetimeIndex(index)
-    times = times.tz_localize("UTC") if times.tz is None else times.tz_convert("UTC")
+    times = utc_index(index)
     ns = times.as_unit("ns").asi8
     frac = ns % _NS_PER_S != 0
     if frac.any():

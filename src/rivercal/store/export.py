@@ -32,6 +32,8 @@ import numpy as np
 import pandas as pd
 
 import rivercal
+from rivercal._time import utc_index
+from rivercal.observations import CF_VARIABLES
 from rivercal.store._frames import now_stamp
 from rivercal.store.records import Run, StoreError
 
@@ -42,7 +44,6 @@ if TYPE_CHECKING:
 
 __all__ = ["export_estimates_csv", "export_forecasts_csv", "to_netcdf", "to_xarray"]
 
-_LEVELS = ("h", "h_up", "h_down")
 _TIME_UNITS = "seconds since 1970-01-01"  # CF: no time zone means UTC
 
 
@@ -84,7 +85,7 @@ def _var_name(parameter: str, taken: set[str]) -> str:
 
 def _naive(times: Any) -> np.ndarray:
     """UTC times as naive datetime64[ns] (CF time coordinates are UTC by convention)."""
-    return pd.DatetimeIndex(times).tz_convert("UTC").tz_localize(None).as_unit("ns").to_numpy()
+    return utc_index(times).tz_localize(None).as_unit("ns").to_numpy()
 
 
 def _estimates_dataset(store: Store, run: int | Run) -> xr.Dataset:
@@ -153,19 +154,16 @@ def _forecast_dataset(store: Store, run: int | Run) -> xr.Dataset:
     ds.coords["valid_time"] = (("reference_time", "lead_time"), valid, {"standard_name": "time",
                                                                          "long_name": "forecast valid time"})
     quantity = fc["series"].str.rpartition(".")[2]
-    groups = (("water_level", "level_series", fc[quantity.isin(_LEVELS)], "m",
-               "water_surface_height_above_reference_datum", "forecast water level"),
-              ("discharge", "discharge_series", fc[quantity == "Q"], "m3 s-1",
-               "water_volume_transport_in_river_channel", "forecast discharge"))
-    for name, dim, part, unit, standard, text in groups:
+    for var, text in zip(CF_VARIABLES, ("forecast water level", "forecast discharge"), strict=True):
+        part = fc[quantity.isin(var.quantities)]
         if part.empty:
             continue
+        dim = var.dimension
         cube = (part.set_index(["kind", "reference_time", "lead_h", "series"])["value"].to_xarray()
                 .rename({"lead_h": "lead_time", "series": dim})
                 .reindex(kind=ds["kind"].values, reference_time=ref, lead_time=lead))
         ds.coords[dim] = (dim, cube[dim].values.astype(object), {"long_name": "series id <station>.<quantity>"})
-        ds[name] = (("kind", "reference_time", "lead_time", dim), cube.values,
-                    {"units": unit, "standard_name": standard, "long_name": text})
+        ds[var.name] = (("kind", "reference_time", "lead_time", dim), cube.values, var.attrs(text))
     return ds
 
 

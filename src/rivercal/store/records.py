@@ -14,6 +14,7 @@ from typing import Any
 
 import pandas as pd
 
+from rivercal._time import utc
 from rivercal.errors import RivercalError
 
 __all__ = [
@@ -31,7 +32,6 @@ __all__ = [
     "Schedule",
     "StoreError",
     "StoreVersionError",
-    "utc",
 ]
 
 #: Status of a cycle. ``pending`` and ``running`` are unfinished (a restarted service resumes them);
@@ -56,20 +56,6 @@ class StoreVersionError(StoreError):
 
 class CycleStateError(StoreError):
     """A cycle is not in a state that allows the operation (already final, owned by a live process, a gap)."""
-
-
-def utc(time: Any) -> pd.Timestamp:
-    """A time as a UTC pandas Timestamp (a naive time is taken to be UTC).
-
-    Raises
-    ------
-    ValueError
-        If ``time`` is not a time (or is NaT).
-    """
-    ts = pd.Timestamp(time)
-    if ts is pd.NaT or pd.isna(ts):
-        raise ValueError(f"not a time: {time!r}")
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
 
 
 @dataclass(frozen=True)
