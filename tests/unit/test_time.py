@@ -1,0 +1,38 @@
+"""UTC times and interpolation in time (rivercal._time)."""
+
+from __future__ import annotations
+
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rivercal._time import interpolate_at, utc, utc_index
+
+
+def test_naive_times_are_utc_and_aware_times_are_converted() -> None:
+    want = pd.Timestamp("2010-11-01T06:00Z")
+    assert utc("2010-11-01T06:00") == want and utc("2010-11-01T06:00").tz is not None
+    assert utc("2010-11-01T07:00+01:00") == want and str(utc("2010-11-01T07:00+01:00").tz) == "UTC"
+    assert utc(datetime(2010, 11, 1, 4, tzinfo=timezone(timedelta(hours=-2)))) == want
+    index = utc_index(["2010-11-01T06:00", "2010-11-01T07:00"])
+    assert str(index.tz) == "UTC" and index[0] == want
+    assert (utc_index(index.tz_convert("Europe/Amsterdam")) == index).all()
+
+
+@pytest.mark.parametrize("value", [None, pd.NaT, "yesterday"])
+def test_what_is_not_a_time_is_refused(value) -> None:
+    with pytest.raises(ValueError):
+        utc(value)
+
+
+def test_interpolation_is_exact_for_a_linear_series_and_constant_beyond_it() -> None:
+    index = pd.date_range("2010-11-01", periods=25, freq="h", tz="UTC")
+    hours = np.arange(25.0)
+    values = 3.0 + 0.25 * hours  # m, linear in time
+    times = pd.DatetimeIndex(["2010-10-31T23:00Z", "2010-11-01T00:30Z", "2010-11-01T10:45Z", "2010-11-02T03:00Z"])
+    got = interpolate_at(index, values, times)
+    np.testing.assert_allclose(got, [3.0, 3.125, 3.0 + 0.25 * 10.75, 9.0], rtol=0, atol=1e-12)
+    same = interpolate_at(index, values, times, origin=pd.Timestamp("2010-01-01T00:00Z"))
+    np.testing.assert_allclose(same, got, rtol=0, atol=1e-12)
