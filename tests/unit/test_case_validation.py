@@ -679,9 +679,9 @@ def test_schema_errors_belong_to_the_rivercal_hierarchy() -> None:
 
     from pydantic import ValidationError
 
-    from rivercal.case.schema import branch_layout
     from rivercal.errors import FieldProblem, RivercalError, StructureOverlap
     from rivercal.network import Branch, Network, Weir
+    from rivercal.network.grid import branch_layout
 
     data = mini_case()
     data["weirs"][0]["crest_level"] = 3.0
