@@ -17,6 +17,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
+from rivercal._time import utc_index
+
 __all__ = ["CF_VARIABLES", "DEFAULT_SIGMA", "CFVariable", "ObservationSeries", "ObservationSet"]
 
 #: Default standard deviations by quantity: ±2.5 cm for levels and ±0.1 m³/s for discharges, the noise
@@ -108,8 +110,7 @@ class ObservationSeries:
                              f"{', '.join(QUANTITIES)}")
         if sigma is not None and not sigma > 0:
             raise ValueError(f"{name}: sigma must be positive, got {sigma}")
-        index = pd.DatetimeIndex(series.index)
-        index = index.tz_localize("UTC") if index.tz is None else index.tz_convert("UTC")
+        index = utc_index(series.index)
         values = pd.to_numeric(pd.Series(series.to_numpy()), errors="coerce").to_numpy(dtype=float)
         if index.has_duplicates or not index.is_monotonic_increasing:
             raise ValueError(f"{name}: times must be strictly increasing")

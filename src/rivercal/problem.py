@@ -34,6 +34,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 import pandas as pd
 
+from rivercal._time import interpolate_at, utc
 from rivercal.errors import ModelRunError
 from rivercal.evaluate import Evaluator
 from rivercal.observations import ObservationSet
@@ -123,7 +124,7 @@ class CalibrationProblem:
             raise ValueError("no parameters to calibrate")
         self.model = model
         self.parameters = parameters
-        self.start, self.end = (_utc(window[0]), _utc(window[1]))
+        self.start, self.end = (utc(window[0]), utc(window[1]))
         if not self.end > self.start:
             raise ValueError(f"the window end {self.end} is not after its start {self.start}")
         self.warmup = pd.Timedelta(warmup)
@@ -203,12 +204,8 @@ class CalibrationProblem:
     def predictions(self, result: Any) -> dict[str, np.ndarray]:
         """Simulated values at the observation times, by series id (linear interpolation in time)."""
         series = result.series
-        t = (series.index - self.run_start).total_seconds().to_numpy()
-        out = {}
-        for s in self.observations:
-            ts = (s.times - self.run_start).total_seconds().to_numpy()
-            out[s.id] = np.interp(ts, t, series[s.id].to_numpy())
-        return out
+        return {s.id: interpolate_at(series.index, series[s.id].to_numpy(), s.times, self.run_start)
+                for s in self.observations}
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Weighted residuals √W (y − ŷ(x)), concatenated in the order of :attr:`observations`."""
@@ -345,9 +342,3 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
                            **problem.parameters.values(x0)})
     return Calibration(result=result, estimates=values, std=std,
                        initial=problem.parameters.values(x0), wall_time=wall, algorithm=algorithm, history=history)
-
-
-def _utc(value: Any) -> pd.Timestamp:
-    ts = pd.Timestamp(value)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
-

@@ -34,6 +34,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from rivercal._time import interpolate_at
 from rivercal.observations import ObservationSet
 
 __all__ = [
@@ -118,13 +119,11 @@ def errors(observed: pd.DataFrame | pd.Series | ObservationSet, simulated: pd.Da
     weights = _sigma_of(observed, sigma) or {}
     if len(sim.index) == 0:
         raise ValueError("the simulated series are empty")
-    t_sim = _seconds(sim.index, sim.index[0])
-    t_obs = _seconds(obs.index, sim.index[0])
-    inside = (t_obs >= t_sim[0]) & (t_obs <= t_sim[-1])
+    inside = (obs.index >= sim.index[0]) & (obs.index <= sim.index[-1])
     out = {}
     for col in obs.columns:
         y = pd.to_numeric(obs[col], errors="coerce").to_numpy(dtype=float)
-        yhat = np.interp(t_obs, t_sim, sim[col].to_numpy(dtype=float))
+        yhat = interpolate_at(sim.index, sim[col].to_numpy(dtype=float), obs.index)
         e = np.where(inside, y - yhat, np.nan)
         sig = weights.get(str(col))
         out[col] = e / sig if sig is not None else e

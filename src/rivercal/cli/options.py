@@ -131,6 +131,8 @@ def parse_time(text: str, option: str) -> Any:
     """An ISO 8601 time as a UTC timestamp (a time without zone is UTC)."""
     import pandas as pd
 
+    from rivercal._time import utc
+
     try:
         ts = pd.Timestamp(text)
     except (ValueError, TypeError, OverflowError):
@@ -138,7 +140,7 @@ def parse_time(text: str, option: str) -> Any:
     if ts is None or ts is pd.NaT:
         raise OptionError(f"{option} {text!r}: not a date or time (ISO 8601, e.g. 2010-10-18 or "
                           "2010-10-18T06:00Z)", option=option)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+    return utc(ts)
 
 
 def parse_duration(text: str, option: str, *, allow_zero: bool = False) -> Any:

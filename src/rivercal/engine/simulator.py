@@ -22,6 +22,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from rivercal._time import utc
 from rivercal.case.load import Case
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
 from rivercal.engine.kernels.codes import BOUNDARY_LEVEL, STAT_DRYING, STAT_SOLVES, STAT_STEPS, STATUS_LEVEL, STATUS_OK
@@ -267,8 +268,8 @@ class Simulator:
         ValueError
             For a period that does not fit the time step or a state from another network or time.
         """
-        start = self.start if start is None else _utc(start)
-        end = self.end if end is None else _utc(end)
+        start = self.start if start is None else utc(start)
+        end = self.end if end is None else utc(end)
         interval = float(output_interval or self.settings.output_interval)
         out_every = _ratio(interval, self.dt, "output_interval", "dt")
         n_steps = _ratio((end - start).total_seconds(), interval, "the period", "the output interval") * out_every
@@ -349,10 +350,6 @@ class Simulator:
             raise EngineDivergedError(when, where, what)
         return obs, zs, qs, balance, initial_volume
 
-
-def _utc(value) -> pd.Timestamp:
-    ts = pd.Timestamp(value)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
 
 
 def _ratio(a: float, b: float, what_a: str, what_b: str) -> int:

@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rivercal.observations import CF_VARIABLES
+
 __all__ = ["EngineState", "SimulationResult", "VolumeBalance"]
 
 
@@ -169,29 +171,16 @@ class SimulationResult:
         import xarray as xr
 
         cols = list(self.series.columns)
-        level_cols = [c for c in cols if not c.endswith(".Q")]
-        flow_cols = [c for c in cols if c.endswith(".Q")]
         time = self.series.index.tz_convert("UTC").tz_localize(None)
         data_vars = {}
         coords = {"time": ("time", time.values, {"standard_name": "time", "axis": "T"})}
-        if level_cols:
-            coords["level_series"] = ("level_series", np.array(level_cols, dtype=object),
-                                      {"cf_role": "timeseries_id", "long_name": "station.quantity"})
-            data_vars["water_level"] = (
-                ("level_series", "time"),
-                self.series[level_cols].to_numpy().T,
-                {"standard_name": "water_surface_height_above_reference_datum", "units": "m",
-                 "long_name": "simulated water level"},
-            )
-        if flow_cols:
-            coords["discharge_series"] = ("discharge_series", np.array(flow_cols, dtype=object),
-                                          {"cf_role": "timeseries_id", "long_name": "station.quantity"})
-            data_vars["discharge"] = (
-                ("discharge_series", "time"),
-                self.series[flow_cols].to_numpy().T,
-                {"standard_name": "water_volume_transport_in_river_channel", "units": "m3 s-1",
-                 "long_name": "simulated discharge"},
-            )
+        for var, text in zip(CF_VARIABLES, ("simulated water level", "simulated discharge"), strict=True):
+            columns = var.columns(cols)
+            if columns:
+                coords[var.dimension] = (var.dimension, np.array(columns, dtype=object),
+                                         {"cf_role": "timeseries_id", "long_name": "station.quantity"})
+                data_vars[var.name] = ((var.dimension, "time"), self.series[columns].to_numpy().T,
+                                       var.attrs(text))
         ds = xr.Dataset(data_vars=data_vars, coords=coords)
         ds.attrs.update(
             Conventions="CF-1.8",

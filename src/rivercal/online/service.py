@@ -46,6 +46,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from rivercal._time import utc
 from rivercal.analysis.forecast import score_forecasts
 from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
 from rivercal.engine.state import EngineState
@@ -270,7 +271,7 @@ class OnlineService:
         forecast horizon, so that every forecast can be scored; but not past the end of the case.
         """
         start = self.schedule.first_issue - self.window - self.warmup
-        return start, min(_utc(last_issue) + self.horizon, self.model.end)
+        return start, min(utc(last_issue) + self.horizon, self.model.end)
 
     def warm_start(self) -> dict[str, float]:
         """The last accepted value of each parameter, else its initial value (physical units)."""
@@ -489,7 +490,7 @@ class OnlineService:
 
         A restart resumes at the first unfinished cycle; finished cycles are not computed again.
         """
-        until = _utc(until)
+        until = utc(until)
         done: list[CycleOutcome] = []
         while max_cycles is None or len(done) < max_cycles:
             spec = self.next_cycle(now=until)
@@ -508,8 +509,3 @@ class OnlineService:
         """
         table = self.store.availability(self.series)
         return None if table.empty else pd.Timestamp(table["last"].max())
-
-
-def _utc(value: Any) -> pd.Timestamp:
-    ts = pd.Timestamp(value)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")

@@ -68,6 +68,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from rivercal._time import utc
 from rivercal.observations import ObservationSet
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import Calibration, CalibrationProblem, calibrate
@@ -144,7 +145,7 @@ class TransitionModel:
             raise ValueError(f"the wrapped model's time step dt = {dt!r} s is not a positive number")
         self.model = model
         self.parameter = parameter
-        self.reference = _utc(reference)
+        self.reference = utc(reference)
         self.smoothing = smoothing
         self._dt_ns = round(dt * 1e9)
 
@@ -225,7 +226,7 @@ class TransitionModel:
             For an empty window, missing bounds or initial values (plain quantity), or initial values
             outside the bounds (pydantic's ValidationError names the parameter).
         """
-        start, end = _utc(window[0]), _utc(window[1])
+        start, end = utc(window[0]), utc(window[1])
         if not end > start:
             raise ValueError(f"the window end {end} is not after its start {start}")
         t_lo = (start - self.reference).total_seconds() / 3600.0
@@ -282,8 +283,8 @@ class TransitionModel:
         rest, values = self._split(parameters or {})
         if values is None:
             return self.model.simulate(rest, start, end, state, output_interval=output_interval, snapshots=snapshots)
-        start = self.model.start if start is None else _utc(start)
-        end = self.model.end if end is None else _utc(end)
+        start = self.model.start if start is None else utc(start)
+        end = self.model.end if end is None else utc(end)
         interval = float(output_interval) if output_interval is not None else self._default_interval()
         interval_ns = round(interval * 1e9)
         if interval_ns % self._dt_ns or (end - start).value % interval_ns or not end > start:
@@ -698,8 +699,3 @@ def _short_name(name: str) -> str:
     if not clean[0].isalpha():
         clean = "p_" + clean
     return clean[:25]
-
-
-def _utc(value: Any) -> pd.Timestamp:
-    ts = pd.Timestamp(value)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._figure import subplots
+from rivercal._time import utc
 from rivercal.report.html import Page, bullets, figure, paragraph, table
 from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_netcdf
 
@@ -37,10 +38,6 @@ _RED, _BLUE, _GREY = "#c53030", "#2b6cb0", "#718096"
 
 
 
-def _utc(value: Any) -> pd.Timestamp:
-    ts = pd.Timestamp(value)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
-
 
 def _meta(run: Any) -> dict[str, Any]:
     return dict(run.config.get("meta") or {})
@@ -52,7 +49,7 @@ def _change_time(run: Any) -> pd.Timestamp | None:
         return None
     from rivercal.twin.practical import PRACTICAL_SCENARIOS
 
-    return _utc(PRACTICAL_SCENARIOS[scenario].change_time)
+    return utc(PRACTICAL_SCENARIOS[scenario].change_time)
 
 
 # -- forecast errors -------------------------------------------------------------------------------------
@@ -81,15 +78,15 @@ def forecast_errors(store: Any, run: Any, *, after: Any | None = None, lead_h: f
     run = store.get_run(run) if isinstance(run, str) else run
     if after is None:
         after = _change_time(run)
-    out: dict[str, Any] = {"n": 0, "lead_h": lead_h, "from": None if after is None else _utc(after).isoformat(),
+    out: dict[str, Any] = {"n": 0, "lead_h": lead_h, "from": None if after is None else utc(after).isoformat(),
                            "updated_mae_m": None, "dss_mae_m": None, "ratio": None, "reason": None}
     cycles = store.cycles(run)
     if cycles.empty:
         out["reason"] = "the run has no finished cycle yet"
         return out
-    keep = cycles if after is None else cycles[cycles["window_start"] >= _utc(after)]
+    keep = cycles if after is None else cycles[cycles["window_start"] >= utc(after)]
     if keep.empty:
-        out["reason"] = _no_cycle_after(run, cycles, _utc(after))
+        out["reason"] = _no_cycle_after(run, cycles, utc(after))
         return out
     fc = store.forecasts(run)
     fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] > 0) & (fc["lead_h"] <= lead_h)]
@@ -123,7 +120,7 @@ def _no_cycle_after(run: Any, cycles: pd.DataFrame, after: pd.Timestamp) -> str:
     """Why no cycle counts: none has a calibration window that starts at or after ``after``."""
     window = pd.Timedelta(run.config["window"])
     period = pd.Timedelta(run.config["period"])
-    first = _utc(run.config.get("first_issue") or cycles["issue_time"].min())
+    first = utc(run.config.get("first_issue") or cycles["issue_time"].min())
     k = max(0, -(-(after + window - first) // period))  # the first cycle whose window starts at or after
     return (f"the comparison counts only cycles whose calibration window ({_span(run.config['window'])}) starts at or "
             f"after the change at {after:%Y-%m-%d %H:%M}; the first such cycle is issued at "
@@ -162,7 +159,7 @@ def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> d
 
     run = store.get_run(run) if isinstance(run, str) else run
     meta, config = _meta(run), run.config
-    start, end = _utc(start), _utc(end)
+    start, end = utc(start), utc(end)
     truth = practical_truth(model, meta["scenario"], start, end, levels=True)
     dss_q = dict(config.get("dss") or {})
     _, state = model.simulate(dss_q, end=start)
@@ -498,7 +495,7 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
     from rivercal.twin.practical import LOCAL_WEIR
 
     period = pd.Timedelta(run.config["period"])
-    start, end = cycles["issue_time"].min(), min(cycles["issue_time"].max() + period, _utc(model.end))
+    start, end = cycles["issue_time"].min(), min(cycles["issue_time"].max() + period, utc(model.end))
     runs = continuous_runs(model, store, run, start, end)
     errors = {k: runs[k] - runs["truth"] for k in ("dss", "rivercal")}
     fig_time = _error_time_figure(errors, change, out / "error_over_time.png")

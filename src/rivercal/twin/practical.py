@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal._time import utc
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
 from rivercal.twin.noise import NOISE_MODELS, add_noise
 
@@ -215,10 +216,6 @@ class PracticalTruth:
     true_after: dict[str, float | None]
 
 
-def _utc(value: Any) -> pd.Timestamp:
-    ts = pd.Timestamp(value)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
-
 
 def _on_grid(what: str, t: pd.Timestamp, origin: pd.Timestamp, interval: float) -> None:
     steps = (t - origin).total_seconds() / interval
@@ -288,8 +285,8 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         scenario = PRACTICAL_SCENARIOS[scenario]
     if noise not in NOISE_MODELS:
         raise ValueError(f"unknown noise model {noise!r}; choose one of {', '.join(NOISE_MODELS)}")
-    start, end, change = _utc(start), _utc(end), _utc(scenario.change_time)
-    model_start, model_end = _utc(model.start), _utc(model.end)
+    start, end, change = utc(start), utc(end), utc(scenario.change_time)
+    model_start, model_end = utc(model.start), utc(model.end)
     if not end > start:
         raise ValueError(f"end {end.isoformat()} must be after start {start.isoformat()}")
     if start < model_start or end > model_end:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal._time import utc
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
 from rivercal.twin.noise import add_noise
 
@@ -68,9 +69,7 @@ def twin_truth(model: Any, truth: Mapping[str, float], window: tuple[Any, Any], 
     sigma
         σ per quantity or series id for the weights (default :data:`~rivercal.observations.DEFAULT_SIGMA`).
     """
-    start, end = pd.Timestamp(window[0]), pd.Timestamp(window[1])
-    start = start.tz_localize("UTC") if start.tzinfo is None else start
-    end = end.tz_localize("UTC") if end.tzinfo is None else end
+    start, end = utc(window[0]), utc(window[1])
     run_start = start - pd.Timedelta(warmup)
     truth = dict(truth)
     _, state = model.simulate(truth, end=run_start)
