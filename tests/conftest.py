@@ -109,3 +109,35 @@ def make_case(tmp_path: Path):
         return case_from_dict(data, tmp_path)
 
     return _make
+
+
+#: The official Delft-FEWS PI schemas (LGPL, kept beside the repository as on CI, never copied into it).
+PI_SCHEMA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "fews-pi-schemas"
+
+
+@pytest.fixture(scope="session")
+def pi_schema():
+    """``pi_schema("pi_timeseries.xsd")``: an :class:`xmlschema.XMLSchema` read from ../shared/data/fews-pi-schemas.
+
+    Fails (never skips) when the folder is missing: the PI files rivercal writes are checked against them.
+    """
+    import xmlschema
+
+    cache: dict[str, object] = {}
+
+    def load(name: str):
+        path = PI_SCHEMA_DIR / name
+        if not path.is_file():
+            pytest.fail(f"the Delft-FEWS PI schema {name} is missing: expected {path} (the folder "
+                        "../shared/data/fews-pi-schemas beside the repository)")
+        if name not in cache:
+            cache[name] = xmlschema.XMLSchema(str(path))
+        return cache[name]
+
+    return load
+
+
+def assert_valid_pi(schema, path) -> None:
+    """Fail with every schema error of a PI file (not only the first)."""
+    errors = [f"{e.path}: {e.reason}" for e in schema.iter_errors(str(path))]
+    assert not errors, f"{path} does not validate against {Path(schema.url).name}:\n" + "\n".join(errors[:10])

@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 
 from rivercal.io import STANDARD_CONVERSIONS, PiXmlError, read_pixml, read_pixml_series, write_pixml
-from rivercal.io.pixml import _norm_unit
+from rivercal.io.pixml import PiSeries, _norm_unit, write_pixml_series
+from tests.conftest import assert_valid_pi
 
 MAPPING = {("0028", "H.up"): "0028.h_up", ("0028", "H.down"): "0028.h_down", ("0031", "Q"): "0031.Q"}
 
@@ -196,3 +197,28 @@ def test_a_written_forecast_reads_back(tmp_path: Path) -> None:
     assert back["0028.h_up"].times.equals(pd.DatetimeIndex(times))
     assert back["0028.h_up"].values == pytest.approx(forecast["0028.h_up"].to_numpy())
     assert (len(back["0031.Q"]), back["0031.Q"].n_missing) == (48, 1)
+
+
+def test_written_files_validate_against_the_pi_schema(tmp_path: Path, pi_schema) -> None:
+    """Forecasts and estimate series (qualifiers, flags, comments, missing values) validate (pi_timeseries.xsd)."""
+    schema = pi_schema("pi_timeseries.xsd")
+    times = pd.date_range("2010-11-01T06:00Z", periods=5, freq="h")
+    forecast = pd.DataFrame({"0028.h_up": [7.3, np.nan, 7.31, 7.32, 7.33]}, index=times)
+    path = write_pixml(tmp_path / "f.xml", forecast, time_zone=1.0, forecast_date=times[0], qualifiers=("dss",))
+    assert_valid_pi(schema, path)
+    assert "moduleInstanceId" not in path.read_text(encoding="utf-8")
+    uneven = pd.DatetimeIndex(["2010-11-01T06:00Z", "2010-11-02T06:00Z", "2010-11-04T06:00Z"])
+    est = PiSeries("dommel", "FA", ("estimate",), "instantaneous", "m^(1/3)/s", float("nan"), uneven,
+                   np.array([16.0, np.nan, 24.9]), np.array([0, -1, 3]), ("", "", "held: the window cannot see FA"))
+    path = write_pixml_series(tmp_path / "e.xml", [est], time_zone=-5.5)
+    assert_valid_pi(schema, path)
+    back = read_pixml_series(path)[0]
+    assert back.qualifier_ids == ("estimate",) and back.comments == est.comments
+    assert back.times.equals(uneven) and back.flags.tolist() == [0, -1, 3]
+    assert np.array_equal(back.values, est.values, equal_nan=True)
+    with pytest.raises(ValueError, match="at least one event"):
+        write_pixml_series(tmp_path / "none.xml", [est.__class__(*[getattr(est, f) for f in
+                                                                  ("location_id", "parameter_id", "qualifier_ids",
+                                                                   "series_type", "units", "miss_val")],
+                                                                pd.DatetimeIndex([], tz="UTC"), np.array([]),
+                                                                np.array([], dtype=int))])

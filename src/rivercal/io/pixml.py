@@ -36,7 +36,9 @@ A PI-XML time-series file (namespace ``http://www.wldelft.nl/fews/PI``) looks li
   ("billion laughs") and external-entity files fail with a clear :class:`PiXmlError` instead of exhausting
   memory or reading other files.
 
-:func:`write_pixml` writes series (forecasts) in the same format, for FEWS to import.
+:func:`write_pixml` writes series (forecasts) in the same format, for FEWS to import, and
+:func:`write_pixml_series` writes :class:`PiSeries` (with qualifiers, flags and comments); both validate against
+the PI schema ``pi_timeseries.xsd``.
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ import logging
 import math
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -55,7 +57,7 @@ import defusedxml.ElementTree as SafeET
 import numpy as np
 import pandas as pd
 
-from rivercal._time import utc, utc_index
+from rivercal._time import utc_index
 from rivercal.errors import CaseError
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
 
@@ -68,6 +70,7 @@ __all__ = [
     "read_pixml",
     "read_pixml_series",
     "write_pixml",
+    "write_pixml_series",
 ]
 
 log = logging.getLogger(__name__)
@@ -119,6 +122,8 @@ class PiSeries:
         Event values as written (NaN where there was no value or ``NaN``).
     flags
         Event flags (-1 where the event had none).
+    comments
+        Event ``comment`` attributes ("" where an event had none), or None when not read or written.
     """
 
     location_id: str
@@ -130,6 +135,7 @@ class PiSeries:
     times: pd.DatetimeIndex
     values: np.ndarray
     flags: np.ndarray
+    comments: tuple[str, ...] | None = None
 
     @property
     def label(self) -> str:
@@ -169,16 +175,17 @@ def _time_zone(root: ET.Element, ns: str, path: Path) -> float:
     return hours
 
 
-def _events(series: ET.Element, ns: str, label: str, zone_h: float, path: Path) -> tuple[pd.DatetimeIndex,
-                                                                                         np.ndarray, np.ndarray]:
+def _events(series: ET.Element, ns: str, label: str, zone_h: float,
+            path: Path) -> tuple[pd.DatetimeIndex, np.ndarray, np.ndarray, tuple[str, ...]]:
     events = series.findall(_q("event", ns))
-    stamps, texts, flags = [], [], []
+    stamps, texts, flags, comments = [], [], [], []
     for i, ev in enumerate(events, 1):
         date, time = ev.get("date"), ev.get("time")
         if not date or not time:
             raise PiXmlError(f"event {i} has no date or time attribute", file=str(path), field=label)
         stamps.append(f"{date.strip()}T{time.strip()}")
         texts.append((ev.get("value") or "").strip())
+        comments.append(ev.get("comment") or "")
         flag = (ev.get("flag") or "").strip()
         if flag and not flag.isdigit():
             raise PiXmlError(f"event {i} ({date} {time}): flag {flag!r} is not a FEWS flag (0, 1, 2, ...)",
@@ -198,7 +205,7 @@ def _events(series: ET.Element, ns: str, label: str, zone_h: float, path: Path) 
         i = int(wrong[0])
         raise PiXmlError(f"event {i + 1} ({stamps[i].replace('T', ' ')}): value {texts[i]!r} is not a number",
                          file=str(path), field=label)
-    return times, values, np.asarray(flags, dtype=int)
+    return times, values, np.asarray(flags, dtype=int), tuple(comments)
 
 
 def read_pixml_series(path: str | Path) -> tuple[PiSeries, ...]:
@@ -239,9 +246,9 @@ def read_pixml_series(path: str | Path) -> tuple[PiSeries, ...]:
             miss_val = float(miss_text) if miss_text else math.nan
         except ValueError:
             raise PiXmlError(f"missVal {miss_text!r} is not a number", file=str(path), field=label) from None
-        times, values, flags = _events(series, ns, label, zone_h, path)
+        times, values, flags, comments = _events(series, ns, label, zone_h, path)
         out.append(PiSeries(location, parameter, qualifiers, text("type") or "instantaneous", text("units"),
-                            miss_val, times, values, flags))
+                            miss_val, times, values, flags, comments))
     log.debug("%s: %d series, time zone %+g h", path, len(out), zone_h)
     return tuple(out)
 
@@ -398,9 +405,83 @@ def _pi_datetime(parent: ET.Element, tag: str, time: pd.Timestamp) -> None:
     ET.SubElement(parent, tag, date=time.strftime("%Y-%m-%d"), time=time.strftime("%H:%M:%S"))
 
 
+def _local(times: Any, time_zone: float) -> pd.DatetimeIndex:
+    """UTC times (naive = UTC) as naive local times of a file whose ``<timeZone>`` is ``time_zone`` h."""
+    return (utc_index(times) + pd.Timedelta(hours=time_zone)).tz_localize(None)
+
+
+def write_pixml_series(path: str | Path, series: Sequence[PiSeries], *, time_zone: float = 0.0,
+                       forecast_date: Any | None = None) -> Path:
+    """Write series as a PI-XML time-series file (the inverse of :func:`read_pixml_series`).
+
+    The file validates against the PI schema ``pi_timeseries.xsd`` (version 1.2 header elements only, in
+    the schema's order).
+
+    Parameters
+    ----------
+    path
+        The file to write.
+    series
+        The series: ids, qualifiers, type, units and missing value from each :class:`PiSeries`; its times
+        are UTC; a NaN value is written as the series' ``miss_val`` (NaN when that is NaN); a flag below 0
+        is not written; ``comments`` (if given) become the events' ``comment`` attributes.
+    time_zone
+        Hours ahead of UTC for the file's times (``<timeZone>``).
+    forecast_date
+        The forecast's issue time (header ``forecastDate``), if a forecast.
+    """
+    ET.register_namespace("", PI_NAMESPACE)
+    ET.register_namespace("xsi", _XSI)
+    root = ET.Element(_q("TimeSeries", PI_NAMESPACE), {f"{{{_XSI}}}schemaLocation": f"{PI_NAMESPACE} {_PI_SCHEMA}",
+                                                         "version": "1.2"})
+    ET.SubElement(root, _q("timeZone", PI_NAMESPACE)).text = f"{time_zone:.1f}"
+    t0_local = _local([forecast_date], time_zone)[0] if forecast_date is not None else None
+    for pi in series:
+        if not len(pi.times):
+            raise ValueError(f"{pi.label}: a PI series needs at least one event (its header has start and end dates)")
+        local = _local(pi.times, time_zone)
+        step = np.diff(pd.DatetimeIndex(pi.times).as_unit("ns").asi8) // 1_000_000_000
+        node = ET.SubElement(root, _q("series", PI_NAMESPACE))
+        header = ET.SubElement(node, _q("header", PI_NAMESPACE))
+
+        def add(tag: str, text: str, header: ET.Element = header) -> None:
+            ET.SubElement(header, _q(tag, PI_NAMESPACE)).text = text
+
+        add("type", pi.series_type)
+        add("locationId", pi.location_id)
+        add("parameterId", pi.parameter_id)
+        for qualifier in pi.qualifier_ids:
+            add("qualifierId", qualifier)
+        if step.size and (step == step[0]).all() and step[0] > 0:
+            ET.SubElement(header, _q("timeStep", PI_NAMESPACE), unit="second", multiplier=str(int(step[0])))
+        else:
+            ET.SubElement(header, _q("timeStep", PI_NAMESPACE), unit="nonequidistant")
+        _pi_datetime(header, _q("startDate", PI_NAMESPACE), local[0])
+        _pi_datetime(header, _q("endDate", PI_NAMESPACE), local[-1])
+        if t0_local is not None:
+            _pi_datetime(header, _q("forecastDate", PI_NAMESPACE), t0_local)
+        miss = "NaN" if math.isnan(pi.miss_val) else repr(float(pi.miss_val))
+        add("missVal", miss)
+        if pi.units is not None:
+            add("units", pi.units)
+        flags = np.asarray(pi.flags, dtype=int)
+        for i, (t, v) in enumerate(zip(local, np.asarray(pi.values, dtype=float), strict=True)):
+            attrs = {"date": t.strftime("%Y-%m-%d"), "time": t.strftime("%H:%M:%S"),
+                     "value": format(v, ".10g") if math.isfinite(v) else miss}
+            if flags[i] >= 0:
+                attrs["flag"] = str(int(flags[i]))
+            if pi.comments is not None and pi.comments[i]:
+                attrs["comment"] = pi.comments[i]
+            ET.SubElement(node, _q("event", PI_NAMESPACE), attrs)
+    ET.indent(root, space="  ")
+    path = Path(path)
+    ET.ElementTree(root).write(path, encoding="UTF-8", xml_declaration=True)
+    return path
+
+
 def write_pixml(path: str | Path, frame: pd.DataFrame, *, ids: Mapping[str, tuple[str, str]] | None = None,
                 units: Mapping[str, str] | None = None, time_zone: float = 0.0, miss_val: float = -999.0,
-                forecast_date: Any | None = None, module_instance_id: str = "rivercal",
+                forecast_date: Any | None = None, qualifiers: Sequence[str] = (),
                 series_type: str = "instantaneous") -> Path:
     """Write series (e.g. a forecast) as a PI-XML time-series file that Delft-FEWS imports.
 
@@ -410,7 +491,7 @@ def write_pixml(path: str | Path, frame: pd.DataFrame, *, ids: Mapping[str, tupl
         The file to write.
     frame
         Values indexed by time (UTC; naive = UTC), one column per series ``"<station>.<quantity>"``, in m AD
-        or m³/s; NaN is written as ``miss_val``.
+        or m³/s; NaN is written as ``miss_val`` (without a flag), a value with flag 0 (original, reliable).
     ids
         Series id -> (locationId, parameterId) (default: split the id at its last ``.``).
     units
@@ -421,51 +502,18 @@ def write_pixml(path: str | Path, frame: pd.DataFrame, *, ids: Mapping[str, tupl
         The missing-value number.
     forecast_date
         The forecast's issue time (header ``forecastDate``), if a forecast.
-    module_instance_id, series_type
-        Header ``moduleInstanceId`` and ``type``.
+    qualifiers
+        Header ``qualifierId`` of every series (e.g. ``("dss",)`` to tell a forecast from another).
+    series_type
+        Header ``type``: ``instantaneous``, ``mean`` or ``accumulative``.
     """
-    index = utc_index(frame.index)
-    local = (index + pd.Timedelta(hours=time_zone)).tz_localize(None)
-    step = np.diff(index.as_unit("ns").asi8) // 1_000_000_000 if len(index) > 1 else np.array([])
-    ET.register_namespace("", PI_NAMESPACE)
-    ET.register_namespace("xsi", _XSI)
-    root = ET.Element(_q("TimeSeries", PI_NAMESPACE), {f"{{{_XSI}}}schemaLocation": f"{PI_NAMESPACE} {_PI_SCHEMA}",
-                                                         "version": "1.2"})
-    ET.SubElement(root, _q("timeZone", PI_NAMESPACE)).text = f"{time_zone:.1f}"
+    out = []
     for col in frame.columns:
         series_id = str(col)
         station, _, quantity = series_id.rpartition(".")
         location, parameter = (ids or {}).get(series_id, (station, quantity))
-        series = ET.SubElement(root, _q("series", PI_NAMESPACE))
-        header = ET.SubElement(series, _q("header", PI_NAMESPACE))
-
-        def add(tag: str, text: str, header: ET.Element = header) -> None:
-            ET.SubElement(header, _q(tag, PI_NAMESPACE)).text = text
-
-        add("type", series_type)
-        add("moduleInstanceId", module_instance_id)
-        add("locationId", location)
-        add("parameterId", parameter)
-        if step.size and (step == step[0]).all():
-            ET.SubElement(header, _q("timeStep", PI_NAMESPACE), unit="second", multiplier=str(int(step[0])))
-        else:
-            ET.SubElement(header, _q("timeStep", PI_NAMESPACE), unit="nonequidistant")
-        if len(local):
-            _pi_datetime(header, _q("startDate", PI_NAMESPACE), local[0])
-            _pi_datetime(header, _q("endDate", PI_NAMESPACE), local[-1])
-        if forecast_date is not None:
-            t0_local = (utc(forecast_date) + pd.Timedelta(hours=time_zone)).tz_localize(None)
-            _pi_datetime(header, _q("forecastDate", PI_NAMESPACE), t0_local)
-        add("missVal", repr(float(miss_val)))
-        add("units", (units or {}).get(series_id, EXPECTED_UNITS.get(quantity, "-")))
-        for t, v in zip(local, frame[col].to_numpy(dtype=float), strict=True):
-            attrs = {"date": t.strftime("%Y-%m-%d"), "time": t.strftime("%H:%M:%S")}
-            if math.isfinite(v):
-                attrs |= {"value": format(v, ".10g"), "flag": "0"}
-            else:
-                attrs |= {"value": repr(float(miss_val))}
-            ET.SubElement(series, _q("event", PI_NAMESPACE), attrs)
-    ET.indent(root, space="  ")
-    path = Path(path)
-    ET.ElementTree(root).write(path, encoding="UTF-8", xml_declaration=True)
-    return path
+        values = frame[col].to_numpy(dtype=float)
+        out.append(PiSeries(location, parameter, tuple(qualifiers), series_type,
+                            (units or {}).get(series_id, EXPECTED_UNITS.get(quantity, "-")), float(miss_val),
+                            utc_index(frame.index), values, np.where(np.isfinite(values), 0, -1)))
+    return write_pixml_series(path, out, time_zone=time_zone, forecast_date=forecast_date)
