@@ -1,0 +1,1 @@
+"""The read-only web dashboard over a store (layer 7½)."""
