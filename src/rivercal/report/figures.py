@@ -16,6 +16,7 @@ import pandas as pd
 
 from rivercal._figure import new_figure, subplots
 from rivercal.network import Network
+from rivercal.network.coordinates import branch_polylines, point_along, station_coordinates
 
 __all__ = [
     "case_weir_labels",
@@ -30,24 +31,6 @@ __all__ = [
 
 
 
-def _branch_xy(network: Network) -> dict[str, np.ndarray]:
-    nodes = {n.id: n for n in network.nodes}
-    out = {}
-    for b in network.branches:
-        if b.geometry:
-            out[b.id] = np.asarray(b.geometry, dtype=float)
-        else:
-            a, c = nodes[b.from_node], nodes[b.to_node]
-            out[b.id] = np.array([[a.x, a.y], [c.x, c.y]], dtype=float)
-    return out
-
-
-def _at(xy: np.ndarray, frac: float) -> tuple[float, float]:
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    t = frac * s[-1]
-    return float(np.interp(t, s, xy[:, 0])), float(np.interp(t, s, xy[:, 1]))
-
-
 def plot_network(network: Network, path: str | Path, *, title: str = "", label_weirs: bool = True,
                  weir_labels: dict[str, str] | None = None) -> Path:
     """Draw branches, nodes, weirs (labelled), culverts, pumps, stations and laterals.
@@ -59,12 +42,12 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
         raise ValueError(f"node {missing[0]!r} has no x/y coordinates; the schematic needs them for every node")
     from matplotlib.lines import Line2D
 
-    xy = _branch_xy(network)
+    xy = branch_polylines(network)
     lengths = {b.id: b.length for b in network.branches}
     fig, ax = subplots(figsize=(11, 7.5))
     for bid, pts in xy.items():
         ax.plot(pts[:, 0], pts[:, 1], color="#2b6cb0", lw=2.2, zorder=1)
-        mx, my = _at(pts, 0.5)
+        mx, my = point_along(pts, 0.5)
         ax.annotate(bid, (mx, my), xytext=(4, 4), textcoords="offset points", color="#2b6cb0", fontsize=8,
                     style="italic")
     for n in network.nodes:
@@ -80,7 +63,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
                                         ("culvert", network.culverts, "s", "#805ad5"),
                                         ("pump", network.pumps, "^", "#dd6b20")):
         for s in items:
-            px, py = _at(xy[s.branch], s.chainage / lengths[s.branch])
+            px, py = point_along(xy[s.branch], s.chainage / lengths[s.branch])
             struct_xy[s.id] = (px, py)
             ax.plot(px, py, marker, color=colour, ms=12 if kind == "weir" else 7, mew=3, zorder=5)
             if label_weirs or kind != "weir":
@@ -92,7 +75,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
         if st.structure is not None:
             px, py = struct_xy[st.structure]
         else:
-            px, py = _at(xy[st.branch], st.chainage / lengths[st.branch])
+            px, py = point_along(xy[st.branch], st.chainage / lengths[st.branch])
         ax.plot(px, py, "o", mfc="none", mec="black", ms=15, mew=1.6, zorder=6)
         ax.annotate(st.id, (px, py), xytext=(6, 8), textcoords="offset points", fontsize=9, weight="bold")
     node_xy = {n.id: (n.x, n.y) for n in network.nodes}
@@ -100,7 +83,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
         if lat.node is not None:
             px, py = node_xy[lat.node]
         else:
-            px, py = _at(xy[lat.branch], lat.chainage / lengths[lat.branch])
+            px, py = point_along(xy[lat.branch], lat.chainage / lengths[lat.branch])
         ax.plot(px, py, "v", color="#38a169", ms=6, zorder=4)
     handles = [
         Line2D([], [], color="#2b6cb0", lw=2.2, label="branch"),
@@ -216,7 +199,7 @@ def case_weir_labels(case: Any) -> dict[str, str]:
 
 def _point_xy(network: Network, labels: pd.Index) -> np.ndarray:
     """Map positions (m) of calculation points labelled ``node:<id>`` or ``<branch>@<chainage>``."""
-    xy = _branch_xy(network)
+    xy = branch_polylines(network)
     lengths = {b.id: b.length for b in network.branches}
     nodes = {n.id: n for n in network.nodes}
     out = np.empty((len(labels), 2))
@@ -227,21 +210,10 @@ def _point_xy(network: Network, labels: pd.Index) -> np.ndarray:
             continue
         branch, _, chainage = label.rpartition("@")
         try:
-            out[i] = _at(xy[branch], float(chainage) / lengths[branch])
+            out[i] = point_along(xy[branch], float(chainage) / lengths[branch])
         except (KeyError, ValueError):
             raise ValueError(f"calculation point {label!r} is neither 'node:<id>' nor '<branch>@<chainage>' of a "
                              "branch of this network") from None
-    return out
-
-
-def _station_xy(network: Network) -> dict[str, tuple[float, float]]:
-    xy = _branch_xy(network)
-    lengths = {b.id: b.length for b in network.branches}
-    structures = {s.id: s for s in (*network.weirs, *network.culverts, *network.pumps)}
-    out = {}
-    for st in network.stations:
-        where = structures[st.structure] if st.structure is not None else st
-        out[st.id] = _at(xy[where.branch], where.chainage / lengths[where.branch])
     return out
 
 
@@ -251,7 +223,7 @@ def _draw_values(ax: Any, network: Network, values: pd.Series, norm: Any, cmap: 
     missing = [n.id for n in network.nodes if n.x is None or n.y is None]
     if missing:
         raise ValueError(f"node {missing[0]!r} has no x/y coordinates; the map needs them for every node")
-    xy = _branch_xy(network)
+    xy = branch_polylines(network)
     lengths = {b.id: b.length for b in network.branches}
     for pts in xy.values():
         ax.plot(pts[:, 0], pts[:, 1], color="#cbd5e0", lw=5, solid_capstyle="round", zorder=1)
@@ -265,8 +237,8 @@ def _draw_values(ax: Any, network: Network, values: pd.Series, norm: Any, cmap: 
     at_station = {st.structure for st in network.stations}
     span = max(np.ptp(np.concatenate([p[:, 0] for p in xy.values()])), 1.0)
     below: list[tuple[float, float]] = []
-    for w in sorted(network.weirs, key=lambda w: _at(xy[w.branch], w.chainage / lengths[w.branch])):
-        px, py = _at(xy[w.branch], w.chainage / lengths[w.branch])
+    for w in sorted(network.weirs, key=lambda w: point_along(xy[w.branch], w.chainage / lengths[w.branch])):
+        px, py = point_along(xy[w.branch], w.chainage / lengths[w.branch])
         ax.plot(px, py, marker="|", color="#1a202c", ms=11, mew=2.5, zorder=4)
         if w.id in at_station:
             continue  # the station's label names the place
@@ -276,7 +248,7 @@ def _draw_values(ax: Any, network: Network, values: pd.Series, norm: Any, cmap: 
             below.append((px, py))
         ax.annotate(weir_labels.get(w.id, w.id), (px, py), xytext=(4, 6 if crowded else -11),
                     textcoords="offset points", fontsize=6.5, color="#2d3748")
-    for sid, (px, py) in _station_xy(network).items():
+    for sid, (px, py) in station_coordinates(network).items():
         ax.plot(px, py, "o", mfc="none", mec="black", ms=14, mew=1.5, zorder=5)
         ax.annotate(sid, (px, py), xytext=(6, 8), textcoords="offset points", fontsize=8.5, weight="bold")
     ax.set_aspect("equal", adjustable="datalim")
