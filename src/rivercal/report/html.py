@@ -1,9 +1,9 @@
-"""A small, dependency-free HTML page builder for rivercal's reports.
+"""The HTML page builder of rivercal's reports, on the Jinja2 templates of :mod:`rivercal.report.pages`.
 
 One self-contained file per page: a short inline stylesheet, no JavaScript, no external assets, no
-network access. Figures are *linked* (relative paths to PNG files next to the page), never embedded, so
-that a report folder can be moved or archived as a whole. Every piece of text and every table cell is
-HTML-escaped; there is no way to inject markup through the API.
+network access (the live dashboard extends the same templates). Figures are *linked* (relative paths to
+PNG files next to the page), never embedded, so that a report folder can be moved or archived as a whole.
+Every piece of text and every table cell is HTML-escaped; there is no way to inject markup through the API.
 
 The API is five names:
 
@@ -23,7 +23,6 @@ True
 from __future__ import annotations
 
 import datetime as _dt
-import html
 import logging
 import numbers
 import os
@@ -35,30 +34,13 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from markupsafe import Markup
+
+from rivercal.report.pages import environment
 
 __all__ = ["Block", "Page", "bullets", "figure", "paragraph", "table"]
 
 log = logging.getLogger(__name__)
-
-CSS = """
-body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0 auto;max-width:72rem;padding:1rem 2rem;
-color:#1a202c;line-height:1.45}
-h1{font-size:1.6rem;border-bottom:2px solid #2b6cb0;padding-bottom:.3rem}
-h2{font-size:1.3rem;margin-top:2.2rem;border-bottom:1px solid #cbd5e0}
-nav ol{columns:2;font-size:.92rem}
-table{border-collapse:collapse;margin:.6rem 0 1.2rem;font-size:.85rem}
-caption{caption-side:top;text-align:left;font-weight:600;padding:.3rem 0}
-th,td{border:1px solid #cbd5e0;padding:.2rem .45rem;vertical-align:top}
-th{background:#edf2f7;text-align:left}
-td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
-tbody tr:nth-child(even){background:#f7fafc}
-figure{margin:1rem 0 1.6rem}
-figure img{max-width:100%;border:1px solid #e2e8f0}
-figcaption{font-size:.88rem;color:#4a5568}
-.missing{color:#c53030}
-footer{margin-top:3rem;font-size:.8rem;color:#718096}
-""".strip()
-
 
 @dataclass(frozen=True)
 class Block:
@@ -71,19 +53,19 @@ class Block:
     render: Callable[[Path | None], str]
 
 
-def _text(value: Any) -> str:
-    return html.escape(str(value), quote=True)
+def _macro(name: str) -> Callable[..., str]:
+    return getattr(environment().get_template("blocks.html").module, name)
 
 
 def paragraph(text: str) -> Block:
     """A paragraph of plain text (escaped; blank lines do not split it)."""
-    markup = f"<p>{_text(text)}</p>"
+    markup = _macro("paragraph")(str(text))
     return Block(lambda _base: markup)
 
 
 def bullets(items: Iterable[str]) -> Block:
     """An unordered list of plain-text items (escaped)."""
-    markup = "<ul>" + "".join(f"<li>{_text(item)}</li>" for item in items) + "</ul>"
+    markup = _macro("bullets")([str(i) for i in items])
     return Block(lambda _base: markup)
 
 
@@ -126,20 +108,16 @@ def table(df: pd.DataFrame, caption: str = "", *, index: bool = True, float_form
     """
     if not isinstance(df, pd.DataFrame):
         raise TypeError(f"table() needs a pandas DataFrame, got {type(df).__name__}")
-    head = []
-    if index:
-        name = _label(df.index.name) if df.index.name is not None else ""
-        head.append(f"<th>{_text(name)}</th>")
-    head += [f"<th>{_text(_label(c))}</th>" for c in df.columns]
+    head = [(_label(df.index.name) if df.index.name is not None else "")] if index else []
+    head += [_label(c) for c in df.columns]
     rows = []
     for label, row in zip(df.index, df.itertuples(index=False, name=None), strict=True):
-        cells = [f"<th>{_text(_label(label))}</th>"] if index else []
+        cells = [("th", _label(label))] if index else []
         for value in row:
             text, numeric = _cell(value, float_format)
-            cells.append(f'<td class="num">{_text(text)}</td>' if numeric else f"<td>{_text(text)}</td>")
-        rows.append("<tr>" + "".join(cells) + "</tr>")
-    cap = f"<caption>{_text(caption)}</caption>" if caption else ""
-    markup = (f"<table>{cap}<thead><tr>{''.join(head)}</tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
+            cells.append(("num" if numeric else "td", text))
+        rows.append(cells)
+    markup = _macro("table")(head, rows, caption)
     return Block(lambda _base: markup)
 
 
@@ -173,7 +151,6 @@ def figure(path: str | Path, caption: str, *, alt: str | None = None) -> Block:
     from_cwd = path if path.is_absolute() else Path.cwd() / path
 
     def render(base: Path | None) -> str:
-        cap = f"<figcaption>{_text(caption)}</figcaption>"
         if path.is_absolute() or base is None:
             target, href = from_cwd, _href(from_cwd, base)
         elif (base / path).exists():
@@ -182,9 +159,8 @@ def figure(path: str | Path, caption: str, *, alt: str | None = None) -> Block:
             target, href = from_cwd, _href(from_cwd, base)
         if not target.exists():
             log.warning("figure %s does not exist; the page notes it as missing", path)
-            return f'<figure><p class="missing">missing figure: {_text(path.as_posix())}</p>{cap}</figure>'
-        return (f'<figure><a href="{_text(href)}"><img src="{_text(href)}" alt="{_text(alt or caption)}" '
-                f'loading="lazy"></a>{cap}</figure>')
+            return _macro("missing_figure")(path.as_posix(), caption)
+        return _macro("figure")(href, caption, alt or caption)
 
     return Block(render)
 
@@ -247,21 +223,12 @@ class Page:
 
     def render(self, base: Path | None = None) -> str:
         """The whole page as a string; figure links are made relative to ``base`` (the page's folder)."""
-        parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
-                 '<meta name="viewport" content="width=device-width, initial-scale=1">',
-                 f"<title>{_text(self.title)}</title>", f"<style>{CSS}</style>", "</head>", "<body>",
-                 f"<h1>{_text(self.title)}</h1>"]
-        parts += [b.render(base) for b in self._intro]
-        if len(self._sections) > 1:
-            parts.append("<nav><ol>" + "".join(f'<li><a href="#{a}">{_text(h)}</a></li>'
-                                               for h, a, _ in self._sections) + "</ol></nav>")
-        for heading, anchor, blocks in self._sections:
-            parts.append(f'<section><h2 id="{anchor}">{_text(heading)}</h2>')
-            parts += [b.render(base) for b in blocks]
-            parts.append("</section>")
         stamp = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
-        parts += [f"<footer>written by rivercal, {stamp}</footer>", "</body>", "</html>"]
-        return "\n".join(parts) + "\n"
+        sections = [(heading, anchor, [Markup(b.render(base)) for b in blocks])
+                    for heading, anchor, blocks in self._sections]
+        return environment().get_template("report.html").render(
+            title=self.title, intro=[Markup(b.render(base)) for b in self._intro], sections=sections,
+            stamp=stamp) + "\n"
 
     def write(self, path: str | Path) -> Path:
         """Write the page (UTF-8) to ``path``, creating its folder; figure links relative to it."""
