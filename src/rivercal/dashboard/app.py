@@ -1,0 +1,192 @@
+"""The dashboard's web application: a read-only Starlette app over one store.
+
+Pages (server-rendered from the Jinja2 templates shared with the reports): ``/`` now, ``/estimates``,
+``/forecasts``, ``/map``, ``/cycles``; ``/api/version`` tells the page's script when a cycle was stored
+(it then fetches the page again and swaps its content, without a reload). Static files: only the
+page script and the plotly.js that the ``plotly`` package ships (no CDN, nothing from the internet).
+
+Read-only by construction: every request opens the store with :class:`~rivercal.store.Store` in
+read-only mode (SQLite ``mode=ro``; in WAL mode a reader sees each committed cycle and never blocks the
+writer); only GET and HEAD are answered (405 otherwise); static files come from a fixed list, so
+no path reaches the file system; responses carry a Content-Security-Policy that allows scripts from
+the dashboard itself only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.resources
+import logging
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.middleware import Middleware
+from starlette.requests import Request
+from starlette.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, Response
+from starlette.routing import Route
+
+from rivercal.dashboard import views
+from rivercal.report.pages import environment
+from rivercal.store import Store, StoreError
+
+__all__ = ["create_app"]
+
+log = logging.getLogger(__name__)
+
+_SECURITY_HEADERS = {
+    "content-security-policy": "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+                               "img-src 'self' data:; connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; "
+                               "form-action 'self'",
+    "x-content-type-options": "nosniff",
+    "referrer-policy": "no-referrer",
+    "x-frame-options": "DENY",
+}
+_PAGES = (("/", "Now"), ("/estimates", "Estimates"), ("/forecasts", "Forecasts"), ("/map", "Network map"),
+          ("/cycles", "Cycle log"))
+
+
+def _static_files() -> dict[str, tuple[Path, str]]:
+    """The only files the dashboard serves: name -> (path, media type)."""
+    plotly = importlib.resources.files("plotly") / "package_data" / "plotly.min.js"
+    script = importlib.resources.files("rivercal.dashboard") / "static" / "dashboard.js"
+    return {"plotly.min.js": (Path(str(plotly)), "text/javascript"),
+            "dashboard.js": (Path(str(script)), "text/javascript")}
+
+
+class _ReadOnly:
+    """ASGI middleware: GET and HEAD only, and the security headers on every response."""
+
+    def __init__(self, app: Any):
+        self.app = app
+
+    async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        if scope["method"] not in ("GET", "HEAD"):
+            response = PlainTextResponse("the dashboard is read-only: only GET and HEAD are allowed", status_code=405,
+                                         headers={"allow": "GET, HEAD", **_SECURITY_HEADERS})
+            await response(scope, receive, send)
+            return
+
+        async def with_headers(message: dict) -> None:
+            if message["type"] == "http.response.start":
+                headers = [(k, v) for k, v in message.get("headers", []) if k.decode().lower() not in
+                           _SECURITY_HEADERS]
+                headers += [(k.encode(), v.encode()) for k, v in _SECURITY_HEADERS.items()]
+                message = {**message, "headers": headers}
+            await send(message)
+
+        await self.app(scope, receive, with_headers)
+
+
+class _Problem(Exception):
+    """A request the dashboard cannot answer (unknown run, bad parameter): status and text for the page."""
+
+    def __init__(self, status: int, text: str):
+        super().__init__(text)
+        self.status = status
+        self.text = text
+
+
+def create_app(db: str | Path, *, poll_s: float = 2.0) -> Starlette:
+    """The dashboard of the store ``db`` (opened read-only on every request).
+
+    Parameters
+    ----------
+    db
+        The SQLite store.
+    poll_s
+        How often an open page asks whether a new cycle was stored, s.
+    """
+    db = Path(db)
+    env = environment("rivercal.dashboard")
+    static = _static_files()
+
+    @contextlib.contextmanager
+    def opened(request: Request) -> Iterator[tuple[Store, Any, list[str]]]:
+        try:
+            store = Store(db, readonly=True)
+        except StoreError as exc:
+            raise _Problem(503, f"the store cannot be read: {exc}") from None
+        try:
+            runs = store.runs()
+            names = [str(n) for n in runs.sort_values("created")["name"]]
+            if not names:
+                raise _Problem(404, f"the store {db} holds no run yet")
+            name = request.query_params.get("run") or names[-1]
+            run = store.get_run(name)
+            if run is None:
+                raise _Problem(404, f"no run named {name!r} in the store (it has {', '.join(names)})")
+            yield store, run, names
+        finally:
+            store.close()
+
+    def page(request: Request, template: str, **context: Any) -> Response:
+        try:
+            with opened(request) as (store, run, names):
+                data = context.pop("view")(store, run, request)
+                html = env.get_template(template).render(
+                    title=f"rivercal — {run.name}", run=run.name, runs=names, case=run.case, pages=_PAGES,
+                    path=request.url.path, version=views.run_version(store, run), poll_ms=int(poll_s * 1000),
+                    stamp="live", **data, **context)
+        except _Problem as exc:
+            html = env.get_template("problem.html").render(title="rivercal dashboard", text=exc.text, pages=_PAGES,
+                                                           path=request.url.path, stamp="live")
+            return HTMLResponse(html, status_code=exc.status)
+        return HTMLResponse(html)
+
+    async def now(request: Request) -> Response:
+        return page(request, "now.html", view=lambda s, r, q: views.now_view(s, r))
+
+    async def estimates(request: Request) -> Response:
+        return page(request, "estimates.html", view=lambda s, r, q: views.estimates_view(s, r))
+
+    def forecast_data(store: Store, run: Any, request: Request) -> dict[str, Any]:
+        series_list, leads = views.forecast_choices(store, run)
+        if not series_list:
+            return {"series_list": [], "leads": [], "view": None}
+        series = request.query_params.get("series") or series_list[0]
+        if series not in series_list:
+            raise _Problem(404, f"no forecast series {series!r} in run {run.name} (it has {', '.join(series_list)})")
+        text = request.query_params.get("lead") or ("24" if 24.0 in leads else f"{leads[-1]:g}")
+        try:
+            lead = float(text)
+        except ValueError:
+            lead = math.nan
+        if not any(math.isclose(lead, v) for v in leads):
+            stored = ", ".join(f"{v:g}" for v in leads)
+            raise _Problem(400, f"lead {text!r}: choose one of the stored lead times {stored} h")
+        return {"series_list": series_list, "leads": leads, "view": views.forecasts_view(store, run, series, lead)}
+
+    async def forecasts(request: Request) -> Response:
+        return page(request, "forecasts.html", view=forecast_data)
+
+    async def network_map(request: Request) -> Response:
+        return page(request, "map.html", view=lambda s, r, q: views.map_view(s, r))
+
+    async def cycles(request: Request) -> Response:
+        return page(request, "cycles.html", view=lambda s, r, q: views.cycles_view(s, r))
+
+    async def version(request: Request) -> Response:
+        try:
+            with opened(request) as (store, run, _):
+                return JSONResponse({"run": run.name, "version": views.run_version(store, run)},
+                                    headers={"cache-control": "no-store"})
+        except _Problem as exc:
+            return JSONResponse({"error": exc.text}, status_code=exc.status)
+
+    async def asset(request: Request) -> Response:
+        name = request.path_params["name"]
+        if name not in static:
+            return PlainTextResponse("not found", status_code=404)
+        path, media = static[name]
+        return FileResponse(path, media_type=media, headers={"cache-control": "max-age=3600"})
+
+    routes = [Route("/", now), Route("/estimates", estimates), Route("/forecasts", forecasts),
+              Route("/map", network_map), Route("/cycles", cycles), Route("/api/version", version),
+              Route("/static/{name}", asset)]
+    return Starlette(routes=routes, middleware=[Middleware(_ReadOnly)])

@@ -1,0 +1,70 @@
+"""A store of synthetic daily cycles written through the store API (dashboard tests and benchmark).
+
+Every number is a known function of the cycle index, so a test can say what a page must show. The
+series are those of the packaged case ``dommel`` (so the map can draw its network).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rivercal.observations import ObservationSet
+from rivercal.store import AlertRecord, CycleRecord, EstimateRecord, Store
+
+SERIES = ["0028.h_up", "0028.h_down", "0040.h_up", "0040.h_down", "0029.h_up", "0029.h_down", "0029.Q", "0030.h_up",
+          "0030.h_down", "0031.h_up", "0031.h_down"]
+FIRST = pd.Timestamp("2010-01-08T00:00Z")
+CONFIG = {"parameters": ["FA", "Wd"], "window": "7D", "period": "1D", "horizon": "48h", "algorithm": "dud",
+          "first_issue": FIRST.isoformat(), "dss": {}}
+
+
+def observed(series: str, times: pd.DatetimeIndex) -> np.ndarray:
+    """The synthetic truth: a base level per series plus a slow daily wave, m (or m³/s)."""
+    base = 2.0 + SERIES.index(series) * 0.7
+    hours = (times - FIRST).total_seconds().to_numpy() / 3600.0
+    return base + 0.2 * np.sin(2 * np.pi * hours / 24.0) + 0.001 * hours / 24.0
+
+
+def record(k: int) -> CycleRecord:
+    """Cycle ``k``: FA 16 → 25 at cycle 10, a held Wd every 7th cycle, a jump alert at cycle 10, forecasts."""
+    t0 = FIRST + pd.Timedelta(days=k)
+    fa = 16.0 + (9.0 if k >= 10 else 0.0) + 0.01 * k
+    held = k % 7 == 3
+    estimates = (EstimateRecord("FA", fa, "m^(1/3)/s", std=0.1 + 0.001 * k),
+                 EstimateRecord("Wd", 0.01 * (k % 5), "m", std=0.002, accepted=not held,
+                                reason="this window cannot see Wd (identifiability index 0.10 < 0.5)" if held else None))
+    alerts = (AlertRecord("jump", f"FA changed from 16.1 to {fa:.4g} m^(1/3)/s: a probable intervention (mowing)",
+                          parameter="FA", magnitude=45.0),) if k == 10 else ()
+    times = pd.date_range(t0, t0 + pd.Timedelta("48h"), freq="h")
+    truth = pd.DataFrame({s: observed(s, times) for s in SERIES}, index=times)
+    lead = np.arange(len(times))[:, None] / 48.0
+    forecasts = {"updated": truth + 0.01 + 0.02 * lead, "dss": truth + 0.05 + 0.10 * lead}
+    return CycleRecord(k, t0 - pd.Timedelta("7D"), t0, t0, algorithm="dud", model_runs=8 + k % 4,
+                       wall_time_s=0.5 + 0.01 * k, cost_before=100.0 / (k + 1), cost_after=1.0 / (k + 1),
+                       message="converged", estimates=estimates, alerts=alerts, forecasts=forecasts)
+
+
+def build_store(path: Path, n_cycles: int, *, run: str = "dash", case: str = "dommel") -> Path:
+    """Write ``n_cycles`` daily cycles, hourly observations up to the last forecast, and the scores."""
+    with Store(path, synchronous="NORMAL") as store:
+        run_id = store.create_run(run, case, CONFIG)
+        times = pd.date_range(FIRST - pd.Timedelta("8D"), FIRST + pd.Timedelta(days=n_cycles + 2), freq="h")
+        frame = pd.DataFrame({s: observed(s, times) for s in SERIES}, index=times)
+        store.ingest(ObservationSet.from_frame(frame), source="synthetic")
+        for k in range(n_cycles):
+            store.commit_cycle(run_id, record(k))
+        store.score_forecasts(run_id)
+    return path
+
+
+def add_cycle(path: Path, run: str = "dash") -> int:
+    """Commit the next cycle (as a running service would) and score it; returns its index."""
+    with Store(path) as store:
+        info = store.get_run(run)
+        k = len(store.cycles(info))
+        store.commit_cycle(info, record(k))
+        store.score_forecasts(info, cycles=[k])
+    return k
