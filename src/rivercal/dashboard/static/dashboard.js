@@ -2,6 +2,7 @@
 (function () {
   "use strict";
   function draw(root) {
+    if (typeof Plotly === "undefined") { return; }
     root.querySelectorAll("script.figure").forEach(function (node) {
       var fig = JSON.parse(node.textContent);
       var target = document.getElementById(node.dataset.target);

@@ -1,0 +1,169 @@
+"""The dashboard in a real headless browser: pages load without JavaScript errors, the numbers in the DOM
+are the store's, a cycle committed while a page is open appears without a reload, and nothing but reading
+is possible (other methods, path traversal, writes)."""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from pathlib import Path
+from urllib.parse import urlparse
+
+import numpy as np
+import pytest
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import WebDriverWait
+
+from rivercal.store import Store
+from tests.dashboard_store import add_cycle, build_store
+from tests.e2e.browser import chrome, request, start_dashboard
+
+N_CYCLES = 12
+PAGES = ("/", "/estimates", "/forecasts", "/map", "/cycles")
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dashboard")
+    db = build_store(folder / "run.sqlite", N_CYCLES)
+    proc, url = start_dashboard(db)
+    driver = chrome(folder / "profile")
+    try:
+        yield db, url, driver
+    finally:
+        driver.quit()
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+def _open(driver, url: str) -> float:
+    """Load a page, wait until its script has drawn it; returns the load time (ms, navigation to drawn)."""
+    driver.get(url)
+    WebDriverWait(driver, 30).until(lambda d: d.execute_script("return document.body.dataset.ready === '1'"))
+    return float(driver.execute_script("return window.rivercalReady"))
+
+
+def _errors(driver) -> list[str]:
+    return [e["message"] for e in driver.get_log("browser") if e["level"] in ("SEVERE", "ERROR")]
+
+
+def _raw(driver, css: str) -> list[float]:
+    return [float(e.get_attribute("data-raw")) if e.get_attribute("data-raw") else np.nan
+            for e in driver.find_elements(By.CSS_SELECTOR, css)]
+
+
+def test_every_page_loads_without_javascript_errors_and_draws(served) -> None:
+    db, url, driver = served
+    times = {}
+    for page in PAGES:
+        times[page] = _open(driver, url + page)
+        assert _errors(driver) == [], page
+        assert driver.title.startswith("rivercal")
+        plots = driver.find_elements(By.CSS_SELECTOR, ".plot")
+        drawn = driver.find_elements(By.CSS_SELECTOR, ".plot .main-svg")
+        assert len(drawn) >= len(plots), f"{page}: {len(plots)} plots, {len(drawn)} drawn"
+    assert len(driver.find_elements(By.CSS_SELECTOR, ".plot")) == 0  # the cycle log is a table
+    print("page load (ms, navigation to drawn):", {k: round(v) for k, v in times.items()})
+
+
+def test_the_numbers_on_the_pages_are_the_stores(served) -> None:
+    db, url, driver = served
+    with Store(db, readonly=True) as store:
+        run = store.get_run("dash")
+        cycles, est, scores = store.cycles(run), store.estimates(run), store.scores(run)
+        fc = store.forecasts(run, series=["0029.Q"])
+    last = est[est["cycle"] == cycles["cycle"].max()].set_index("parameter")
+    _open(driver, url + "/")
+    for name, row in last.iterrows():
+        cells = driver.find_elements(By.CSS_SELECTOR, f'tr[data-parameter="{name}"] td')
+        assert float(cells[0].get_attribute("data-raw")) == row["value"]
+        assert cells[0].text == f"{row['value']:.4g}"
+        assert float(cells[1].get_attribute("data-raw")) == row["std"]
+    assert driver.find_element(By.CSS_SELECTOR, "div.alert").get_attribute("data-cycle") == "10"
+    # the cycle log: one row per cycle, newest first, model runs and wall time as stored
+    _open(driver, url + "/cycles")
+    rows = driver.find_elements(By.CSS_SELECTOR, "#cycles tbody tr")
+    assert [int(r.get_attribute("data-cycle")) for r in rows] == cycles["cycle"].tolist()[::-1]
+    assert _raw(driver, "#cycles tbody tr td:nth-of-type(4)") == cycles["model_runs"].astype(float).tolist()[::-1]
+    assert _raw(driver, "#cycles tbody tr td:nth-of-type(5)") == cycles["wall_time_s"].tolist()[::-1]
+    # estimates over time: the plotted points are the stored estimates
+    _open(driver, url + "/estimates")
+    for plot in driver.find_elements(By.CSS_SELECTOR, ".plot"):
+        name = plot.get_attribute("data-parameter")
+        ys = driver.execute_script("return arguments[0].data.flatMap(t => t.y)", plot)
+        assert sorted(ys) == sorted(est.loc[est["parameter"] == name, "value"].tolist())
+    # forecasts at 12 h ahead against the observations, and the scores per lead time
+    _open(driver, url + "/forecasts?run=dash&series=0029.Q&lead=12")
+    plot = driver.find_element(By.ID, "forecast-plot")
+    traces = driver.execute_script("return arguments[0].data.map(t => [t.name, t.y])", plot)
+    at12 = fc[np.isclose(fc["lead_h"], 12.0)]
+    by_name = dict(traces)
+    assert by_name["rivercal, 12 h ahead"] == at12[at12["kind"] == "updated"]["value"].tolist()
+    assert by_name["fixed DSS, 12 h ahead"] == at12[at12["kind"] == "dss"]["value"].tolist()
+    mine = scores[scores["series"] == "0029.Q"].groupby(["lead_from_h", "kind"])["rmse"].mean().unstack("kind")
+    assert _raw(driver, "#scores tbody tr td:nth-of-type(2)") == pytest.approx(mine["updated"].tolist(), rel=1e-12)
+    assert _raw(driver, "#scores tbody tr td:nth-of-type(3)") == pytest.approx(mine["dss"].tolist(), rel=1e-12)
+    # the network map: mean level bias per station, cm
+    _open(driver, url + "/map")
+    levels = scores[scores["series"].str.rpartition(".")[2] != "Q"]
+    bias = levels.groupby([levels["series"].str.rpartition(".")[0], "kind"])["bias"].mean().unstack("kind") * 100
+    for row in driver.find_elements(By.CSS_SELECTOR, "#map-table tbody tr"):
+        station = row.get_attribute("data-station")
+        cells = row.find_elements(By.CSS_SELECTOR, "td")
+        assert float(cells[0].get_attribute("data-raw")) == pytest.approx(bias.loc[station, "dss"], rel=1e-12)
+        assert float(cells[1].get_attribute("data-raw")) == pytest.approx(bias.loc[station, "updated"], rel=1e-12)
+    assert _errors(driver) == []
+
+
+def test_a_cycle_committed_while_the_page_is_open_appears_without_a_reload(served) -> None:
+    db, url, driver = served
+    _open(driver, url + "/")
+    before = int(driver.find_element(By.ID, "latest").get_attribute("data-cycle"))
+    driver.execute_script("window.__sameDocument = 'yes'")
+    new = add_cycle(db)
+    assert new == before + 1
+    WebDriverWait(driver, 20).until(
+        lambda d: d.find_element(By.ID, "latest").get_attribute("data-cycle") == str(new))
+    assert driver.execute_script("return window.__sameDocument") == "yes"  # the page was not reloaded
+    assert int(driver.execute_script("return document.body.dataset.updates")) >= 1
+    with Store(db, readonly=True) as store:
+        est = store.estimates(store.get_run("dash"))
+    fa = est[(est["cycle"] == new) & (est["parameter"] == "FA")]["value"].iloc[0]
+    assert _raw(driver, 'tr[data-parameter="FA"] td:nth-of-type(1)') == [fa]
+    assert _errors(driver) == []
+
+
+def _digest(db: Path) -> str:
+    h = hashlib.sha256()
+    for suffix in ("", "-wal"):
+        path = Path(f"{db}{suffix}")
+        h.update(path.read_bytes() if path.exists() else b"")
+    return h.hexdigest()
+
+
+def test_only_reading_is_possible(served) -> None:
+    db, url, driver = served
+    host, port = urlparse(url).hostname, urlparse(url).port
+    before = _digest(db)
+    for method in ("POST", "PUT", "DELETE", "PATCH", "OPTIONS"):
+        for path in ("/", "/cycles", "/api/version", "/static/dashboard.js"):
+            status, headers, _ = request(host, port, method, path, body=b"cycle=99")
+            assert status == 405 and headers["allow"] == "GET, HEAD", (method, path)
+    for path in ("/static/../../../../etc/passwd", "/static/..%2F..%2F..%2F..%2Fetc%2Fpasswd",
+                 "/static/%2e%2e/%2e%2e/pyproject.toml", "/../../etc/passwd", "/static/run.sqlite",
+                 f"/static/{db}", "/static//etc/passwd", "/run.sqlite"):
+        status, _, body = request(host, port, "GET", path)
+        assert status == 404, path
+        assert b"root:" not in body and b"SQLite format" not in body
+    status, headers, _ = request(host, port, "GET", "/")
+    assert status == 200 and "script-src 'self'" in headers["content-security-policy"]
+    assert headers["x-content-type-options"] == "nosniff"
+    # a form in the page cannot write either: the browser's POST is refused too
+    _open(driver, url + "/")
+    status = driver.execute_script(
+        "return fetch('/', {method: 'POST', body: 'x'}).then(r => r.status)")
+    assert status == 405
+    time.sleep(0.2)
+    assert _digest(db) == before  # the store did not change
+    with Store(db, readonly=True) as store:
+        assert store.integrity_check() == []
