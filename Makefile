@@ -6,7 +6,11 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint venv clean clean-cache
+.PHONY: demo test test-fast bench lint venv clean clean-cache browser
+
+# The dashboard tests drive Debian's chromium through chromedriver (never a downloaded browser).
+CHROMIUM := /usr/bin/chromium
+CHROMEDRIVER := /usr/bin/chromedriver
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "rivercal needs Python >= 3.11 (found " + sys.version.split()[0] + "); set PYTHON=python3.11")'
@@ -20,13 +24,20 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/rivercal demo --out $(OUT)
 
-test: $(STAMP)
+$(CHROMIUM) $(CHROMEDRIVER):
+	@command -v apt-get >/dev/null || { echo "make test needs Debian's chromium and chromium-driver (apt-get)"; exit 1; }
+	apt-get update -qq
+	DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium chromium-driver
+
+browser: $(CHROMIUM) $(CHROMEDRIVER)
+
+test: $(STAMP) browser
 	$(PY) -m pytest -n auto -q
 
-test-fast: $(STAMP)
+test-fast: $(STAMP) browser
 	$(PY) -m pytest -n auto -q -m "not slow"
 
-bench: $(STAMP)
+bench: $(STAMP) browser
 	@mkdir -p out/bench
 	$(PY) benchmarks/run_all.py --out out/bench
 
