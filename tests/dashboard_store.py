@@ -33,9 +33,9 @@ def record(k: int) -> CycleRecord:
     t0 = FIRST + pd.Timedelta(days=k)
     fa = 16.0 + (9.0 if k >= 10 else 0.0) + 0.01 * k
     held = k % 7 == 3
+    reason = "this window cannot see Wd (identifiability index 0.10 < 0.5)" if held else None
     estimates = (EstimateRecord("FA", fa, "m^(1/3)/s", std=0.1 + 0.001 * k),
-                 EstimateRecord("Wd", 0.01 * (k % 5), "m", std=0.002, accepted=not held,
-                                reason="this window cannot see Wd (identifiability index 0.10 < 0.5)" if held else None))
+                 EstimateRecord("Wd", 0.01 * (k % 5), "m", std=0.002, accepted=not held, reason=reason))
     alerts = (AlertRecord("jump", f"FA changed from 16.1 to {fa:.4g} m^(1/3)/s: a probable intervention (mowing)",
                           parameter="FA", magnitude=45.0),) if k == 10 else ()
     times = pd.date_range(t0, t0 + pd.Timedelta("48h"), freq="h")

@@ -53,7 +53,7 @@ def _raw(driver, css: str) -> list[float]:
 
 
 def test_every_page_loads_without_javascript_errors_and_draws(served) -> None:
-    db, url, driver = served
+    _, url, driver = served
     times = {}
     for page in PAGES:
         times[page] = _open(driver, url + page)
