@@ -60,12 +60,40 @@ class CaseMeta(_Model):
         Free text.
     start, end
         Simulated period (UTC; a time without offset is read as UTC), between 1700 and 2200.
+    crs
+        Coordinate reference system of the map coordinates (node ``x``/``y``, branch geometries), e.g.
+        ``"EPSG:28992"`` (Amersfoort / RD New); optional. NetCDF outputs then carry it and each station's
+        latitude and longitude.
+    vertical_datum
+        Name of the datum of every level in the case (m above it), e.g. ``"NAP"``; optional (levels are
+        then in m above the case's own datum, "m AD").
     """
 
     name: str = Field(min_length=1, description="short name of the case")
     description: str = Field(default="", description="free text")
     start: datetime = Field(description="start of the simulated period, ISO 8601 (UTC when no offset is given)")
     end: datetime = Field(description="end of the simulated period, ISO 8601 (UTC when no offset is given)")
+    crs: str | None = Field(default=None, min_length=1, description="coordinate reference system of the map "
+                            "coordinates, e.g. 'EPSG:28992' (RD New); optional")
+    vertical_datum: str | None = Field(default=None, min_length=1, max_length=40, description="name of the datum "
+                                       "of all levels, e.g. 'NAP' (levels in m above it); optional")
+
+    @field_validator("crs")
+    @classmethod
+    def _known_crs(cls, value: str | None) -> str | None:
+        if value is None:
+            return None
+        from pyproj import CRS
+        from pyproj.exceptions import CRSError
+
+        try:
+            crs = CRS.from_user_input(value)
+        except CRSError:
+            raise ValueError(f"{value!r} is not a coordinate reference system (e.g. 'EPSG:28992')") from None
+        if not crs.is_projected:
+            raise ValueError(f"{value!r} ({crs.name}) is not a projected system with coordinates in m; the case's x "
+                             "and y are metres")
+        return value
 
     @field_validator("start", "end")
     @classmethod

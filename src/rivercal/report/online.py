@@ -26,8 +26,9 @@ import pandas as pd
 
 from rivercal._figure import subplots
 from rivercal._time import utc
+from rivercal.io.cf import add_stations, write_netcdf
 from rivercal.report.html import Page, bullets, figure, paragraph, table
-from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_netcdf
+from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_xarray
 
 __all__ = ["continuous_runs", "forecast_errors", "write_online_report"]
 
@@ -408,7 +409,7 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     units = {p.name: p.unit for p in model.case.spec.parameters}
     files["estimates_csv"] = str(export_estimates_csv(store, run, out / "estimates.csv"))
     files["forecasts_csv"] = str(export_forecasts_csv(store, run, out / "forecasts.csv"))
-    files["netcdf"] = str(to_netcdf(store, run, out / "run.nc"))
+    files["netcdf"] = str(write_netcdf(add_stations(to_xarray(store, run), model.case), out / "run.nc"))
     cycles.to_csv(out / "cycles.csv", index=False)
     files["cycles_csv"] = str(out / "cycles.csv")
 

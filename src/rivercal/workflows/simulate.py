@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from rivercal.io.cf import add_stations, write_netcdf
 from rivercal.workflows.progress import NO_PROGRESS, Progress
 
 __all__ = ["simulate_case"]
@@ -41,7 +42,10 @@ def simulate_case(model: Any, quantities: Mapping[str, float], out: str | Path, 
     result, _ = model.simulate(dict(quantities), start=start, end=end)
     out.mkdir(parents=True, exist_ok=True)
     result.to_csv(out / "series.csv")
-    result.to_netcdf(out / "series.nc")
+    dataset = result.to_dataset()
+    if hasattr(model, "case") and hasattr(model.case, "network"):  # stations, CRS and datum of the case
+        dataset = add_stations(dataset, model.case)
+    write_netcdf(dataset, out / "series.nc")
     files = {"csv": str(out / "series.csv"), "netcdf": str(out / "series.nc")}
     if plot:
         from rivercal.report.figures import plot_series
