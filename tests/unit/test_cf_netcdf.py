@@ -54,7 +54,8 @@ def test_simulated_series_carry_stations_crs_and_datum_and_pass_the_cf_checker(t
     ds = xr.open_dataset(path)
     assert ds["level_station_id"].values.tolist() == ["origin", "mid"]
     assert ds["level_x"].values.tolist() == [155000.0, 157500.0] and ds["level_y"].values.tolist() == [463000.0] * 2
-    assert (float(ds["level_lat"][0]), float(ds["level_lon"][0])) == pytest.approx(RD_ORIGIN_WGS84, abs=1e-5)  # ~1 m: the formulas' accuracy
+    origin = (float(ds["level_lat"][0]), float(ds["level_lon"][0]))
+    assert origin == pytest.approx(RD_ORIGIN_WGS84, abs=1e-5)  # ~1 m, the approximation formulas' accuracy
     assert ds["discharge_station_id"].values.tolist() == ["origin"]
     assert ds["crs"].attrs["epsg_code"] == "EPSG:28992" and "RD New" in ds["crs"].attrs["crs_wkt"]
     assert ds["water_level"].attrs["vertical_datum"] == "NAP" and "(m NAP)" in ds["water_level"].attrs["long_name"]

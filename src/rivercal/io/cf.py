@@ -121,8 +121,10 @@ _UNITS = {"m AD": "m", "-": "1", "m^(1/3)/s": None, "m1/3 s-1": None, "m1/3/s": 
 
 
 def _udunits(ds: xr.Dataset) -> xr.Dataset:
-    """Units CF tools read: ``m AD`` is m; a Strickler or Manning coefficient (m^(1/3)/s, a fractional
-    power UDUNITS cannot express) keeps its unit in ``units_text`` and its ``long_name`` instead.
+    """Units CF tools read: ``m AD`` is m, ``-`` is 1.
+
+    A Strickler or Manning coefficient (m^(1/3)/s, a fractional power UDUNITS cannot express) keeps its
+    unit in ``units_text`` and its ``long_name`` instead.
     """
     ds = ds.copy()
     for var in ds.variables.values():
