@@ -23,7 +23,7 @@ import pytest
 from rivercal.fews import run_module
 from rivercal.io import read_pixml_series
 from rivercal.store import Store
-from tests.conftest import assert_valid_pi
+from tests.conftest import PI_SCHEMA_DIR, assert_valid_pi
 
 NS = "http://www.wldelft.nl/fews/PI"
 FEWS_TZ = 1.0  # FEWS exports in CET; rivercal converts
@@ -126,7 +126,7 @@ def truth():
 
 
 PROPS = {"case": "dommel", "parameters": "FA,Wd", "window": "7D", "horizon": "48h", "warmup": "24h",
-         "deadline": "120", "run": "fews-test"}
+         "deadline": "120", "run": "fews-test", "piSchemaDir": str(PI_SCHEMA_DIR)}
 
 
 def _fews_run(module: Path, truth: pd.DataFrame, t0: pd.Timestamp, first: bool) -> Path:
@@ -171,6 +171,7 @@ def test_five_consecutive_forecasts_hand_the_state_on(tmp_path: Path, truth: pd.
         assert _utc(state_root.find(_q("dateTime")), float(state_root.findtext(_q("timeZone")))) == t0
         write_loc = Path(state_root.find(_q("stateLoc")).findtext(_q("writeLocation")))
         assert write_loc.is_file() and not Path(f"{write_loc}-wal").exists()  # one self-contained file
+        assert any("validate against the PI schemas" in text for _, text in diag_lines(out / "diag.xml"))
         if k == 0:  # FEWS's state description for the next runs
             assert any("no state handed over" in text for _, text in diag_lines(out / "diag.xml"))
         # the outputs, read twice (independently and with rivercal's reader), equal the store

@@ -74,6 +74,8 @@ PROPERTIES: dict[str, tuple[str | None, str]] = {
                                            "state description"),
     "estimatesLocationId": ("", "locationId of the parameter-estimate series (default: the case name)"),
     "workers": ("1", "worker processes of the calibration"),
+    "piSchemaDir": ("", "folder with the PI schemas (pi_timeseries.xsd, pi_state.xsd, pi_diag.xsd) to check every "
+                        "written file against (needs the fews extra: xmlschema); default: no check"),
 }
 
 _STATE_ID = "rivercal"
@@ -427,10 +429,32 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
         write_state_description(run.output_state_file, _STATE_ID, run.time0, [loc], time_zone=run.time_zone,
                                 name=f"rivercal store of run {name}", comment=f"forecast {outcome.cycle}")
         files.append(str(run.output_state_file))
+    _check_schemas(run, [Path(f) for f in files], diag)
     diag.add("info", f"done in {time.perf_counter() - t_start:.1f} s")
     return {"cycle": outcome.cycle, "issue_time": run.time0.isoformat(), "status": outcome.status,
             "estimates": outcome.estimates, "accepted": outcome.accepted, "held": outcome.held,
             "model_runs": outcome.model_runs, "state": str(db), "files": files}
+
+
+def _check_schemas(run: RunFile, files: list[Path], diag: Diagnostics) -> None:
+    """Check the written PI files against the schemas of ``piSchemaDir`` (if given); a problem is an error."""
+    folder = _prop(run, "piSchemaDir")
+    if not folder:
+        return
+    try:
+        import xmlschema
+    except ImportError:
+        raise AdapterError("property 'piSchemaDir' needs the xmlschema package (pip install 'rivercal[fews]')",
+                           file=str(run.path), field="properties") from None
+    for path in files:
+        name = "pi_state.xsd" if path == run.output_state_file else "pi_timeseries.xsd"
+        schema = Path(folder) / name
+        if not schema.is_file():
+            raise AdapterError(f"property 'piSchemaDir': no {name} in {folder}", file=str(run.path), field="properties")
+        errors = [f"{e.path}: {e.reason}" for e in xmlschema.XMLSchema(str(schema)).iter_errors(str(path))]
+        if errors:
+            raise RivercalError(f"{path} does not validate against {name}: {errors[0]}")
+    diag.add("info", f"{len(files)} written files validate against the PI schemas in {folder}")
 
 
 def _observables(case: Any) -> list[str]:

@@ -1,0 +1,47 @@
+"""Take the README's dashboard screenshot (docs/dashboard.png) in headless chromium.
+
+Usage: ``python scripts/dashboard_screenshot.py [--db run.sqlite] [--page /estimates]``; without ``--db`` a
+store of 30 synthetic daily cycles is built (tests/dashboard_store.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.dashboard_store import build_store  # noqa: E402
+from tests.e2e.browser import chrome, start_dashboard  # noqa: E402
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--db", type=Path)
+    parser.add_argument("--page", default="/estimates")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "dashboard.png")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        db = args.db or build_store(Path(tmp) / "run.sqlite", 30)
+        proc, url = start_dashboard(db)
+        driver = chrome(Path(tmp) / "profile")
+        try:
+            driver.set_window_size(1280, 1000)
+            driver.get(url + args.page)
+            while not driver.execute_script("return document.body.dataset.ready === '1'"):
+                time.sleep(0.05)
+            time.sleep(0.5)
+            driver.save_screenshot(str(args.out))
+        finally:
+            driver.quit()
+            proc.terminate()
+    print(args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
