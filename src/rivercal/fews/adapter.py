@@ -49,6 +49,7 @@ from rivercal.fews.pi import (
     write_diag,
     write_state_description,
 )
+from rivercal.fews.properties import PROPERTIES, AdapterError, duration, number, prop
 from rivercal.io.pixml import EXPECTED_UNITS, PiSeries, read_pixml, read_pixml_series, write_pixml_series
 from rivercal.observations import ObservationSet
 
@@ -56,33 +57,7 @@ __all__ = ["PROPERTIES", "AdapterError", "FewsOutcome", "run_module"]
 
 log = logging.getLogger(__name__)
 
-#: The run-file properties the module reads: key -> (default, meaning). ``None``: required.
-PROPERTIES: dict[str, tuple[str | None, str]] = {
-    "case": (None, "the case: a folder (relative to the work folder) or the name of a packaged case"),
-    "parameters": ("FA,Wd", "parameters to estimate, comma-separated names from the case's parameters table"),
-    "window": ("7D", "calibration window ending at time zero (e.g. 7D)"),
-    "horizon": ("48h", "forecast horizon after time zero"),
-    "warmup": ("24h", "simulated time before the window whose residuals do not count"),
-    "period": ("1D", "time between forecasts; the model state for the next run's hot start is taken one period "
-                     "after this run's warm-up start"),
-    "algorithm": ("dud", "optimiser"),
-    "deadline": ("60", "wall-clock limit of the calibration, s (the last accepted estimate is kept on expiry)"),
-    "maxChange": ("", "largest change per forecast, e.g. FA=5,Wd=0.1 (default: none)"),
-    "alertK": ("3", "alert when an estimate moves more than this many σ"),
-    "run": ("fews", "name of the run in the state's store (a new name starts a new history)"),
-    "stateFile": ("state/rivercal.sqlite", "the state file (relative to the work folder) when FEWS exports no "
-                                           "state description"),
-    "estimatesLocationId": ("", "locationId of the parameter-estimate series (default: the case name)"),
-    "workers": ("1", "worker processes of the calibration"),
-    "piSchemaDir": ("", "folder with the PI schemas (pi_timeseries.xsd, pi_state.xsd, pi_diag.xsd) to check every "
-                        "written file against (needs the fews extra: xmlschema); default: no check"),
-}
-
 _STATE_ID = "rivercal"
-
-
-class AdapterError(CaseError):
-    """Bad input to the module (a property, a series, the state): named in the message."""
 
 
 @dataclass
@@ -134,60 +109,24 @@ class FewsOutcome:
     summary: dict[str, Any]
 
 
-# -- properties -----------------------------------------------------------------------------------
-
-
-def _prop(run: RunFile, key: str) -> str:
-    default, _ = PROPERTIES[key]
-    value = run.properties.get(key, default)
-    if value is None or (default is None and not str(value).strip()):
-        raise AdapterError(f"property {key!r} is required ({PROPERTIES[key][1]})", file=str(run.path),
-                           field="properties")
-    return str(value).strip()
-
-
-def _duration(run: RunFile, key: str, allow_zero: bool = False) -> str:
-    text = _prop(run, key)
-    try:
-        value = pd.Timedelta(text)
-    except ValueError:
-        value = None
-    if value is None or pd.isna(value) or value < pd.Timedelta(0) or (value == pd.Timedelta(0) and not allow_zero):
-        raise AdapterError(f"property {key!r}: {text!r} is not a {'non-negative' if allow_zero else 'positive'} "
-                           "duration (e.g. 7D, 48h, 90min)", file=str(run.path), field="properties")
-    return text
-
-
-def _number(run: RunFile, key: str, low: float = 0.0) -> float:
-    text = _prop(run, key)
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > low):
-        raise AdapterError(f"property {key!r}: {text!r} must be a number above {low:g}", file=str(run.path),
-                           field="properties")
-    return value
-
-
 def _config(run: RunFile, model: Any) -> Any:
     """The on-line service configuration from the properties, checked against the case."""
     from rivercal.online.service import OnlineConfig
     from rivercal.optimise import OPTIMISERS
 
-    names = [n.strip() for n in _prop(run, "parameters").split(",") if n.strip()]
+    names = [n.strip() for n in prop(run, "parameters").split(",") if n.strip()]
     known = [p.name for p in model.case.spec.parameters]
     unknown = [n for n in names if n not in known]
     if not names or unknown:
         what = f"unknown parameter {unknown[0]!r}" if unknown else "no parameter named"
         raise AdapterError(f"property 'parameters': {what}; the case defines {', '.join(known)}", file=str(run.path),
                            field="properties")
-    algorithm = _prop(run, "algorithm")
+    algorithm = prop(run, "algorithm")
     if algorithm not in OPTIMISERS:
         raise AdapterError(f"property 'algorithm': unknown optimiser {algorithm!r}; choose one of "
                            f"{', '.join(sorted(OPTIMISERS))}", file=str(run.path), field="properties")
     change: dict[str, float] = {}
-    for item in filter(None, (part.strip() for part in _prop(run, "maxChange").split(","))):
+    for item in filter(None, (part.strip() for part in prop(run, "maxChange").split(","))):
         name, _, value = item.partition("=")
         try:
             change[name.strip()] = float(value)
@@ -197,21 +136,21 @@ def _config(run: RunFile, model: Any) -> Any:
             raise AdapterError(f"property 'maxChange': {item!r} must be NAME=VALUE with NAME among the estimated "
                                f"parameters ({', '.join(names)}) and VALUE > 0", file=str(run.path),
                                field="properties")
-    workers = _number(run, "workers")
+    workers = number(run, "workers")
     if workers != int(workers):
         raise AdapterError(f"property 'workers': {workers:g} is not a whole number", file=str(run.path),
                            field="properties")
-    return OnlineConfig(parameters=tuple(names), window=_duration(run, "window"), period=_duration(run, "period"),
-                        horizon=_duration(run, "horizon"), warmup=_duration(run, "warmup", allow_zero=True),
-                        algorithm=algorithm, deadline_s=_number(run, "deadline"), max_change=change,
-                        alert_k=_number(run, "alertK"), workers=int(workers))
+    return OnlineConfig(parameters=tuple(names), window=duration(run, "window"), period=duration(run, "period"),
+                        horizon=duration(run, "horizon"), warmup=duration(run, "warmup", allow_zero=True),
+                        algorithm=algorithm, deadline_s=number(run, "deadline"), max_change=change,
+                        alert_k=number(run, "alertK"), workers=int(workers))
 
 
 # -- inputs ---------------------------------------------------------------------------------------
 
 
 def _case_source(run: RunFile) -> str:
-    text = _prop(run, "case")
+    text = prop(run, "case")
     folder = Path(text) if Path(text).is_absolute() else run.work_dir / text
     return str(folder) if folder.exists() else text
 
@@ -308,7 +247,7 @@ def _state_locations(run: RunFile) -> tuple[Path | None, StateLocation]:
             raise AdapterError(f"state location {loc.read} is a {loc.type}; rivercal's state is one file",
                                file=str(description), field="stateLoc")
         return (loc.read if loc.read.is_file() else None), loc
-    default = run.work_dir / _prop(run, "stateFile")
+    default = run.work_dir / prop(run, "stateFile")
     return (default if default.is_file() else None), StateLocation(default, default)
 
 
@@ -393,7 +332,7 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
         diag.add("info", f"forcing from FEWS at {', '.join(sorted(forcing))}")
     handed, loc = _state_locations(run)
     db = _open_state(handed, loc, diag)
-    name = _prop(run, "run")
+    name = prop(run, "run")
     with Store(db) as store:
         for source, obs in observations:
             result = store.ingest(obs, source=source, on_conflict="replace")
@@ -438,7 +377,7 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
 
 def _check_schemas(run: RunFile, files: list[Path], diag: Diagnostics) -> None:
     """Check the written PI files against the schemas of ``piSchemaDir`` (if given); a problem is an error."""
-    folder = _prop(run, "piSchemaDir")
+    folder = prop(run, "piSchemaDir")
     if not folder:
         return
     try:
@@ -488,7 +427,7 @@ def _write_outputs(run: RunFile, store: Any, service: Any, outcome: Any, case_na
         return []
     for f in files:
         f.parent.mkdir(parents=True, exist_ok=True)
-    location = _prop(run, "estimatesLocationId") or case_name
+    location = prop(run, "estimatesLocationId") or case_name
     forecasts = _forecast_series(store, service.run, outcome.cycle)
     estimates = _estimate_series(store, service.run, outcome.cycle, outcome.accepted, location, outcome.issue_time)
     if len(files) == 1:
