@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rivercal.analysis.forecast import score_forecasts
 from rivercal.observations import ObservationSet
 from rivercal.store import AlertRecord, CycleRecord, EstimateRecord, Store
 
@@ -56,8 +57,15 @@ def build_store(path: Path, n_cycles: int, *, run: str = "dash", case: str = "do
         store.ingest(ObservationSet.from_frame(frame), source="synthetic")
         for k in range(n_cycles):
             store.commit_cycle(run_id, record(k))
-        store.score_forecasts(run_id)
+        _score(store, run_id)
     return path
+
+
+def _score(store: Store, run: object, cycle: int | None = None) -> None:
+    """Score the stored forecasts (of one cycle) against the stored observations, and store the scores."""
+    fc = store.forecasts(run, cycle=cycle)
+    observed = store.observation_table(sorted(fc["series"].unique()), fc["time"].min(), fc["time"].max())
+    store.put_scores(run, score_forecasts(fc, observed))
 
 
 def add_cycle(path: Path, run: str = "dash") -> int:
@@ -66,5 +74,5 @@ def add_cycle(path: Path, run: str = "dash") -> int:
         info = store.get_run(run)
         k = len(store.cycles(info))
         store.commit_cycle(info, record(k))
-        store.score_forecasts(info, cycles=[k])
+        _score(store, info, k)
     return k
