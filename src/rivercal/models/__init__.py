@@ -5,22 +5,18 @@
 - :mod:`~rivercal.models.transition`: a wrapper whose parameter jumps at a time (thesis §6-3);
 - :mod:`~rivercal.models.blackbox`: an external program described by a ``model.toml`` (templates in,
   files out);
-- :mod:`~rivercal.models.swmm`: EPA SWMM 5 through pyswmm / swmm-toolkit (optional extra ``swmm``);
+- :mod:`~rivercal.models.swmm`: EPA SWMM 5 through swmm-toolkit (optional extra ``swmm``);
 - :mod:`~rivercal.models.bmi`: the Basic Model Interface both ways (optional extra ``bmi``).
 
 :func:`load_model` takes a case (folder or packaged name) or a ``model.toml`` and returns the model.
+The names below are imported on first use, so that a light submodule (SWMM's command-line runner) does
+not load the engine.
 """
 
-from rivercal.models.contract import (
-    CalibrationSetup,
-    FileState,
-    Model,
-    Quantity,
-    check_parameters,
-    check_settable,
-)
-from rivercal.models.embedded import EmbeddedModel, build_model
-from rivercal.models.load import load_model
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 __all__ = [
     "CalibrationSetup",
@@ -33,3 +29,21 @@ __all__ = [
     "check_settable",
     "load_model",
 ]
+
+_WHERE = {
+    "CalibrationSetup": "contract", "FileState": "contract", "Model": "contract", "Quantity": "contract",
+    "check_parameters": "contract", "check_settable": "contract", "EmbeddedModel": "embedded",
+    "build_model": "embedded", "load_model": "load",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        value = getattr(importlib.import_module(f"rivercal.models.{_WHERE[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'rivercal.models' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

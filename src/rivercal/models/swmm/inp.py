@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
-__all__ = ["InpFile", "InpRow", "swmm_date", "swmm_step"]
+__all__ = ["InpFile", "InpRow", "seconds", "swmm_date", "swmm_step"]
 
 #: Sections whose rows start with a node id and have its invert elevation in the second column.
 NODE_SECTIONS = ("JUNCTIONS", "OUTFALLS", "STORAGE", "DIVIDERS")
@@ -171,10 +171,10 @@ class InpFile:
         row.tokens[column] = value
 
     def replace_section(self, section: str, lines: list[str]) -> None:
-        """Replace a whole section by these lines (added at the end when absent)."""
+        """Replace a whole section by these lines, written as they are (added at the end when absent)."""
         name = section.upper()
         self._raw.setdefault(name, [])
-        self._parsed[name] = list(lines)
+        self._parsed[name] = [str(line) for line in lines]
 
     def copy(self) -> InpFile:
         """An independent copy (edits of one do not reach the other)."""
@@ -197,6 +197,18 @@ class InpFile:
                 out.extend(raw)
             out.append("")
         return "\n".join(out) + "\n"
+
+
+def seconds(text: str | None, default: float) -> float:
+    """A step of an ``[OPTIONS]`` value, ``HH:MM:SS`` or seconds, in s (``default`` when absent)."""
+    if text is None:
+        return default
+    if ":" in text:
+        parts = [float(p) for p in text.split(":")]
+        while len(parts) < 3:
+            parts.append(0.0)
+        return parts[0] * 3600 + parts[1] * 60 + parts[2]
+    return float(text)
 
 
 def swmm_date(t: pd.Timestamp) -> tuple[str, str]:

@@ -42,7 +42,7 @@ import pandas as pd
 from rivercal.engine.state import SimulationResult
 from rivercal.errors import ModelRunError
 from rivercal.models.contract import CalibrationSetup, FileState, Quantity, check_settable, utc
-from rivercal.models.swmm.inp import InpFile, swmm_date, swmm_step
+from rivercal.models.swmm.inp import InpFile, seconds, swmm_date, swmm_step
 from rivercal.models.swmm.output import parse_element, read_swmm_output
 
 __all__ = ["SwmmModel", "SwmmRunError"]
@@ -62,17 +62,6 @@ class SwmmRunError(ModelRunError):
 
     def __reduce__(self):  # keep the fields when the error crosses a process boundary
         return (SwmmRunError, (self.run_dir, self.cause))
-
-
-def _seconds(text: str | None, default: float) -> float:
-    if text is None:
-        return default
-    if ":" in text:
-        parts = [float(p) for p in text.split(":")]
-        while len(parts) < 3:
-            parts.append(0.0)
-        return parts[0] * 3600 + parts[1] * 60 + parts[2]
-    return float(text)
 
 
 class SwmmModel:
@@ -118,7 +107,7 @@ class SwmmModel:
         units = (self._inp.option("FLOW_UNITS") or "CFS").upper()
         if units != "CMS":
             raise ValueError(f"{label}: [OPTIONS] FLOW_UNITS is {units}; rivercal needs SI units (CMS, m³/s)")
-        self._dt = _seconds(self._inp.option("ROUTING_STEP"), 20.0)
+        self._dt = seconds(self._inp.option("ROUTING_STEP"), 20.0)
         self._elevation_offsets = (self._inp.option("LINK_OFFSETS") or "DEPTH").upper() == "ELEVATION"
         self._inverts = self._inp.node_inverts()
         self._conduits = {r.tokens[0]: float(r.tokens[4]) for r in self._inp.rows("CONDUITS")}

@@ -17,6 +17,31 @@ __all__ = ["SWMM_EPOCH", "parse_element", "read_swmm_output"]
 
 #: SWMM's dates are days since this moment (the spreadsheet epoch).
 SWMM_EPOCH = pd.Timestamp("1899-12-30", tz="UTC")
+#: The number that opens and closes a complete SWMM 5 binary output file.
+MAGIC = 516114522
+
+
+def _check_file(path: Path) -> None:
+    """ValueError unless ``path`` is a complete SWMM output (magic numbers at both ends, error code 0).
+
+    The toolkit's reader does not survive a truncated file (it crashes the process), so the file's
+    opening and closing records (SWMM 5 user's manual, binary output file) are checked first.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        head = np.frombuffer(f.read(4), dtype="<i4")
+        if size < 48:
+            raise ValueError(f"{path}: not a SWMM output file or truncated ({size} bytes)")
+        f.seek(size - 12)
+        periods, error, magic = np.frombuffer(f.read(12), dtype="<i4")
+    if head.size != 1 or head[0] != MAGIC:
+        raise ValueError(f"{path}: not a SWMM output file (no SWMM magic number at its start)")
+    if magic != MAGIC:
+        raise ValueError(f"{path}: the SWMM output is truncated (no closing records; did SWMM stop early?)")
+    if error != 0:
+        raise ValueError(f"{path}: SWMM ended with error code {error}")
+    if periods < 1:
+        raise ValueError(f"{path}: the SWMM output holds no reporting period")
 
 
 def parse_element(spec: str) -> tuple[str, str]:
@@ -54,6 +79,7 @@ def read_swmm_output(path: str | Path, elements: Mapping[str, str]) -> pd.DataFr
     if not path.is_file():
         raise ValueError(f"{path}: no such SWMM output file")
     wanted = {col: parse_element(spec) for col, spec in elements.items()}
+    _check_file(path)
     handle = output.init()
     try:
         try:
