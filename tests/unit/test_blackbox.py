@@ -86,7 +86,7 @@ def params(k0: float = 2.0, crest0: float = 10.2) -> ParameterSet:
 def test_a_twin_through_the_black_box_finds_the_truth(tmp_path) -> None:
     model = make_model(tmp_path)
     assert model.quantities["k"].unit == "m^3/s" and model.observables == ["S.h", "S.Q"]
-    truth, state = model.simulate({"k": 3.0, "crest": 10.0}, end=START + pd.Timedelta("3D"))
+    truth, _ = model.simulate({"k": 3.0, "crest": 10.0}, end=START + pd.Timedelta("3D"))
     assert len(truth.series) == 73 and truth.series.index[0] == START
     obs = ObservationSet.from_frame(truth.series[["S.h"]].iloc[12:], sigma={"h": 0.01})
     problem = CalibrationProblem(model, params(), obs, (START + pd.Timedelta("12h"), START + pd.Timedelta("3D")),
