@@ -12,7 +12,7 @@ Quantities:
   the case's friction type, e.g. k_s in m^(1/3)/s), present when some branch inherits it;
 - ``friction:branch:<id>`` — the friction value of one branch (unit of its friction type).
 
-Friction bounds are the plausible ranges of :data:`rivercal.network.schema.FRICTION_RANGES`.
+Friction bounds are the plausible ranges of :data:`rivercal.network.FRICTION_RANGES`.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from rivercal.engine.simulator import Simulator
 from rivercal.engine.state import EngineState
 from rivercal.hydrology.catchments import catchment_forcing
 from rivercal.models.contract import CalibrationSetup, Quantity, utc
-from rivercal.network.schema import FRICTION_RANGES, MAX_LEVEL
+from rivercal.network import FRICTION_RANGES, MAX_LEVEL
 
 __all__ = ["EmbeddedModel", "build_model", "load_case_model"]
 
