@@ -226,6 +226,7 @@ class BmiSection(_Model):
                                                          "model.toml")
     quantities: dict[str, BmiVariable] = Field(default_factory=dict, description="settable quantities")
     stations: dict[str, BmiVariable] = Field(min_length=1, description="'<station>.<quantity>' → variable and index")
+    state: list[str] = Field(default_factory=list, description="BMI variables that make up the state (hot starts)")
 
     @model_validator(mode="after")
     def _checks(self) -> BmiSection:

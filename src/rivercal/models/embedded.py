@@ -96,6 +96,24 @@ class EmbeddedModel(Simulator):
 
     # -- state ------------------------------------------------------------------------------------
 
+    def start_state(self, start: pd.Timestamp | None = None,
+                    parameters: Mapping[str, float] | None = None) -> EngineState:
+        """The state a cold-started run begins from at ``start``.
+
+        The case's initial state, then its spin-up with the forcing held at its ``start`` value and the
+        given quantities (what :meth:`simulate` does without a state).
+        """
+        start = self.start if start is None else utc(start)
+        crest, fric = self.parameter_arrays(parameters)
+        state = self.initial_state(start)
+        hours = self.case.spec.initial.spinup
+        if hours > 0:
+            n = max(1, round(hours * 3600.0 / self.dt))
+            spin = self.forcing_matrix(start, n, constant=True)
+            self._run(state, crest, fric, spin, n, False, start - pd.Timedelta(seconds=n * self.dt), phase="spin-up")
+        state.time = start
+        return state
+
     @property
     def state_format(self) -> str:
         """Format tag of :meth:`save_state`."""
