@@ -2,7 +2,8 @@
 
 The network of ``dommel`` (its weirs, stations and the rainfall-runoff inflows of its catchments, computed
 once by rivercal's hydrology from the KNMI 2010 weather) is written as ``dommel.inp`` by
-:func:`rivercal.models.swmm.convert.case_to_inp` (500 m conduits, 30 s routing steps, 96 h spin-up), and
+:func:`rivercal.models.swmm.convert.case_to_inp` (500 m conduits, 30 s routing steps with SWMM's conduit
+lengthening at that step, 96 h spin-up), and
 ``model.toml`` names the stations and the calibration parameters: ``FR`` (a factor on every conduit's
 Manning n), ``Wd`` (all nine adjustable crests moved alike, m) and ``W1`` … ``W9``.
 
@@ -26,8 +27,11 @@ SPINUP_H = 96.0
 
 def main() -> None:
     dommel = load_model("dommel")
-    export = case_to_inp(dommel.case, dommel.forcing, dx=500.0, routing_step=30.0, spinup=SPINUP_H, start=START,
-                         end=END, title="De Dommel-like weir network (rivercal case dommel) as an EPA SWMM 5 model")
+    # SWMM's own remedy for the short conduits beside weirs near a branch end: lengthen them to their
+    # Courant length at the routing step (without it the 13 November flood blows up at 30 s steps)
+    export = case_to_inp(dommel.case, dommel.forcing, dx=500.0, routing_step=30.0, lengthening_step=30.0,
+                         spinup=SPINUP_H, start=START, end=END,
+                         title="De Dommel-like weir network (rivercal case dommel) as an EPA SWMM 5 model")
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "dommel.inp").write_text(export.text, encoding="utf-8")
     stations = "\n".join(f'"{k}" = "{v}"' for k, v in export.stations.items())

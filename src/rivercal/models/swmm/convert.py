@@ -6,8 +6,9 @@ The conversion keeps what both engines share and says what it changes:
   structures, stations and laterals; a structure closer than ``min_length`` to a branch end moves to
   that distance (a SWMM junction between an end and a structure alone has no storage and oscillates),
   laterals and stations that close to another junction share it; junction inverts are the bed levels
-  (interpolated linearly along
-  the branch), a connection node takes the lowest bed of the branches that meet there;
+  (interpolated linearly along the branch; the junction below a structure and the conduit that leaves it
+  start at the lowest bed within ``min_length`` below it, so that a stilling basin is not smeared over the
+  conduit); a connection node takes the lowest bed of the branches that meet there;
 - cross-sections become SWMM ``TRAPEZOIDAL`` sections: a trapezoidal profile as it is; a ZW profile as
   the trapezoid of its main channel (bed width and the bank slope up to its bank height), continued
   up to the top of the table. The floodplain storage of a ZW profile above its banks is not carried
@@ -206,23 +207,29 @@ def case_to_inp(case, forcing: Mapping[str, pd.Series], *, dx: float = 500.0, mi
         lateral_stop = {lid: stop_near(ch) for lid, ch in lat_at[b.id]}
         station_stop = {sid: stop_near(ch) for sid, ch in station_at[b.id]}
         seq = sorted(stops.items())
+        # the bed just below a structure (a stilling basin drops within metres): the downstream junction and
+        # the conduit that leaves it start there, instead of smearing the drop over the whole conduit
+        below = {dn: min(_bed(b, min(c + x, length)) for x in np.linspace(0.0, snap, 11))
+                 for c, (_, dn, st) in seq if st is not None}
         for (c0, (_, a_dn, _)), (c1, (b_up, _, _)) in pairwise(seq):
             k = max(1, math.ceil((c1 - c0) / dx - 1e-9))
             chain = [a_dn] + [f"{b.id}_{c0 + (c1 - c0) * i / k:.0f}" for i in range(1, k)] + [b_up]
             for i, (u, v) in enumerate(pairwise(chain)):
                 ca, cb = c0 + (c1 - c0) * i / k, c0 + (c1 - c0) * (i + 1) / k
-                for nid, ch in ((u, ca), (v, cb)):
+                bed_a = below.get(u, _bed(b, ca))
+                bed_b = _bed(b, cb)
+                for nid, z in ((u, bed_a), (v, bed_b)):
                     if nid not in node_invert:
-                        junctions[nid] = _bed(b, ch)
-                o1 = _bed(b, ca) - junctions[u]
-                o2 = _bed(b, cb) - junctions[v]
+                        junctions[nid] = z
+                o1 = bed_a - junctions[u]
+                o2 = bed_b - junctions[v]
                 prof = next(p for p in net.profiles if p.id == _profile_at(b, 0.5 * (ca + cb)))
                 conduits.append((f"{b.id}_c{len(conduits)}", u, v, cb - ca, n, o1, o2, _trapezoid(prof), b.id))
         for c, (up, dn, s) in seq:
             if s is None:
                 continue
-            for nid in (up, dn):
-                junctions.setdefault(nid, _bed(b, c))
+            junctions.setdefault(up, _bed(b, c))
+            junctions.setdefault(dn, below[dn])
             (weirs if hasattr(s, "crest_level") else culverts).append((s, up, dn))
         for lid, c in lateral_stop.items():
             lateral_node[lid] = stops[c][1]
