@@ -267,3 +267,18 @@ def test_values_are_checked_against_the_declared_bounds(tmp_path) -> None:
         model.simulate({"K": 5.0}, end=START + pd.Timedelta("1D"))
     with pytest.raises(ValueError, match="reports every 3600 s"):
         model.simulate({}, end=START + pd.Timedelta("1D"), output_interval=60.0)
+
+
+def test_the_transition_adapter_wraps_a_black_box(tmp_path) -> None:
+    """k jumps from 2 to 5 at τ = 6 h: the adapter's run equals two runs of the program, hot-started between."""
+    from rivercal.models.transition import AFTER, BEFORE, TIME, TransitionModel
+
+    model = make_model(tmp_path)
+    tm = TransitionModel(model, "k", reference=START)
+    assert tm.quantities[BEFORE].unit == "m^3/s" and tm.quantities[BEFORE].max == 20.0
+    joined, state = tm.simulate({BEFORE: 2.0, AFTER: 5.0, TIME: 6.0}, end=START + pd.Timedelta("1D"))
+    first, mid = model.simulate({"k": 2.0}, end=START + pd.Timedelta("6h"))
+    second, _ = model.simulate({"k": 5.0}, start=START + pd.Timedelta("6h"), end=START + pd.Timedelta("1D"), state=mid)
+    expected = pd.concat([first.series, second.series.iloc[1:]])
+    np.testing.assert_allclose(joined.series.to_numpy(), expected.to_numpy(), atol=1e-9)
+    assert state.time == START + pd.Timedelta("1D")

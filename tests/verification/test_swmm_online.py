@@ -31,6 +31,7 @@ def test_seven_daily_cycles_of_pi_wg_on_swmm_hot_started_from_hotstart_files(tmp
         assert len(cycles) == 7 and all(c.status == "done" for c in cycles)
         assert [c.hot_start for c in cycles] == [False] + [True] * 6
         when, fmt, data = store.model_state(service.run, "updated")
+        assert when == pd.Timestamp("2010-11-04", tz="UTC") - pd.Timedelta("36h") + pd.Timedelta("1D")
         assert fmt == model.state_format and isinstance(model.load_state(data, fmt), FileState)
         assert "hotstart.hsf" in model.load_state(data, fmt).files
         for c in cycles:
