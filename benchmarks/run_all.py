@@ -19,6 +19,8 @@ BENCHMARKS = {
     "calibrate-all": ["bench", "calibrate", "--json"],
     "hupsel": ["bench", "hupsel", "--json"],
     "online": ["bench", "online", "--replay", "--json"],
+    "engines": ["bench", "engines", "--json"],
+    "blackbox": ["bench", "blackbox", "--json"],
 }
 
 

@@ -5,7 +5,8 @@ once by rivercal's hydrology from the KNMI 2010 weather) is written as ``dommel.
 :func:`rivercal.models.swmm.convert.case_to_inp` (500 m conduits, 30 s routing steps with SWMM's conduit
 lengthening at that step, 96 h spin-up), and
 ``model.toml`` names the stations and the calibration parameters: ``FR`` (a factor on every conduit's
-Manning n), ``Wd`` (all nine adjustable crests moved alike, m) and ``W1`` … ``W9``.
+Manning n) and every parameter of ``dommel`` on the same quantities (FA, F1, FL: Strickler k_s, which
+SWMM takes as n = 1/k_s; W1 … W9, Wc, Wd: crests).
 
 Run from the repository root: ``python scripts/make_swmm_case.py``.
 """
@@ -25,6 +26,28 @@ START, END = pd.Timestamp("2010-09-20", tz="UTC"), pd.Timestamp("2010-11-20", tz
 SPINUP_H = 96.0
 
 
+def _value(v) -> str:
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, list):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _parameter_toml(p) -> str:
+    """One ``[[parameters]]`` table of a Parameter (clusters as inline tables, one per line)."""
+    data = p.model_dump(exclude_defaults=True)
+    lines = ["[[parameters]]"]
+    for key, value in data.items():
+        if key == "cluster":
+            members = ",\n".join("  { " + ", ".join(f"{k} = {_value(v)}" for k, v in c.items() if v is not None)
+                                  + " }" for c in value)
+            lines.append(f"cluster = [\n{members},\n]")
+        else:
+            lines.append(f"{key} = {_value(value)}")
+    return "\n".join(lines) + "\n"
+
+
 def main() -> None:
     dommel = load_model("dommel")
     # SWMM's own remedy for the short conduits beside weirs near a branch end: lengthen them to their
@@ -35,14 +58,7 @@ def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "dommel.inp").write_text(export.text, encoding="utf-8")
     stations = "\n".join(f'"{k}" = "{v}"' for k, v in export.stations.items())
-    adjustable = [p for p in dommel.calibration.parameters if p.name[0] == "W" and p.name[1:].isdigit()]
-    weir_params = "\n".join(
-        f'[[parameters]]\nname = "{p.name}"\ntargets = {p.targets!r}\nmin = {p.min:g}\nmax = {p.max:g}\n'
-        f'initial = {p.initial:g}\ntransform = "offset"\nperturbation = 0.1\nunit = "m"\n'.replace("'", '"')
-        for p in adjustable)
-    wd = dommel.calibration.parameter("Wd")
-    cluster = ",\n".join(f'  {{ target = "{c.target}", min = {c.min:g}, max = {c.max:g}, base = {c.base:g} }}'
-                         for c in wd.cluster)
+    parameters = "\n".join(_parameter_toml(p) for p in dommel.calibration.parameters)
     options = ", ".join(f"{k} = {v!r}" for k, v in dommel.calibration.options.items())
     windows = "\n".join(f'[[windows]]\nname = "{n}"\nstart = "{a.isoformat()}"\nend = "{b.isoformat()}"\n'
                         for n, (a, b) in dommel.calibration.windows.items())
@@ -73,21 +89,8 @@ transform = "factor"
 perturbation = 0.1
 unit = "-"
 
-# Wd: all nine adjustable crests moved alike from their settings (m; -0.15 = lowered by 15 cm)
-[[parameters]]
-name = "Wd"
-min = {wd.min:g}
-max = {wd.max:g}
-initial = 0.0
-transform = "offset"
-perturbation = 0.05
-unit = "m"
-cluster_mode = "shift"
-cluster = [
-{cluster},
-]
-
-{weir_params}
+# the parameters of dommel, on the same quantities (SWMM: k_s as n = 1/k_s; crests in m AD)
+{parameters}
 [calibration]
 algorithm = "dud"
 options = {{ {options} }}

@@ -7,9 +7,14 @@ series from the binary output and keeps SWMM's hotstart file as the state.
 
 Quantities (SI units; the file must use ``FLOW_UNITS CMS``):
 
-- ``roughness:factor`` (-): multiplies every conduit's Manning n;
-- ``roughness:group:<tag>`` (-): multiplies the Manning n of the conduits tagged ``<tag>`` in ``[TAGS]``;
-- ``conduit:<id>.roughness`` (s/m^(1/3)): Manning n of one conduit (the factors still apply);
+- ``friction:global`` (m^(1/3)/s): a Strickler k_s for every conduit (Manning n = 1/k_s instead of the
+  file's n), the quantity of the embedded engine's global friction;
+- ``friction:branch:<tag>`` (m^(1/3)/s): a Strickler k_s for the conduits tagged ``<tag>`` in ``[TAGS]``
+  (the converter of :mod:`~rivercal.models.swmm.convert` tags conduits with their branch id);
+- ``conduit:<id>.roughness`` (s/m^(1/3)): Manning n of one conduit (before the others: the most specific
+  value wins, conduit over tag over global over the file);
+- ``roughness:factor`` (-): multiplies every conduit's Manning n (after the values above);
+- ``roughness:group:<tag>`` (-): multiplies the Manning n of the conduits tagged ``<tag>``;
 - ``weir:<id>.crest_level`` (m, the model's datum): crest elevation of a weir (written as its crest
   height above the inlet node's invert, or as the elevation with ``LINK_OFFSETS ELEVATION``);
 - ``orifice:<id>.setting`` (-, 0 closed … 1 open): set through the toolkit at the start of the run.
@@ -156,11 +161,16 @@ class SwmmModel:
     @property
     def quantities(self) -> dict[str, Quantity]:
         """The settable quantities (module docstring)."""
+        low, high = 1.0, 200.0  # the plausible Strickler range of the embedded engine
         out = {"roughness:factor": Quantity("roughness:factor", "-", 0.01, 100.0,
-                                            "factor on the Manning n of every conduit")}
+                                            "factor on the Manning n of every conduit"),
+               "friction:global": Quantity("friction:global", "m^(1/3)/s", low, high,
+                                           "Strickler k_s of every conduit (n = 1/k_s)")}
         for tag in self._groups:
             out[f"roughness:group:{tag}"] = Quantity(f"roughness:group:{tag}", "-", 0.01, 100.0,
                                                      f"factor on the Manning n of the conduits tagged {tag}")
+            out[f"friction:branch:{tag}"] = Quantity(f"friction:branch:{tag}", "m^(1/3)/s", low, high,
+                                                     f"Strickler k_s of the conduits tagged {tag}")
         for c in self._conduits:
             out[f"conduit:{c}.roughness"] = Quantity(f"conduit:{c}.roughness", "s/m^(1/3)", 0.001, 1.0,
                                                      f"Manning n of conduit {c}")
@@ -176,6 +186,11 @@ class SwmmModel:
         """The file's own values of the quantities."""
         out = {"roughness:factor": 1.0, **{f"roughness:group:{t}": 1.0 for t in self._groups}}
         out.update({f"conduit:{c}.roughness": n for c, n in self._conduits.items()})
+        for key, ids in (("friction:global", list(self._conduits)),
+                         *((f"friction:branch:{t}", ids) for t, ids in self._groups.items())):
+            values = {self._conduits[c] for c in ids}
+            if len(values) == 1:  # a k_s only where its conduits share one n
+                out[key] = 1.0 / values.pop()
         for w, (node, offset) in self._weirs.items():
             out[f"weir:{w}.crest_level"] = offset if self._elevation_offsets else self._inverts[node] + offset
         out.update({f"orifice:{o}.setting": 1.0 for o in self._orifices})
@@ -212,9 +227,11 @@ class SwmmModel:
             inp.set_option(key, value)
         factor = float(parameters.get("roughness:factor", 1.0))
         group_of = {c: tag for tag, ids in self._groups.items() for c in ids}
+        ks_global = parameters.get("friction:global")
         for c, base in self._conduits.items():
-            n = float(parameters.get(f"conduit:{c}.roughness", base)) * factor
             tag = group_of.get(c)
+            ks = parameters.get(f"friction:branch:{tag}", ks_global) if tag is not None else ks_global
+            n = float(parameters.get(f"conduit:{c}.roughness", 1.0 / ks if ks is not None else base)) * factor
             if tag is not None:
                 n *= float(parameters.get(f"roughness:group:{tag}", 1.0))
             if n != base:
