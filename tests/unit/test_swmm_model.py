@@ -28,13 +28,14 @@ def test_the_swmm_case_declares_its_quantities_stations_and_calibration(swmm) ->
     assert swmm.dt == 30.0 and swmm.output_interval == 3600.0 and swmm.spinup == 96.0
     assert swmm.observables == ["0028.h_up", "0028.h_down", "0040.h_up", "0040.h_down", "0029.h_up", "0029.h_down",
                                 "0029.Q", "0030.h_up", "0030.h_down", "0031.h_up", "0031.h_down"]
-    assert swmm.calibration.names[:2] == ["FR", "Wd"] and "moderate" in swmm.calibration.windows
+    assert {"FR", "FA", "F1", "Wc", "Wd"} <= set(swmm.calibration.names) and "moderate" in swmm.calibration.windows
+    assert defaults["friction:global"] == pytest.approx(16.0) and q["friction:branch:ZL12"].unit == "m^(1/3)/s"
     # the crest may not go below the inlet node's invert
     low = q["weir:ZL1-3014.crest_level"].min
     with pytest.raises(ValueError, match=r"weir:ZL1-3014\.crest_level: value .* is outside its range"):
         swmm.simulate({"weir:ZL1-3014.crest_level": low - 0.1}, end=swmm.start + DAY)
-    with pytest.raises(ValueError, match="no settable quantity 'friction:global'"):
-        swmm.simulate({"friction:global": 20.0}, end=swmm.start + DAY)
+    with pytest.raises(ValueError, match="no settable quantity 'friction:branch:ZL99'"):
+        swmm.simulate({"friction:branch:ZL99": 20.0}, end=swmm.start + DAY)
 
 
 def test_a_run_writes_exactly_the_quantities_it_is_given(swmm) -> None:
@@ -47,6 +48,12 @@ def test_a_run_writes_exactly_the_quantities_it_is_given(swmm) -> None:
     assert float(conduits["ZL25_c65"].tokens[4]) == pytest.approx(0.075)  # its own n × the global factor
     weir = inp.table("WEIRS")["ZL1-3014"].tokens
     assert float(weir[4]) + inp.node_inverts()[weir[1]] == pytest.approx(10.30)
+    # Strickler k_s: the most specific value wins (conduit over branch tag over global), then the factors
+    text = swmm.render({"friction:global": 25.0, "friction:branch:ZL12": 20.0, "roughness:factor": 2.0,
+                        "conduit:ZL25_c65.roughness": 0.05}, swmm.start, swmm.start + DAY, 3600.0, hot=False)
+    conduits = InpFile(text).table("CONDUITS")
+    assert [float(conduits[c].tokens[4]) for c in ("ZL1_0000_3030_c0", "ZL12_c38", "ZL25_c65")] == pytest.approx(
+        [2.0 / 25.0, 2.0 / 20.0, 0.1])
     assert inp.option("START_DATE") == "09/20/2010" and inp.option("REPORT_STEP") == "01:00:00"
 
 
