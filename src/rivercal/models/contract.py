@@ -38,14 +38,18 @@ from typing import Any, Protocol, runtime_checkable
 
 import pandas as pd
 
+from rivercal.errors import ModelRunError
 from rivercal.parameters import Parameter
 
 __all__ = [
     "CalibrationSetup",
+    "ExternalRunError",
     "FileState",
     "Model",
     "Quantity",
+    "RunRequest",
     "check_parameters",
+    "check_run",
     "check_settable",
     "utc",
 ]
@@ -239,6 +243,59 @@ def check_parameters(model: Any, parameters: Iterable[Parameter], fixed: Iterabl
                     raise ValueError(f"parameter {p.name}: its range [{p.min:g}, {p.max:g}] {p.unit} reaches "
                                      f"outside the model's bounds ({exc})".replace("  ", " ")) from None
     check_settable(model, fixed, what="fixed quantity")
+
+
+class ExternalRunError(ModelRunError):
+    """A run of a model that works in a run folder failed; names the folder (kept) and the cause."""
+
+    #: How the message names the run (``SWMM run``, ``external model run``).
+    what = "model run"
+
+    def __init__(self, run_dir: str, cause: str):
+        self.run_dir = run_dir
+        self.cause = cause
+        super().__init__(f"{self.what} in {run_dir} failed: {cause}")
+
+    def __reduce__(self):  # keep the fields when the error crosses a process boundary
+        return (type(self), (self.run_dir, self.cause))
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    """A run's checked arguments (:func:`check_run`): quantities, period (UTC) and output interval (s)."""
+
+    parameters: dict[str, float]
+    start: pd.Timestamp
+    end: pd.Timestamp
+    interval: float
+
+
+def check_run(model: Any, parameters: Mapping[str, float] | None, start: Any, end: Any, state: Any,
+              output_interval: float | None) -> RunRequest:
+    """The checks every adapter makes before a run, in one place.
+
+    Every quantity is declared and inside its bounds, the period defaults to the model's and is a positive
+    multiple of the output interval (default the model's), and a state is at the run's start.
+
+    Raises
+    ------
+    ValueError
+        Naming the quantity, the period or the state's time.
+    """
+    values = dict(parameters or {})
+    check_settable(model, values)
+    declared = model.quantities
+    values = {key: declared[key].check(value) for key, value in values.items()}
+    start = model.start if start is None else utc(start)
+    end = model.end if end is None else utc(end)
+    interval = float(output_interval or model.output_interval)
+    steps = (end - start).total_seconds() / interval
+    if not end > start or abs(steps - round(steps)) > 1e-9:
+        raise ValueError(f"the period {start} .. {end} must be a positive multiple of the output interval "
+                         f"({interval:g} s)")
+    if state is not None and state.time != start:
+        raise ValueError(f"the state is at {state.time}, the run starts at {start}")
+    return RunRequest(values, start, end, interval)
 
 
 def utc(value: Any) -> pd.Timestamp:

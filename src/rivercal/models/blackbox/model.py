@@ -39,12 +39,11 @@ import numpy as np
 import pandas as pd
 
 from rivercal.engine.state import SimulationResult
-from rivercal.errors import ModelRunError
 from rivercal.models.blackbox.readers import read_output
 from rivercal.models.blackbox.runs import RunFolders
 from rivercal.models.blackbox.templates import Template, render_argv
 from rivercal.models.config import ModelFile, ModelFileError
-from rivercal.models.contract import CalibrationSetup, FileState, Quantity, check_settable, utc
+from rivercal.models.contract import CalibrationSetup, ExternalRunError, FileState, Quantity, check_run, utc
 
 __all__ = ["BUILTINS", "BlackBoxModel", "BlackBoxRunError"]
 
@@ -56,16 +55,10 @@ BUILTINS = ("start", "end", "run_start", "run_dir", "hot", "cold", "dt", "output
 LAST_ROW = "rivercal-last-row.json"
 
 
-class BlackBoxRunError(ModelRunError):
+class BlackBoxRunError(ExternalRunError):
     """A run of an external program failed; names the run folder and the cause."""
 
-    def __init__(self, run_dir: str, cause: str):
-        self.run_dir = run_dir
-        self.cause = cause
-        super().__init__(f"external model run in {run_dir} failed: {cause}")
-
-    def __reduce__(self):  # keep the fields when the error crosses a process boundary
-        return (BlackBoxRunError, (self.run_dir, self.cause))
+    what = "external model run"
 
 
 class BlackBoxModel:
@@ -220,22 +213,13 @@ class BlackBoxModel:
             For an unknown quantity, a value out of bounds or missing, a period off the grid, a state at
             another time or a hot start without ``[blackbox.state]``.
         """
-        values = self._values(parameters or {})
-        start = self.start if start is None else utc(start)
-        end = self.end if end is None else utc(end)
-        interval = self.output_interval
-        if output_interval is not None and float(output_interval) != interval:
-            raise ValueError(f"model {self.name!r} reports every {interval:g} s (model.output_interval); "
+        if output_interval is not None and float(output_interval) != self.output_interval:
+            raise ValueError(f"model {self.name!r} reports every {self.output_interval:g} s (model.output_interval); "
                              f"cannot give {float(output_interval):g} s")
-        steps = (end - start).total_seconds() / interval
-        if not end > start or abs(steps - round(steps)) > 1e-9:
-            raise ValueError(f"the period {start} .. {end} must be a positive multiple of the output interval "
-                             f"({interval:g} s)")
-        if state is not None:
-            if self.spec.state is None:
-                raise ValueError(f"model {self.name!r} has no [blackbox.state]: it cannot hot start")
-            if state.time != start:
-                raise ValueError(f"the state is at {state.time}, the run starts at {start}")
+        if state is not None and self.spec.state is None:
+            raise ValueError(f"model {self.name!r} has no [blackbox.state]: it cannot hot start")
+        run = check_run(self, parameters, start, end, state, None)
+        values, start, end = self._values(run.parameters), run.start, run.end
         run_start = start - pd.Timedelta(hours=self.meta.spinup) if state is None else start
         run_dir = self.runs.new(self.folder)
         t0 = _time.perf_counter()
@@ -256,12 +240,11 @@ class BlackBoxModel:
         return SimulationResult(series=series, balance=None, wall_time=wall), new_state
 
     def _values(self, parameters: Mapping[str, float]) -> dict[str, float]:
-        check_settable(self, parameters)
-        quantities = self.quantities
+        """Every quantity's value: the checked ones given, the defaults of the rest."""
         values: dict[str, float] = {}
         for name, q in self.spec.quantities.items():
             if name in parameters:
-                values[name] = quantities[name].check(parameters[name])
+                values[name] = parameters[name]
             elif q.default is not None:
                 values[name] = float(q.default)
             else:

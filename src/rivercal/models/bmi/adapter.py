@@ -34,7 +34,7 @@ from rivercal.engine.state import SimulationResult
 from rivercal.errors import ModelRunError
 from rivercal.models.blackbox.templates import Template
 from rivercal.models.config import BmiSection, ModelFile, ModelFileError
-from rivercal.models.contract import CalibrationSetup, Quantity, check_settable, utc
+from rivercal.models.contract import CalibrationSetup, Quantity, check_run, utc
 
 __all__ = ["BmiModel", "BmiState"]
 
@@ -240,23 +240,10 @@ class BmiModel:
             For unknown quantities or values out of bounds, a period off the output grid, a state at another
             time or a hot start without state variables.
         """
-        parameters = dict(parameters or {})
-        check_settable(self, parameters)
-        quantities = self.quantities
-        for key, value in parameters.items():
-            parameters[key] = quantities[key].check(value)
-        start = self._start if start is None else utc(start)
-        end = self._end if end is None else utc(end)
-        interval = float(output_interval or self._interval)
-        steps = (end - start).total_seconds() / interval
-        if not end > start or abs(steps - round(steps)) > 1e-9:
-            raise ValueError(f"the period {start} .. {end} must be a positive multiple of the output interval "
-                             f"({interval:g} s)")
-        if state is not None:
-            if not self.state_vars:
-                raise ValueError(f"model {self.name!r} declares no BMI state variables: it cannot hot start")
-            if state.time != start:
-                raise ValueError(f"the state is at {state.time}, the run starts at {start}")
+        if state is not None and not self.state_vars:
+            raise ValueError(f"model {self.name!r} declares no BMI state variables: it cannot hot start")
+        run = check_run(self, parameters, start, end, state, output_interval)
+        parameters, start, end, interval = run.parameters, run.start, run.end, run.interval
         run_start = start - pd.Timedelta(hours=self.spinup) if state is None else start
         t0 = _time.perf_counter()
         bmi = self._open(run_start, end, hot=state is not None)

@@ -45,8 +45,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal.engine.state import SimulationResult
-from rivercal.errors import ModelRunError
-from rivercal.models.contract import CalibrationSetup, FileState, Quantity, check_settable, utc
+from rivercal.models.contract import CalibrationSetup, ExternalRunError, FileState, Quantity, check_run, utc
 from rivercal.models.swmm.inp import InpFile, seconds, swmm_date, swmm_step
 from rivercal.models.swmm.output import parse_element, read_swmm_output
 
@@ -57,16 +56,10 @@ log = logging.getLogger(__name__)
 HOTSTART = "hotstart.hsf"
 
 
-class SwmmRunError(ModelRunError):
+class SwmmRunError(ExternalRunError):
     """A SWMM run failed; names the run folder and SWMM's message."""
 
-    def __init__(self, run_dir: str, cause: str):
-        self.run_dir = run_dir
-        self.cause = cause
-        super().__init__(f"SWMM run in {run_dir} failed: {cause}")
-
-    def __reduce__(self):  # keep the fields when the error crosses a process boundary
-        return (SwmmRunError, (self.run_dir, self.cause))
+    what = "SWMM run"
 
 
 class SwmmModel:
@@ -283,20 +276,8 @@ class SwmmModel:
             For an unknown quantity, a value out of bounds, a period off the output grid or a state at
             another time.
         """
-        parameters = dict(parameters or {})
-        check_settable(self, parameters)
-        quantities = self.quantities
-        for key, value in parameters.items():
-            parameters[key] = quantities[key].check(value)
-        start = self._start if start is None else utc(start)
-        end = self._end if end is None else utc(end)
-        interval = float(output_interval or self._interval)
-        steps = (end - start).total_seconds() / interval
-        if not end > start or abs(steps - round(steps)) > 1e-9:
-            raise ValueError(f"the period {start} .. {end} must be a positive multiple of the output interval "
-                             f"({interval:g} s)")
-        if state is not None and state.time != start:
-            raise ValueError(f"the state is at {state.time}, the run starts at {start}")
+        run = check_run(self, parameters, start, end, state, output_interval)
+        parameters, start, end, interval = run.parameters, run.start, run.end, run.interval
         spin = pd.Timedelta(hours=self.spinup) if state is None else pd.Timedelta(0)
         if spin.total_seconds() % interval:
             raise ValueError(f"spin-up ({self.spinup:g} h) is not a multiple of the output interval ({interval:g} s)")
