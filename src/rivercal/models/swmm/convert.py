@@ -7,8 +7,8 @@ The conversion keeps what both engines share and says what it changes:
   that distance (a SWMM junction between an end and a structure alone has no storage and oscillates),
   laterals and stations that close to another junction share it; junction inverts are the bed levels
   (interpolated linearly along the branch; the junction below a structure and the conduit that leaves it
-  start at the lowest bed within ``min_length`` below it, so that a stilling basin is not smeared over the
-  conduit); a connection node takes the lowest bed of the branches that meet there;
+  start at the lowest bed within :data:`BASIN` m below it, so that a stilling basin is not smeared over
+  the conduit); a connection node takes the lowest bed of the branches that meet there;
 - cross-sections become SWMM ``TRAPEZOIDAL`` sections: a trapezoidal profile as it is; a ZW profile as
   the trapezoid of its main channel (bed width and the bank slope up to its bank height), continued
   up to the top of the table. The floodplain storage of a ZW profile above its banks is not carried
@@ -45,6 +45,8 @@ import pandas as pd
 __all__ = ["SwmmExport", "case_to_inp", "weir_coefficient"]
 
 G = 9.81
+#: Length below a structure whose lowest bed the junction there takes (a stilling basin), m.
+BASIN = 15.0
 
 
 def weir_coefficient(discharge_coefficient: float = 1.0, lateral_contraction: float = 1.0) -> float:
@@ -209,8 +211,8 @@ def case_to_inp(case, forcing: Mapping[str, pd.Series], *, dx: float = 500.0, mi
         seq = sorted(stops.items())
         # the bed just below a structure (a stilling basin drops within metres): the downstream junction and
         # the conduit that leaves it start there, instead of smearing the drop over the whole conduit
-        below = {dn: min(_bed(b, min(c + x, length)) for x in np.linspace(0.0, snap, 11))
-                 for c, (_, dn, st) in seq if st is not None}
+        below = {dn: min(_bed(b, min(float(st.chainage) + x, length)) for x in np.linspace(0.0, BASIN, 11))
+                 for _, (_, dn, st) in seq if st is not None}  # from where the structure is, also when moved
         for (c0, (_, a_dn, _)), (c1, (b_up, _, _)) in pairwise(seq):
             k = max(1, math.ceil((c1 - c0) / dx - 1e-9))
             chain = [a_dn] + [f"{b.id}_{c0 + (c1 - c0) * i / k:.0f}" for i in range(1, k)] + [b_up]
