@@ -166,7 +166,7 @@ class CalibrationProblem:
         None when the runs start at the model's own start: they cold-start there.
         """
         model_start = getattr(self.model, "start", None)
-        if self._state is None and (model_start is None or self.run_start > _utc(model_start)):
+        if self._state is None and (model_start is None or self.run_start > utc(model_start)):
             log.info("computing the start state at %s with the initial parameters", self.run_start)
             _, self._state = self.model.simulate(self.quantities(self.x0), end=self.run_start)
         return self._state

@@ -38,6 +38,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import pandas as pd
 
+from rivercal._time import utc
 from rivercal.errors import ModelRunError
 from rivercal.parameters import Parameter
 
@@ -296,12 +297,6 @@ def check_run(model: Any, parameters: Mapping[str, float] | None, start: Any, en
     if state is not None and state.time != start:
         raise ValueError(f"the state is at {state.time}, the run starts at {start}")
     return RunRequest(values, start, end, interval)
-
-
-def utc(value: Any) -> pd.Timestamp:
-    """A time as a UTC timestamp (naive times are taken as UTC)."""
-    ts = pd.Timestamp(value)
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
 
 
 def _bound(value: float | None) -> str:
