@@ -21,6 +21,8 @@ BENCHMARKS = {
     "hupsel": ["bench", "hupsel", "--json"],
     "online": ["bench", "online", "--replay", "--json"],
     "dashboard": ["benchmarks/dashboard_load.py"],
+    "engines": ["bench", "engines", "--json"],
+    "blackbox": ["bench", "blackbox", "--json"],
 }
 
 

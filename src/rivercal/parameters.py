@@ -5,13 +5,17 @@ always in physical units, so a restart from new initial values keeps its range �
 an initial value, a transform that sets how the optimiser perturbs it, an optional prior standard
 deviation (a weak constraint), and targets:
 
-- one or more model quantities (``weir:<id>.crest_level`` in m AD, ``friction:global``,
-  ``friction:branch:<id>`` in the unit of the friction law) that all take the parameter's value; or
-- a *cluster* of weir crests, moved by one number. ``cluster_mode = "fraction"`` (thesis §4-4, "Wc"):
-  a value in [0, 1] that places every target weir's crest between its own minimum and maximum,
-  crest = min + value × (max - min). ``cluster_mode = "shift"``: a change in m that moves every
-  crest from its reference level alike, crest = base + value (an operator lowering all weirs by
-  15 cm is value = -0.15); the parameter's bounds must keep every crest inside its own range.
+- one or more model quantities that all take the parameter's value; or
+- a *cluster* of quantities (usually weir crests), moved by one number. ``cluster_mode = "fraction"``
+  (thesis §4-4, "Wc"): a value in [0, 1] that places every target between its own minimum and maximum,
+  crest = min + value × (max - min). ``cluster_mode = "shift"``: a change that moves every target from
+  its reference value alike, crest = base + value (an operator lowering all weirs by 15 cm is
+  value = -0.15 m); the parameter's bounds must keep every target inside its own range.
+
+A target is the name of a quantity that the model declares settable (the model contract,
+:mod:`rivercal.models.contract`): ``weir:<id>.crest_level`` (m AD) or ``friction:global`` of the embedded
+engine, ``roughness:factor`` of a SWMM model, a placeholder name of an external program … This module
+checks only the form of a name; the calibration problem checks it against the model it runs.
 
 Transforms (what the optimiser sees, and the first DuD step λ):
 
@@ -32,10 +36,12 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-__all__ = ["ClusterTarget", "Parameter", "ParameterSet"]
+__all__ = ["TARGET_PATTERN", "ClusterTarget", "Parameter", "ParameterSet"]
 
-_ID = r"[A-Za-z0-9_.\-]+"
-Target = Annotated[str, Field(pattern=rf"^(weir:{_ID}\.crest_level|friction:global|friction:branch:{_ID})$")]
+#: The form of a model quantity's name: a letter or _, then letters, digits and ``_ . : - /`` (no spaces,
+#: no braces, no quotes), at most 200 characters.
+TARGET_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.:/\-]{0,199}$"
+Target = Annotated[str, Field(pattern=TARGET_PATTERN)]
 
 
 class _Model(BaseModel):
@@ -43,27 +49,25 @@ class _Model(BaseModel):
 
 
 class ClusterTarget(_Model):
-    """A weir crest in a cluster parameter.
+    """A member of a cluster parameter (usually a weir crest).
 
     Attributes
     ----------
     target
-        ``weir:<id>.crest_level``.
+        A model quantity, e.g. ``weir:<id>.crest_level``.
     min, max
-        The crest range of this weir, m AD (thesis Table 4-2).
+        The range of this target (a crest: m AD, thesis Table 4-2).
     base
-        Reference crest level, m AD, from which a ``shift`` cluster moves this weir (required there).
+        Reference value from which a ``shift`` cluster moves this target (required there).
     """
 
-    target: Target = Field(description="model quantity, weir:<id>.crest_level")
-    min: float = Field(description="lowest crest level of this weir, m AD")
-    max: float = Field(description="highest crest level of this weir, m AD")
-    base: float | None = Field(default=None, description="reference crest level for a shift cluster, m AD")
+    target: Target = Field(description="model quantity, e.g. weir:<id>.crest_level")
+    min: float = Field(description="lowest value of this target (a crest level: m AD)")
+    max: float = Field(description="highest value of this target (a crest level: m AD)")
+    base: float | None = Field(default=None, description="reference value for a shift cluster")
 
     @model_validator(mode="after")
     def _ordered(self) -> ClusterTarget:
-        if not self.target.startswith("weir:"):
-            raise ValueError(f"a cluster places weir crests; {self.target!r} is not a weir crest level")
         if not self.max > self.min:
             raise ValueError(f"max {self.max} must be above min {self.min} for {self.target}")
         return self
@@ -79,10 +83,10 @@ class Parameter(_Model):
     targets
         Model quantities that take the value (or use ``cluster``).
     cluster
-        Weirs moved together by the value (see ``cluster_mode``).
+        Quantities (weir crests) moved together by the value (see ``cluster_mode``).
     cluster_mode
-        ``fraction``: the value in [0, 1] places each crest between its min and max; ``shift``: the
-        value, m, is added to each crest's ``base``.
+        ``fraction``: the value in [0, 1] places each target between its min and max; ``shift``: the
+        value (m for crests) is added to each target's ``base``.
     min, max
         Physical bounds of the value (a fraction cluster lives in [0, 1]).
     initial
@@ -99,7 +103,7 @@ class Parameter(_Model):
 
     name: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=32, description="parameter name")
     targets: list[Target] = Field(default_factory=list, description="model quantities that take the value")
-    cluster: list[ClusterTarget] = Field(default_factory=list, description="weirs moved together by the value")
+    cluster: list[ClusterTarget] = Field(default_factory=list, description="quantities moved together by the value")
     cluster_mode: Literal["fraction", "shift"] = Field(
         default="fraction", description="fraction: value in [0, 1] of each weir's range; shift: m added to each base")
     min: float = Field(description="lower bound, physical units")
@@ -125,8 +129,8 @@ class Parameter(_Model):
                 if c.base is None:
                     raise ValueError(f"shift cluster {self.name!r}: {c.target} needs a base crest level")
                 if c.base + self.min < c.min - 1e-9 or c.base + self.max > c.max + 1e-9:
-                    raise ValueError(f"shift cluster {self.name!r}: bounds [{self.min:g}, {self.max:g}] m move "
-                                     f"{c.target} from {c.base:g} outside its range [{c.min:g}, {c.max:g}] m AD")
+                    raise ValueError(f"shift cluster {self.name!r}: bounds [{self.min:g}, {self.max:g}] move "
+                                     f"{c.target} from {c.base:g} outside its range [{c.min:g}, {c.max:g}]")
         if self.transform == "ln" and self.min <= 0.0:
             raise ValueError(f"parameter {self.name!r}: the ln transform needs a positive lower bound")
         return self

@@ -1,10 +1,13 @@
 """The calibration problem: a model, parameters, observations and a window → weighted residuals.
 
 :class:`CalibrationProblem` turns the optimiser's vector x into model quantities
-(:class:`~rivercal.parameters.ParameterSet`), runs any model that follows the model protocol of
-DESIGN.md::
+(:class:`~rivercal.parameters.ParameterSet`), runs any model of the model contract
+(:mod:`rivercal.models.contract`)::
 
-    model.simulate(parameters, start, end, state=None) -> (SimulationResult, EngineState)
+    model.simulate(parameters, start, end, state=None) -> (SimulationResult, state)
+
+Parameter targets and fixed quantities must be quantities the model declares settable, and a
+parameter's range must keep them inside the bounds the model declares (checked before any run).
 
 over the window (after a warm-up that lets the state adjust to the candidate parameters), and returns
 the weighted residuals of thesis Eq. 2-3, r = √W (y − ŷ), so that the cost is S(θ) = Σ rᵀ r:
@@ -29,7 +32,7 @@ import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -37,6 +40,7 @@ import pandas as pd
 from rivercal._time import interpolate_at, utc
 from rivercal.errors import ModelRunError
 from rivercal.evaluate import Evaluator
+from rivercal.models.contract import Model, check_parameters
 from rivercal.observations import ObservationSet
 from rivercal.optimise import IterationRecord, OptimiseResult, get_optimiser
 from rivercal.parameters import ParameterSet
@@ -48,17 +52,6 @@ log = logging.getLogger(__name__)
 #: Floor of Δŷ_max in thesis Eq. 2-6 (m or m³/s), so that a series the prior run already fits exactly
 #: does not get an infinite weight.
 MIN_MAX_DEVIATION = 1e-3
-
-
-class Model(Protocol):
-    """The model protocol (DESIGN.md): what the calibration core sees of any hydrodynamic model."""
-
-    observables: list[str]
-
-    def simulate(self, parameters: Mapping[str, float], start: Any = None, end: Any = None,
-                 state: Any = None) -> tuple[Any, Any]:
-        """Run from ``start`` to ``end`` with model quantities ``parameters``; return (result, state)."""
-        ...
 
 
 @dataclass(frozen=True)
@@ -84,7 +77,7 @@ class CalibrationProblem:
     Parameters
     ----------
     model
-        A model following the model protocol (e.g. :class:`~rivercal.engine.Simulator`).
+        A model of the model contract (e.g. :func:`rivercal.models.load_model`).
     parameters
         The parameters to estimate, in vector order.
     observations
@@ -108,7 +101,8 @@ class CalibrationProblem:
     Raises
     ------
     ValueError
-        When a series is not simulated by the model, the window holds no observation, or an option is
+        When a series is not simulated by the model, a target is not a settable quantity of the model
+        (or a parameter's range leaves its bounds), the window holds no observation, or an option is
         invalid — before any model run.
     """
 
@@ -138,6 +132,7 @@ class CalibrationProblem:
         clash = sorted(set(self.fixed) & set(parameters.quantities({})))
         if clash:
             raise ValueError(f"{clash[0]} is both fixed and calibrated")
+        check_parameters(model, parameters, self.fixed)
         self.observations = ObservationSet(tuple(s for s in observations.within(self.start, self.end) if len(s)))
         if self.observations.n_values == 0:
             raise ValueError(f"the window {self.start} .. {self.end} holds no observations")
@@ -166,8 +161,12 @@ class CalibrationProblem:
 
     @property
     def state(self) -> Any:
-        """Model state at the start of each run (computed on first use)."""
-        if self._state is None:
+        """Model state at the start of each run (computed on first use).
+
+        None when the runs start at the model's own start: they cold-start there.
+        """
+        model_start = getattr(self.model, "start", None)
+        if self._state is None and (model_start is None or self.run_start > utc(model_start)):
             log.info("computing the start state at %s with the initial parameters", self.run_start)
             _, self._state = self.model.simulate(self.quantities(self.x0), end=self.run_start)
         return self._state

@@ -24,6 +24,7 @@ from rivercal.analysis import (
     identifiability,
     identifiability_index,
 )
+from rivercal.models import Quantity
 from rivercal.observations import ObservationSet
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem
@@ -45,6 +46,7 @@ class LinearModel:
         self.T = self.a.shape[0] // n_series
         self.observables = [f"S{k}.h" for k in range(n_series)]
         self.targets = [f"weir:P{j}.crest_level" for j in range(self.a.shape[1])]
+        self.quantities = {t: Quantity(t, "m AD") for t in self.targets}
         self.runs = 0
 
     def simulate(self, parameters, start=None, end=None, state=None):

@@ -11,13 +11,13 @@ bound on the change per cycle, the identifiability gate, the jump alert, a windo
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from rivercal.engine.state import EngineState, SimulationResult
+from rivercal.models import CalibrationSetup, Quantity
 from rivercal.observations import ObservationSeries, ObservationSet
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.parameters import Parameter
@@ -42,8 +42,14 @@ class ToyRiver:
             Parameter(name="Wx", targets=["weir:V.crest_level"], min=5.0, max=6.0, initial=5.5,
                       perturbation=0.05, unit="m AD"),
         ]
-        self.case = SimpleNamespace(name="toy", spec=SimpleNamespace(parameters=params, calibration=SimpleNamespace(
-            options={"max_outer": 20, "abs_tol": 1e-6, "rel_tol": 1e-6, "rel_tol_linear": 1e-6})))
+        self.name = "toy"
+        self.calibration = CalibrationSetup(parameters=tuple(params), options={
+            "max_outer": 20, "abs_tol": 1e-6, "rel_tol": 1e-6, "rel_tol_linear": 1e-6})
+        self.quantities = {"friction:global": Quantity("friction:global", "m^(1/3)/s", 1.0, 200.0),
+                           "weir:W.crest_level": Quantity("weir:W.crest_level", "m AD"),
+                           "weir:V.crest_level": Quantity("weir:V.crest_level", "m AD")}
+        self.dt = self.output_interval = DT
+        self.grid = (2, 0)  # the state's signature
         self.observables = list(IDS)
         self.start, self.end = START, END
         self.defaults = {"friction:global": 16.0, "weir:W.crest_level": 10.0, "weir:V.crest_level": 5.5}
@@ -51,6 +57,17 @@ class ToyRiver:
 
     def default_parameters(self) -> dict[str, float]:
         return dict(self.defaults)
+
+    state_format = EngineState.BYTES_FORMAT
+
+    def save_state(self, state: EngineState) -> bytes:
+        return state.to_bytes()
+
+    def load_state(self, data: bytes, fmt: str) -> EngineState:
+        state = EngineState.from_bytes(data, fmt)
+        if state.signature != self.grid:
+            raise ValueError("the state belongs to another grid")
+        return state
 
     @staticmethod
     def discharge(t: np.ndarray) -> np.ndarray:
@@ -208,7 +225,7 @@ def test_bad_configurations_are_refused_before_any_run(tmp_path) -> None:
     with Store(tmp_path / "s.sqlite") as store:
         with pytest.raises(ValueError, match="unknown parameter 'Fx'"):
             OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("Fx",)), "2010-10-25")
-        with pytest.raises(ValueError, match="before the case starts"):
+        with pytest.raises(ValueError, match="before the model's period starts"):
             OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("FA",)), "2010-10-05")
 
 
@@ -219,7 +236,7 @@ def test_a_stored_state_of_another_grid_is_not_used(tmp_path) -> None:
     with store:
         first = svc.replay("2010-10-26")
         assert [o.hot_start for o in first] == [False, True]
-        svc.model.compiled = SimpleNamespace(n_hpoints=3, n_links=0)  # the states were stored with (2, 0)
+        svc.model.grid = (3, 0)  # the states were stored with (2, 0)
         (nxt,) = svc.replay("2010-10-27")
         assert nxt.hot_start is False and nxt.status == "done"
         assert abs(nxt.accepted["FA"] - 16.0) < 0.05

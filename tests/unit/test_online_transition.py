@@ -10,6 +10,7 @@ white noise of rivercal.twin.noise, and a week without a change) is marked slow.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
@@ -17,8 +18,8 @@ import pytest
 from scipy import stats
 
 from rivercal.case import case_from_dict
-from rivercal.engine import Simulator
 from rivercal.model import load_model
+from rivercal.models import EmbeddedModel, Quantity
 from rivercal.observations import ObservationSet
 from rivercal.online import (
     AFTER,
@@ -29,7 +30,6 @@ from rivercal.online import (
     transition_start,
     transition_test,
 )
-from rivercal.online.transition import ALIASES
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin.noise import add_noise
@@ -51,9 +51,9 @@ def _observations(series: pd.DataFrame, start, end, noise: str = "none", seed: i
 
 
 @pytest.fixture(scope="module")
-def channel(tmp_path_factory) -> Simulator:
+def channel(tmp_path_factory) -> EmbeddedModel:
     case = case_from_dict(channel_case(days=1.0), tmp_path_factory.mktemp("channel"))
-    return Simulator(case)
+    return EmbeddedModel(case)
 
 
 def _plain(sim, pieces, output_interval=None):
@@ -119,14 +119,19 @@ def test_substep_smoothing_is_continuous_in_tau_and_none_is_a_staircase(channel)
     assert stairs[0] == smooth[0] and stairs[-1] == smooth[-1]  # both agree on the step grid
 
 
-def test_quantities_pass_through_and_aliases(channel) -> None:
+def test_quantities_pass_through_and_the_adapter_declares_its_own(channel) -> None:
     tm = TransitionModel(channel, FG, reference=channel.start)
     plain, _ = channel.simulate({FG: 35.0})
-    pd.testing.assert_frame_equal(tm.simulate({FG: 35.0})[0].series, plain.series)  # no pseudo-quantity
-    named, _ = tm.simulate({BEFORE: 30.0, AFTER: 45.0, TIME: 3.25})
-    aliased, _ = tm.simulate(dict(zip(ALIASES, (30.0, 45.0, 3.25), strict=True)))
-    pd.testing.assert_frame_equal(named.series, aliased.series)
-    assert tm.observables == channel.observables and tm.dt == 60.0 and tm.case is channel.case
+    pd.testing.assert_frame_equal(tm.simulate({FG: 35.0})[0].series, plain.series)  # no transition quantity
+    assert tm.observables == channel.observables and tm.dt == 60.0 and tm.name == channel.name
+    assert tm.output_interval == channel.output_interval and tm.state_format == channel.state_format
+    q = tm.quantities
+    assert set(q) == set(channel.quantities) | {BEFORE, AFTER, TIME}
+    assert (q[BEFORE].unit, q[BEFORE].min, q[BEFORE].max) == (q[FG].unit, q[FG].min, q[FG].max)
+    assert q[TIME].unit == "h"
+    _, state = tm.simulate({BEFORE: 30.0, AFTER: 45.0, TIME: 3.25})
+    again = tm.load_state(tm.save_state(state), tm.state_format)
+    np.testing.assert_array_equal(again.z, state.z)
 
 
 def test_wrapper_errors_name_the_problem(channel) -> None:
@@ -139,8 +144,10 @@ def test_wrapper_errors_name_the_problem(channel) -> None:
         tm.simulate({BEFORE: 30.0, AFTER: 45.0, TIME: math.nan})
     with pytest.raises(ValueError, match="multiple of the output interval"):
         tm.simulate({BEFORE: 30.0, AFTER: 45.0, TIME: 3.0}, end=channel.start + pd.Timedelta("90min"))
-    with pytest.raises(ValueError, match="given twice"):
-        tm.simulate({BEFORE: 30.0, AFTER: 45.0, TIME: 3.0, next(iter(ALIASES)): 30.0})
+    with pytest.raises(ValueError, match="'friction:branch:nowhere' is not a settable quantity of model"):
+        TransitionModel(channel, "friction:branch:nowhere", reference=channel.start)
+    with pytest.raises(ValueError, match="is itself a quantity of the transition"):
+        TransitionModel(channel, TIME, reference=channel.start)
     with pytest.raises(ValueError, match="smoothing must be 'substep' or 'none', got 'ramp'"):
         TransitionModel(channel, FG, reference=channel.start, smoothing="ramp")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="bounds are needed for the plain model quantity 'friction:global'"):
@@ -152,6 +159,7 @@ def test_parameter_set_bounds_before_after_and_the_window() -> None:
 
     class Stub:
         dt = 60.0
+        quantities: ClassVar[dict] = {FG: Quantity(FG, "m^(1/3)/s", 1.0, 200.0)}
 
     tm = TransitionModel(Stub(), fa, reference="2010-10-28")
     params = tm.parameter_set(("2010-10-28", "2010-11-04"), after=20.0)
@@ -160,9 +168,7 @@ def test_parameter_set_bounds_before_after_and_the_window() -> None:
     np.testing.assert_array_equal(lb, [8.0, 8.0, 0.0])
     np.testing.assert_array_equal(ub, [40.0, 40.0, 168.0])
     np.testing.assert_array_equal(params.to_x(), [16.0, 20.0, 84.0])
-    assert params.quantities(params.values(params.to_x())) == {
-        "friction:branch:__transition_before__": 16.0, "friction:branch:__transition_after__": 20.0,
-        "friction:branch:__transition_time__": 84.0}
+    assert params.quantities(params.values(params.to_x())) == {BEFORE: 16.0, AFTER: 20.0, TIME: 84.0}
     assert params["FA_time"].unit == "h" and params["FA_after"].unit == "m^(1/3)/s"
     assert tm.time_of(96.0) == pd.Timestamp("2010-11-01", tz="UTC")
 
@@ -233,7 +239,7 @@ CHANGE = pd.Timestamp("2010-11-01", tz="UTC")
 @pytest.fixture(scope="module")
 def dommel():
     sim = load_model("dommel")
-    return sim, next(p for p in sim.case.spec.parameters if p.name == "FA")
+    return sim, sim.calibration.parameter("FA")
 
 
 def _truth(sim, run_start, end, cold_from=None):
@@ -251,7 +257,7 @@ def test_dud_dates_the_friction_jump_on_the_default_case(dommel) -> None:
     cold = pd.Timestamp("2010-10-27", tz="UTC")  # cold start and the case's 96 h spin-up: a realistic state
     state, series = _truth(sim, window[0] - pd.Timedelta("6h"), window[1], cold_from=cold)
     est = estimate_transition(sim, fa, _observations(series, *window), window, state=state, warmup="6h",
-                              options=sim.case.spec.calibration.options)
+                              options=sim.calibration.options)
     assert abs(est.time - CHANGE) < pd.Timedelta("1h"), est.summary()  # measured: 9 s late
     assert est.before == pytest.approx(16.0, rel=0.02) and est.after == pytest.approx(25.0, rel=0.02)
     assert 16.0 * 1.05 < est.single.estimates["FA"] < 25.0 * 0.95  # the one-value "average" (19.6)
@@ -267,7 +273,7 @@ def test_week_with_the_jump_dud_dates_it_and_one_value_averages_it(dommel, noise
     window = (pd.Timestamp("2010-10-28", tz="UTC"), pd.Timestamp("2010-11-04", tz="UTC"))
     state, series = _truth(sim, window[0] - pd.Timedelta("24h"), window[1])
     est = estimate_transition(sim, fa, _observations(series, *window, noise), window, state=state,
-                              options=sim.case.spec.calibration.options)
+                              options=sim.calibration.options)
     assert est.test.transition, est.test.reason
     assert abs(est.time - CHANGE) < pd.Timedelta("2h"), est.summary()
     assert est.before == pytest.approx(16.0, rel=0.02) and est.after == pytest.approx(25.0, rel=0.02)
@@ -282,7 +288,7 @@ def test_week_without_a_change_is_not_a_transition(dommel) -> None:
     _, state = sim.simulate({FG: 16.0}, end=window[0] - pd.Timedelta("24h"))
     result, _ = sim.simulate({FG: 16.0}, window[0] - pd.Timedelta("24h"), window[1], state)
     est = estimate_transition(sim, fa, _observations(result.series, *window, "white"), window, state=state,
-                              options=sim.case.spec.calibration.options, max_nfev=40)
+                              options=sim.calibration.options, max_nfev=40)
     assert not est.test.transition, est.test.reason
     assert est.single.estimates["FA"] == pytest.approx(16.0, rel=0.02)
 

@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 
 from rivercal.errors import EngineDivergedError
+from rivercal.models import Quantity
 from rivercal.observations import ObservationSeries, ObservationSet
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
@@ -27,6 +28,8 @@ class LinearReservoirModel:
     """h(t) = crest + a (1 - exp(-t/τ)), Q = k (h - crest): hourly output; fails when k > 5."""
 
     observables: ClassVar[list[str]] = ["S.h", "S.Q"]
+    quantities: ClassVar[dict[str, Quantity]] = {"friction:global": Quantity("friction:global", "-", 0.0, 20.0),
+                                                  "weir:W.crest_level": Quantity("weir:W.crest_level", "m AD")}
 
     def __init__(self):
         self.runs = 0

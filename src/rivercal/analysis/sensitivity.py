@@ -43,6 +43,9 @@ WEIR_STEPS = (-0.30, -0.15, 0.0, 0.15, 0.30)
 FRICTION_STEPS = (4.0, 2.0, 0.0, -2.0, -4.0)
 #: Our choice for a cluster parameter in [0, 1] (Wc is not in Table 4-4), dimensionless.
 CLUSTER_STEPS = (-0.2, -0.1, 0.0, 0.1, 0.2)
+#: Our choice for any other quantity (a roughness factor, a quantity of an external model): these
+#: multiples of the parameter's first DuD step, kept inside its bounds.
+OTHER_STEPS = (-2.0, -1.0, 0.0, 1.0, 2.0)
 
 
 def _kind(p: Parameter) -> str:
@@ -76,7 +79,7 @@ def thesis_scenarios(parameters: ParameterSet, names: Sequence[str] | None = Non
     Raises
     ------
     ValueError
-        For a parameter that sets both crests and friction and has no custom list.
+        For a custom list of a parameter that is not analysed.
     """
     custom = dict(custom or {})
     names = list(names) if names is not None else parameters.names
@@ -88,7 +91,10 @@ def thesis_scenarios(parameters: ParameterSet, names: Sequence[str] | None = Non
             continue
         steps = {"weir": WEIR_STEPS, "friction": FRICTION_STEPS, "cluster": CLUSTER_STEPS}.get(_kind(p))
         if steps is None:
-            raise ValueError(f"parameter {name!r} sets both crests and friction; give its scenario values")
+            step = p.initial_step(p.initial)
+            values = [p.from_x(p.to_x(p.initial) + k * step) for k in OTHER_STEPS]
+            out[name] = [round(min(max(v, p.min), p.max), 10) for v in values]
+            continue
         out[name] = [round(p.initial + s, 10) for s in steps]
     for name in custom:
         if name not in out:

@@ -109,7 +109,7 @@ def bench_online(case: str = "dommel", scenario: str = "PI-Fg", *, first_issue: 
                     n_replay = len(service.replay(r_last))
                 replay_walls.append(time.perf_counter() - t0)
     return OnlineBenchmark(
-        case=model.case.name, scenario=scenario, parameters=list(config.parameters), window=config.window,
+        case=model.name, scenario=scenario, parameters=list(config.parameters), window=config.window,
         warmup=config.warmup, workers=workers, first_issue=first.isoformat(), cycles_timed=len(walls),
         cycle_wall_s_median=statistics.median(walls), cycle_wall_s_min=min(walls), cycle_wall_s_max=max(walls),
         cycle_model_runs_median=statistics.median(runs), first_cycle_wall_s=outcomes[0].wall_s,

@@ -13,6 +13,7 @@ the levels up- and downstream of the structure.
 
 from __future__ import annotations
 
+import re
 from datetime import UTC, datetime
 from typing import Literal
 
@@ -41,6 +42,8 @@ __all__ = [
 #: The simulated period must lie within these dates (the range of pandas' nanosecond times, rounded in).
 EARLIEST = datetime(1700, 1, 1, tzinfo=UTC)
 LATEST = datetime(2200, 1, 1, tzinfo=UTC)
+#: The model quantities of the embedded engine that case parameters may target.
+_ENGINE_TARGET = re.compile(r"^(weir:[A-Za-z0-9_.\-]+\.crest_level|friction:global|friction:branch:[A-Za-z0-9_.\-]+)$")
 #: Longest spin-up, h (one leap year).
 MAX_SPINUP_HOURS = 8784.0
 
@@ -318,6 +321,10 @@ class CaseFile(Network):
                 raise FieldProblem(f"parameters[{i}].name", f"parameter name {p.name!r} is used twice")
             names.add(p.name)
             for j, target in enumerate([*p.targets, *(c.target for c in p.cluster)]):
+                if not _ENGINE_TARGET.match(target):
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r}: {target!r} is not a quantity of the embedded engine; "
+                                       "expected 'weir:<id>.crest_level', 'friction:global' or 'friction:branch:<id>'")
                 if target.startswith("weir:") and target[5:-12] not in weirs:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown weir {target[5:-12]!r}")

@@ -99,18 +99,17 @@ def analyse(
         raise OptionError(f"--sv-threshold/--k/--corr-threshold: {exc}", option="--sv-threshold") from None
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
-    c = model.case
     if params is None:
-        single = [p.name for p in c.spec.parameters if len(p.targets) == 1 and not p.cluster]
+        single = [p.name for p in model.calibration.parameters if len(p.targets) == 1 and not p.cluster]
         if not single:
-            raise OptionError(f"--params: case {c.name!r} defines no single-target parameter; name some",
+            raise OptionError(f"--params: {model.name!r} defines no single-target parameter; name some",
                               option="--params")
         params = ",".join(single)
-    pset = select_parameters(c, params, start_values, [])
+    pset = select_parameters(model, params, start_values, [])
     if k is not None and k > len(pset):
         raise OptionError(f"--k {k}: more than the {len(pset)} parameters analysed", option="--k")
     hours = pd.Timedelta(hours=warmup)
-    win = parse_window(c, window, warmup=hours)
+    win = parse_window(model, window, warmup=hours)
     check_truth(pset, truth)
     obs = window_observations(observations, model, win) if observations is not None else None
 

@@ -1,4 +1,8 @@
-"""``rivercal bench``: the benchmarks of the engine, the calibration, the rainfall-runoff model and the service."""
+"""``rivercal bench``: the benchmarks.
+
+The engine (alone and beside EPA SWMM), the calibration, the rainfall-runoff model, the on-line service
+and the black box.
+"""
 
 from __future__ import annotations
 
@@ -121,6 +125,40 @@ def online(
     result = bench_online("dommel", scenario, first_issue=first_issue, cycles=cycles, workers=workers,
                           replay=replay, replay_repeats=replay_repeats).to_dict()
     _print_flat(result, "on-line service benchmark", as_json)
+
+
+@app.command("engines")
+@guard
+def engines(
+    points: Annotated[int, typer.Option(help="About this many calculation points (100 m apart).")] = 400,
+    weirs: Annotated[int, typer.Option(help="Free weirs along the channel.")] = 9,
+    days: Annotated[float, typer.Option(help="Simulated days of the flood wave (after a 48 h spin-up).")] = 7.0,
+    repeats: Annotated[int, typer.Option(help="Interleaved runs of each engine (medians reported).")] = 5,
+    as_json: JsonOpt = False,
+) -> None:
+    """The embedded engine beside EPA SWMM on one weir chain, in one process (SWMM: 10 s routing, variable)."""
+    from rivercal.bench.engines import bench_engines
+
+    check_number(points, "--points", low=20, high=100_000)
+    check_number(weirs, "--weirs", low=1, high=points // 10)
+    check_number(days, "--days", low=3, high=366)  # the flood wave peaks 2 days after the start
+    check_number(repeats, "--repeats", low=1, high=100)
+    watch_compilation(True)
+    result = bench_engines(points=points, weirs=weirs, days=days, repeats=repeats).to_dict()
+    _print_flat(result, "embedded engine and EPA SWMM on one network", as_json)
+
+
+@app.command("blackbox")
+@guard
+def blackbox(
+    runs: Annotated[int, typer.Option(help="Timed runs (medians reported).")] = 40,
+    as_json: JsonOpt = False,
+) -> None:
+    """The black box's own time per run beside a trivial external program (cp of a prepared output file)."""
+    from rivercal.bench.blackbox import bench_blackbox
+
+    check_number(runs, "--runs", low=3, high=10_000)
+    _print_flat(bench_blackbox(runs=runs).to_dict(), "black-box overhead per run (ms)", as_json)
 
 
 def _print_flat(result: dict, title: str, as_json: bool) -> None:

@@ -74,13 +74,13 @@ def calibrate(
     output_dir(out)
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
-    c = model.case
-    algo = algorithm or c.spec.calibration.algorithm
-    pset = select_parameters(c, params, start_values, bounds)
-    defaults = dict(c.spec.calibration.options) if algo == c.spec.calibration.algorithm else {}
+    setup = model.calibration
+    algo = algorithm or setup.algorithm
+    pset = select_parameters(model, params, start_values, bounds)
+    defaults = dict(setup.options) if algo == setup.algorithm else {}
     opts = optimiser_options(algo, option, defaults, pset)
     hours = pd.Timedelta(hours=warmup)
-    win = parse_window(c, window, warmup=hours)
+    win = parse_window(model, window, warmup=hours)
     check_truth(pset, truth or {})
     obs = window_observations(observations, model, win) if observations is not None else None
 

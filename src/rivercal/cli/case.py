@@ -28,8 +28,20 @@ def schema() -> None:
 @app.command("check")
 @guard
 def check(case: CaseArg, as_json: JsonOpt = False) -> None:
-    """Validate a case and summarise it."""
+    """Validate a case and summarise it (a model.toml: what the model declares, as ``rivercal model check``)."""
     model = open_model(case)
+    if not hasattr(model, "case"):
+        from rivercal.cli.model import model_summary
+
+        summary = model_summary(model)
+        if as_json:
+            emit_json(summary)
+        else:
+            table = Table(title=f"model {model.name} — valid", show_header=False)
+            for key, value in summary.items():
+                table.add_row(key, ", ".join(map(str, value)) if isinstance(value, list | dict) else str(value))
+            out_console.print(table)
+        return
     c = model.case
     net = c.network
     compiled = model.compiled
@@ -73,7 +85,13 @@ def plot(
 
         raise OptionError(f"--out {out}: expected a .png file", option="--out")
     output_file(out, "--out")
-    c = open_model(case).case
+    model = open_model(case)
+    if not hasattr(model, "case"):
+        from rivercal.errors import OptionError
+
+        raise OptionError(f"{case}: 'case plot' draws a case's network; model {model.name!r} "
+                          f"({type(model).__name__}) has none", option="CASE")
+    c = model.case
     path = plot_network(c.network, out, title=f"{c.name}: {c.spec.case.description}"[:110],
                         weir_labels=case_weir_labels(c))
     out_console.print(f"wrote {path}")

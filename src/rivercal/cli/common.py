@@ -26,7 +26,8 @@ __all__ = ["CaseArg", "JsonOpt", "QuietOpt", "Reporter", "debug_enabled", "emit_
 out_console = Console()
 err_console = Console(stderr=True, soft_wrap=True)
 
-CaseArg = Annotated[str, typer.Argument(help="A case folder or the name of a packaged case (e.g. 'dommel').")]
+CaseArg = Annotated[str, typer.Argument(help="A case folder or the name of a packaged case (e.g. 'dommel'), or a "
+                                             "model.toml of another model (or its folder; e.g. 'dommel-swmm').")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary on the terminal.")]
 

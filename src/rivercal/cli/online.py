@@ -108,10 +108,10 @@ def online(
         output_dir(out)
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
-    known = [p.name for p in model.case.spec.parameters]
+    known = model.calibration.names
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise OptionError(f"--params: unknown parameter {unknown[0]!r}; the case defines {', '.join(known)}",
+        raise OptionError(f"--params: unknown parameter {unknown[0]!r}; {model.name!r} defines {', '.join(known)}",
                           option="--params")
     earliest = model.start + durations["--window"] + spin
     if first < earliest:

@@ -36,10 +36,11 @@ __all__ = [
 
 
 def open_model(argument: str, *, show_compilation: bool = True) -> Any:
-    """The model a CASE argument names: a case folder, its ``case.toml``, or the name of a packaged case.
+    """The model a CASE argument names.
 
-    Every command takes its CASE through here, so that another kind of model description is added in
-    one place. A bad case raises :class:`~rivercal.errors.CaseError` (file, field, problem).
+    A case folder, its ``case.toml``, the name of a packaged case, or a ``model.toml`` of another model
+    (or a folder holding one; :func:`rivercal.models.load_model`). Every command takes its CASE through
+    here. A bad case or model file raises :class:`~rivercal.errors.CaseError` (file, field, problem).
     """
     from rivercal.cli.common import watch_compilation
     from rivercal.model import load_model
@@ -114,10 +115,16 @@ def parse_sets(values: list[str], model: Any | None = None) -> dict[str, float]:
             if name in out:
                 raise OptionError(f"--set {name}: given twice", option="--set")
             out[name] = value
-    if model is not None and out and hasattr(model, "parameter_arrays"):
+    if model is not None and out:
+        from rivercal.models.contract import check_settable
+
         for name, value in out.items():
             try:  # the model's own check of a target and its value; pure, it runs nothing
-                model.parameter_arrays({name: value})
+                if hasattr(model, "parameter_arrays"):  # the embedded engine words its checks for a case
+                    model.parameter_arrays({name: value})
+                else:
+                    check_settable(model, [name])
+                    model.quantities[name].check(value)
             except (KeyError, ValueError) as exc:
                 text = str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc).removeprefix(f"{name}: ")
                 raise OptionError(f"--set {name}={value:g}: {text}", option="--set") from None
@@ -158,16 +165,16 @@ def parse_duration(text: str, option: str, *, allow_zero: bool = False) -> Any:
     return value
 
 
-def parse_window(case: Any, text: str, *, option: str = "--window", warmup: Any = None,
+def parse_window(model: Any, text: str, *, option: str = "--window", warmup: Any = None,
                  warmup_option: str | None = "--warmup") -> tuple[Any, Any]:
-    """A window of the case by name, or ``START/END``, as UTC timestamps inside the case period.
+    """A window of the model (case) by name, or ``START/END``, as UTC timestamps inside its period.
 
     With ``warmup`` (a Timedelta) the runs start that long before the window; that start must lie in
-    the case period too (``warmup_option`` names the option that sets it, None when none does).
+    the period too (``warmup_option`` names the option that sets it, None when none does).
     """
     import pandas as pd
 
-    named = {w.name: (w.start, w.end) for w in case.spec.windows}
+    named = dict(model.calibration.windows)
     if text in named:
         a, b = (parse_time(str(t), option) for t in named[text])
     else:
@@ -179,15 +186,15 @@ def parse_window(case: Any, text: str, *, option: str = "--window", warmup: Any 
         a, b = parse_time(first, option), parse_time(second, option)
     if not b > a:
         raise OptionError(f"{option} {text!r}: the end is not after the start", option=option)
-    if a < case.start or b > case.end:
-        raise OptionError(f"{option} {text!r}: lies outside the case period {case.start:%Y-%m-%d %H:%M} .. "
-                          f"{case.end:%Y-%m-%d %H:%M}", option=option)
-    if warmup is not None and a - warmup < case.start:
+    if a < model.start or b > model.end:
+        raise OptionError(f"{option} {text!r}: lies outside the case period {model.start:%Y-%m-%d %H:%M} .. "
+                          f"{model.end:%Y-%m-%d %H:%M}", option=option)
+    if warmup is not None and a - warmup < model.start:
         hours = pd.Timedelta(warmup).total_seconds() / 3600
         which = f" ({warmup_option})" if warmup_option else ""
         raise OptionError(f"{option} {text!r}: the runs start {hours:g} h{which} before the window, "
-                          f"at {a - warmup:%Y-%m-%d %H:%M}, before the case starts ({case.start:%Y-%m-%d %H:%M}); "
-                          f"start the window at {case.start + warmup:%Y-%m-%d %H:%M} or later"
+                          f"at {a - warmup:%Y-%m-%d %H:%M}, before the case starts ({model.start:%Y-%m-%d %H:%M}); "
+                          f"start the window at {model.start + warmup:%Y-%m-%d %H:%M} or later"
                           + (f", or shorten {warmup_option}" if warmup_option else ""), option=option)
     return a, b
 
@@ -195,17 +202,17 @@ def parse_window(case: Any, text: str, *, option: str = "--window", warmup: Any 
 # -- parameters ------------------------------------------------------------------------------------
 
 
-def select_parameters(case: Any, names: str, start: Mapping[str, float], bounds: list[str]) -> Any:
-    """The case's parameters named in ``names`` (``--params``), with ``--start`` and ``--bounds`` applied."""
+def select_parameters(model: Any, names: str, start: Mapping[str, float], bounds: list[str]) -> Any:
+    """The model's parameters named in ``names`` (``--params``), with ``--start`` and ``--bounds`` applied."""
     from rivercal.parameters import ParameterSet
 
     wanted = parse_names(names, "--params")
     if not wanted:
         raise OptionError("--params: give at least one parameter name", option="--params")
-    known = {p.name: p for p in case.spec.parameters}
+    known = {p.name: p for p in model.calibration.parameters}
     for n in wanted:
         if n not in known:
-            raise OptionError(f"--params: unknown parameter {n!r}; the case defines {', '.join(known) or 'none'}",
+            raise OptionError(f"--params: unknown parameter {n!r}; {_defines(model)} {', '.join(known) or 'none'}",
                               option="--params")
     updates: dict[str, dict[str, float]] = {n: {} for n in wanted}
     for item in bounds:
@@ -254,6 +261,15 @@ def check_truth(parameters: Any, truth: Mapping[str, float], option: str = "--tw
                               option=option)
 
 
+def _what(model: Any) -> str:
+    """'case dommel' or 'model dommel-swmm' for messages."""
+    return f"{'case' if hasattr(model, 'case') else 'model'} {model.name!r}"
+
+
+def _defines(model: Any) -> str:
+    return f"{'the case' if hasattr(model, 'case') else 'model ' + repr(model.name)} defines"
+
+
 def _first_problem(exc: ValueError) -> str:
     errors = getattr(exc, "errors", None)
     if callable(errors):
@@ -295,7 +311,7 @@ def window_observations(path: Path, model: Any, window: tuple[Any, Any], option:
                           f"{window[1]:%Y-%m-%d %H:%M}", option=option)
     unknown = [s for s in obs.ids if s not in model.observables]
     if unknown:
-        raise OptionError(f"{option} {path}: series {unknown[0]!r} is not simulated by case {model.case.name!r} (it "
+        raise OptionError(f"{option} {path}: series {unknown[0]!r} is not simulated by {_what(model)} (it "
                           f"simulates {', '.join(model.observables)})", option=option)
     return obs
 

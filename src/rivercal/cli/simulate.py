@@ -46,12 +46,13 @@ def simulate(
         raise OptionError(f"--start/--end: the period {a:%Y-%m-%d %H:%M:%S} .. {b:%Y-%m-%d %H:%M:%S} is not a multiple "
                           f"of the case's output interval ({step:g} s)", option="--end")
     reporter = Reporter(not (quiet or as_json))
-    with reporter.running(f"simulating {model.case.name}"):
+    with reporter.running(f"simulating {model.name}"):
         summary = simulate_case(model, quantities, out, start=a, end=b, plot=plot, progress=reporter)
     if as_json:
         emit_json(summary)
     elif not quiet:
+        balance = summary["volume_balance_relative_error"]
         out_console.print(f"simulated [bold]{summary['case']}[/] {summary['start']} .. {summary['end']} in "
-                          f"{summary['wall_s']:.2f} s (volume balance error "
-                          f"{summary['volume_balance_relative_error']:.1e})")
+                          f"{summary['wall_s']:.2f} s"
+                          + (f" (volume balance error {balance:.1e})" if balance is not None else ""))
         out_console.print("wrote " + ", ".join(summary["files"].values()))

@@ -135,22 +135,21 @@ def _check_case(model, names: list[str], params: list[str], window: str | None) 
 
     from rivercal.twin.suites import SUITES
 
-    case = model.case
-    known = [w.name for w in case.spec.windows]
+    known = list(model.calibration.windows)
     if window is not None and "/" not in window and window not in known:
         raise OptionError(f"--window {window!r}: the case has windows {', '.join(known)}", option="--window")
     if window is not None:  # the suites' and the analysis' runs start 24 h before their window (twin_truth)
-        parse_window(case, window, warmup=pd.Timedelta(hours=24), warmup_option=None)
-    defined = {p.name for p in case.spec.parameters}
+        parse_window(model, window, warmup=pd.Timedelta(hours=24), warmup_option=None)
+    defined = set(model.calibration.names)
     missing = sorted({p for n in names if n in SUITES for p in SUITES[n].truths} - defined)
     if missing:
-        raise OptionError(f"case {case.name!r} does not define the parameters {missing} the suites need")
+        raise OptionError(f"case {model.name!r} does not define the parameters {missing} the suites need")
     unknown = [p for p in params if p not in defined]
     if unknown:
         raise OptionError(f"--params: unknown parameter {unknown[0]!r}; the case defines {', '.join(sorted(defined))}",
                           option="--params")
     if window is None and "moderate" not in known and SENSITIVITY in names:
-        raise OptionError(f"--window: case {case.name!r} has no 'moderate' window for the sensitivity; give one",
+        raise OptionError(f"--window: case {model.name!r} has no 'moderate' window for the sensitivity; give one",
                           option="--window")
 
 

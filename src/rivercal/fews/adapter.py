@@ -115,7 +115,7 @@ def _config(run: RunFile, model: Any) -> Any:
     from rivercal.optimise import OPTIMISERS
 
     names = [n.strip() for n in prop(run, "parameters").split(",") if n.strip()]
-    known = [p.name for p in model.case.spec.parameters]
+    known = [p.name for p in model.calibration.parameters]
     unknown = [n for n in names if n not in known]
     if not names or unknown:
         what = f"unknown parameter {unknown[0]!r}" if unknown else "no parameter named"
@@ -217,8 +217,8 @@ def _inputs(run: RunFile, case: Any, observables: list[str]) -> tuple[list[tuple
 
 def _model(case: Any, forcing: Mapping[str, pd.Series]) -> Any:
     """The case's model with FEWS's forcing in place of the case's own where FEWS has values."""
-    from rivercal.engine.simulator import Simulator
     from rivercal.hydrology.catchments import catchment_forcing
+    from rivercal.models import EmbeddedModel
 
     base = {**case.forcing, **catchment_forcing(case)}
     merged = {}
@@ -229,7 +229,7 @@ def _model(case: Any, forcing: Mapping[str, pd.Series]) -> Any:
         else:
             own = own[(own.index < series.index[0]) | (own.index > series.index[-1])]
             merged[key] = pd.concat([own, series]).sort_index()
-    return Simulator(case, forcing={**catchment_forcing(case), **merged})
+    return EmbeddedModel(case, forcing={**catchment_forcing(case), **merged})
 
 
 # -- state ----------------------------------------------------------------------------------------

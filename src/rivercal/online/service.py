@@ -30,7 +30,7 @@ Identifiability gate
     estimate is stored as not accepted, with the reason. Holding it does not spoil the others: by
     construction their cost hardly depends on it.
 
-Forecast forcing: the forecasts use the case's forcing after t₀ as if it were a perfect weather
+Forecast forcing: the forecasts use the model's forcing after t₀ as if it were a perfect weather
 forecast, for the updated model and the DSS alike, so their difference is the parameters alone.
 """
 
@@ -49,7 +49,6 @@ import pandas as pd
 from rivercal._time import utc
 from rivercal.analysis.forecast import score_forecasts
 from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
-from rivercal.engine.state import EngineState
 from rivercal.errors import ModelRunError
 from rivercal.observations import DEFAULT_SIGMA
 from rivercal.parameters import ParameterSet
@@ -72,7 +71,7 @@ class OnlineConfig:
     Attributes
     ----------
     parameters
-        Names of the case's parameters to estimate (default global friction and the crest shift).
+        Names of the model's parameters to estimate (default global friction and the crest shift).
     window, period, horizon
         Calibration window length, time between cycles and forecast horizon (thesis §6-2: 7 d, 1 d;
         48 h).
@@ -80,7 +79,7 @@ class OnlineConfig:
         Simulated time before each window that lets the state adjust to a candidate (its residuals do
         not count).
     algorithm, options
-        Optimiser and its options (default: the case's ``[calibration]``).
+        Optimiser and its options (default: the model's, e.g. the case's ``[calibration]``).
     deadline_s
         Wall-clock limit of one calibration, s; on expiry the cycle is ``aborted`` and the last
         accepted estimate is kept.
@@ -106,7 +105,7 @@ class OnlineConfig:
     output_interval_s
         Interval of the stored forecasts, s.
     dss
-        Model quantities of the DSS (default: the case as it is).
+        Model quantities of the DSS (default: the model as it is).
     on_failure
         Failed model run inside a calibration: ``penalty`` (logged; the optimiser steers away) or
         ``raise`` (the cycle fails and keeps the last estimate).
@@ -201,8 +200,9 @@ class OnlineService:
     Parameters
     ----------
     model
-        A model of the model protocol with ``case`` (parameters, units) and ``observables``, e.g.
-        :func:`rivercal.model.load_model`.
+        A model of the model contract (:mod:`rivercal.models.contract`), e.g. of
+        :func:`rivercal.models.load_model`: its calibration setup names the parameters (with units), its
+        ``save_state``/``load_state`` carry the hot starts through the store.
     store
         The open store.
     run_name
@@ -220,7 +220,7 @@ class OnlineService:
     ValueError
         For an unknown parameter or series, or a first window that starts before the model's period.
     StoreError
-        If the run exists with another case or configuration.
+        If the run exists with another model or configuration.
     """
 
     def __init__(self, model: Any, store: Store, run_name: str, config: OnlineConfig, first_issue: Any,
@@ -229,10 +229,11 @@ class OnlineService:
         self.store = store
         self.config = config
         self.schedule = config.schedule(first_issue)
-        known = {p.name: p for p in model.case.spec.parameters}
+        known = {p.name: p for p in model.calibration.parameters}
         unknown = [n for n in config.parameters if n not in known]
         if unknown:
-            raise ValueError(f"online: unknown parameter {unknown[0]!r}; the case defines {', '.join(known)}")
+            raise ValueError(f"online: unknown parameter {unknown[0]!r}; model {model.name!r} defines "
+                             f"{', '.join(known) or 'none'}")
         self.parameters = ParameterSet(known[n] for n in config.parameters)
         for name in [*config.max_change, *config.resolution]:
             if name not in self.parameters.names:
@@ -247,13 +248,13 @@ class OnlineService:
         self.warmup = pd.Timedelta(config.warmup)
         first_run = self.schedule.first_issue - self.window - self.warmup
         if first_run < model.start:
-            raise ValueError(f"online: the first window needs the model from {first_run}, before the case starts "
-                             f"({model.start}); issue the first cycle later")
-        case_cal = model.case.spec.calibration  # the case's stopping rules are DuD's (thesis Table 4-3)
-        case_options = case_cal.options if config.algorithm == getattr(case_cal, "algorithm", "dud") else {}
+            raise ValueError(f"online: the first window needs the model from {first_run}, before the model's period "
+                             f"starts ({model.start}); issue the first cycle later")
+        setup = model.calibration  # e.g. the case's stopping rules are DuD's (thesis Table 4-3)
+        case_options = setup.options if config.algorithm == setup.algorithm else {}
         self.options = dict(config.options if config.options is not None else case_options)
         stored = {**config.stored(), "first_issue": self.schedule.first_issue.isoformat(), "meta": dict(meta or {})}
-        self.run = store.ensure_run(run_name, model.case.name, stored)
+        self.run = store.ensure_run(run_name, model.name, stored)
 
     # -- helpers -----------------------------------------------------------------------------------
 
@@ -268,7 +269,7 @@ class OnlineService:
         """The period (UTC) whose observations the cycles up to ``last_issue`` use.
 
         From the first window's start (first issue − window − warm-up) to the last issue plus the
-        forecast horizon, so that every forecast can be scored; but not past the end of the case.
+        forecast horizon, so that every forecast can be scored; but not past the end of the model's period.
         """
         start = self.schedule.first_issue - self.window - self.warmup
         return start, min(utc(last_issue) + self.horizon, self.model.end)
@@ -289,18 +290,14 @@ class OnlineService:
             out.append(p.model_copy(update={"initial": warm[p.name], "min": lo, "max": hi}))
         return ParameterSet(out)
 
-    def _state(self, name: str, at: pd.Timestamp, quantities: Mapping[str, float]) -> tuple[EngineState, bool]:
+    def _state(self, name: str, at: pd.Timestamp, quantities: Mapping[str, float]) -> tuple[Any, bool]:
         """The stored state ``name`` if it is at ``at``; else a cold spin-up to ``at`` (returns hot=False)."""
         stored = self.store.model_state(self.run, name)
         if stored is not None:
             when, fmt, data = stored
             if when == at:
                 try:
-                    state = EngineState.from_bytes(data, fmt)
-                    compiled = getattr(self.model, "compiled", None)
-                    if compiled is not None and state.signature != (compiled.n_hpoints, compiled.n_links):
-                        raise ValueError("it belongs to another grid (the case changed since it was stored)")
-                    return state, True
+                    return self.model.load_state(data, fmt), True
                 except ValueError as exc:
                     log.warning("stored %s state unusable (%s); spinning the model up again", name, exc)
             else:
@@ -462,7 +459,7 @@ class OnlineService:
                         "be larger and the next cycles will continue", parameter=n))
         return out
 
-    def _forecasts(self, spec: CycleSpec, run_start: pd.Timestamp, state: EngineState,
+    def _forecasts(self, spec: CycleSpec, run_start: pd.Timestamp, state: Any,
                    accepted: Mapping[str, float]) -> tuple[dict[str, pd.DataFrame], dict[str, tuple]]:
         """Run the accepted model to t₀ and on to the horizon, and the DSS from its own state at t₀."""
         t0 = spec.issue_time
@@ -478,8 +475,9 @@ class OnlineService:
                                         output_interval=interval)
         dss, _ = self.model.simulate(dss_q, start=t0, end=t0 + self.horizon, state=dss_t0, output_interval=interval)
         forecasts = {"updated": updated.series[self.series], "dss": dss.series[self.series]}
-        fmt = EngineState.BYTES_FORMAT
-        states = {"updated": (next_start, fmt, s_next.to_bytes()), "dss": (t0, fmt, dss_t0.to_bytes())}
+        fmt = self.model.state_format
+        states = {"updated": (next_start, fmt, self.model.save_state(s_next)),
+                  "dss": (t0, fmt, self.model.save_state(dss_t0))}
         return forecasts, states
 
     # -- many cycles --------------------------------------------------------------------------------

@@ -165,7 +165,7 @@ def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> d
     dss_q = dict(config.get("dss") or {})
     _, state = model.simulate(dss_q, end=start)
     dss, _ = model.simulate(dss_q, start=start, end=end, state=state, output_interval=3600, snapshots=True)
-    known = {p.name: p for p in model.case.spec.parameters}
+    known = {p.name: p for p in model.calibration.parameters}
     params = ParameterSet(known[n] for n in config["parameters"])
     est = store.estimates(run)
     cycles = store.cycles(run)
@@ -283,13 +283,13 @@ def _parameter_table(model: Any, run: Any, est: pd.DataFrame, change: pd.Timesta
     from rivercal.parameters import ParameterSet
     from rivercal.twin.practical import PRACTICAL_SCENARIOS
 
-    known = {p.name: p for p in model.case.spec.parameters}
+    known = {p.name: p for p in model.calibration.parameters}
     defaults = model.default_parameters()
     scenario = PRACTICAL_SCENARIOS.get(_meta(run).get("scenario") or "")
     changed_before = scenario.quantities(defaults, after=False) if scenario else {}
     changed_after = scenario.quantities(defaults, after=True) if scenario else {}
     rows_for: dict[str, str] = {}
-    for p in model.case.spec.parameters:
+    for p in model.calibration.parameters:
         if len(p.targets) == 1 and not p.cluster and (p.targets[0] in defaults or p.targets[0] in changed_after):
             rows_for[p.targets[0]] = p.name
     for target in changed_after:
@@ -406,10 +406,14 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     est = store.estimates(run)
     alerts = store.alerts(run)
     scores = store.scores(run)
-    units = {p.name: p.unit for p in model.case.spec.parameters}
+    units = {p.name: p.unit for p in model.calibration.parameters}
     files["estimates_csv"] = str(export_estimates_csv(store, run, out / "estimates.csv"))
     files["forecasts_csv"] = str(export_forecasts_csv(store, run, out / "forecasts.csv"))
-    files["netcdf"] = str(write_netcdf(add_stations(to_xarray(store, run), model.case), out / "run.nc"))
+    dataset = to_xarray(store, run)
+    case = getattr(model, "case", None)  # an embedded model knows its stations' places; other models do not
+    if case is not None:
+        dataset = add_stations(dataset, case)
+    files["netcdf"] = str(write_netcdf(dataset, out / "run.nc"))
     cycles.to_csv(out / "cycles.csv", index=False)
     files["cycles_csv"] = str(out / "cycles.csv")
 
@@ -434,7 +438,7 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
         truth: dict[str, tuple] = {}
         if scenario is not None:
             truth = {n: (scenario.true_before.get(n), scenario.true_after.get(n)) for n in config["parameters"]}
-        dss_values = {p.name: p.initial for p in model.case.spec.parameters if p.name in config["parameters"]}
+        dss_values = {p.name: p.initial for p in model.calibration.parameters if p.name in config["parameters"]}
         fig_est = _estimates_figure(est, units, truth, dss_values, change, out / "estimates.png")
         files["estimates_figure"] = str(fig_est)
         wide = est.pivot_table(index=["cycle", "issue_time"], columns="parameter", values="value")
@@ -482,7 +486,7 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
                      figure(fig_scores, "RMSE of the level forecasts by lead time, all stations and cycles."),
                      table(stations, "RMSE per station and lead time (levels in cm, discharges in 0.01 m³/s)",
                            float_format=".3g"))
-    if scenario is not None and len(cycles):
+    if scenario is not None and len(cycles) and hasattr(model, "compiled"):  # the maps need every point's level
         _twin_sections(page, model, store, run, cycles, change, out, files)
     page.write(out / "index.html")
     files["report"] = str(out / "index.html")

@@ -308,8 +308,8 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     level_frames: list[pd.DataFrame] = []
     for a, b, after in _legs(model_start, start, end, change):
         keep = b > start
-        result, state = model.simulate(values[after], a, b, state, output_interval=interval,
-                                       snapshots=levels and keep)
+        extra = {"snapshots": True} if levels and keep else {}  # the embedded engine's full fields
+        result, state = model.simulate(values[after], a, b, state, output_interval=interval, **extra)
         if b == start:
             start_state = state
         if keep:

@@ -206,9 +206,9 @@ _OPTIONS: dict[str, Any] = {}
 def _setup(model: Any) -> None:
     global _MODEL, _PARAMS, _WINDOWS, _OPTIONS
     _MODEL = model
-    _PARAMS = {p.name: p for p in model.case.spec.parameters}
-    _WINDOWS = {w.name: (pd.Timestamp(w.start), pd.Timestamp(w.end)) for w in model.case.spec.windows}
-    _OPTIONS = dict(model.case.spec.calibration.options)
+    _PARAMS = {p.name: p for p in model.calibration.parameters}
+    _WINDOWS = dict(model.calibration.windows)
+    _OPTIONS = dict(model.calibration.options)
 
 
 def _window(name: str) -> tuple[pd.Timestamp, pd.Timestamp]:

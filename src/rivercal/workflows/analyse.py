@@ -83,16 +83,16 @@ def analyse_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.T
     out.mkdir(parents=True, exist_ok=True)
     warmup = pd.Timedelta(warmup)
     t0 = time.perf_counter()
-    case = model.case
+    defined = model.calibration.parameters
     files: dict[str, str] = {}
-    summary: dict[str, Any] = {"case": case.name, "window": [window[0].isoformat(), window[1].isoformat()],
+    summary: dict[str, Any] = {"case": model.name, "window": [window[0].isoformat(), window[1].isoformat()],
                                "parameters": parameters.names, "units": {p.name: p.unit for p in parameters},
                                "analysis_point": {p.name: p.initial for p in parameters}}
     state = None
     if observations is None:
-        initial = {p.name: p.initial for p in case.spec.parameters}
+        initial = {p.name: p.initial for p in defined}
         values = {**initial, **dict(truth or {})}
-        quantities = {q: v for p in case.spec.parameters for q, v in p.quantities(values[p.name]).items()
+        quantities = {q: v for p in defined for q, v in p.quantities(values[p.name]).items()
                       if p.name in parameters.names}
         progress.stage("computing the twin truth")
         twin = twin_truth(model, quantities, window, warmup=warmup, noise=noise, seed=seed)
@@ -110,16 +110,16 @@ def analyse_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.T
     with Evaluator(problem.residuals, workers=workers) as batch:
         if "sensitivity" in analyses:
             progress.stage("sensitivity: one-at-a-time scenarios (thesis Table 4-4)")
-            summary["sensitivity"], n = _sensitivity(problem, batch, out, files, case.name)
+            summary["sensitivity"], n = _sensitivity(problem, batch, out, files, model.name)
             nfev += n
         if "identifiability" in analyses:
             progress.stage(f"identifiability: Jacobian of {len(parameters)} parameters")
-            summary["identifiability"], n = _identifiability(problem, batch, out, files, case.name, rel_step,
+            summary["identifiability"], n = _identifiability(problem, batch, out, files, model.name, rel_step,
                                                               scheme, identifiability_options)
             nfev += n
     if "residuals" in analyses:
         progress.stage("residuals at the analysis point")
-        summary["residuals"] = _residuals(problem, out, files, case.name, bias_window)
+        summary["residuals"] = _residuals(problem, out, files, model.name, bias_window)
         nfev += 1
     summary["model_runs"] = nfev
     summary["wall_s"] = round(time.perf_counter() - t0, 2)

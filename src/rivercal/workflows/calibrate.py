@@ -83,13 +83,13 @@ def calibrate_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd
     files = {"history": str(out / "history.csv"), "evaluations": str(out / "evaluations.csv")}
     if cal.history:
         units = {p.name: p.unit for p in parameters}
-        title = f"{model.case.name}: {algorithm}, window {window[0]:%Y-%m-%d}..{window[1]:%Y-%m-%d}"
+        title = f"{model.name}: {algorithm}, window {window[0]:%Y-%m-%d}..{window[1]:%Y-%m-%d}"
         files["convergence"] = str(plot_convergence(cal.history, parameters.names, out / "convergence.png",
                                                     truth=dict(truth) if truth else None, units=units, title=title))
-        files["cost"] = str(plot_cost(cal.history, out / "cost.png", title=f"{model.case.name}: cost per iteration"))
+        files["cost"] = str(plot_cost(cal.history, out / "cost.png", title=f"{model.name}: cost per iteration"))
     files["summary"] = str(out / "result.json")
     summary: dict[str, Any] = {
-        "case": model.case.name, "window": [window[0].isoformat(), window[1].isoformat()],
+        "case": model.name, "window": [window[0].isoformat(), window[1].isoformat()],
         "observations": {"series": len(problem.observations), "values": problem.observations.n_values,
                          "missing_dropped": problem.observations.n_missing},
         **cal.summary(), "files": files}

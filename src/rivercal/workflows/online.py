@@ -96,7 +96,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         if max_cycles is not None:
             total = min(total, finished + max_cycles)
         outcomes: list[Any] = []
-        units = {p.name: p.unit for p in model.case.spec.parameters}
+        units = {p.name: p.unit for p in model.calibration.parameters}
 
         def on_cycle(o: Any) -> None:
             outcomes.append(o)
@@ -170,7 +170,7 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
     alerts = store.alerts(service.run)
     return {
         "run": service.run.name,
-        "case": service.model.case.name,
+        "case": service.model.name,
         "db": str(store.path),
         "cycles_done_now": len(outcomes),
         "cycles": len(cycles),

@@ -35,10 +35,11 @@ def simulate_case(model: Any, quantities: Mapping[str, float], out: str | Path, 
     -------
     dict
         ``case``, ``start``, ``end`` (ISO), ``parameters``, ``wall_s`` (s), the relative volume balance
-        error, ``files`` and the ``final`` value of every series (m, m³/s).
+        error (None for a model that keeps no balance for rivercal), ``files`` and the ``final`` value
+        of every series (m, m³/s).
     """
     out = Path(out)
-    progress.stage(f"simulating {model.case.name}")
+    progress.stage(f"simulating {model.name}")
     result, _ = model.simulate(dict(quantities), start=start, end=end)
     out.mkdir(parents=True, exist_ok=True)
     result.to_csv(out / "series.csv")
@@ -52,14 +53,15 @@ def simulate_case(model: Any, quantities: Mapping[str, float], out: str | Path, 
 
         progress.stage("drawing the hydrographs")
         files["figure"] = str(plot_series(result.series, out / "series.png",
-                                          title=f"{model.case.name}: simulated series"))
+                                          title=f"{model.name}: simulated series"))
     return {
-        "case": model.case.name,
+        "case": model.name,
         "start": result.series.index[0].isoformat(),
         "end": result.series.index[-1].isoformat(),
         "parameters": dict(quantities),
         "wall_s": round(result.wall_time, 4),
-        "volume_balance_relative_error": result.balance.relative_error,
+        # an external model reports its own balance (SWMM: its .rpt file), or none
+        "volume_balance_relative_error": result.balance.relative_error if result.balance is not None else None,
         "files": files,
         "final": {k: round(float(v), 4) for k, v in result.series.iloc[-1].items()},
     }

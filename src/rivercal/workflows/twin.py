@@ -73,12 +73,12 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    done = ThesisRun(summary={"case": model.case.name, "suites": {}, "workers": workers})
+    done = ThesisRun(summary={"case": model.name, "suites": {}, "workers": workers})
     analysis_files: dict[str, str] = {}
     if SENSITIVITY in suites:
         progress.stage(f"initial analysis: sensitivity and identifiability of {', '.join(parameters)}")
         done.analysis = initial_analysis(model, list(parameters), window or "moderate", workers=workers)
-        analysis_files = write_initial_analysis(done.analysis, out, model.case.name)
+        analysis_files = write_initial_analysis(done.analysis, out, model.name)
         done.summary[SENSITIVITY] = _analysis_summary(done.analysis, analysis_files)
     if scenarios:
         total = len(scenarios)
@@ -101,7 +101,7 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
         done.summary["suites"][name] = {**suite_summary(results), "files": files_by_suite[name]}
     done.summary["wall_s"] = round(time.perf_counter() - t0, 1)
     progress.stage("writing the report")
-    report = write_report(out, case=model.case.name, command=command, suites=done.suites, files=files_by_suite,
+    report = write_report(out, case=model.name, command=command, suites=done.suites, files=files_by_suite,
                           analysis=done.analysis, analysis_files=analysis_files, wall_s=done.summary["wall_s"],
                           workers=workers, complete=complete)
     done.summary["targets"] = [{"target": t, "measured": row["measured"], "met": row["met"]}

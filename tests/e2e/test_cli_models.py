@@ -1,0 +1,93 @@
+"""The command line on a model.toml: the packaged SWMM case dommel-swmm wherever a CASE is taken.
+
+The on-line replay is the acceptance run: seven daily cycles of scenario PI-Wg (the nine adjustable
+crests drop 15 cm on 2010-11-01, thesis §5-2-1) on EPA SWMM, every cycle after the first hot-started from
+the SWMM hotstart file the previous cycle stored in the run's store.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+
+def rivercal(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
+
+
+def test_model_schema_and_check() -> None:
+    run = rivercal("model", "schema")
+    assert run.returncode == 0
+    assert {"model", "blackbox", "swmm", "bmi", "parameters"} <= set(json.loads(run.stdout)["properties"])
+    run = rivercal("model", "check", "dommel-swmm", "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["kind"] == "SwmmModel" and summary["dt_s"] == 30.0 and "FR" in summary["parameters"]
+    run = rivercal("case", "plot", "dommel-swmm", "--out", "x.png")
+    assert run.returncode == 2 and "draws a case's network" in run.stderr
+
+
+def test_a_bad_model_toml_names_file_and_field(tmp_path) -> None:
+    (tmp_path / "model.toml").write_text('[model]\nname = "x"\nkind = "swmm"\nstart = "2020-01-01"\n'
+                                         'end = "2020-01-02"\n\n[swmm]\ninp = "none.inp"\n'
+                                         'stations = { "a.h" = "node:J1" }\n')
+    run = rivercal("simulate", str(tmp_path / "model.toml"))
+    assert run.returncode == 2
+    assert "model.toml: swmm.inp: no such file" in run.stderr
+
+
+@pytest.mark.slow
+def test_simulate_and_calibrate_a_swmm_twin(tmp_path) -> None:
+    run = rivercal("simulate", "dommel-swmm", "--end", "2010-09-21T00:00:00Z", "--set", "roughness:factor=1.2",
+                   "--out", str(tmp_path / "sim"), "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["case"] == "dommel-swmm" and summary["volume_balance_relative_error"] is None
+    assert pd.read_csv(tmp_path / "sim" / "series.csv").shape == (25, 12)
+    run = rivercal("calibrate", "dommel-swmm", "--params", "FR,Wd", "--window", "2010-09-28/2010-10-01",
+                   "--twin", "FR=1.0,Wd=-0.05", "--start", "FR=1.3,Wd=0.15", "--workers", "1",
+                   "--out", str(tmp_path / "cal"), "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout)
+    assert abs(result["estimates"]["FR"] - 1.0) < 0.01 and abs(result["estimates"]["Wd"] + 0.05) < 0.001
+
+
+@pytest.mark.slow
+def test_online_replays_seven_daily_cycles_on_swmm_from_hotstart_files(tmp_path) -> None:
+    db = tmp_path / "run.sqlite"
+    run = rivercal("online", "dommel-swmm", "--scenario", "PI-Wg", "--params", "FR,Wd", "--from", "2010-10-29",
+                   "--to", "2010-11-04", "--window", "1D", "--warmup", "12h", "--horizon", "12h", "--workers", "1",
+                   "--db", str(db), "--out", str(tmp_path / "report"), "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["cycles"] == 7 and summary["status"] == {"done": 7} and summary["case"] == "dommel-swmm"
+    wd = {e["issue_time"][:10]: e["Wd"] for e in summary["estimates"]}
+    assert all(abs(wd[d]) < 0.005 for d in ("2010-10-29", "2010-10-30", "2010-10-31", "2010-11-01"))
+    assert all(abs(wd[d] + 0.15) < 0.005 for d in ("2010-11-03", "2010-11-04"))  # runs after the drop
+    assert any(a["kind"] == "jump" and a["parameter"] == "Wd" for a in summary["alerts"])
+    with sqlite3.connect(db) as con:
+        messages = [m for (m,) in con.execute("SELECT message FROM cycles ORDER BY cycle")]
+        formats = {f for (f,) in con.execute("SELECT format FROM model_states")}
+    assert "cold start" in messages[0] and not any("cold start" in m for m in messages[1:])  # hot from cycle 1 on
+    assert formats == {"rivercal-swmm-hotstart-1"}
+    assert Path(summary["files"]["report"]).is_file()
+
+
+@pytest.mark.slow
+def test_analyse_and_a_thesis_twin_suite_run_on_swmm(tmp_path) -> None:
+    run = rivercal("analyse", "dommel-swmm", "--params", "FR,Wd", "--what", "sensitivity", "--window",
+                   "2010-09-28/2010-09-30", "--workers", "1", "--out", str(tmp_path / "an"), "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    ranking = json.loads(run.stdout)["sensitivity"]["ranking"]
+    assert [r["parameter"] for r in ranking] == ["Wd", "FR"]  # the crests move the levels more than the roughness
+    run = rivercal("twin", "dommel-swmm", "--suite", "F0W1", "--scenarios", "H1", "--window", "2010-09-28/2010-09-30",
+                   "--workers", "1", "--out", str(tmp_path / "twin"), "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    suite = json.loads(run.stdout)["suites"]["F0W1"]
+    assert suite["succeeded"] == 1 and suite["max_abs_error"]["W2"] < 1e-3
