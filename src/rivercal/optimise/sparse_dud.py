@@ -31,20 +31,15 @@ from rivercal.optimise._core import (
     Batch,
     Callback,
     Fun,
+    Run,
     check_int,
     coerce_options,
     project,
     validate_controls,
     validate_problem,
 )
-from rivercal.optimise._dud_engine import (
-    TERMINATION_MESSAGES,
-    DudOptions,
-    DudState,
-    default_steps,
-    run_dud,
-    validate_restart,
-)
+from rivercal.optimise._dud_engine import default_steps, run_dud, validate_restart
+from rivercal.optimise._dud_options import TERMINATION_MESSAGES, DudOptions, DudState
 from rivercal.optimise.result import OptimiseResult
 
 __all__ = ["TERMINATION_MESSAGES", "Dependency", "SparseDudOptions", "sparse_dud"]
@@ -225,6 +220,13 @@ class SparseSecant:
         """max_j |δ_j| / spread_j."""
         extent = np.max(np.abs(points[1:] - points[0]), axis=0)
         return float(np.max(np.abs(delta) / np.where(extent > 0, extent, self.h0)))
+
+    def fresh_jacobian(self, run: Run, x: np.ndarray, r: np.ndarray, h: np.ndarray,
+                       noise: np.ndarray | None) -> np.ndarray | None:
+        """The block Jacobian of a fresh set of n_dir mixed perturbations of size ``h`` (one batch)."""
+        points = self.initial_points(x, h, run.lb, run.ub)
+        residuals = run.evaluate_many(points)
+        return self.jacobian(np.array([x, *points]), np.array([r, *residuals]))
 
     def get_state(self) -> Any:
         """The generator state (so a restart draws the same directions)."""
