@@ -46,7 +46,7 @@ class Setting:
     chunked: bool = False          # has a ``chunk_size`` option (grid, glue)
 
 
-TIGHT_DUD = {"abs_tol": 0.0, "rel_tol": 1e-14, "rel_tol_linear": 0.0, "max_outer": 200}
+TIGHT_DUD = {"abs_tol": 0.0, "rel_tol": 1e-14, "rel_tol_linear": 0.0, "negligible_cost": 0.0, "max_outer": 200}
 
 SETTINGS: dict[str, Setting] = {
     "dud": Setting(TIGHT_DUD),

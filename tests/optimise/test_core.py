@@ -15,7 +15,8 @@ from rivercal.optimise import (
     parameter_statistics,
     trf,
 )
-from rivercal.optimise._core import coerce_options, inward_steps
+from rivercal.optimise._core import coerce_options
+from rivercal.optimise.jacobian import inward_steps
 from rivercal.optimise.result import COMMON_MESSAGES
 from tests.optimise.problems import A, linear
 

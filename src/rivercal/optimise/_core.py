@@ -21,7 +21,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from rivercal.optimise.jacobian import FiniteDifferences, fd_jacobian, parameter_statistics
+from rivercal.optimise.jacobian import parameter_statistics
 from rivercal.optimise.result import (
     ABORT_STATUSES,
     STATUS_CALLBACK,
@@ -213,12 +213,6 @@ def default_initial_step(x0: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.n
 def project(x: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
     """Clip into the box (used to remove round-off from steps that were computed to be feasible)."""
     return np.minimum(np.maximum(x, lb), ub)
-
-
-def run_jacobian(run: Run, x: np.ndarray, steps: np.ndarray, *, noise: Any = None,
-                 max_step: Any = None) -> FiniteDifferences:
-    """Forward-difference Jacobian at ``x`` through the run log (x, unless cached, and the p points: one batch)."""
-    return fd_jacobian(run.evaluate_many, x, run.lb, run.ub, steps, noise=noise, max_step=max_step)
 
 
 # --------------------------------------------------------------------------------------------------

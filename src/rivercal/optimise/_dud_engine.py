@@ -39,6 +39,9 @@ from rivercal.optimise.result import STATUS_MAX_ITER, OptimiseResult
 
 log = logging.getLogger(__name__)
 
+#: Most Gauss-Newton steps with fresh Jacobians after the stop (see :meth:`DudEngine.polish`).
+POLISH_ROUNDS = 3
+
 
 class SecantModel(Protocol):
     """What differs between DuD and Sparse DuD."""
@@ -321,26 +324,60 @@ class DudEngine:
 
     # ---- the end ------------------------------------------------------------------------------
     def final_jacobian(self, status: int) -> np.ndarray | None:
-        """The Jacobian behind ``std``: the secant one, or a fresh one and a Gauss-Newton step with it.
+        """The Jacobian behind ``std``: the secant one, or a fresh one and Gauss-Newton steps with it.
 
         See ``DudOptions.final_jacobian``. Runs only after the run ended by its own rules (status > 0,
         other than a zero cost); a budget, deadline or callback that cuts it short leaves the secant one.
         """
         secant = self.model.jacobian(self.X, self.R) if self.X is not None and self.X.shape[0] > 1 else None
         mode = self.opts.final_jacobian
-        if status <= 0 or status == STATUS_ZERO_COST or mode == "secant" or (mode == "auto" and self.centred):
+        if mode == "auto" and ((self.centred and self.n_reinit == 0) or self.opts.stopping == "openda"):
+            mode = "secant"
+        if status <= 0 or status == STATUS_ZERO_COST or mode == "secant":
             return secant
-        x_b, r_b = self.X[0].copy(), self.R[0].copy()
         h = self.jacobian_steps()
         try:
-            jac = self.model.fresh_jacobian(self.run, x_b, r_b, h, self.noise())
-            if jac is None or not np.all(np.isfinite(jac)):
-                return secant
-            delta = self.gauss_newton(jac, np.maximum(self.spread(), h))
-            if np.any(delta != 0.0):
-                self.run.evaluate(project(x_b + delta, self.run.lb, self.run.ub))   # kept by the run if better
+            jac = self.fresh_jacobian(h)
+            if jac is not None and status != STATUS_NEGLIGIBLE:
+                jac = self.polish(jac, h)
         except Stop:
             return secant
+        return jac if jac is not None else secant
+
+    def fresh_jacobian(self, h: np.ndarray) -> np.ndarray | None:
+        """A fresh Jacobian at the best point (None if it is not finite)."""
+        jac = self.model.fresh_jacobian(self.run, self.X[0].copy(), self.R[0].copy(), h, self.noise())
+        return jac if jac is not None and np.all(np.isfinite(jac)) else None
+
+    def polish(self, jac: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """Gauss-Newton steps with fresh Jacobians (at most ``POLISH_ROUNDS``) while they lower the cost much.
+
+        The stopping rules end the iterations where a step changes the cost little; near a minimum with
+        non-zero residuals the secant iterations converge only linearly, and the point they stop at
+        depends on the path (for Sparse DuD: on its random directions). A Gauss-Newton step with an
+        accurate Jacobian (1 run) brings every path close to the same point; while such a step still
+        lowers the cost by more than T1 or T2 allow, the Jacobian is taken again there and another step
+        follows. The run keeps the best point evaluated; the Jacobian returned is the last one taken.
+        """
+        run, opts = self.run, self.opts
+        for k in range(POLISH_ROUNDS):
+            s = float(self.costs[0])
+            delta = self.gauss_newton(jac, np.maximum(self.spread(), h))
+            if not s - run.cost_of(self.R[0] + jac @ delta) > 1e-12 * s:
+                break
+            x = project(self.X[0] + delta, run.lb, run.ub)
+            r = run.evaluate(x)
+            s_new = run.cost_of(r)
+            if not s_new < s:
+                break
+            self.replace_worst(x, r, s_new)
+            drop = s - s_new
+            if drop <= opts.abs_tol * s_new / self.dof or drop <= opts.rel_tol * s_new or k + 1 == POLISH_ROUNDS:
+                break
+            fresh = self.fresh_jacobian(h)
+            if fresh is None:
+                break
+            jac = fresh
         return jac
 
     def jacobian_steps(self) -> np.ndarray:

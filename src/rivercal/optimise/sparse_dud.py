@@ -223,10 +223,20 @@ class SparseSecant:
 
     def fresh_jacobian(self, run: Run, x: np.ndarray, r: np.ndarray, h: np.ndarray,
                        noise: np.ndarray | None) -> np.ndarray | None:
-        """The block Jacobian of a fresh set of n_dir mixed perturbations of size ``h`` (one batch)."""
-        points = self.initial_points(x, h, run.lb, run.ub)
-        residuals = run.evaluate_many(points)
-        return self.jacobian(np.array([x, *points]), np.array([r, *residuals]))
+        """The block Jacobian from n_dir mixed directions of size ``h``, by central differences (one batch).
+
+        Every mixed direction moves all parameters, so a forward difference carries the curvature of the
+        strongly seen parameters into the column of a weakly seen one (8 % on a damped oscillator);
+        the central difference (r(x + d) − r(x − d))/2 cancels it. 2 n_dir runs, still independent of p.
+        """
+        steps = [p - x for p in self.initial_points(x, h, run.lb, run.ub)]
+        plus, minus = [project(x + d, run.lb, run.ub) for d in steps], [project(x - d, run.lb, run.ub) for d in steps]
+        if any(not np.array_equal(p - x, x - m) for p, m in zip(plus, minus, strict=True)):
+            residuals = run.evaluate_many(plus)   # a bound within a step: one-sided
+            return self.jacobian(np.array([x, *plus]), np.array([r, *residuals]))
+        residuals = run.evaluate_many(plus + minus)
+        half = [r + 0.5 * (rp - rm) for rp, rm in zip(residuals[: len(plus)], residuals[len(plus):], strict=True)]
+        return self.jacobian(np.array([x, *plus]), np.array([r, *half]))
 
     def get_state(self) -> Any:
         """The generator state (so a restart draws the same directions)."""
