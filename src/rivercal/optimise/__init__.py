@@ -56,7 +56,7 @@ from rivercal.optimise.jacobian import (
 )
 from rivercal.optimise.nelder_mead import NelderMeadOptions, nelder_mead
 from rivercal.optimise.powell import PowellOptions, powell
-from rivercal.optimise.registry import OPTIMISERS, get_optimiser
+from rivercal.optimise.registry import OPTIMISERS, OPTIONS, get_optimiser
 from rivercal.optimise.result import IterationRecord, NonFiniteResidualsError, OptimiseResult
 from rivercal.optimise.sce_ua import SceOptions, sce_ua
 from rivercal.optimise.sparse_dud import SparseDudOptions, sparse_dud
@@ -64,6 +64,7 @@ from rivercal.optimise.trf import TrfOptions, trf
 
 __all__ = [
     "OPTIMISERS",
+    "OPTIONS",
     "BfgsOptions",
     "CgOptions",
     "Covariance",

@@ -107,8 +107,7 @@ def _points(x: np.ndarray, h: np.ndarray, lb: np.ndarray, ub: np.ndarray, cols: 
     if scheme == "forward":
         steps = inward_steps(x, h, lb, ub)
         for j in cols:
-            i = add(j, steps[j])
-            where.append((j, i, None) if steps[j] > 0 else (j, None, i))
+            where.append((j, add(j, steps[j]), None))   # a backward step gives a negative difference of x
     else:
         up, down = np.minimum(h, ub - x), np.minimum(h, x - lb)
         for j in cols:
