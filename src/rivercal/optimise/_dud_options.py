@@ -128,7 +128,7 @@ class DudOptions:
         Choose them above the model's numerical noise; see ``noise``.
     noise
         Size of the numerical jitter of each residual (weighted units; scalar or one per residual row):
-        a column of the final Jacobian whose difference is below 100 times this is taken again with a
+        a column of the final Jacobian whose difference is below 10 times this is taken again with a
         larger step. None: no check.
     parallel_line_search
         After the full step fails, evaluate all remaining trial steps as one batch (more model runs,

@@ -70,7 +70,7 @@ class Differences:
 
     The steps are ``diff_step`` (optimiser units) when given, else rel_step · max(|x_j|, 10⁻³ typical_j).
     With ``noise`` (the residuals' numerical jitter, weighted units) a column whose difference is below
-    100 times the noise is taken again with a larger step (see :func:`~rivercal.optimise.fd_jacobian`),
+    10 times the noise is taken again with a larger step (see :func:`~rivercal.optimise.fd_jacobian`),
     and that larger step is kept for the rest of the run.
     """
 

@@ -86,7 +86,7 @@ class BfgsOptions:
         Forward-difference steps per parameter (optimiser units); choose them above the function's noise.
     noise
         The residuals' numerical jitter (weighted units; scalar or one per residual): a difference below
-        100 times it is taken again with a larger step. None: no check.
+        10 times it is taken again with a larger step. None: no check.
     x_scale
         The size of the first trial step per parameter, and the unit of scipy's coordinates (default:
         10 % of |x0|, the default initial step of every method).

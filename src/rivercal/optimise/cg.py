@@ -98,7 +98,7 @@ class CgOptions:
         Forward-difference steps per parameter (optimiser units); choose them above the function's noise.
     noise
         The residuals' numerical jitter (weighted units; scalar or one per residual): a difference below
-        100 times it is taken again with a larger step. None: no check.
+        10 times it is taken again with a larger step. None: no check.
     x_scale
         Unit of the scaled coordinates per parameter (default: 10 % of |x0|).
     max_step

@@ -79,7 +79,7 @@ class TrfOptions:
         Forward-difference steps per parameter (optimiser units); choose them above the function's noise.
     noise
         The residuals' numerical jitter (weighted units; scalar or one per residual): a difference below
-        100 times it is taken again with a larger step. None: no check.
+        10 times it is taken again with a larger step. None: no check.
     max_iter
         Cap on scipy's own count of residual evaluations (trial steps, not Jacobian runs); default 100 p.
     """
