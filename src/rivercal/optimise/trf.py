@@ -6,8 +6,9 @@ before), although it solves the same trust-region subproblem for an unbounded pr
 bounds natively and keeps its iterates strictly inside.
 
 - scipy works in coordinates u with x = x0 + ``x_scale`` ⊙ u (default: the initial step of every
-  method, 10 % of |x0|), so the first trust region is one ``x_scale`` around x0: the first trial step
-  has the size the caller expects, and later ones grow only where the cost agrees with the model;
+  method, 10 % of |x0|), and its own scaling is chosen so that the first trust region is one
+  ``x_scale`` around x0 (see ``_first_step_scale``): the first trial step has the size the caller
+  expects, and later ones grow only where the cost agrees with the model;
 - the Jacobian is a forward-difference Jacobian whose p perturbed runs go out as ONE ``batch`` (passed to
   scipy as ``jac=``), with steps ``diff_step`` (or relative to |x_j|) that point into the box at a bound,
   checked against the function's ``noise`` when it is given;
@@ -156,11 +157,26 @@ def trf(fun: Fun, x0: Any, lb: Any, ub: Any, *, options: TrfOptions | dict | Non
 
     bounds = scaled.bounds()
     try:
+        x_scale = "jac" if jac_scaling else _first_step_scale(residuals(np.zeros(n)), jacobian(np.zeros(n)), bounds)
         res = least_squares(residuals, np.zeros(n), jac=jacobian, bounds=(bounds.lb, bounds.ub), method="trf",
-                            x_scale="jac" if jac_scaling else 1.0, ftol=opts.ftol, xtol=opts.xtol, gtol=opts.gtol,
+                            x_scale=x_scale, ftol=opts.ftol, xtol=opts.xtol, gtol=opts.gtol,
                             max_nfev=opts.max_iter or 100 * n, callback=iteration)
         status = STATUS_MAX_ITER if res.status == 0 else int(res.status)
     except Stop as stop:
         status = stop.status
     jac = last["jac"] if "jac" in last and np.array_equal(last["x"], run.best_x) else None
     return run.result(status, TERMINATION_MESSAGES, "trf", jac=jac)
+
+
+def _first_step_scale(r0: np.ndarray, jac: np.ndarray, bounds: Any) -> np.ndarray:
+    """The ``x_scale`` for scipy (in u) that makes TRF's first trust region one unit of u around x0.
+
+    TRF scales variable j by √v_j·x_scale_j, with v_j its distance (in units of x_scale_j) to the bound
+    its steepest-descent direction heads for, 1 when that bound is infinite (Coleman & Li). Its first trust
+    region has radius 1 in those scaled variables, so a bound 10⁴ units away allows a first step of 100
+    units. With x_scale_j = 1/v_j at x0 the scaling is 1 there: the first step is at most one ``x_scale``
+    (the caller's initial step) per parameter, and later steps grow only as the trust region does.
+    """
+    g = jac.T @ r0
+    distance = np.where(g < 0, bounds.ub, np.where(g > 0, -bounds.lb, np.inf))   # u = 0 at x0
+    return np.where(np.isfinite(distance) & (distance > 0), 1.0 / np.where(distance > 0, distance, 1.0), 1.0)
