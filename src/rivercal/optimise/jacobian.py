@@ -1,6 +1,6 @@
 """Finite-difference Jacobians and the parameter covariance (thesis Eq. 2-10, 2-12, 2-13): the one place.
 
-Every optimiser that differentiates (TRF, Levenberg-Marquardt, BFGS, CG, DuD's final Jacobian), the
+Every optimiser that differentiates (TRF, BFGS, CG, the final Jacobian of DuD and Sparse DuD), the
 identifiability analysis and the on-line service's gate use these two functions:
 
 - :func:`fd_jacobian` differentiates a residual function r(x) by forward or central differences, all

@@ -13,6 +13,9 @@ squares over all stored secants (OpenDA's SparseDud, reference note §2). Differ
   step in δ);
 - the direction weights (±½ or ±1 per parameter, pointing into the box) come from a seeded generator
   and are redrawn until every block is well-conditioned; the generator's state is part of the restart state;
+- the fresh Jacobian at the end (see ``DudOptions.final_jacobian``) comes from central differences along
+  n_dir mixed directions (2 n_dir runs): a forward difference along a direction that moves every parameter
+  carries the curvature of the strongly seen parameters into the column of a weakly seen one;
 - everything else (line search, stopping rules, re-initialisation, restart, statuses) is DuD's,
   see :mod:`rivercal.optimise.dud`.
 
