@@ -80,13 +80,10 @@ class BfgsOptions:
         (1e-10).
     maxcor
         Number of correction pairs of the limited-memory matrix (10).
-    rel_step
-        Relative forward-difference step (1.49e-8 ≈ √eps) where ``diff_step`` is not given.
-    diff_step
-        Forward-difference steps per parameter (optimiser units); choose them above the function's noise.
-    noise
-        The residuals' numerical jitter (weighted units; scalar or one per residual): a difference below
-        10 times it is taken again with a larger step. None: no check.
+    rel_step, diff_step, noise
+        The forward differences (see ``_scipy.Differences``): steps ``diff_step`` per parameter (optimiser
+        units), else ``rel_step`` (1.49e-8 ≈ √eps) relative to |x|; checked against ``noise``, the
+        residuals' numerical jitter (weighted units), when given.
     x_scale
         The size of the first trial step per parameter, and the unit of scipy's coordinates (default:
         10 % of |x0|, the default initial step of every method).

@@ -74,13 +74,10 @@ class TrfOptions:
     x_scale
         Unit of the scaled coordinates per parameter: the first trust region is one unit (default: 10 %
         of |x0|); or ``"jac"``: scipy's scaling by the Jacobian's column norms on top of that.
-    rel_step
-        Relative forward-difference step (1.49e-8 ≈ √eps) where ``diff_step`` is not given.
-    diff_step
-        Forward-difference steps per parameter (optimiser units); choose them above the function's noise.
-    noise
-        The residuals' numerical jitter (weighted units; scalar or one per residual): a difference below
-        10 times it is taken again with a larger step. None: no check.
+    rel_step, diff_step, noise
+        The forward differences (see ``_scipy.Differences``): steps ``diff_step`` per parameter (optimiser
+        units), else ``rel_step`` (1.49e-8 ≈ √eps) relative to |x|; checked against ``noise``, the
+        residuals' numerical jitter (weighted units), when given.
     max_iter
         Cap on scipy's own count of residual evaluations (trial steps, not Jacobian runs); default 100 p.
     """
