@@ -22,11 +22,17 @@ non-finite values) follows an explicit policy: ``raise`` re-raises it; ``penalty
 residuals whose cost is the ``penalty`` value, so that an optimiser steers away from that point.
 
 :func:`calibrate` runs an optimiser of :mod:`rivercal.optimise` on a problem, with its batches on an
-:class:`~rivercal.evaluate.Evaluator`, and reports the estimates in physical units.
+:class:`~rivercal.evaluate.Evaluator`, and reports the estimates in physical units. It hands every local
+method the parameters' own first perturbations (thesis Eq. 2-8 / 2-9) as its first step, and every
+method that differentiates the problem's difference steps and numerical noise (see
+:meth:`CalibrationProblem.difference_steps`): a hydrodynamic model iterates each time step only to a
+tolerance (the embedded engine's Picard level tolerance, 10⁻⁴ m by default), so a difference of 1.5e-8 of
+a parameter, scipy's default, measures that jitter rather than the derivative.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -42,7 +48,7 @@ from rivercal.errors import ModelRunError
 from rivercal.evaluate import Evaluator
 from rivercal.models.contract import Model, check_parameters
 from rivercal.observations import ObservationSet
-from rivercal.optimise import IterationRecord, OptimiseResult, get_optimiser
+from rivercal.optimise import OPTIONS, IterationRecord, OptimiseResult, get_optimiser
 from rivercal.parameters import ParameterSet
 
 __all__ = ["Calibration", "CalibrationProblem", "CostBreakdown", "Model", "calibrate"]
@@ -52,6 +58,10 @@ log = logging.getLogger(__name__)
 #: Floor of Δŷ_max in thesis Eq. 2-6 (m or m³/s), so that a series the prior run already fits exactly
 #: does not get an infinite weight.
 MIN_MAX_DEVIATION = 1e-3
+
+#: First guess of the finite-difference step, as a fraction of a parameter's range (the steps are then
+#: checked against the model's noise and enlarged where the difference does not stand 10 times above it).
+DIFFERENCE_STEP = 1e-3
 
 
 @dataclass(frozen=True)
@@ -97,6 +107,11 @@ class CalibrationProblem:
         ``raise`` or ``penalty`` (see the module docstring).
     penalty
         Cost of a failed run under the ``penalty`` policy.
+    noise
+        The model's numerical noise in the simulated series (m for levels, m³/s for discharges): the
+        size of the jitter a tiny parameter change causes. Default: the model's ``numerical_noise`` if it
+        has one, else its engine settings' ``tolerance`` (the embedded engine's Picard level tolerance,
+        an upper bound of its jitter), else unknown (None).
 
     Raises
     ------
@@ -109,7 +124,7 @@ class CalibrationProblem:
     def __init__(self, model: Model, parameters: ParameterSet, observations: ObservationSet,
                  window: tuple[Any, Any], *, state: Any = None, warmup: pd.Timedelta | str = "24h",
                  fixed: Mapping[str, float] | None = None, on_failure: Literal["raise", "penalty"] = "raise",
-                 penalty: float = 1e8):
+                 penalty: float = 1e8, noise: float | None = None):
         if on_failure not in ("raise", "penalty"):
             raise ValueError(f"on_failure must be 'raise' or 'penalty', got {on_failure!r}")
         if not penalty > 0:
@@ -137,6 +152,9 @@ class CalibrationProblem:
         if self.observations.n_values == 0:
             raise ValueError(f"the window {self.start} .. {self.end} holds no observations")
         self.run_start = self.start - self.warmup
+        self.noise = _model_noise(model) if noise is None else float(noise)
+        if self.noise is not None and not (math.isfinite(self.noise) and self.noise > 0):
+            raise ValueError(f"noise must be a positive number (m or m³/s), got {noise!r}")
         self._state = state
         self._sqrt_w: np.ndarray | None = None
         self.n_runs = 0
@@ -156,6 +174,23 @@ class CalibrationProblem:
     def quantities(self, x: np.ndarray) -> dict[str, float]:
         """Model quantities for optimiser vector ``x`` (plus the fixed ones)."""
         return {**self.fixed, **self.parameters.quantities(self.parameters.values(x))}
+
+    def difference_steps(self) -> np.ndarray:
+        """First finite-difference step per parameter (optimiser units): 10⁻³ of its range.
+
+        (10⁻² of its first perturbation where a bound is infinite.) The optimisers check the differences
+        against :meth:`residual_noise` and enlarge a step whose difference does not stand 10 times above
+        the noise: 1.3 mm for a crest with a 1.3 m range, 0.03 m^(1/3)/s of a Strickler coefficient in
+        8 … 40, where 1.5e-8 of the value (scipy's default) changes the levels far less than the engine's
+        tolerance of 10⁻⁴ m.
+        """
+        lb, ub = self.bounds
+        width = np.asarray(ub, dtype=float) - np.asarray(lb, dtype=float)
+        return np.where(np.isfinite(width), DIFFERENCE_STEP * width, 0.01 * self.parameters.initial_steps())
+
+    def residual_noise(self) -> np.ndarray | None:
+        """The model's noise per weighted residual, √W · :attr:`noise` (None when the noise is unknown)."""
+        return None if self.noise is None else self.noise * self.sqrt_weights
 
     # -- state and weights --------------------------------------------------------------------------
 
@@ -253,7 +288,12 @@ class Calibration:
     estimates
         Estimated values by parameter name, physical units.
     std
-        Standard deviations by name in physical units (thesis Eq. 2-12), where the method gives them.
+        Standard deviations by name in physical units (thesis Eq. 2-12) for observation errors of the
+        weights' σ, where the method gives them.
+    std_scaled
+        The same scaled by s = √(S/(m − p)), the residual standard deviation the fit shows: right when
+        the σ of the weights are right only up to a common factor (e.g. uniform ±a noise weighted as
+        σ = a, whose true σ is a/√3).
     initial
         Initial values by name.
     wall_time
@@ -269,6 +309,7 @@ class Calibration:
     wall_time: float
     algorithm: str
     history: list[dict[str, float]] = field(default_factory=list)
+    std_scaled: dict[str, float] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
         """A JSON-friendly summary."""
@@ -277,6 +318,7 @@ class Calibration:
             "algorithm": self.algorithm,
             "estimates": self.estimates,
             "std": self.std,
+            "std_scaled": self.std_scaled,
             "initial": self.initial,
             "cost": r.cost,
             "iterations": r.nit,
@@ -301,9 +343,10 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
     algorithm
         A name of :data:`rivercal.optimise.OPTIMISERS`.
     options
-        Options of the algorithm (a dict of its options dataclass fields). For DuD and Sparse DuD the
-        first perturbations default to the parameters' transforms (thesis Eq. 2-8 / 2-9) and the weak
-        constraint to their ``prior_std`` around the initial values.
+        Options of the algorithm (a dict of its options dataclass fields). Defaults from the problem: the
+        first steps of every local method from the parameters' perturbations (thesis Eq. 2-8 / 2-9), the
+        difference steps and noise of every method that differentiates, and for DuD and Sparse DuD the
+        weak constraint from the parameters' ``prior_std`` around the initial values.
     workers
         Worker processes for batches (None: all cores; 1: serial).
     max_nfev, deadline, callback
@@ -312,13 +355,7 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
         Further keyword arguments of the optimiser (e.g. ``restart`` for DuD).
     """
     optimiser = get_optimiser(algorithm)
-    opts = dict(options or {})
-    if algorithm in ("dud", "sparse_dud"):
-        opts.setdefault("initial_step", problem.parameters.initial_steps())
-        prior = problem.parameters.prior_std()
-        if prior is not None and "prior_std" not in opts:
-            opts["prior_std"] = prior
-            opts.setdefault("prior_mean", problem.x0)
+    opts = _default_options(problem, OPTIONS[optimiser.__name__], dict(options or {}))
     lb, ub = problem.bounds
     x0 = problem.x0
     problem.state  # noqa: B018 - compute the start state and the weights here, before workers fork
@@ -329,15 +366,58 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
                            max_nfev=max_nfev, deadline=deadline, **extra)
     wall = time.perf_counter() - t0
     values = problem.parameters.values(result.x)
-    std = {}
-    if result.std is not None:
-        for p, xv, sx in zip(problem.parameters, result.x, result.std, strict=True):
-            std[p.name] = float(math.exp(xv) * sx) if p.transform == "ln" else float(sx)  # delta method for ln
+    std = _physical_std(problem, result.x, result.std)
+    std_scaled = _physical_std(problem, result.x, result.extra.get("std_scaled"))
     history = [{"iteration": rec.nit, "cost": rec.cost, "linear_cost": rec.linear_cost, "nfev": rec.nfev,
                 **problem.parameters.values(rec.x)} for rec in result.history]
     start_cost = next((c for xe, c in result.evaluations if np.array_equal(xe, x0)), None)
     if start_cost is not None:  # iteration 0: the start point
         history.insert(0, {"iteration": 0, "cost": start_cost, "linear_cost": float("nan"), "nfev": 1,
                            **problem.parameters.values(x0)})
-    return Calibration(result=result, estimates=values, std=std,
+    return Calibration(result=result, estimates=values, std=std, std_scaled=std_scaled,
                        initial=problem.parameters.values(x0), wall_time=wall, algorithm=algorithm, history=history)
+
+
+def _default_options(problem: CalibrationProblem, options_class: type, opts: dict[str, Any]) -> dict[str, Any]:
+    """The caller's options plus the problem's defaults, where the method has such an option.
+
+    - ``initial_step`` (DuD, Sparse DuD, Nelder-Mead, Powell) or ``x_scale`` (TRF, BFGS, CG): the
+      parameters' first perturbations (thesis Eq. 2-8 / 2-9);
+    - ``diff_step`` (TRF, BFGS, CG; unless the caller gives ``rel_step``) or ``jacobian_step`` (DuD's final
+      Jacobian): :meth:`CalibrationProblem.difference_steps`; ``noise``: :meth:`CalibrationProblem.residual_noise`;
+    - DuD and Sparse DuD: the weak constraint from the parameters' ``prior_std`` around the initial values.
+    """
+    fields = {f.name for f in dataclasses.fields(options_class)}
+    steps = problem.parameters.initial_steps()
+    for name in ("initial_step", "x_scale"):
+        if name in fields:
+            opts.setdefault(name, steps)
+    if "diff_step" in fields and "rel_step" not in opts:
+        opts.setdefault("diff_step", problem.difference_steps())
+    if "jacobian_step" in fields:
+        opts.setdefault("jacobian_step", problem.difference_steps())
+    noise = problem.residual_noise()
+    if "noise" in fields and noise is not None:
+        opts.setdefault("noise", noise)
+    prior = problem.parameters.prior_std()
+    if "prior_std" in fields and prior is not None and "prior_std" not in opts:
+        opts["prior_std"] = prior
+        opts.setdefault("prior_mean", problem.x0)
+    return opts
+
+
+def _physical_std(problem: CalibrationProblem, x: np.ndarray, std: np.ndarray | None) -> dict[str, float]:
+    """Standard deviations by name in physical units (delta method for the ln transform); {} without them."""
+    if std is None:
+        return {}
+    return {p.name: float(math.exp(xv) * sx) if p.transform == "ln" else float(sx)
+            for p, xv, sx in zip(problem.parameters, x, std, strict=True)}
+
+
+def _model_noise(model: Any) -> float | None:
+    """The model's numerical noise: ``model.numerical_noise``, else ``model.settings.tolerance``, else None."""
+    settings = getattr(model, "settings", None)
+    for value in (getattr(model, "numerical_noise", None), getattr(settings, "tolerance", None)):
+        if isinstance(value, int | float) and math.isfinite(value) and value > 0:
+            return float(value)
+    return None

@@ -27,7 +27,7 @@ def fuzz(examples: int) -> settings:
     """Bounded, reproducible draws (the suite's profile is derandomised); model loading is slow, so no deadline."""
     return settings(max_examples=examples, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-ALGORITHMS = {"dud", "sparse_dud", "lm", "sce_ua", "dds", "nelder_mead", "powell", "cg", "bfgs", "grid", "glue"}
+ALGORITHMS = {"dud", "sparse_dud", "trf", "sce_ua", "dds", "nelder_mead", "powell", "cg", "bfgs", "grid", "glue"}
 CHOICES = {"none", "white", "gaussian", "pink", "raise", "penalty", "forward", "central", *ALGORITHMS}
 
 

@@ -209,9 +209,9 @@ def settings(method: str, p: Problem) -> dict:
     low, high = search_box(p)
     n = p.x0.size
     table = {
-        "dud": {"options": {"abs_tol": 0.0, "rel_tol": 1e-13, "rel_tol_linear": 0.0, "max_outer": 1000,
-                            "initial_step": step}},
-        "lm": {"options": {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15}},
+        "dud": {"options": {"abs_tol": 0.0, "rel_tol": 1e-13, "rel_tol_linear": 0.0, "negligible_cost": 0.0,
+                            "max_outer": 1000, "initial_step": step}},
+        "trf": {"options": {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15}},
         "sce_ua": {"options": {"seed": 1, "peps": 1e-10, "pcento": 0.0, "kstop": 10, "init_lb": low,
                                "init_ub": high}, "max_nfev": 200_000},
         "dds": {"options": {"seed": 1, "max_evaluations": 20_000}},

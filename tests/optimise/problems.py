@@ -46,12 +46,12 @@ class Setting:
     chunked: bool = False          # has a ``chunk_size`` option (grid, glue)
 
 
-TIGHT_DUD = {"abs_tol": 0.0, "rel_tol": 1e-14, "rel_tol_linear": 0.0, "max_outer": 200}
+TIGHT_DUD = {"abs_tol": 0.0, "rel_tol": 1e-14, "rel_tol_linear": 0.0, "negligible_cost": 0.0, "max_outer": 200}
 
 SETTINGS: dict[str, Setting] = {
     "dud": Setting(TIGHT_DUD),
     "sparse_dud": Setting(TIGHT_DUD),
-    "lm": Setting({"ftol": 1e-14, "xtol": 1e-14, "gtol": 1e-14}),
+    "trf": Setting({"ftol": 1e-14, "xtol": 1e-14, "gtol": 1e-14}),
     "bfgs": Setting({"ftol": 1e-15, "gtol": 1e-12}, linear_tol=1e-5, rosen_tol=1e-4),
     "cg": Setting({"max_iter": 500}, linear_tol=1e-5, rosen_tol=1e-4),
     "nelder_mead": Setting({"xatol": 1e-7, "fatol": 1e-14, "max_iter": 5000}, linear_tol=1e-6, rosen_tol=1e-6),

@@ -28,7 +28,7 @@ from tests.optimise.problems import (
 )
 
 METHODS = list(OPTIMISERS)
-LOCAL = ("dud", "sparse_dud", "lm", "bfgs", "cg")
+LOCAL = ("dud", "sparse_dud", "trf", "bfgs", "cg")
 
 
 def options(method: str, *, rosen: bool = False, **overrides) -> dict:
@@ -235,7 +235,7 @@ def test_batch_sees_every_evaluation(method):
 
     res = call(method, rosenbrock, ROSEN_START, ROSEN_LB, ROSEN_UB, rosen=True, batch=batch, max_nfev=150)
     assert sum(sizes) == res.nfev
-    if method in ("dud", "sparse_dud", "lm", "bfgs", "cg", "sce_ua", "grid", "glue", "nelder_mead"):
+    if method in ("dud", "sparse_dud", "trf", "bfgs", "cg", "sce_ua", "grid", "glue", "nelder_mead"):
         assert max(sizes) > 1   # independent points went out together
 
 

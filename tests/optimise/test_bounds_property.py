@@ -22,7 +22,7 @@ def boxes(draw):
     return lb + where * width, lb, ub, target
 
 
-@pytest.mark.parametrize("method", ["dud", "sparse_dud", "lm", "bfgs", "cg", "nelder_mead", "powell", "sce_ua", "dds"])
+@pytest.mark.parametrize("method", ["dud", "sparse_dud", "trf", "bfgs", "cg", "nelder_mead", "powell", "sce_ua", "dds"])
 @settings(max_examples=15, deadline=None)
 @given(box=boxes())
 def test_never_outside_the_box(method, box):

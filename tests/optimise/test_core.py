@@ -12,10 +12,11 @@ from rivercal.optimise import (
     dud,
     fd_jacobian_of,
     get_optimiser,
-    lm,
     parameter_statistics,
+    trf,
 )
-from rivercal.optimise._core import coerce_options, inward_steps
+from rivercal.optimise._core import coerce_options
+from rivercal.optimise.jacobian import inward_steps
 from rivercal.optimise.result import COMMON_MESSAGES
 from tests.optimise.problems import A, linear
 
@@ -35,7 +36,7 @@ def test_inward_steps():
 
 def test_residual_shape_errors():
     with pytest.raises(ValueError, match="1-D array of residuals"):
-        lm(lambda x: np.ones((2, 2)), [0.0], [-1.0], [1.0])
+        trf(lambda x: np.ones((2, 2)), [0.0], [-1.0], [1.0])
     calls = []
 
     def growing(x):
@@ -43,7 +44,7 @@ def test_residual_shape_errors():
         return np.ones(len(calls))
 
     with pytest.raises(ValueError, match="fun returned 2 residuals"):
-        lm(growing, [0.0], [-1.0], [1.0])
+        trf(growing, [0.0], [-1.0], [1.0])
 
 
 def test_non_finite_error_is_a_value_error():
@@ -72,7 +73,7 @@ def test_fd_jacobian_helper():
 
 
 def test_registry():
-    assert set(OPTIMISERS) == {"dud", "sparse_dud", "lm", "sce_ua", "dds", "nelder_mead", "powell", "cg", "bfgs",
+    assert set(OPTIMISERS) == {"dud", "sparse_dud", "trf", "sce_ua", "dds", "nelder_mead", "powell", "cg", "bfgs",
                                "grid", "glue"}
     assert get_optimiser("SCE-UA") is OPTIMISERS["sce_ua"] and get_optimiser("Nelder Mead") is OPTIMISERS["nelder_mead"]
     with pytest.raises(ValueError, match=r"unknown optimiser 'simplex'.*Available: dud, sparse_dud"):

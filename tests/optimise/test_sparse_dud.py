@@ -23,7 +23,7 @@ def stations(x):
 
 
 DEPENDENCY = {range(6 * i, 6 * i + 6): ([i - 1, i] if i else [0]) for i in range(N)}
-TIGHT = {"abs_tol": 0.0, "rel_tol": 1e-14, "rel_tol_linear": 0.0, "max_outer": 200}
+TIGHT = {"abs_tol": 0.0, "rel_tol": 1e-14, "rel_tol_linear": 0.0, "negligible_cost": 0.0, "max_outer": 200}
 
 
 def test_sparse_needs_far_fewer_runs_than_dud():

@@ -13,6 +13,7 @@ from rivercal.analysis import IDENTIFIABLE, NOT_IDENTIFIABLE, identifiability
 from rivercal.model import load_model
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem
+from rivercal.report.identifiability import explanations
 from rivercal.twin import twin_truth
 
 
@@ -30,7 +31,7 @@ def test_w2_and_fa_are_identifiable_and_w8_is_not() -> None:
     assert verdict.loc["W8", "verdict"] == NOT_IDENTIFIABLE
     assert result.index[2] < 0.1 < 0.9 < min(result.index[0], result.index[1])
     assert verdict.loc["W2", "top_station"] == "0028" and verdict.loc["W2", "top_station_share"] > 0.9
-    assert "station 0028 measures right at this weir" in verdict.loc["W2", "explanation"]
+    assert "station 0028 measures right at this weir" in explanations(result)["W2"]
     assert verdict.loc["W8", "top_station"] == "0031"  # what little W8 does reaches 0031 after the confluence
     assert result.std[0] < 0.01  # W2 to better than a centimetre with σ = 2.5 cm
     assert result.extra["nfev"] == 4

@@ -1,7 +1,8 @@
 """Identifiability on problems with known Jacobians: a linear stub model y = A θ (the model protocol).
 
 With σ = 1 the weighted residuals are r = y_obs − A θ, so J = −A exactly: the singular values are those of
-A, the covariance is (AᵀA)⁻¹, and the identifiability index follows from A's right singular vectors.
+A, the covariance is (AᵀA)⁻¹, and the identifiability index follows from A's right singular vectors. The
+sentences that explain the verdict come from :mod:`rivercal.report.identifiability` and are checked here too.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from rivercal.models import Quantity
 from rivercal.observations import ObservationSet
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem
+from rivercal.report.identifiability import explanations, summary, text, verdict_table
 
 START = pd.Timestamp("2020-01-01", tz="UTC")
 
@@ -178,8 +180,9 @@ def test_collinear_parameters_are_identifiable_only_in_combination() -> None:
     # the weak direction: raising one while lowering the other changes nothing
     weak = result.vectors[:, 2]
     np.testing.assert_allclose(np.abs(weak), [0.0, np.sqrt(0.5), np.sqrt(0.5)], atol=1e-9)
-    assert "cannot tell them apart" in verdict.loc["P1", "explanation"]
-    assert "together with lowering" in verdict.loc["P1", "explanation"]
+    words = explanations(result)
+    assert "cannot tell them apart" in words["P1"]
+    assert "together with lowering" in words["P1"]
     assert np.isinf(result.std[1]) and np.isinf(result.std[2]) and np.isfinite(result.std[0])
     np.testing.assert_allclose(np.abs(result.correlation[1, 2]), 1.0)  # pseudo-inverse (JᵀJ)⁺
     np.testing.assert_allclose(result.covariance, np.linalg.pinv(a.T @ a), atol=1e-10)
@@ -197,7 +200,7 @@ def test_strongly_correlated_but_seen_parameters_count_only_in_combination() -> 
     assert corr_ab < -0.9 and result.k == 3  # both directions are seen, but A and B trade off
     assert list(result.verdict["verdict"]) == [COMBINATION, COMBINATION, IDENTIFIABLE]
     assert result.verdict.loc["A", "correlated_with"] == "B"
-    assert "correlation -0.9" in result.verdict.loc["A", "explanation"]
+    assert "correlation -0.9" in explanations(result)["A"]
     lenient = analyse_jacobian(a, ["A", "B", "C"], options=IdentifiabilityOptions(correlation=0.99))
     assert list(lenient.verdict["verdict"]) == [IDENTIFIABLE] * 3
 
@@ -211,7 +214,7 @@ def test_a_parameter_without_effect_is_not_identifiable() -> None:
     assert result.index[1] == pytest.approx(0.0, abs=1e-20)
     assert np.isinf(result.std[1])
     assert np.isnan(result.correlation[1, 0]) and np.isnan(result.correlation[1, 1])
-    assert "no observation changes at all" in result.verdict.loc["P1", "explanation"]
+    assert "no observation changes at all" in explanations(result)["P1"]
     assert [c.action for c in result.clusters] == ["fix"] and result.clusters[0].members == ("P1",)
 
 
@@ -243,8 +246,8 @@ def test_the_verdict_is_deterministic() -> None:
     first = analyse_jacobian(a, ["A", "B", "C", "D"])
     second = analyse_jacobian(a.copy(), ["A", "B", "C", "D"])
     pd.testing.assert_frame_equal(first.verdict, second.verdict)
-    assert first.text() == second.text()
-    assert first.summary() == second.summary()
+    assert text(first) == text(second)
+    assert first.summary() == second.summary() and summary(first) == summary(second)
     flipped = analyse_jacobian(-a, ["A", "B", "C", "D"])  # the sign of J does not matter
     np.testing.assert_allclose(flipped.vectors, first.vectors, atol=1e-12)
     assert list(flipped.verdict["verdict"]) == list(first.verdict["verdict"])
@@ -263,11 +266,11 @@ def test_plain_language_names_the_station_at_the_weir() -> None:
     assert context.at == {"P0": ("S0",)}
     assert context.descriptions["P0"] == "crest level of weir P0"
     result = identifiability(problem, workers=1)
-    text = result.verdict["explanation"]
-    assert text["P0"].startswith("P0 (crest level of weir P0) is identifiable")
-    assert "station S0 measures right at this weir (100% of its signal, S0.h)" in text["P0"]
-    assert "at station S1, which measures the level on branch B at 100 m" in text["P1"]
-    assert "cm" in text["P0"]  # the uncertainty of a crest in cm
+    words = verdict_table(result)["explanation"]
+    assert words["P0"].startswith("P0 (crest level of weir P0) is identifiable")
+    assert "station S0 measures right at this weir (100% of its signal, S0.h)" in words["P0"]
+    assert "at station S1, which measures the level on branch B at 100 m" in words["P1"]
+    assert "cm" in words["P0"]  # the uncertainty of a crest in cm
 
 
 def test_options_are_checked() -> None:
@@ -288,6 +291,12 @@ def test_summary_is_json_friendly() -> None:
 
     a = random_a(seed=6, p=3)
     a[:, 1] = 0.0
-    summary = analyse_jacobian(a, ["A", "B", "C"]).summary()
-    text = json.dumps(summary, allow_nan=False)
-    assert "Doherty" in text and summary["verdict"]["B"] == NOT_IDENTIFIABLE and summary["std"]["B"] is None
+    result = analyse_jacobian(a, ["A", "B", "C"])
+    numbers = result.summary()
+    dumped = json.dumps(numbers, allow_nan=False)
+    assert "Doherty" in dumped and numbers["verdict"]["B"] == NOT_IDENTIFIABLE and numbers["std"]["B"] is None
+    assert "explanations" not in numbers   # the numbers carry no sentences
+    worded = summary(result)
+    json.dumps(worded, allow_nan=False)
+    assert worded["explanations"]["B"].startswith("B is not identifiable")
+    assert worded["clusters"][0]["explanation"].startswith("fix B at its current value")

@@ -2,9 +2,11 @@
 
 - :mod:`~rivercal.analysis.sensitivity`: one-at-a-time scenarios (thesis Table 4-4, Fig. 4-5, C-1 … C-5),
   all runs in one parallel batch, costs in total, per station and per series.
-- :mod:`~rivercal.analysis.identifiability`: finite-difference Jacobian of the weighted residuals, its
-  singular values and vectors (Eq. 2-10, 2-11; Fig. 4-6), covariance and correlation (Eq. 2-12, 2-13;
-  Fig. 4-7), the identifiability index of Doherty and Hunt (2009) and a plain-language verdict.
+- :mod:`~rivercal.analysis.jacobian`: the finite-difference Jacobian of a problem's weighted residuals
+  (Eq. 2-10), rows and columns named;
+- :mod:`~rivercal.analysis.identifiability`: its singular values and vectors (Eq. 2-10, 2-11; Fig. 4-6),
+  covariance and correlation (Eq. 2-12, 2-13; Fig. 4-7), the identifiability index of Doherty and Hunt
+  (2009) and a verdict (the sentences that explain it: :mod:`rivercal.report.identifiability`).
 - :mod:`~rivercal.analysis.residuals`: cost, RMSE, bias and standard deviation of errors (Tables 4-6 … 4-12),
   the moving-window bias of Eq. 2-14 (Fig. 4-11) and its significance test; model-independent.
 - :mod:`~rivercal.analysis.figures`: the figures (matplotlib, imported lazily).
@@ -19,12 +21,11 @@ from rivercal.analysis.identifiability import (
     ClusterSuggestion,
     Identifiability,
     IdentifiabilityOptions,
-    Jacobian,
     analyse_jacobian,
-    fd_jacobian,
     identifiability,
     identifiability_index,
 )
+from rivercal.analysis.jacobian import Jacobian, fd_jacobian
 from rivercal.analysis.residuals import (
     BIAS_FACTOR,
     bias_significance,
@@ -32,6 +33,7 @@ from rivercal.analysis.residuals import (
     errors,
     moving_bias,
     residual_statistics,
+    summary_statistics,
 )
 from rivercal.analysis.sensitivity import SensitivityResult, scenario_table, sensitivity, thesis_scenarios
 
@@ -59,5 +61,6 @@ __all__ = [
     "residual_statistics",
     "scenario_table",
     "sensitivity",
+    "summary_statistics",
     "thesis_scenarios",
 ]

@@ -7,11 +7,12 @@ store keeps the forecasts, the observations and the scores; this module only com
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+
+from rivercal.analysis.residuals import summary_statistics
 
 __all__ = ["LEAD_BUCKETS_H", "SCORE_COLUMNS", "score_forecasts"]
 
@@ -60,7 +61,7 @@ def score_forecasts(forecasts: pd.DataFrame, observed: pd.DataFrame,
     inside = (k >= 1) & (k < edges.size)
     pairs = pairs[inside].assign(bucket=k[inside], err=lambda f: f["value"] - f["value_obs"])
     grouped = pairs.groupby(["cycle", "kind", "series", "bucket"], sort=True)["err"]
-    out = grouped.agg(rmse=lambda e: math.sqrt(float(np.mean(np.square(e)))), bias="mean", n="size").reset_index()
+    out = grouped.agg(rmse=lambda e: summary_statistics(e.to_numpy())["rmse"], bias="mean", n="size").reset_index()
     out["lead_from_h"] = edges[out["bucket"].to_numpy() - 1]
     out["lead_to_h"] = edges[out["bucket"].to_numpy()]
     return out[SCORE_COLUMNS]

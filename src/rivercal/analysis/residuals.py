@@ -7,7 +7,8 @@ Everything here works on observed and simulated series (pandas), independent of 
   the error is e = y − ŷ (observed minus simulated, the sign of the residuals of thesis Eq. 2-3: a
   positive error means the model is too low). With σ per series the errors are weighted, e/σ, and
   dimensionless — the "weighted dimensionless values" of thesis Tables 4-6, 4-8, 4-10 and 4-12.
-- :func:`error_statistics` / :func:`residual_statistics` give, per series and in total, the columns of
+- :func:`error_statistics` / :func:`residual_statistics` give, per series and in total
+  (:func:`summary_statistics` of one vector of errors), the columns of
   those tables: cost Σe², RMSE, bias (mean error) and the standard deviation of the errors. The standard
   deviation is the population one (ddof = 0), so that RMSE² = bias² + std² (the thesis' tables obey it).
 - :func:`moving_bias` is thesis Eq. 2-14 as a time series. In a moving window of length T (default 2 h)
@@ -44,6 +45,7 @@ __all__ = [
     "errors",
     "moving_bias",
     "residual_statistics",
+    "summary_statistics",
 ]
 
 log = logging.getLogger(__name__)
@@ -134,7 +136,12 @@ def _seconds(index: pd.Index, origin: pd.Timestamp) -> np.ndarray:
     return np.asarray((pd.DatetimeIndex(index) - origin).total_seconds(), dtype=float)
 
 
-def _stats(e: np.ndarray) -> dict[str, float]:
+def summary_statistics(e: np.ndarray) -> dict[str, float]:
+    """n, cost Σe², RMSE, bias (mean error) and standard deviation (ddof = 0) of the finite errors ``e``.
+
+    The one place these are computed (RMSE² = bias² + std²); NaN statistics without any finite error.
+    """
+    e = np.asarray(e, dtype=float).ravel()
     e = e[np.isfinite(e)]
     n = int(e.size)
     if n == 0:
@@ -161,8 +168,8 @@ def error_statistics(errs: pd.DataFrame | pd.Series) -> pd.DataFrame:
         unweighted errors mixes m and m³/s when both kinds of series are present).
     """
     frame = errs.to_frame() if isinstance(errs, pd.Series) else errs
-    rows = {str(c): _stats(frame[c].to_numpy(dtype=float)) for c in frame.columns}
-    rows["total"] = _stats(frame.to_numpy(dtype=float).ravel())
+    rows = {str(c): summary_statistics(frame[c].to_numpy(dtype=float)) for c in frame.columns}
+    rows["total"] = summary_statistics(frame.to_numpy(dtype=float).ravel())
     return pd.DataFrame.from_dict(rows, orient="index")[STAT_COLUMNS]
 
 

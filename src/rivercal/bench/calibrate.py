@@ -26,7 +26,7 @@ START = {"FA": 14.0, "Wc": 0.1}
 ALGORITHMS: dict[str, dict[str, Any]] = {
     "dud": {},
     "sparse_dud": {},
-    "lm": {"options": {"rel_step": 1e-4}},
+    "trf": {},
     "nelder_mead": {},
     "powell": {},
     "cg": {},

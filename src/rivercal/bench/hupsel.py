@@ -30,7 +30,7 @@ __all__ = ["HUPSEL_METHODS", "HupselCalibration", "calibrate_hupsel"]
 #: Methods compared on the Hupsel Brook, with the options they need here.
 HUPSEL_METHODS: dict[str, dict] = {
     "dud": {},
-    "lm": {"options": {"rel_step": 1e-3}},  # the model has adaptive sub-steps: a 1.5e-8 step sees only noise
+    "trf": {"options": {"rel_step": 1e-3}},  # the model has adaptive sub-steps: a 1.5e-8 step sees only noise
     "nelder_mead": {},
     "sce_ua": {"options": {"seed": 1}, "max_nfev": 3000},
 }

@@ -283,7 +283,7 @@ class CalibrationSettings(_Model):
     Attributes
     ----------
     algorithm
-        Name of an optimiser of :mod:`rivercal.optimise` (``dud``, ``lm``, ``sce_ua``, ...).
+        Name of an optimiser of :mod:`rivercal.optimise` (``dud``, ``trf``, ``sce_ua``, ...).
     options
         Options of that algorithm (for DuD the stopping criteria of thesis Table 4-3: ``max_outer``,
         ``max_inner``, ``abs_tol`` (T1), ``rel_tol`` (T2), ``rel_tol_linear`` (T3), ``max_rel_step``);

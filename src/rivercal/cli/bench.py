@@ -72,7 +72,7 @@ def calibrate(
 @app.command("hupsel")
 @guard
 def hupsel(as_json: JsonOpt = False) -> None:
-    """Calibrate the rainfall-runoff model on Hupsel 2011/12, validate on 2012/13: DuD, LM, Nelder-Mead, SCE-UA."""
+    """Calibrate the rainfall-runoff model on Hupsel 2011/12, validate on 2012/13: DuD, TRF, Nelder-Mead, SCE-UA."""
     from rivercal.bench.hupsel import HUPSEL_METHODS, calibrate_hupsel
 
     watch_compilation(True)

@@ -374,12 +374,9 @@ def optimiser_options(algorithm: str, items: list[str], defaults: Mapping[str, A
 
 
 def _options_class(algorithm: str) -> type:
-    from rivercal import optimise as o
+    from rivercal.optimise import OPTIONS
 
-    classes = {"dud": o.DudOptions, "sparse_dud": o.SparseDudOptions, "lm": o.LmOptions, "sce_ua": o.SceOptions,
-               "dds": o.DdsOptions, "nelder_mead": o.NelderMeadOptions, "powell": o.PowellOptions, "cg": o.CgOptions,
-               "bfgs": o.BfgsOptions, "grid": o.GridOptions, "glue": o.GlueOptions}
-    return classes[algorithm]
+    return OPTIONS[algorithm]
 
 
 def _typed(item: str, text: str, kind: Any) -> Any:

@@ -335,7 +335,7 @@ class OnlineService:
                                       + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items()))))
         state, hot = self._state("updated", run_start, self._quantities(warm))
         status, message, cal = "done", "", None
-        estimates, std = dict(warm), {}
+        estimates, std, alert_std = dict(warm), {}, {}
         held: dict[str, str] = {}
         cost_before = cost_after = None
         model_runs = 0
@@ -360,6 +360,7 @@ class OnlineService:
                 cost_after = r.cost
                 cost_before = cal.history[0]["cost"] if cal.history and cal.history[0]["iteration"] == 0 else None
                 estimates, std = dict(cal.estimates), dict(cal.std)
+                alert_std = dict(cal.std_scaled)   # σ from the fit's own residual variance, not the weights' σ
                 message = r.message
                 if r.aborted:
                     status = "aborted"
@@ -369,7 +370,7 @@ class OnlineService:
                     held, extra = self._gate(problem, r)
                     model_runs += extra
         accepted = {n: (warm[n] if n in held else estimates[n]) for n in warm}
-        alerts += self._alerts(warm, accepted, estimates, std, held, spec)
+        alerts += self._alerts(warm, accepted, estimates, alert_std, held, spec)
         forecasts, states = self._forecasts(spec, run_start, state, accepted)
         records = tuple(
             EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",

@@ -20,11 +20,16 @@ Every optimiser has the signature (scipy-like)::
   evaluated, which validates the problem). All three end the run with
   ``aborted=True`` and the best point so far.
 
-Algorithms (one module each): :func:`dud`, :func:`sparse_dud`, :func:`lm`, :func:`sce_ua`, :func:`dds`,
+Algorithms (one module each): :func:`dud`, :func:`sparse_dud`, :func:`trf`, :func:`sce_ua`, :func:`dds`,
 :func:`nelder_mead`, :func:`powell`, :func:`cg`, :func:`bfgs`, :func:`grid`, :func:`glue`; by name through
-:data:`OPTIMISERS` / :func:`get_optimiser`. Helpers: :func:`fd_jacobian_of` and
-:func:`parameter_statistics` give the Jacobian-based standard deviations for a result of a method
-without a Jacobian.
+:data:`OPTIMISERS` / :func:`get_optimiser`. Every local method takes its first step from the caller's
+perturbation of each parameter (``initial_step`` or ``x_scale``; default 10 % of |x0|).
+
+The one finite-difference Jacobian and covariance (:mod:`rivercal.optimise.jacobian`):
+:func:`fd_jacobian` (forward or central differences in one batch, steps checked against the function's
+noise) and :func:`covariance` / :func:`parameter_statistics` (thesis Eq. 2-12/2-13). :func:`fd_jacobian_of`
+wraps the first for a plain ``fun`` (e.g. the standard deviations of a result of a method without a
+Jacobian).
 """
 
 from __future__ import annotations
@@ -34,62 +39,79 @@ from typing import Any
 
 import numpy as np
 
-from rivercal.optimise._core import Run, default_scale, fd_jacobian, parameter_statistics, validate_problem
+from rivercal.optimise._core import default_scale, validate_problem
 from rivercal.optimise.bfgs import BfgsOptions, bfgs
 from rivercal.optimise.cg import CgOptions, cg
 from rivercal.optimise.dds import DdsOptions, dds
 from rivercal.optimise.dud import DudOptions, DudState, dud
 from rivercal.optimise.glue import GlueOptions, glue
 from rivercal.optimise.grid import GridOptions, grid
-from rivercal.optimise.lm import LmOptions, lm
+from rivercal.optimise.jacobian import (
+    Covariance,
+    FiniteDifferences,
+    covariance,
+    difference_steps,
+    fd_jacobian,
+    parameter_statistics,
+)
 from rivercal.optimise.nelder_mead import NelderMeadOptions, nelder_mead
 from rivercal.optimise.powell import PowellOptions, powell
-from rivercal.optimise.registry import OPTIMISERS, get_optimiser
+from rivercal.optimise.registry import OPTIMISERS, OPTIONS, get_optimiser
 from rivercal.optimise.result import IterationRecord, NonFiniteResidualsError, OptimiseResult
 from rivercal.optimise.sce_ua import SceOptions, sce_ua
 from rivercal.optimise.sparse_dud import SparseDudOptions, sparse_dud
+from rivercal.optimise.trf import TrfOptions, trf
 
 __all__ = [
     "OPTIMISERS",
+    "OPTIONS",
     "BfgsOptions",
     "CgOptions",
+    "Covariance",
     "DdsOptions",
     "DudOptions",
     "DudState",
+    "FiniteDifferences",
     "GlueOptions",
     "GridOptions",
     "IterationRecord",
-    "LmOptions",
     "NelderMeadOptions",
     "NonFiniteResidualsError",
     "OptimiseResult",
     "PowellOptions",
     "SceOptions",
     "SparseDudOptions",
+    "TrfOptions",
     "bfgs",
     "cg",
+    "covariance",
     "dds",
+    "difference_steps",
     "dud",
+    "fd_jacobian",
     "fd_jacobian_of",
     "get_optimiser",
     "glue",
     "grid",
-    "lm",
     "nelder_mead",
     "parameter_statistics",
     "powell",
     "sce_ua",
     "sparse_dud",
+    "trf",
 ]
 
 
 def fd_jacobian_of(fun: Callable[[np.ndarray], Any], x: Any, lb: Any, ub: Any, *, rel_step: float = 1e-6,
+                   steps: Any = None, scheme: str = "forward",
                    batch: Callable[[list[np.ndarray]], Any] | None = None) -> np.ndarray:
-    """Forward-difference Jacobian of ``fun`` at ``x`` (p + 1 runs, one batch), steps pointing into [lb, ub].
+    """Finite-difference Jacobian of ``fun`` at ``x`` (one batch), steps pointing into [lb, ub].
 
-    With :func:`parameter_statistics` it gives ``std``/``correlation`` for the result of a method without a
+    ``steps`` (optimiser units) defaults to rel_step · max(|x_j|, 10⁻³ typical_j). With
+    :func:`parameter_statistics` it gives ``std``/``correlation`` for the result of a method without a
     Jacobian (SCE-UA, DDS, Nelder-Mead, Powell, grid, GLUE).
     """
     x, lb, ub = validate_problem(x, lb, ub)
-    run = Run(fun, batch, x, lb, ub, max_nfev=None, deadline=None, callback=None)
-    return fd_jacobian(run, x, rel_step, default_scale(x, lb, ub))[1]
+    h = difference_steps(x, rel_step, default_scale(x, lb, ub)) if steps is None else steps
+    evaluate = batch if batch is not None else (lambda points: [np.asarray(fun(p), dtype=float) for p in points])
+    return fd_jacobian(evaluate, x, lb, ub, h, scheme=scheme).jacobian

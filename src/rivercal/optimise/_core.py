@@ -1,4 +1,4 @@
-"""Machinery shared by the optimisers: validation, the run log, budgets, finite differences, statistics.
+"""Machinery shared by the optimisers: validation, the run log, budgets (differences: :mod:`.jacobian`).
 
 An algorithm never calls ``fun`` itself: it asks a :class:`Run` to evaluate one point or a batch of
 points. The run checks the bounds, the evaluation budget and the deadline, validates the residuals,
@@ -21,6 +21,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from rivercal.optimise.jacobian import parameter_statistics
 from rivercal.optimise.result import (
     ABORT_STATUSES,
     STATUS_CALLBACK,
@@ -209,79 +210,9 @@ def default_initial_step(x0: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.n
     return 0.1 * default_scale(x0, lb, ub)
 
 
-def inward_steps(x: np.ndarray, h: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
-    """Signed perturbations of size ``h`` that keep ``x + step`` inside the bounds.
-
-    Prefer +h; if that leaves the box use −h; if neither fits (the range is narrower than h) step
-    towards the farther bound by the room available there. A point at or near a bound is therefore
-    always perturbed inwards and the perturbed points never collapse onto x (OpenDA issue 338).
-    """
-    up, down = ub - x, x - lb
-    step = np.where(h <= up, h, np.where(h <= down, -h, 0.0))
-    squeezed = step == 0.0
-    step[squeezed] = np.where(up[squeezed] >= down[squeezed], up[squeezed], -down[squeezed])
-    return step
-
-
 def project(x: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
     """Clip into the box (used to remove round-off from steps that were computed to be feasible)."""
     return np.minimum(np.maximum(x, lb), ub)
-
-
-def fd_steps(x: np.ndarray, rel_step: float, typical: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
-    """Forward-difference steps h_j = rel_step · max(|x_j|, 10⁻³ typical_j), turned backwards at a bound.
-
-    Relative to |x_j| rather than scipy's max(1, |x_j|), so that parameters of order 10⁻⁹ (NIST Hahn1)
-    get a step of their own order; ``typical`` (see :func:`default_scale`) guards x_j ≈ 0.
-    """
-    h = rel_step * np.maximum(np.abs(x), 1e-3 * typical)
-    return inward_steps(x, h, lb, ub)
-
-
-def fd_jacobian(run: Run, x: np.ndarray, rel_step: float, typical: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Residuals and forward-difference Jacobian at ``x``.
-
-    x (unless recently evaluated) and the n perturbed points go out as ONE batch.
-    """
-    steps = fd_steps(x, rel_step, typical, run.lb, run.ub)
-    points = [x]
-    for j, s in enumerate(steps):
-        xp = x.copy()
-        xp[j] = x[j] + s
-        points.append(project(xp, run.lb, run.ub))
-    residuals = run.evaluate_many(points)
-    r0 = residuals[0]
-    jac = np.empty((r0.shape[0], x.shape[0]))
-    for j in range(x.shape[0]):
-        jac[:, j] = (residuals[j + 1] - r0) / (points[j + 1][j] - x[j])
-    return r0, jac
-
-
-# --------------------------------------------------------------------------------------------------
-# statistics (thesis Eq. 2-12 / 2-13)
-# --------------------------------------------------------------------------------------------------
-
-
-def parameter_statistics(jac: np.ndarray, cost: float) -> dict[str, np.ndarray] | None:
-    """Covariance (JᵀJ)⁻¹, standard deviations, correlations and the s²-scaled deviations.
-
-    Returns None when JᵀJ is singular to working precision (a parameter without influence, or two
-    parameters with identical influence).
-    """
-    jac = np.asarray(jac, dtype=float)
-    if jac.ndim != 2 or not np.all(np.isfinite(jac)):
-        return None
-    m, n = jac.shape
-    _, s, vt = np.linalg.svd(jac, full_matrices=False)
-    if s.size < n or s[-1] <= s[0] * max(m, n) * np.finfo(float).eps or s[-1] == 0.0:
-        return None
-    cov = (vt.T / s**2) @ vt
-    std = np.sqrt(np.diag(cov))
-    corr = cov / np.outer(std, std)
-    np.fill_diagonal(corr, 1.0)
-    dof = m - n
-    scale = math.sqrt(cost / dof) if dof > 0 else math.nan
-    return {"covariance": cov, "std": std, "correlation": corr, "std_scaled": std * scale}
 
 
 # --------------------------------------------------------------------------------------------------

@@ -5,11 +5,12 @@ linearises the residual vector through them: r(x_b + δ) ≈ r_b + J δ, with J 
 interpolates (DuD) or fits by least squares (Sparse DuD) the stored residual vectors. Each outer
 iteration solves the bounded linear least-squares problem min ‖r_b + J δ‖², lb ≤ x_b + δ ≤ ub, caps
 the step, and backtracks along it until the cost decreases; the new point replaces the worst stored
-point. How this differs from OpenDA's implementation (reference note §1) is listed in :mod:`rivercal.optimise.dud`.
+point. The stopping rules are in :mod:`._dud_stopping`, the options in :mod:`._dud_options`. How this
+differs from OpenDA's implementation (reference note §1) is listed in :mod:`rivercal.optimise.dud`.
 
 A *secant model* supplies what differs between the two methods: the perturbed points of a (re-)
-initialisation, the Jacobian of a set of points (None when the set is degenerate) and the size of a
-step in units of the set's spread (for ``max_rel_step``).
+initialisation, the Jacobian of a set of points (None when the set is degenerate), the size of a
+step in units of the set's spread (for ``max_rel_step``) and a fresh Jacobian at the end.
 """
 
 from __future__ import annotations
@@ -17,189 +18,29 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from rivercal.optimise._core import (
-    Batch,
-    Callback,
-    Fun,
-    Run,
-    Stop,
-    check_int,
-    check_real,
-    default_initial_step,
-    option_vector,
-    optional_array,
-    project,
+from rivercal.optimise._core import Batch, Callback, Fun, Run, Stop, default_initial_step, option_vector, project
+from rivercal.optimise._dud_options import (
+    STATUS_DEGENERATE,
+    STATUS_LINE_SEARCH,
+    STATUS_NEGLIGIBLE,
+    STATUS_NO_DECREASE,
+    STATUS_ZERO_COST,
+    TERMINATION_MESSAGES,
+    DudOptions,
+    DudState,
 )
-from rivercal.optimise.result import COMMON_MESSAGES, STATUS_MAX_ITER, IterationRecord, OptimiseResult
+from rivercal.optimise._dud_stopping import AcceptedStep, negligible, openda_rules, rivercal_rules
+from rivercal.optimise.result import STATUS_MAX_ITER, OptimiseResult
 
 log = logging.getLogger(__name__)
 
-STATUS_ABS = 1
-STATUS_REL = 2
-STATUS_LINEAR = 3
-STATUS_NO_DECREASE = 4
-STATUS_LINE_SEARCH = 5
-STATUS_ZERO_COST = 6
-STATUS_ABS_FLOOR = 7
-STATUS_DEGENERATE = -4
-
-TERMINATION_MESSAGES: dict[int, str] = {
-    **COMMON_MESSAGES,
-    STATUS_MAX_ITER: "The maximum number of outer iterations (max_outer) is reached.",
-    STATUS_ABS: "T1: the cost decreased by no more than abs_tol in the last iteration.",
-    STATUS_REL: "T2: the relative decrease of the cost in the last iteration is at most rel_tol.",
-    STATUS_LINEAR: "T3: the relative decrease predicted by the linearised cost is at most rel_tol_linear.",
-    STATUS_NO_DECREASE: "The secant model of a freshly re-initialised interpolation set predicts no decrease: "
-                        "the (projected) gradient vanishes at the best point.",
-    STATUS_LINE_SEARCH: "The line search found no lower cost along the step of a freshly re-initialised "
-                        "interpolation set: the best point is a local minimum to the resolution of the secant model.",
-    STATUS_ZERO_COST: "The cost is zero: the residuals vanish at the best point.",
-    STATUS_ABS_FLOOR: "T1: the cost is at most abs_tol, so no further iteration can lower it by more than abs_tol.",
-    STATUS_DEGENERATE: "The interpolation set stays degenerate after re-initialisation.",
-}
-
-
-@dataclass(frozen=True, slots=True)
-class DudOptions:
-    """Options of :func:`~rivercal.optimise.dud.dud` (defaults: thesis Table 4-3 where it gives them).
-
-    Attributes
-    ----------
-    max_outer
-        Maximum number of outer iterations (Table 4-3: 20).
-    max_inner
-        Maximum number of step reductions in the line search after the full step (Table 4-3: 5), so at
-        most ``max_inner + 1`` evaluations per outer iteration.
-    abs_tol
-        T1: stop when an iteration lowers the cost by at most this much (Table 4-3: 1e-3), or as soon as
-        the cost itself is at most this much (no iteration could then lower it by more). 0 disables.
-    rel_tol
-        T2: stop when an iteration lowers the cost by at most ``rel_tol`` times the new cost (1e-4).
-    rel_tol_linear
-        T3: stop when the linearised cost of the step, L, predicts a relative decrease
-        (S_b − L)/S_b of at most this (1e-4).
-    max_rel_step
-        Cap on the step measured in units of the interpolation set's spread (‖α‖∞ with δ = Pα; 10).
-    initial_step
-        Perturbation per parameter that builds the k + 1 initial points (optimiser coordinates; the
-        caller computes it from the offset transform, thesis Eq. 2-8, or the factor transform, Eq. 2-9).
-        Default: 10 % of |x0| (10 % of a tenth of the bound range where x0 = 0).
-    prior_mean, prior_std
-        Weak constraint: extra residual rows (x − prior_mean)/prior_std are appended, so the cost becomes
-        S + ‖(x − μ)/σ‖². Both or neither.
-    shortening_factor
-        Backtracking factor s of the line search (0.5): the trial steps are t = 1, s, s², ...
-    negative_look_after
-        After this many reductions the line search alternates to the opposite direction
-        (OpenDA's default sequence 1, ½, ¼, ⅛, 1/16, −1/32, +1/64, ... is ``negative_look_after=4``).
-    max_condition
-        The interpolation set counts as degenerate when its (scaled, column-normalised) secant matrix has
-        a condition number above this; it is then re-initialised around the best point.
-    reinit_shrink
-        After a failed line search the set is re-initialised with perturbations of
-        ``reinit_shrink · min(initial_step, current spread)``.
-    confirm_convergence
-        When T1, T2 or T3 fires on an interpolation set that has aged (points from earlier iterations),
-        re-initialise it around the best point (p runs, one batch) and stop only if the rule fires again
-        on the fresh set. Secant models degrade as DuD converges; the fresh set removes premature stops
-        (the "magic" restarts of OpenDA issue 449). False gives OpenDA's behaviour.
-    parallel_line_search
-        After the full step fails, evaluate all remaining trial steps as one batch (more model runs,
-        same iterates, less wall time on parallel workers).
-    """
-
-    max_outer: int = 20
-    max_inner: int = 5
-    abs_tol: float = 1e-3
-    rel_tol: float = 1e-4
-    rel_tol_linear: float = 1e-4
-    max_rel_step: float = 10.0
-    initial_step: Any = None
-    prior_mean: Any = None
-    prior_std: Any = None
-    shortening_factor: float = 0.5
-    negative_look_after: int = 4
-    max_condition: float = 1e7
-    reinit_shrink: float = 0.3
-    confirm_convergence: bool = True
-    parallel_line_search: bool = False
-
-    def __post_init__(self) -> None:
-        check_int("max_outer", self.max_outer)
-        check_int("max_inner", self.max_inner)
-        check_int("negative_look_after", self.negative_look_after)
-        for name in ("abs_tol", "rel_tol", "rel_tol_linear"):
-            check_real(name, getattr(self, name))
-        check_real("max_rel_step", self.max_rel_step, strict=True)
-        check_real("shortening_factor", self.shortening_factor, strict=True, maximum=1.0 - 1e-12)
-        check_real("max_condition", self.max_condition, 1.0, strict=True)
-        check_real("reinit_shrink", self.reinit_shrink, strict=True, maximum=1.0)
-        optional_array(self, "initial_step", positive=True)
-        optional_array(self, "prior_mean")
-        optional_array(self, "prior_std", positive=True)
-        if (self.prior_mean is None) != (self.prior_std is None):
-            raise ValueError("prior_mean and prior_std must be given together")
-        for name in ("confirm_convergence", "parallel_line_search"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be a bool, got {getattr(self, name)!r}")
-
-
-@dataclass(frozen=True)
-class DudState:
-    """Everything needed to continue a DuD run exactly (``result.extra["state"]``).
-
-    Pass it back as ``dud(..., restart=state)``. The run continues from the start of the iteration that
-    was interrupted; the evaluations made in that iteration (``pending``) are replayed without new model
-    runs, so an interrupted and restarted run makes the same model runs and reaches the same point as an
-    uninterrupted one. Counters continue: ``max_outer`` and ``max_nfev`` apply to the whole run.
-
-    Attributes
-    ----------
-    method
-        ``"dud"`` or ``"sparse_dud"``.
-    x0, initial_step
-        Start point and unsigned initial perturbations.
-    points, residuals, costs
-        The interpolation set sorted by cost (row 0 best) with its residual vectors (without prior rows)
-        and costs; None if the run stopped before the initial set was complete.
-    nit, nfev, n_reinit
-        Iterations, model runs and re-initialisations so far.
-    fresh
-        The set was just re-initialised after a failure (a second failure ends the run).
-    history, evaluations
-        The run's log so far.
-    pending
-        ``(x, residuals)`` evaluated after the snapshot, replayed on restart.
-    cache
-        Recently evaluated points at the snapshot (not rerun when requested again).
-    model_state
-        State of the secant model (the random generator of Sparse DuD).
-    degenerate_streak
-        Consecutive re-initialisations because the set was degenerate.
-    """
-
-    method: str
-    x0: np.ndarray
-    initial_step: np.ndarray
-    points: np.ndarray | None
-    residuals: np.ndarray | None
-    costs: np.ndarray | None
-    nit: int
-    nfev: int
-    n_reinit: int
-    fresh: bool
-    history: tuple[IterationRecord, ...]
-    evaluations: tuple[tuple[np.ndarray, float], ...]
-    pending: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
-    cache: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
-    model_state: Any = field(default=None)
-    degenerate_streak: int = 0
+#: Most Gauss-Newton steps with fresh Jacobians after the stop (see :meth:`DudEngine.polish`).
+POLISH_ROUNDS = 3
 
 
 class SecantModel(Protocol):
@@ -213,6 +54,10 @@ class SecantModel(Protocol):
 
     def step_size(self, points: np.ndarray, delta: np.ndarray) -> float:
         """Size of ``delta`` in units of the set's spread (compared with ``max_rel_step``)."""
+
+    def fresh_jacobian(self, run: Run, x: np.ndarray, r: np.ndarray, h: np.ndarray,
+                       noise: np.ndarray | None) -> np.ndarray | None:
+        """A new Jacobian at ``x`` (residuals ``r``) from perturbations of size ``h`` (runs through ``run``)."""
 
     def get_state(self) -> Any:
         """Model state for :class:`DudState`."""
@@ -243,7 +88,7 @@ def _broadcast(name: str, value: np.ndarray, n: int) -> np.ndarray:
 
 
 class DudEngine:
-    """One DuD run: the interpolation set, the outer loop, the line search and the stopping rules."""
+    """One DuD run: the interpolation set, the outer loop, the line search and when to stop."""
 
     def __init__(self, method: str, run: Run, model: SecantModel, opts: DudOptions, h0: np.ndarray):
         self.method, self.run, self.model, self.opts, self.h0 = method, run, model, opts, h0
@@ -251,9 +96,11 @@ class DudEngine:
         self.R: np.ndarray | None = None
         self.costs: np.ndarray | None = None
         self.fresh = False
+        self.centred = False
         self.n_reinit = 0
         self.n_obs: int | None = None
         self.degenerate_streak = 0
+        self.step_cost: float | None = None
         self._snapshot = self.snapshot()
 
     # ---- state --------------------------------------------------------------------------------
@@ -269,6 +116,7 @@ class DudEngine:
             nit=run.nit, nfev=run.nfev, n_reinit=self.n_reinit, fresh=self.fresh,
             history=tuple(run.history), evaluations=tuple(run.evaluations),
             cache=run.cached(), model_state=self.model.get_state(), degenerate_streak=self.degenerate_streak,
+            step_cost=self.step_cost, centred=self.centred,
         )
 
     def mark(self) -> None:
@@ -288,6 +136,7 @@ class DudEngine:
         run.history, run.evaluations = list(state.history), list(state.evaluations)
         run.preload(state.cache, state.pending)
         self.n_reinit, self.fresh, self.degenerate_streak = state.n_reinit, state.fresh, state.degenerate_streak
+        self.step_cost, self.centred = state.step_cost, state.centred
         self.model.set_state(state.model_state)
         if state.pending:
             run.m = self.n_obs = len(state.pending[0][1])
@@ -307,6 +156,11 @@ class DudEngine:
         if self.n_obs is None:
             self.n_obs = self.run.m
 
+    @property
+    def dof(self) -> int:
+        """Residual rows (with prior rows) minus parameters, at least 1."""
+        return max(1, self.R.shape[1] - self.X.shape[1])
+
     # ---- the run ------------------------------------------------------------------------------
     def solve(self) -> int:
         """Iterate until a stopping rule fires; return the status (Stop propagates)."""
@@ -314,7 +168,10 @@ class DudEngine:
             self.mark()
             x0 = self.run.x0
             points = [x0, *self.model.initial_points(x0, self.h0, self.run.lb, self.run.ub)]
-            self._set(points, self.run.evaluate_many(points))
+            residuals = self.run.evaluate_many(points)
+            self.step_cost = self._step_cost(points, residuals)
+            self._set(points, residuals)
+            self.centred = True
         while True:
             self.mark()
             status = self.iterate()
@@ -322,14 +179,20 @@ class DudEngine:
                 self.mark()
                 return status
 
+    def _step_cost(self, points: list[np.ndarray], residuals: list[np.ndarray]) -> float:
+        """S_h: the smallest cost change one initial perturbation causes, ‖Δr_i‖² per (‖d_i / h‖∞)²."""
+        changes = [float(np.sum((r - residuals[0]) ** 2)) / float(np.max(np.abs(p - points[0]) / self.h0)) ** 2
+                   for p, r in zip(points[1:], residuals[1:], strict=True)]
+        return min(changes) if changes else 0.0
+
     def iterate(self) -> int | None:
         """One outer iteration (or a re-initialisation); a status when the run ends."""
         opts, run = self.opts, self.run
         s_b = float(self.costs[0])
         if s_b == 0.0:
             return STATUS_ZERO_COST
-        if s_b <= opts.abs_tol:  # T1 holds for every further iteration: stop without spending runs on it
-            return STATUS_ABS_FLOOR
+        if opts.stopping == "rivercal" and negligible(opts, s_b, self.step_cost):
+            return STATUS_NEGLIGIBLE   # e.g. a warm start already at the answer: no run is spent confirming it
         if run.nit >= opts.max_outer:
             return STATUS_MAX_ITER
         jac = self.model.jacobian(self.X, self.R)
@@ -349,35 +212,47 @@ class DudEngine:
         from_fresh = self.fresh
         accepted = self.line_search(delta)
         if accepted is not None:
-            self.replace_worst(*accepted)
-            self.fresh = False
+            x, r, cost, t, first = accepted
+            self.replace_worst(x, r, cost)
+            self.fresh = self.centred = False
         run.iteration(self.X[0], self.costs[0], linear)
-        if accepted is not None:
-            status = self.converged(s_b, float(self.costs[0]), linear)
-            if status is None or from_fresh or not opts.confirm_convergence or status == STATUS_ABS_FLOOR:
-                return status
-            self.reinit(1.0, "confirming convergence", fresh=True)
+        if accepted is None:
+            if self.fresh:
+                return STATUS_LINE_SEARCH
+            self.reinit(opts.reinit_shrink, "line search failed", fresh=True)
             return None
-        if self.fresh:
-            return STATUS_LINE_SEARCH
-        self.reinit(opts.reinit_shrink, "line search failed", fresh=True)
+        step = AcceptedStep(s_old=s_b, s_new=float(self.costs[0]), linear=linear, first_trial=first,
+                            shortened=t != 1.0, second_best=float(self.costs[1]), dof=self.dof)
+        if opts.stopping == "openda":
+            return openda_rules(opts, step)
+        status, refresh = rivercal_rules(opts, step, self.step_cost)
+        if refresh:
+            self.reinit(1.0, "small decrease after a shortened step", fresh=True)
+            return None
+        if status is None or from_fresh or not opts.confirm_convergence or status in (STATUS_ZERO_COST,
+                                                                                         STATUS_NEGLIGIBLE):
+            return status
+        self.reinit(1.0, "confirming convergence", fresh=True)
         return None
 
     def step(self, jac: np.ndarray) -> tuple[np.ndarray, float]:
         """Bounded Gauss-Newton step of the secant model, capped; and its linearised cost."""
+        delta = self.gauss_newton(jac, self.spread())
+        size = self.model.step_size(self.X, delta)
+        if size > self.opts.max_rel_step:
+            delta *= self.opts.max_rel_step / size
+        return delta, self.run.cost_of(self.R[0] + jac @ delta)
+
+    def gauss_newton(self, jac: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        """Argmin ‖r_b + J δ‖² subject to lb ≤ x_b + δ ≤ ub (solved in units of ``scale``)."""
         x_b, r_b, run = self.X[0], self.R[0], self.run
-        scale = self.spread()
         js = jac * scale
         lo, hi = (run.lb - x_b) / scale, (run.ub - x_b) / scale
         u = np.linalg.lstsq(js, -r_b, rcond=None)[0]
         if np.any(u < lo) or np.any(u > hi):
             u = lsq_linear(js, -r_b, bounds=(lo, hi), method="bvls").x
             u = np.clip(u, lo, hi)
-        delta = u * scale
-        size = self.model.step_size(self.X, delta)
-        if size > self.opts.max_rel_step:
-            delta *= self.opts.max_rel_step / size
-        return delta, run.cost_of(r_b + jac @ delta)
+        return u * scale
 
     def spread(self) -> np.ndarray:
         """Per-parameter extent of the interpolation set around the best point (never zero)."""
@@ -395,32 +270,35 @@ class DudEngine:
             factors.append(t)
         return factors
 
-    def trial_point(self, delta: np.ndarray, t: float) -> np.ndarray | None:
-        """x_b + tδ; a reversed step that leaves the box is halved up to three times, else skipped."""
+    def trial_point(self, delta: np.ndarray, t: float) -> tuple[np.ndarray, float] | None:
+        """x_b + tδ and t; a reversed step that leaves the box is halved up to three times, else skipped."""
         x_b, lb, ub = self.X[0], self.run.lb, self.run.ub
         for _ in range(4):
             x = x_b + t * delta
             if t > 0 or (np.all(x >= lb) and np.all(x <= ub)):
-                return project(x, lb, ub)
+                return project(x, lb, ub), t
             t *= 0.5
         return None
 
-    def line_search(self, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
-        """Backtrack along δ; the first trial that beats the best point, or None if none does."""
+    def line_search(self, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float] | None:
+        """Backtrack along δ: the first trial (x, r, cost, t) that beats the best point, and the cost at t = 1."""
         s_b, run = self.costs[0], self.run
-        points = [p for p in (self.trial_point(delta, t) for t in self.trial_factors()) if p is not None]
+        trials = [p for p in (self.trial_point(delta, t) for t in self.trial_factors()) if p is not None]
         if self.opts.parallel_line_search:
-            first = run.evaluate(points[0])
-            residuals = [first] + (run.evaluate_many(points[1:]) if run.cost_of(first) >= s_b else [])
-            for x, r in zip(points, residuals, strict=False):
-                if run.cost_of(r) < s_b:
-                    return x, r, run.cost_of(r)
-            return None
-        for x in points:
-            r = run.evaluate(x)
+            first = run.evaluate(trials[0][0])
+            more = run.evaluate_many([x for x, _ in trials[1:]]) if run.cost_of(first) >= s_b else []
+            residuals = [first, *more]
+        else:
+            residuals = []
+            for x, _ in trials:
+                residuals.append(run.evaluate(x))
+                if run.cost_of(residuals[-1]) < s_b:
+                    break
+        first_cost = run.cost_of(residuals[0])
+        for (x, t), r in zip(trials, residuals, strict=False):
             cost = run.cost_of(r)
             if cost < s_b:
-                return x, r, cost
+                return x, r, cost, t, first_cost
         return None
 
     def replace_worst(self, x: np.ndarray, r: np.ndarray, cost: float) -> None:
@@ -428,21 +306,6 @@ class DudEngine:
         points, residuals = list(self.X), list(self.R)
         points[-1], residuals[-1] = x, r
         self._set(points, residuals)
-
-    def converged(self, s_old: float, s_new: float, linear: float) -> int | None:
-        """Stopping rules T1, T2, T3 after an accepted step (also after backtracking)."""
-        if s_new == 0.0:
-            return STATUS_ZERO_COST
-        if s_new <= self.opts.abs_tol:
-            return STATUS_ABS_FLOOR
-        drop = s_old - s_new
-        if drop <= self.opts.abs_tol:
-            return STATUS_ABS
-        if drop <= self.opts.rel_tol * s_new:
-            return STATUS_REL
-        if s_old - linear <= self.opts.rel_tol_linear * s_old:
-            return STATUS_LINEAR
-        return None
 
     def reinit(self, shrink: float, reason: str, *, fresh: bool) -> None:
         """Fresh perturbations around the best point, evaluated as one batch."""
@@ -457,6 +320,86 @@ class DudEngine:
         self._set([x_b, *points], [self.R[0], *residuals])
         self.n_reinit += 1
         self.fresh = fresh
+        self.centred = True
+
+    # ---- the end ------------------------------------------------------------------------------
+    def final_jacobian(self, status: int) -> np.ndarray | None:
+        """The Jacobian behind ``std``: the secant one, or a fresh one and Gauss-Newton steps with it.
+
+        See ``DudOptions.final_jacobian``. Runs only after the run ended by its own rules (status > 0,
+        other than a zero cost); a budget, deadline or callback that cuts it short leaves the secant one.
+        """
+        secant = self.model.jacobian(self.X, self.R) if self.X is not None and self.X.shape[0] > 1 else None
+        mode = self.opts.final_jacobian
+        if mode == "auto" and ((self.centred and self.n_reinit == 0) or self.opts.stopping == "openda"):
+            mode = "secant"
+        if status <= 0 or status == STATUS_ZERO_COST or mode == "secant":
+            return secant
+        h = self.jacobian_steps()
+        try:
+            jac = self.fresh_jacobian(h)
+            if jac is not None and status != STATUS_NEGLIGIBLE:
+                jac = self.polish(jac, h)
+        except Stop:
+            return secant
+        return jac if jac is not None else secant
+
+    def fresh_jacobian(self, h: np.ndarray) -> np.ndarray | None:
+        """A fresh Jacobian at the best point (None if it is not finite)."""
+        jac = self.model.fresh_jacobian(self.run, self.X[0].copy(), self.R[0].copy(), h, self.noise())
+        return jac if jac is not None and np.all(np.isfinite(jac)) else None
+
+    def polish(self, jac: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """Gauss-Newton steps with fresh Jacobians (at most ``POLISH_ROUNDS``) while they lower the cost much.
+
+        The stopping rules end the iterations where a step changes the cost little; near a minimum with
+        non-zero residuals the secant iterations converge only linearly, and the point they stop at
+        depends on the path (for Sparse DuD: on its random directions). A Gauss-Newton step with an
+        accurate Jacobian (1 run) brings every path close to the same point; while such a step still
+        lowers the cost by more than T1 or T2 allow, the Jacobian is taken again there and another step
+        follows. The run keeps the best point evaluated; the Jacobian returned is the last one taken.
+        """
+        run, opts = self.run, self.opts
+        for k in range(POLISH_ROUNDS):
+            s = float(self.costs[0])
+            delta = self.gauss_newton(jac, np.maximum(self.spread(), h))
+            if not s - run.cost_of(self.R[0] + jac @ delta) > 1e-12 * s:
+                break
+            x = project(self.X[0] + delta, run.lb, run.ub)
+            r = run.evaluate(x)
+            s_new = run.cost_of(r)
+            if not s_new < s:
+                break
+            self.replace_worst(x, r, s_new)
+            drop = s - s_new
+            if drop <= opts.abs_tol * s_new / self.dof or drop <= opts.rel_tol * s_new or k + 1 == POLISH_ROUNDS:
+                break
+            fresh = self.fresh_jacobian(h)
+            if fresh is None:
+                break
+            jac = fresh
+        return jac
+
+    def jacobian_steps(self) -> np.ndarray:
+        """``options.jacobian_step`` checked against the problem size, or 10⁻³ of the initial steps."""
+        h = option_vector("jacobian_step", self.opts.jacobian_step, self.h0.shape[0])
+        return 1e-3 * self.h0 if h is None else h
+
+    def noise(self) -> np.ndarray | None:
+        """``options.noise`` per augmented residual row (prior rows: no noise check, inf)."""
+        if self.opts.noise is None:
+            return None
+        rows = self.R.shape[1]
+        noise = np.full(rows, np.inf)
+        value = self.opts.noise
+        if value.shape[0] == 1:
+            noise[: self.n_obs] = float(value[0])
+        elif value.shape[0] == self.n_obs:
+            noise[: self.n_obs] = value
+        else:
+            raise ValueError(f"options.noise must be a scalar or have one value per residual ({self.n_obs}), "
+                             f"got {value.shape[0]}")
+        return noise
 
 
 def validate_restart(state: Any, method: str, n: int) -> DudState:
@@ -491,10 +434,10 @@ def run_dud(method: str, fun: Fun, x0: np.ndarray, lb: np.ndarray, ub: np.ndarra
     except Stop as stop:
         status = stop.status
         state = engine.state_after_stop()
-    jac = None
-    if engine.X is not None and engine.X.shape[0] > 1:
-        jac = model.jacobian(engine.X, engine.R)
-    extra = {"state": state, "n_reinit": engine.n_reinit, "initial_step": h0.copy()}
+    n_before = run.nfev
+    jac = engine.final_jacobian(status) if engine.X is not None else None
+    extra = {"state": state, "n_reinit": engine.n_reinit, "initial_step": h0.copy(),
+             "final_jacobian_nfev": run.nfev - n_before}
     return run.result(status, TERMINATION_MESSAGES, method, jac=jac, extra=extra)
 
 

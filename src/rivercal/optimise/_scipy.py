@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import Bounds, OptimizeResult
 
-from rivercal.optimise._core import Run, fd_jacobian, project
+from rivercal.optimise._core import Run, default_scale, option_vector, project
+from rivercal.optimise.jacobian import FiniteDifferences, difference_steps, fd_jacobian
 
 
 class Scaled:
@@ -50,36 +51,89 @@ def cost_function(run: Run, scaled: Scaled) -> Callable[[np.ndarray], float]:
     return cost
 
 
-def iteration_callback(run: Run, scaled: Scaled) -> Callable[[OptimizeResult], None]:
-    """A scipy ``callback(intermediate_result)`` that records the iteration (and may abort the run)."""
+def iteration_callback(run: Run, scaled: Scaled, unit: Callable[[], float] | None = None
+                       ) -> Callable[[OptimizeResult], None]:
+    """A scipy ``callback(intermediate_result)`` that records the iteration (and may abort the run).
+
+    ``unit()`` is the factor scipy's cost was divided by (see :class:`FDGradient`).
+    """
 
     def callback(intermediate_result: OptimizeResult) -> None:
-        run.iteration(scaled.to_x(intermediate_result.x), float(intermediate_result.fun))
+        factor = 1.0 if unit is None else unit()
+        run.iteration(scaled.to_x(intermediate_result.x), float(intermediate_result.fun) * factor)
 
     return callback
+
+
+class Differences:
+    """The finite-difference steps of one run and its Jacobians through the run log.
+
+    The steps are ``diff_step`` (optimiser units) when given, else rel_step · max(|x_j|, 10⁻³ typical_j).
+    With ``noise`` (the residuals' numerical jitter, weighted units) a column whose difference is below
+    10 times the noise is taken again with a larger step (see :func:`~rivercal.optimise.fd_jacobian`),
+    and that larger step is kept for the rest of the run.
+    """
+
+    def __init__(self, run: Run, rel_step: float, diff_step: np.ndarray | None, noise: np.ndarray | None):
+        n = run.x0.shape[0]
+        self.run, self.rel_step = run, rel_step
+        self.typical = default_scale(run.x0, run.lb, run.ub)
+        self.fixed = option_vector("diff_step", diff_step, n)
+        self.noise = noise
+        self.grown = np.zeros(n)
+
+    def steps(self, x: np.ndarray) -> np.ndarray:
+        """The step sizes at x."""
+        h = self.fixed if self.fixed is not None else difference_steps(x, self.rel_step, self.typical)
+        return np.maximum(h, self.grown)
+
+    def jacobian(self, x: np.ndarray) -> FiniteDifferences:
+        """r(x) and J(x): x (unless cached) and the p perturbed points as one batch."""
+        h = self.steps(x)
+        noise = None
+        if self.noise is not None:
+            if self.run.m is None:
+                self.run.evaluate(x)   # the number of residuals, to check the noise against
+            if self.noise.shape[0] not in (1, self.run.m):
+                raise ValueError(f"options.noise must be a scalar or have one value per residual ({self.run.m}), "
+                                 f"got {self.noise.shape[0]}")
+            noise = self.noise
+        fd = fd_jacobian(self.run.evaluate_many, x, self.run.lb, self.run.ub, h, noise=noise)
+        grown = np.abs(fd.steps) > h * (1.0 + 1e-9)
+        self.grown[grown] = np.abs(fd.steps[grown])
+        return fd
 
 
 class FDGradient:
     """S(u) and its gradient by forward differences of the residuals (one batch per gradient).
 
-    ∇S = 2 Jᵀ r; the last Jacobian is kept (with its point) for the parameter statistics.
+    ∇S = 2 Jᵀ r; the last Jacobian is kept (with its point) for the parameter statistics. With
+    ``normalise`` the cost is divided by the 2-norm of its gradient at the first point (in u), so
+    that a method whose first trial step is the gradient itself (L-BFGS-B on a box) steps by one
+    unit of u, i.e. by the caller's ``x_scale``.
     """
 
-    def __init__(self, run: Run, scaled: Scaled, rel_step: float, typical: np.ndarray):
-        self.run, self.scaled, self.rel_step, self.typical = run, scaled, rel_step, typical
+    def __init__(self, run: Run, scaled: Scaled, differences: Differences, *, normalise: bool = False):
+        self.run, self.scaled, self.differences = run, scaled, differences
+        self.normalise = normalise
+        self.unit: float | None = None if normalise else 1.0
         self.last: tuple[np.ndarray, np.ndarray] | None = None
 
     def residuals_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """r(x) and J(x); x and its perturbations are one batch."""
-        r, jac = fd_jacobian(self.run, x, self.rel_step, self.typical)
-        self.last = (x.copy(), jac)
-        return r, jac
+        fd = self.differences.jacobian(x)
+        self.last = (x.copy(), fd.jacobian)
+        return fd.residuals, fd.jacobian
 
     def __call__(self, u: np.ndarray) -> tuple[float, np.ndarray]:
-        """(S, ∇_u S) for scipy's ``jac=True``."""
+        """(S, ∇_u S) for scipy's ``jac=True`` (both divided by the normalising unit)."""
         x = self.scaled.to_x(u)
         r, jac = self.residuals_and_jacobian(x)
-        return self.run.cost_of(r), 2.0 * (jac.T @ r) * self.scaled.scale
+        grad = 2.0 * (jac.T @ r) * self.scaled.scale
+        if self.unit is None:
+            norm = float(np.linalg.norm(grad))
+            self.unit = norm if np.isfinite(norm) and norm > 0 else 1.0
+        return self.run.cost_of(r) / self.unit, grad / self.unit
 
     def jacobian_at(self, x: np.ndarray) -> np.ndarray | None:
         """The last Jacobian if it was taken at x."""

@@ -8,13 +8,16 @@ variants OpenDA offers (reference note §4):
 - bounds by an active set: components at a bound whose gradient points outwards are frozen, the search
   direction is built from the projected gradient, and the line search runs over the feasible segment;
 - the line search is Brent's bounded method (:func:`scipy.optimize.minimize_scalar`) on
-  [0, min(t_max, 4 t_GN)] (plus the end point t_max itself when the minimum lies there), with
+  [0, min(t_max, 4 t_GN, t_cap)] (plus the end point t_max itself when the minimum lies there), with
   t_GN = −(Jd)ᵀr / ‖Jd‖² the minimiser of the linearised cost along d (a least-squares problem knows
-  its own curvature; OpenDA brackets from a fixed start value instead);
+  its own curvature; OpenDA brackets from a fixed start value instead) and t_cap the step that moves a
+  parameter by ``max_step`` units of ``x_scale``: a linearisation far from its point must not send the
+  search across the box (the next iteration continues from the end of the segment if the cost says so);
 - β = ‖g_k‖²/‖g_{k−1}‖² (FR) or max(0, g_kᵀ(g_k − g_{k−1})/‖g_{k−1}‖²) (PR+); the direction restarts
   as steepest descent every ``restart_every`` iterations, when it is not a descent direction, and once
   after a line search that found no decrease;
-- everything runs in coordinates scaled by ``x_scale``.
+- everything runs in coordinates scaled by ``x_scale`` (default: 10 % of |x0|, the initial step of
+  every method).
 
 Status codes (``TERMINATION_MESSAGES``): 1 ``ftol``, 2 ``gtol``, 3 ``xtol``, 4 no decrease along the
 steepest-descent direction; −3 ``max_iter``; 0 / −1 / −2 budget, callback, deadline.
@@ -45,13 +48,13 @@ from rivercal.optimise._core import (
     check_int,
     check_real,
     coerce_options,
-    default_scale,
+    default_initial_step,
     option_vector,
     optional_array,
     validate_controls,
     validate_problem,
 )
-from rivercal.optimise._scipy import FDGradient, Scaled
+from rivercal.optimise._scipy import Differences, FDGradient, Scaled
 from rivercal.optimise.result import COMMON_MESSAGES, STATUS_MAX_ITER, OptimiseResult
 
 __all__ = ["METHODS", "TERMINATION_MESSAGES", "CgOptions", "cg"]
@@ -89,10 +92,14 @@ class CgOptions:
         Stop when ‖projected gradient‖∞ ≤ gtol · 2‖r‖ · max_j ‖J_j‖ (scaled coordinates; 1e-10).
     xtol
         Stop when ‖Δu‖ ≤ xtol (xtol + ‖u‖), u the scaled coordinates (1e-12).
-    rel_step
-        Relative forward-difference step (1.49e-8 ≈ √eps).
+    rel_step, diff_step, noise
+        The forward differences (see ``_scipy.Differences``): steps ``diff_step`` per parameter (optimiser
+        units), else ``rel_step`` (1.49e-8 ≈ √eps) relative to |x|; checked against ``noise``, the
+        residuals' numerical jitter (weighted units), when given.
     x_scale
-        Typical magnitude per parameter (default |x0|).
+        Unit of the scaled coordinates per parameter (default: 10 % of |x0|).
+    max_step
+        Longest move of one parameter in one line search, in units of ``x_scale`` (10).
     line_search_maxiter
         Maximum number of cost evaluations of one Brent line search (30).
     restart_every
@@ -105,7 +112,10 @@ class CgOptions:
     gtol: float = 1e-10
     xtol: float = 1e-12
     rel_step: float = 1.4901161193847656e-08
+    diff_step: Any = None
+    noise: Any = None
     x_scale: Any = None
+    max_step: float = 10.0
     line_search_maxiter: int = 30
     restart_every: int | None = None
 
@@ -118,7 +128,9 @@ class CgOptions:
         for name in ("ftol", "gtol", "xtol"):
             check_real(name, getattr(self, name))
         check_real("rel_step", self.rel_step, 1e-14, maximum=0.5)
-        optional_array(self, "x_scale", positive=True)
+        check_real("max_step", self.max_step, strict=True)
+        for name in ("diff_step", "noise", "x_scale"):
+            optional_array(self, name, positive=True)
 
 
 class _ConjugateGradient:
@@ -162,14 +174,17 @@ class _ConjugateGradient:
         return d if float(d @ self.g) < 0 else -self.g
 
     def line_search(self, d: np.ndarray) -> tuple[np.ndarray, float]:
-        """Brent's bounded search on [0, min(t_max, 4 t_GN)]; the best point seen and its cost."""
+        """Brent's bounded search on [0, min(t_max, 4 t_GN, t_cap)]; the best point seen and its cost."""
         with np.errstate(divide="ignore", invalid="ignore"):
             limits = np.where(d > 0, (self.hi - self.u) / d, np.where(d < 0, (self.lo - self.u) / d, np.inf))
         target = np.where(d > 0, self.hi, self.lo)
         t_max = float(np.min(limits))
         a = self.jac_u @ d
         t_gn = -float(a @ self.r) / float(a @ a) if float(a @ a) > 0 else t_max
+        longest = float(np.max(np.abs(d)))
+        t_cap = self.opts.max_step / longest if longest > 0 else np.inf
         t_hi = min(t_max, 4.0 * t_gn) if np.isfinite(t_gn) and t_gn > 0 else t_max
+        t_hi = min(t_hi, t_cap)
 
         def phi(t: float) -> float:
             u = np.clip(self.u + t * d, self.lo, self.hi)
@@ -235,11 +250,10 @@ def cg(fun: Fun, x0: Any, lb: Any, ub: Any, *, options: CgOptions | dict | None 
     x0, lb, ub = validate_problem(x0, lb, ub)
     validate_controls(max_nfev, deadline, callback, batch, fun)
     opts = coerce_options(options, CgOptions)
-    typical = default_scale(x0, lb, ub)
     scale = option_vector("x_scale", opts.x_scale, x0.shape[0])
-    scaled = Scaled(x0, typical if scale is None else scale, lb, ub)
+    scaled = Scaled(x0, default_initial_step(x0, lb, ub) if scale is None else scale, lb, ub)
     run = Run(fun, batch, x0, lb, ub, max_nfev=max_nfev, deadline=deadline, callback=callback)
-    gradient = FDGradient(run, scaled, opts.rel_step, typical)
+    gradient = FDGradient(run, scaled, Differences(run, opts.rel_step, opts.diff_step, opts.noise))
     try:
         status = _ConjugateGradient(run, scaled, gradient, opts).solve()
     except Stop as stop:

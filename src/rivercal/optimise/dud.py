@@ -15,19 +15,25 @@ without OpenDA's quirks:
   run (status 5);
 - the set is also re-initialised when it degenerates (ill-conditioned secant matrix), the remedy the
   OpenDA maintainers recommend by hand (issue 449);
-- T1/T2/T3 may declare convergence after an iteration that backtracked;
+- every stopping rule is invariant to a common scale of the weights (T1 measures the drop of the cost
+  in units of the residual variance s² = S/(m − p), the near-zero-cost rule against the cost change of
+  one initial perturbation), and T1/T2 never fire right after a line search that shortened its step;
+  OpenDA's own rules are available as ``stopping="openda"`` (see :class:`DudOptions`);
+- ``std`` and ``correlation`` come from a fresh finite-difference Jacobian at the end when the secant
+  one has aged (p more runs, then one Gauss-Newton step with it);
 - the p + 1 initial runs go out as one ``batch``; ``max_nfev`` caps the total number of runs;
 - the run can be saved and continued exactly (``extra["state"]``, ``restart=``).
 
 Status codes (``TERMINATION_MESSAGES``)
 ---------------------------------------
 ====== =====================================================================================
-  1    T1: the last iteration lowered the cost by at most ``abs_tol``
+  1    T1: the last iteration lowered the cost by at most ``abs_tol`` × s²
   2    T2: ... by at most ``rel_tol`` × cost
   3    T3: the linearised cost predicted a relative decrease of at most ``rel_tol_linear``
   4    no predicted decrease from a fresh interpolation set (stationary point)
   5    line search failed on a fresh interpolation set (local minimum to model resolution)
   6    the cost is zero
+  7    the cost is at most ``negligible_cost`` × the cost change of one initial perturbation
   0    ``max_nfev`` used up;  −1 callback;  −2 deadline;  −3 ``max_outer`` reached
  −4    the interpolation set stays degenerate
 ====== =====================================================================================
@@ -48,20 +54,15 @@ from rivercal.optimise._core import (
     Batch,
     Callback,
     Fun,
+    Run,
     coerce_options,
-    inward_steps,
     project,
     validate_controls,
     validate_problem,
 )
-from rivercal.optimise._dud_engine import (
-    TERMINATION_MESSAGES,
-    DudOptions,
-    DudState,
-    default_steps,
-    run_dud,
-    validate_restart,
-)
+from rivercal.optimise._dud_engine import default_steps, run_dud, validate_restart
+from rivercal.optimise._dud_options import TERMINATION_MESSAGES, DudOptions, DudState
+from rivercal.optimise.jacobian import fd_jacobian, inward_steps
 from rivercal.optimise.result import OptimiseResult
 
 __all__ = ["TERMINATION_MESSAGES", "DudOptions", "DudState", "dud"]
@@ -105,6 +106,11 @@ class DenseSecant:
         p_mat = (points[1:] - points[0]).T
         return float(np.max(np.abs(np.linalg.solve(p_mat, delta))))
 
+    def fresh_jacobian(self, run: Run, x: np.ndarray, r: np.ndarray, h: np.ndarray,
+                       noise: np.ndarray | None) -> np.ndarray:
+        """Forward differences with steps ``h`` pointing into the box (p runs, one batch; noise-checked)."""
+        return fd_jacobian(run.evaluate_many, x, run.lb, run.ub, h, r0=r, noise=noise).jacobian
+
     def get_state(self) -> Any:
         """DuD's model has no state."""
         return None
@@ -143,8 +149,10 @@ def dud(fun: Fun, x0: Any, lb: Any, ub: Any, *, options: DudOptions | dict | Non
     Returns
     -------
     OptimiseResult
-        ``jac`` is the final secant Jacobian; ``std``/``correlation`` follow from cov = (JᵀJ)⁻¹ =
-        P(AᵀA)⁻¹Pᵀ (thesis Eq. 2-12/2-13). ``extra`` holds ``state``, ``n_reinit``, ``initial_step``.
+        ``jac`` is the final Jacobian (see ``DudOptions.final_jacobian``: the secant one, J = A P⁻¹, or a
+        fresh finite-difference one); ``std``/``correlation`` follow from cov = (JᵀJ)⁻¹ (thesis
+        Eq. 2-12/2-13). ``extra`` holds ``state``, ``n_reinit``, ``initial_step`` and
+        ``final_jacobian_nfev`` (the runs spent on the final Jacobian and its Gauss-Newton step).
 
     Examples
     --------

@@ -32,13 +32,13 @@ from rivercal.optimise._core import (
     check_real,
     coerce_options,
     default_initial_step,
-    inward_steps,
     option_vector,
     optional_array,
     validate_controls,
     validate_problem,
 )
 from rivercal.optimise._scipy import Scaled, cost_function, iteration_callback
+from rivercal.optimise.jacobian import inward_steps
 from rivercal.optimise.result import COMMON_MESSAGES, STATUS_MAX_ITER, OptimiseResult
 
 __all__ = ["TERMINATION_MESSAGES", "NelderMeadOptions", "nelder_mead"]

@@ -29,6 +29,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal.report.html import Page, bullets, figure, paragraph, table
+from rivercal.report.identifiability import explanations, suggestions
 from rivercal.report.twin import BIAS_WINDOW, bias_table, suite_summary
 from rivercal.twin.reference import (
     THESIS_FIGURES,
@@ -439,8 +440,7 @@ def _identifiability_blocks(analysis: InitialAnalysis, files: Mapping[str, str])
         f"Verdict: {n_agree} of {n_judged} parameters agree with the thesis' conclusion (\""
         f"{THESIS_IDENTIFIABILITY['verdict_quote']}\").",
         table(verdicts, "Identifiability verdict, ours beside the thesis' conclusion (§4-5-1)", float_format=".2f"),
-        bullets([str(e) for e in ident.verdict["explanation"]] + [f"Suggestion: {c.explanation}"
-                                                                   for c in ident.clusters]),
+        bullets(list(explanations(ident).values()) + [f"Suggestion: {c}" for c in suggestions(ident)]),
     ]
     if same:
         v_agree = int(sum(bool(a) for a in vectors["agree"] if a is not None))

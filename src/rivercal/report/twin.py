@@ -22,6 +22,7 @@ import pandas as pd
 
 from rivercal._figure import subplots
 from rivercal.analysis import bias_significance, errors, moving_bias
+from rivercal.report.identifiability import verdict_table
 from rivercal.twin.reference import THESIS_FIGURES, thesis_row
 from rivercal.twin.suites import SUITES, InitialAnalysis, ScenarioResult
 
@@ -297,7 +298,7 @@ def write_initial_analysis(analysis: InitialAnalysis, out: str | Path, case_name
     if ident is not None:
         tables.update(singular_values=ident.singular_frame(), singular_vectors=ident.vectors_frame(),
                       correlation=ident.correlation_frame(), covariance=ident.covariance_frame(),
-                      identifiability=ident.verdict)
+                      identifiability=verdict_table(ident))
     files = {}
     for kind, frame in tables.items():
         frame.to_csv(out / f"{kind}.csv")

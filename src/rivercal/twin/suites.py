@@ -39,6 +39,7 @@ from rivercal.analysis import (
     SensitivityResult,
     identifiability,
     sensitivity,
+    summary_statistics,
     thesis_scenarios,
 )
 from rivercal.evaluate import Evaluator, default_workers, process_pool
@@ -238,10 +239,11 @@ def _calibrate(scenario: Scenario, truth: TwinTruth) -> ScenarioResult:
     levels = [i for i in ids if not i.endswith(".Q")]
     state_rmse = float(np.sqrt(np.mean((final.loc[window[0]:window[1], levels] - true[levels]).to_numpy() ** 2)))
     errors = {n: cal.estimates[n] - scenario.truth[n] for n in scenario.truth}
+    stats = summary_statistics(residual)
     return ScenarioResult(
         suite=scenario.suite, id=scenario.id, truth=scenario.truth, start=scenario.start, estimates=cal.estimates,
         errors=errors, std=cal.std, iterations=r.nit, model_runs=r.nfev, wall_s=cal.wall_time, cost=r.cost,
-        rmse=float(np.sqrt(np.mean(residual**2))), bias=float(np.mean(residual)), std_error=float(np.std(residual)),
+        rmse=stats["rmse"], bias=stats["bias"], std_error=stats["std"],
         state_rmse=state_rmse, success=bool(r.success),
         within_tolerance=all(abs(errors[n]) <= scenario.tolerance[n] for n in errors), message=r.message,
         history=cal.history,

@@ -157,6 +157,8 @@ def _identifiability(problem, batch, out: Path, files: dict, case_name: str, rel
                      options) -> tuple[dict, int]:
     from rivercal.analysis import identifiability
     from rivercal.analysis.figures import plot_correlation, plot_svd
+    from rivercal.report.identifiability import summary as explained
+    from rivercal.report.identifiability import verdict_table
 
     result = identifiability(problem, rel_step=rel_step, scheme=scheme, options=options, batch=batch)
     jac = result.extra["jacobian"]
@@ -165,14 +167,14 @@ def _identifiability(problem, batch, out: Path, files: dict, case_name: str, rel
     result.vectors_frame().to_csv(out / "singular_vectors.csv")
     result.covariance_frame().to_csv(out / "covariance.csv")
     result.correlation_frame().to_csv(out / "correlation.csv")
-    result.verdict.to_csv(out / "identifiability.csv")
+    verdict_table(result).to_csv(out / "identifiability.csv")
     for name in ("jacobian", "singular_values", "singular_vectors", "covariance", "correlation", "identifiability"):
         files[name] = str(out / f"{name}.csv")
     files["svd_figure"] = str(plot_svd(result, out / "svd.png",
                                        title=f"{case_name}: singular value decomposition (Fig. 4-6)"))
     files["correlation_figure"] = str(plot_correlation(result, out / "correlation.png",
                                                        title=f"{case_name}: parameter correlation (Fig. 4-7)"))
-    summary = result.summary()
+    summary = explained(result)
     summary["scale"] = {n: float(d) for n, d in zip(result.names, result.scale, strict=True)}
     summary["rel_step"] = rel_step
     summary["scheme"] = scheme

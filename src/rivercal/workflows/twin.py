@@ -118,5 +118,7 @@ def _analysis_summary(analysis: Any, files: dict) -> dict:
            "model_runs": analysis.model_runs, "wall_s": round(analysis.wall_s, 1),
            "sensitivity": analysis.sensitivity.summary(), "files": files}
     if analysis.identifiability is not None:
-        out["identifiability"] = analysis.identifiability.summary()
+        from rivercal.report.identifiability import summary as explained
+
+        out["identifiability"] = explained(analysis.identifiability)
     return out
