@@ -92,8 +92,10 @@ def test_a_twin_through_the_black_box_finds_the_truth(tmp_path) -> None:
     problem = CalibrationProblem(model, params(), obs, (START + pd.Timedelta("12h"), START + pd.Timedelta("3D")),
                                  warmup="12h")
     cal = calibrate(problem, "dud", workers=1)
-    assert cal.estimates["k"] == pytest.approx(3.0, rel=1e-5)
-    assert cal.estimates["crest"] == pytest.approx(10.0, abs=1e-5)
+    # DuD stops once the cost is negligible against one initial perturbation's (1e-6 of it), which leaves a
+    # noise-free twin about 1e-3 of the initial step from the truth: within 1 % of k's step and 1 mm of the crest
+    assert cal.estimates["k"] == pytest.approx(3.0, abs=0.005)
+    assert cal.estimates["crest"] == pytest.approx(10.0, abs=1e-3)
     assert not any((tmp_path / "runs").glob("run-*"))  # successful runs leave nothing behind
 
 
