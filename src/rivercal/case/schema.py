@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from rivercal.errors import StructureOverlap
-from rivercal.network import Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
+from rivercal.network import STRUCTURE_TABLES, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
 from rivercal.network.grid import Segment, branch_layout, chainages
 from rivercal.parameters import Parameter
 
@@ -311,6 +311,7 @@ class CaseFile(Network):
     @model_validator(mode="after")
     def _calibration_refers_to_the_network(self) -> CaseFile:
         weirs = {w.id for w in self.weirs}
+        scheduled = {w.id for w in self.weirs if w.crest_series is not None}
         branches = {b.id for b in self.branches}
         names: set[str] = set()
         for i, p in enumerate(self.parameters):
@@ -321,6 +322,10 @@ class CaseFile(Network):
                 if target.startswith("weir:") and target[5:-12] not in weirs:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown weir {target[5:-12]!r}")
+                if target.startswith("weir:") and target[5:-12] in scheduled:
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r} sets the crest of weir {target[5:-12]!r}, whose crest "
+                                       "follows a time series (crest_series); calibrate a weir with a constant crest")
                 if target.startswith("friction:branch:") and target[16:] not in branches:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown branch {target[16:]!r}")
@@ -380,12 +385,11 @@ class CaseFile(Network):
     def _fits_the_grid(self) -> CaseFile:
         where = {
             s.id: (f"{table}[{i}]", kind)
-            for table, kind, items in (("weirs", "weir", self.weirs), ("culverts", "culvert", self.culverts),
-                                       ("pumps", "pump", self.pumps))
-            for i, s in enumerate(items)
+            for table, kind in STRUCTURE_TABLES
+            for i, s in enumerate(getattr(self, table))
         }
         on_branch: dict[str, list[Weir | Culvert | Pump]] = {b.id: [] for b in self.branches}
-        for s in [*self.weirs, *self.culverts, *self.pumps]:
+        for s in self.structures:
             on_branch[s.branch].append(s)
         length = self.engine.structure_length
         layouts: dict[str, list[Segment]] = {}
@@ -396,12 +400,15 @@ class CaseFile(Network):
                 path, kind = where[exc.structure.id]
                 prev_path, prev_kind = where[exc.previous.id]
                 gap = abs(exc.structure.chainage - exc.previous.chainage)
+                need = (f"each structure needs its own segment of engine.structure_length = {length:g} m; move one "
+                        "of them or lower engine.structure_length") if br.points is None else (
+                        "each structure needs its own stretch between two calculation points; add a point between "
+                        "them to the branch's points")
                 raise FieldProblem(
                     f"{path}.chainage",
                     f"{kind} {exc.structure.id!r} at chainage {exc.structure.chainage:g} m of branch {br.id!r} is "
                     f"too close to {prev_kind} {exc.previous.id!r} ({prev_path}, at {exc.previous.chainage:g} m, "
-                    f"{gap:g} m away): each structure needs its own segment of engine.structure_length = "
-                    f"{length:g} m; move one of them or lower engine.structure_length",
+                    f"{gap:g} m away): {need}",
                 ) from None
         self._check_laterals(layouts)
         self._check_level_stations(layouts, where)
