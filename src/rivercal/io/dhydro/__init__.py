@@ -11,8 +11,9 @@ it with :func:`rivercal.case.load_case`, so an imported case passes the same che
 """
 
 from rivercal.io.dhydro._context import ImportOptions
+from rivercal.io.dhydro._export import ExportResult, export_dhydro
 from rivercal.io.dhydro._forcing import read_exchange
 from rivercal.io.dhydro._import import ImportResult, import_dhydro
 from rivercal.io.dhydro._ledger import Entry, Ledger
 
-__all__ = ["Entry", "ImportOptions", "ImportResult", "Ledger", "import_dhydro", "read_exchange"]
+__all__ = ["Entry", "ExportResult", "ImportOptions", "ImportResult", "Ledger", "export_dhydro", "import_dhydro", "read_exchange"]

@@ -249,17 +249,37 @@ def _write(ctx: Context, out: Path) -> None:
     for old in out.glob("*.csv"):
         old.unlink()
     for file, columns in ctx.series.items():
-        index = sorted(set().union(*(s.index for s in columns.values())))
+        index = _without_gaps(sorted(set().union(*(s.index for s in columns.values()))))
         frame = pd.DataFrame({name: np.interp((pd.DatetimeIndex(index) - ctx.start).total_seconds(),
                                               (s.index - ctx.start).total_seconds(), s.to_numpy(dtype=float))
                               for name, s in columns.items()}, index=pd.DatetimeIndex(index))
         frame.index = frame.index.strftime("%Y-%m-%dT%H:%M:%SZ")
         frame.index.name = "time"
-        frame.to_csv(out / file, float_format="%.10g")
+        frame.to_csv(out / file)  # shortest text that reads back as the same number
     order = ["case", "engine", "initial", "friction", "friction_groups", "profiles", "nodes", "branches", "weirs",
              "universal_weirs", "orifices", "culverts", "bridges", "pumps", "boundaries", "laterals", "stations"]
     data = {k: ctx.case[k] for k in order if ctx.case.get(k) not in (None, [], {})}
     (out / "case.toml").write_text(tomli_w.dumps(_clean(data)), encoding="utf-8")
+
+
+def _without_gaps(times: list[pd.Timestamp]) -> pd.DatetimeIndex:
+    """Times with the gaps of a mostly regular series filled at its regular step.
+
+    A case rejects a regular series with a gap (a missing line is usually a mistake); a D-Flow FM series
+    may skip times on purpose (a value held for days). The values at the inserted times are interpolated
+    linearly, which is how both programs read the series between its points.
+    """
+    index = pd.DatetimeIndex(times)
+    if index.size < 3:
+        return index
+    steps = np.diff(index).astype("timedelta64[ms]").astype(np.int64)
+    values, counts = np.unique(steps, return_counts=True)
+    step = int(values[np.argmax(counts)])
+    if counts.max() < 0.9 * steps.size or not (steps > step).any():
+        return index
+    extra = [pd.date_range(a, b, freq=pd.Timedelta(step, unit="ms"), inclusive="neither")
+             for a, b, d in zip(index[:-1], index[1:], steps, strict=True) if d > step]
+    return index.append(extra).sort_values().unique()
 
 
 def _clean(value):

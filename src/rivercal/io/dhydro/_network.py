@@ -21,7 +21,10 @@ import numpy as np
 
 from rivercal.io.dhydro._context import Context, unquote
 
-__all__ = ["FRICTION_TYPES", "convert_network", "friction_of", "profile_of_definition"]
+__all__ = ["FRICTION_TYPES", "MAIN", "convert_network", "friction_of", "profile_of_definition"]
+
+#: D-Flow FM's default friction group: profiles without a friction id use it.
+MAIN = "Main"
 
 #: hydrolib-core's friction types → the case's, with the note for the ones that are converted approximately.
 FRICTION_TYPES = {"chezy": "chezy", "manning": "manning", "strickler": "strickler", "whitecolebrook": "white-colebrook"}
@@ -75,6 +78,7 @@ def _friction_groups(ctx: Context) -> None:
                                     f"the plausible range ({exc}); the case keeps its default global friction")
     groups: list[dict] = []
     branch_values: dict[str, dict[str, float]] = defaultdict(dict)
+    main_laws: dict[str, dict] = {}
     for blocks in ctx.model.frictions:
         for kind_, bid, reason in blocks.failed:
             ctx.ledger.refused("friction group", bid, f"{blocks.path.name}: {reason}")
@@ -98,6 +102,14 @@ def _friction_groups(ctx: Context) -> None:
                 continue
             fr, note = friction_of(obj.frictiontype, 1.0)
             group = next(g for g in groups if g["id"] == group_id)
+            if fr is not None and group_id == MAIN and fr["type"] != group["type"]:
+                values = [float(v) for v in (obj.frictionvalues or [])]
+                if values:
+                    main_laws[unquote(obj.branchid)] = friction_of(obj.frictiontype, float(np.mean(values)))[0]
+                    (ctx.ledger.approximated if len(set(values)) > 1 else ctx.ledger.exact)(
+                        "friction on a branch", where, "values along the branch replaced by their mean"
+                        if len(set(values)) > 1 else "")
+                continue
             if fr is None or fr["type"] != group["type"]:
                 ctx.ledger.refused("friction on a branch", where,
                                    f"friction type {obj.frictiontype} differs from the group's {group['type']}; a "
@@ -118,11 +130,23 @@ def _friction_groups(ctx: Context) -> None:
             if fr["type"] == "strickler" and str(obj.frictiontype).lower().startswith("stricklernik"):
                 value = friction_of(obj.frictiontype, value)[0]["value"]
             branch_values[group_id][unquote(obj.branchid)] = value
+    main = next((g for g in groups if g["id"] == MAIN), None)
+    if main is not None:  # D-Flow FM's default group: the case's global friction and the branches' own
+        ctx.case["friction"] = {"type": main["type"], "value": main["value"]}
+        for branch, value in branch_values.get(MAIN, {}).items():
+            main_laws.setdefault(branch, {"type": main["type"], "value": value})
+        ctx.ledger.exact("setting", "friction group Main", "D-Flow FM's default friction group: the case's global "
+                         "friction ([friction]) and the branches' own (branches[].friction)")
     ctx.case["friction_groups"] = groups
     ctx._branch_friction = branch_values  # type: ignore[attr-defined]  # resolved once branch ids are known
+    ctx._main_branches = main_laws  # type: ignore[attr-defined]
 
 
 def _finish_friction_groups(ctx: Context) -> None:
+    for b in ctx.case["branches"]:
+        name = next((k for k in ctx._main_branches if ctx.id("branch", k) == b["id"]), None)  # type: ignore[attr-defined]
+        if name is not None:
+            b["friction"] = ctx._main_branches[name]  # type: ignore[attr-defined]
     for g in ctx.case["friction_groups"]:
         for branch, value in ctx._branch_friction.get(g["id"], {}).items():  # type: ignore[attr-defined]
             if ctx.ids.get("branch") is None or not ctx.ids["branch"].known(branch):
@@ -145,6 +169,8 @@ def _section_friction(ctx: Context, d: Any, sections: int) -> tuple[list[str] | 
     if ids:
         ids = [unquote(i) for i in ids]
         out = [ctx.id("friction group", i) for i in ids]
+        if all(i == MAIN for i in out) and MAIN in groups:
+            return None, ""  # the case's global and branch friction
         missing = [i for i, o in zip(ids, out, strict=True) if o not in groups]
         if missing:
             return None, f"friction group(s) {', '.join(missing)} not defined; the profile takes the global friction"
@@ -171,10 +197,7 @@ def _section_friction(ctx: Context, d: Any, sections: int) -> tuple[list[str] | 
         if len(out) != sections:
             out = [out[0]] * sections
         return out, ""
-    main = ctx.id("friction group", "Main")
-    if main in groups:  # D-Flow FM's default friction id
-        return [main] * sections, ""
-    return None, ""
+    return None, ""  # no friction id: D-Flow FM's default group Main, the case's global and branch friction
 
 
 def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) -> tuple[dict | None, float, str]:
@@ -380,6 +403,8 @@ def _nodes_and_branches(ctx: Context) -> None:
         ctx.ledger.approximated("branch", name, "; ".join(notes))
     ctx.case["branches"] = branches
     _finish_friction_groups(ctx)
+    referenced = {g for prof in ctx.case.get("profiles", []) for g in prof.get("friction", [])}
+    ctx.case["friction_groups"] = [g for g in ctx.case["friction_groups"] if g["id"] != MAIN or MAIN in referenced]
     used = {n for b in branches for n in (b["from_node"], b["to_node"])}
     ctx.case["nodes"] = [n for n in nodes if n["id"] in used]
 

@@ -89,6 +89,14 @@ def convert_structures(ctx: Context) -> None:
     for table, items in tables.items():
         if items:
             ctx.case[table] = items
+    # D-Flow FM reports every structure's levels either side and discharge: so does the case
+    taken = {st["id"] for st in ctx.case["stations"]}
+    for table, items in tables.items():
+        for item in items:
+            sid = item["id"] if item["id"] not in taken else f"{item['id']}_structure"
+            sid = sid.replace(".", "_")
+            taken.add(sid)
+            ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
 
 
 # -- settings that may be time series ------------------------------------------------------------------
