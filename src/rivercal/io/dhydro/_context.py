@@ -123,6 +123,7 @@ class Context:
     branch_nodes: dict[str, tuple[str, str]] = field(default_factory=dict)
     branch_length: dict[str, float] = field(default_factory=dict)
     origins: dict[str, tuple[str, str]] = field(default_factory=dict)
+    used_definitions: set[str] = field(default_factory=set)
 
     def origin(self, case_id: str, kind: str) -> tuple[str, str]:
         """The ledger kind and D-Flow FM id of a structure or station of the case (``kind`` if unknown)."""

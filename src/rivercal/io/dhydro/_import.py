@@ -105,8 +105,12 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     (out / "import.md").write_text(ledger.markdown(model=str(mdu), case_folder=str(out),
                                                    partial=options.allow_partial), encoding="utf-8")
     if ledger.blocking and not options.allow_partial:
-        shown = "; ".join(f"{e.kind} {e.id!r}: {e.note}" for e in ledger.blocking[:5])
-        more = f" (and {len(ledger.blocking) - 5} more)" if len(ledger.blocking) > 5 else ""
+        groups: dict[tuple[str, str], list[str]] = {}
+        for e in ledger.blocking:
+            groups.setdefault((e.kind, e.note), []).append(e.id)
+        shown = "; ".join(f"{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1 else "") + f": {note}"
+                          for (kind, note), ids in list(groups.items())[:4])
+        more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
         raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: {shown}{more}"
                         f"; see {out / 'import.md'}, or import with --allow-partial to leave them out", file=str(mdu))
     try:
@@ -234,7 +238,7 @@ def _other_settings(ctx: Context) -> None:
                             "Delft scheme) on D-Flow FM's calculation points, with its own upwinding and structure "
                             "linearisation; D-Flow FM's numerical settings (Teta0, advection type, limiters) are not "
                             "carried over")
-    used = {k for k in ctx.__dict__.get("_profiles", {})}
+    used = ctx.used_definitions
     for d in ctx.model.crossdefs.objects:
         if unquote(d.id) not in used:
             ctx.ledger.refused("profile", unquote(d.id), "not used by any cross-section or structure", hydraulic=False)

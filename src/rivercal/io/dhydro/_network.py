@@ -25,6 +25,8 @@ __all__ = ["FRICTION_TYPES", "MAIN", "convert_network", "friction_of", "profile_
 
 #: D-Flow FM's default friction group: profiles without a friction id use it.
 MAIN = "Main"
+#: Farthest a location given by x, y may lie from a branch to be snapped onto it, m.
+SNAP_DISTANCE = 100.0
 
 #: hydrolib-core's friction types → the case's, with the note for the ones that are converted approximately.
 FRICTION_TYPES = {"chezy": "chezy", "manning": "manning", "strickler": "strickler", "whitecolebrook": "white-colebrook"}
@@ -174,10 +176,10 @@ def _section_friction(ctx: Context, d: Any, sections: int) -> tuple[list[str] | 
         missing = [i for i, o in zip(ids, out, strict=True) if o not in groups]
         if missing:
             return None, f"friction group(s) {', '.join(missing)} not defined; the profile takes the global friction"
-        if len(out) != sections:
-            if len(set(out)) == 1:
-                return [out[0]] * sections, ""
-            return [out[0]] * sections, (f"{len(out)} friction ids for {sections} section(s); all sections take "
+        if len(out) > sections:  # ids of sections of zero width (an absent floodplain)
+            out = out[:sections]
+        elif len(out) < sections:
+            return [out[0]] * sections, (f"{len(out)} friction ids for {sections} sections; all sections take "
                                          f"{out[0]}")
         return out, ""
     types = getattr(d, "frictiontypes", None) or ([d.frictiontype] if getattr(d, "frictiontype", None) else None)
@@ -301,6 +303,7 @@ def _along(d: Any) -> list[float]:
 def add_profile(ctx: Context, definition_id: str, *, for_structure: bool = False) -> tuple[str | None, float]:
     """Convert a definition once (by id) into ``ctx.case['profiles']``; its profile id and lowest level (m AD)."""
     key = unquote(definition_id)
+    ctx.used_definitions.add(key)
     cache = ctx.__dict__.setdefault("_profiles", {})
     if key in cache:
         return cache[key]
@@ -529,7 +532,8 @@ def _stations(ctx: Context) -> None:
             name = unquote(obs.name)
             where = _locate(ctx, obs.branchid, obs.chainage, obs.x, obs.y)
             if where is None:
-                ctx.ledger.refused("observation point", name, "not on a branch of the network", hydraulic=False)
+                ctx.ledger.refused("observation point", name, f"not on a branch of the network (none within "
+                                   f"{SNAP_DISTANCE:g} m)", hydraulic=False)
                 continue
             branch, chainage, note = where
             stations.append({"id": ctx.id("station", name), "branch": branch, "chainage": chainage,
@@ -580,7 +584,7 @@ def _locate(ctx: Context, branch: Any, chainage: Any, x: Any, y: Any) -> tuple[s
         along = (np.concatenate([[0.0], np.cumsum(seglen)])[k] + t[k] * seglen[k]) / max(seglen.sum(), 1e-12)
         if best is None or d[k] < best[0]:
             best = (float(d[k]), b["id"], float(along * b["length"]))
-    if best is None:
+    if best is None or best[0] > SNAP_DISTANCE:
         return None
     return best[1], best[2], f"given by x, y; snapped to the nearest branch {best[1]} ({best[0]:.1f} m away)"
 

@@ -30,6 +30,9 @@ from rivercal.io.dhydro._ledger import Ledger
 __all__ = ["FileBlocks", "LoadedModel", "load_fm_model"]
 
 _LOCK = threading.Lock()
+#: The folder that file names inside a file's blocks are relative to, by the file's folder (the MDU's folder
+#: unless the MDU says PathsRelativeToParent = 1).
+_BASE: dict[Path, Path] = {}
 
 
 @dataclass
@@ -122,6 +125,11 @@ def load_fm_model(mdu: Path, ledger: Ledger) -> LoadedModel:
         raise CaseError(f"the network file {getattr(net, 'filepath', None)} could not be read as a UGRID network "
                         f"(hydrolib-core returned {type(net).__name__})", file=str(mdu), field="geometry.NetFile")
     base = mdu.parent
+    relative_to_parent = bool(getattr(fm.general, "pathsrelativetoparent", False))
+    for f in _as_list(geometry.structurefile) + _as_list(geometry.crossdeffile):
+        path = Path(getattr(f, "filepath", None) or "")
+        folder = (path if path.is_absolute() else base / path).parent
+        _BASE[folder] = folder if relative_to_parent else base
     crossdefs = _blocks(geometry.crossdeffile, "CrossDefModel", base, ledger, "cross-section definitions",
                         _crossdef_kind)
     crosslocs = _blocks(geometry.crosslocfile, "CrossLocModel", base, ledger, "cross-section locations",
@@ -172,16 +180,43 @@ def _blocks(model: Any, expected: str, base: Path, ledger: Ledger, what: str,
     full = path if path.is_absolute() else base / path
     name = type(model).__name__
     if name == expected:
+        if full.is_file():
+            _warn_unknown_keys(full, ledger, what, kind_of)
         return FileBlocks(full, _objects_of(model))
     if name != "DiskOnlyFileModel":
         ledger.warn(f"{what} file {path}: hydrolib-core returned a {name}, not a {expected}; read block by block")
     else:
         ledger.warn(f"{what} file {path}: hydrolib-core could not validate the file as a whole and kept it unparsed "
-                    "(a DiskOnlyFileModel); read block by block instead, each block with its own model")
+                    "(a DiskOnlyFileModel); read block by block instead, each block with its own model, and the "
+                    "blocks that fail are refused by name")
     if not full.is_file():
         ledger.warn(f"{what} file {path} does not exist")
         return FileBlocks(full)
     return _parse_blocks(full, ledger, what, kind_of)
+
+
+def _warn_unknown_keys(path: Path, ledger: Ledger, what: str, kind_of: Callable[[dict], tuple[str, Any] | None]) -> None:
+    """Warn about the keys of each block that its hydrolib-core model does not know (some models ignore them)."""
+    from hydrolib.core.dflowfm.ini.parser import Parser
+
+    found_by_keys: dict[tuple[str, tuple[str, ...]], list[str]] = {}
+    for section in Parser.parse(path).sections:
+        if section.header.lower() == "general":
+            continue
+        data = {k.lower(): v for k, v in section.flatten(duplicate_key_as_list=False, with_comments=False).items()}
+        found = kind_of({**data, "_header": section.header})
+        if found is None:
+            continue
+        kind, cls = found
+        known = {n.lower() for n in cls.model_fields} | {
+            f.alias.lower() for f in cls.model_fields.values() if f.alias} | {"_header", "datablock", "comments"}
+        unknown = tuple(sorted(k for k in data if k not in known))
+        if unknown:
+            block_id = str(data.get("id") or data.get("frictionid") or data.get("branchid") or data.get("name") or "?")
+            found_by_keys.setdefault((kind, unknown), []).append(block_id)
+    for (kind, keys), ids in found_by_keys.items():
+        shown = ", ".join(repr(i) for i in ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
+        ledger.warn(f"{what} file {path.name}: unknown keyword(s) {', '.join(keys)} read past in {kind} {shown}")
 
 
 def _objects_of(model: Any) -> list[Any]:
@@ -219,7 +254,21 @@ def _number(text: Any) -> float | None:
         return None
 
 
-def _parse_blocks(path: Path, ledger: Ledger, what: str, kind_of: Callable[[dict], tuple[str, Any] | None]) -> FileBlocks:
+@contextlib.contextmanager
+def _relative_to(folder: Path) -> Iterator[None]:
+    """Within the block, hydrolib-core resolves the file names that blocks refer to (``.bc``, ``.tim``) from ``folder``."""
+    from hydrolib.core.base.file_manager import ResolveRelativeMode, file_load_context
+
+    with file_load_context() as context:
+        context.push_new_parent(folder, ResolveRelativeMode.ToAnchor)
+        try:
+            yield
+        finally:
+            context.pop_last_parent()
+
+
+def _parse_blocks(path: Path, ledger: Ledger, what: str,
+                  kind_of: Callable[[dict], tuple[str, Any] | None]) -> FileBlocks:
     from hydrolib.core.dflowfm.ini.parser import Parser
 
     doc = Parser.parse(path)
@@ -241,7 +290,7 @@ def _parse_blocks(path: Path, ledger: Ledger, what: str, kind_of: Callable[[dict
                 ledger.warn(f"{what} file {path.name}, {kind} {block_id!r}: {why}")
         unknown: list[tuple[str, list[str]]] = []
         try:
-            with _recording_unknown_keywords(unknown):
+            with _recording_unknown_keywords(unknown), _relative_to(_BASE.get(path.parent)):
                 out.objects.append(cls.model_validate(data))
         except ValidationError as exc:
             out.failed.append((kind, block_id, _first_error(exc)))

@@ -66,7 +66,8 @@ def convert_structures(ctx: Context) -> None:
             ctx.ledger.refused(s.type, sid, f"second or later member of compound {in_compound[sid]!r} (see there)")
             continue
         if s.branchid is None or s.chainage is None:
-            ctx.ledger.refused(s.type, sid, "located by x, y coordinates (a 2D structure), not on a branch")
+            ctx.ledger.refused(s.type, sid, "located by x, y coordinates: a structure of the 2D part of a 1D2D "
+                               "model, which a case leaves out", hydraulic=False)
             continue
         if not ctx.ids["branch"].known(s.branchid) or ctx.id("branch", s.branchid) not in ctx.branch_length:
             ctx.ledger.refused(s.type, sid, f"its branch {unquote(s.branchid)!r} is not in the network")
@@ -177,12 +178,8 @@ def _universal_weir(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[s
     low = min(z)
     item = {**base, "y": y, "z": [v - low for v in z], "crest_level": float(s.crestlevel),
             "discharge_coefficient": float(s.dischargecoeff), "allowed_flow": _direction(s.allowedflowdir)}
-    notes = []
-    if abs(low) > 1e-9:
-        notes.append(f"z values relative to their lowest point ({low:g} m above the crest level setting), and the "
-                     "crest level raised by it")
-        item["crest_level"] = float(s.crestlevel) + low
-    return "universal_weirs", item, notes, ""
+    # D-Flow FM shifts the crest shape so that its lowest point lies at crestLevel: z relative to that point
+    return "universal_weirs", item, [], ""
 
 
 def _orifice(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
@@ -263,10 +260,13 @@ def _culvert(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], st
         return "culverts", {}, notes, f"its cross-section definition {unquote(s.csdefid)!r} is missing or unreadable"
     item: dict = {**base}
     kind = type(d).__name__
+    ctx.used_definitions.add(unquote(s.csdefid))
     if kind == "CircleCrsDef":
         item.update(shape="circular", diameter=float(d.diameter))
+        ctx.ledger.exact("profile", unquote(d.id), "the shape of a culvert (its diameter)")
     elif kind == "RectangleCrsDef" and d.closed:
         item.update(shape="rectangular", width=float(d.width), height=float(d.height))
+        ctx.ledger.exact("profile", unquote(d.id), "the shape of a culvert (its width and height)")
     else:
         pid, _ = add_profile(ctx, s.csdefid, for_structure=True)
         if pid is None:
