@@ -76,7 +76,7 @@ class IdMap:
             k += 1
         self._map[key] = new
         self._used.add(new)
-        if new != str(original):
+        if new != key:
             self._ledger.renamed.setdefault(self.kind, {})[str(original)] = new
         return new
 
