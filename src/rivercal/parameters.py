@@ -6,7 +6,8 @@ an initial value, a transform that sets how the optimiser perturbs it, an option
 deviation (a weak constraint), and targets:
 
 - one or more model quantities (``weir:<id>.crest_level`` in m AD, ``friction:global``,
-  ``friction:branch:<id>`` in the unit of the friction law) that all take the parameter's value; or
+  ``friction:branch:<id>``, ``friction:group:<id>`` in the unit of the friction law, ``friction:scale``
+  a factor on every channel friction's conveyance) that all take the parameter's value; or
 - a *cluster* of weir crests, moved by one number. ``cluster_mode = "fraction"`` (thesis §4-4, "Wc"):
   a value in [0, 1] that places every target weir's crest between its own minimum and maximum,
   crest = min + value × (max - min). ``cluster_mode = "shift"``: a change in m that moves every
@@ -35,7 +36,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 __all__ = ["ClusterTarget", "Parameter", "ParameterSet"]
 
 _ID = r"[A-Za-z0-9_.\-]+"
-Target = Annotated[str, Field(pattern=rf"^(weir:{_ID}\.crest_level|friction:global|friction:branch:{_ID})$")]
+Target = Annotated[str, Field(pattern=rf"^(weir:{_ID}\.crest_level|friction:global|friction:branch:{_ID}"
+                                     rf"|friction:group:{_ID}|friction:scale)$")]
 
 
 class _Model(BaseModel):

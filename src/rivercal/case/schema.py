@@ -137,6 +137,11 @@ class EngineSettings(_Model):
         must be far enough apart for each to get its own segment.
     max_velocity
         Velocity above which the run is declared diverged, m/s.
+    cross_sections
+        ``nearest`` (each calculation point takes the shape of the nearest cross-section) or
+        ``interpolated`` (each link takes the cross-section interpolated between the two around its
+        middle, at the bed level there, and each point stores the water of its half-links, as D-Flow FM
+        does).
     """
 
     dt: Real = Field(default=60.0, ge=0.1, le=3600, description="time step, s (0.1-3600)")
@@ -168,6 +173,12 @@ class EngineSettings(_Model):
     )
     max_velocity: Real = Field(
         default=20.0, gt=0, description="flow velocity above which a run is declared diverged, m/s"
+    )
+    cross_sections: Literal["nearest", "interpolated"] = Field(
+        default="nearest",
+        description="'nearest': each calculation point takes the shape of the nearest cross-section; "
+        "'interpolated': each link takes the cross-section interpolated at its middle and each point the "
+        "storage of its half-links (as D-Flow FM)",
     )
 
     @model_validator(mode="after")
@@ -326,6 +337,9 @@ class CaseFile(Network):
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} sets the crest of weir {target[5:-12]!r}, whose crest "
                                        "follows a time series (crest_series); calibrate a weir with a constant crest")
+                if target.startswith("friction:group:") and target[15:] not in {g.id for g in self.friction_groups}:
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r} refers to unknown friction group {target[15:]!r}")
                 if target.startswith("friction:branch:") and target[16:] not in branches:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown branch {target[16:]!r}")

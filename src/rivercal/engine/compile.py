@@ -15,29 +15,29 @@ from typing import NamedTuple
 import numpy as np
 
 from rivercal.case.schema import EngineSettings
-from rivercal.engine.geometry import ProfileTables, build_tables, flow_records, storage_zw, zw_of
+from rivercal.engine.channels import FRICTION_CODES, channel_geometry
 from rivercal.engine.kernels.codes import (
     BOUNDARY_DISCHARGE,
     BOUNDARY_LEVEL,
     BOUNDARY_RATING,
     CULVERT_CIRCULAR,
+    CULVERT_PROFILE,
     CULVERT_RECTANGULAR,
     FLOW_BOTH,
     FLOW_NEGATIVE,
     FLOW_NONE,
     FLOW_POSITIVE,
-    FRICTION_CHEZY,
-    FRICTION_MANNING,
-    FRICTION_STRICKLER,
     LINK_CHANNEL,
     LINK_CULVERT,
+    LINK_ORIFICE,
     LINK_PUMP,
+    LINK_UNIVERSAL_WEIR,
     LINK_WEIR,
     OBS_FLUX,
     OBS_LEVEL,
 )
 from rivercal.engine.plan import connectivity, solver_plan
-from rivercal.network import Culvert, Network, Pump, Weir
+from rivercal.network import Bridge, CircularProfile, Culvert, Network, Orifice, Pump, UniversalWeir, Weir
 from rivercal.network.grid import Grid, layout_grid
 
 __all__ = [
@@ -48,8 +48,6 @@ __all__ = [
     "compile_network",
 ]
 
-#: Friction type names of the case → codes of the kernel arrays.
-FRICTION_CODES = {"strickler": FRICTION_STRICKLER, "manning": FRICTION_MANNING, "chezy": FRICTION_CHEZY}
 #: ``allowed_flow`` of a structure → codes of the kernel arrays.
 DIRECTION_CODES = {"both": FLOW_BOTH, "positive": FLOW_POSITIVE, "negative": FLOW_NEGATIVE, "none": FLOW_NONE}
 _BOUNDARY_CODES = {"discharge": BOUNDARY_DISCHARGE, "level": BOUNDARY_LEVEL, "rating": BOUNDARY_RATING}
@@ -79,7 +77,7 @@ class NetArrays(NamedTuple):
     lk_b1: np.ndarray  # bed at the k1 end, m AD
     lk_p2: np.ndarray
     lk_b2: np.ndarray
-    lk_fric: np.ndarray  # friction group (branch index)
+    lk_fric: np.ndarray  # friction slot (channels.Channels: branches, then friction groups)
     lk_sidx: np.ndarray  # index in the weir/culvert/pump arrays
     lk_edge: np.ndarray  # solver edge, -1 for pumps
     lk_nb1: np.ndarray  # the one other channel link at k1 (NB_JUNCTION: a junction, NB_NONE: none or a structure)
@@ -103,20 +101,24 @@ class NetArrays(NamedTuple):
     tab_wt_top: np.ndarray
     tab_top: np.ndarray
     tab_flow: np.ndarray  # per table cell: af, pf and r43 and their increments to the next cell (FLOW_WIDTH values)
-    # friction groups
+    # friction slots
     fr_type: np.ndarray
     # weirs
     w_width: np.ndarray  # m
     w_cmu: np.ndarray  # c_e * c_w
     w_dir: np.ndarray
-    # culverts
-    c_shape: np.ndarray  # 0 rectangular, 1 circular
+    w_col: np.ndarray  # forcing column of the crest series, -1 for a constant crest
+    # culverts, then bridges (culverts of an open profile)
+    c_shape: np.ndarray  # CULVERT_RECTANGULAR, CULVERT_CIRCULAR or CULVERT_PROFILE
     c_width: np.ndarray  # m (diameter for circular)
-    c_height: np.ndarray  # m
-    c_invert: np.ndarray  # m AD
+    c_height: np.ndarray  # m (the crown of a profile; 1e10 for an open one)
+    c_invert: np.ndarray  # m AD, at the k1 end
+    c_invert2: np.ndarray  # m AD, at the k2 end
     c_length: np.ndarray  # m
-    c_xin: np.ndarray
+    c_xin: np.ndarray  # entrance and bend losses
     c_xout: np.ndarray
+    c_expand: np.ndarray  # 1: exit loss xout (1 - A/A_2)²
+    c_prof: np.ndarray  # table of a profile-shaped barrel, -1 otherwise
     c_ftype: np.ndarray
     c_fval: np.ndarray
     c_dir: np.ndarray
@@ -125,6 +127,22 @@ class NetArrays(NamedTuple):
     p_on: np.ndarray  # m AD
     p_off: np.ndarray  # m AD
     p_sign: np.ndarray  # +1 branch direction, -1 against
+    pc_col: np.ndarray  # forcing column of the capacity series, -1 for a constant capacity
+    # orifices
+    o_crest: np.ndarray  # m AD
+    o_width: np.ndarray  # m
+    o_gate: np.ndarray  # m AD (the constant, or the series' start)
+    o_mu: np.ndarray
+    o_dir: np.ndarray
+    o_qpos: np.ndarray  # m³/s, inf without a limit
+    o_qneg: np.ndarray
+    o_col: np.ndarray  # forcing column of the gate series, -1 for a constant gate
+    # universal weirs: crest strips (CSR)
+    u_ptr: np.ndarray
+    u_width: np.ndarray  # m
+    u_crest: np.ndarray  # m AD
+    u_ce: np.ndarray
+    u_dir: np.ndarray
     # boundaries
     b_hp: np.ndarray
     b_type: np.ndarray
@@ -167,7 +185,10 @@ class CompiledNetwork:
     structure_link
         Link index of each structure id.
     weir_ids, branch_ids
-        Order of the weir and friction-group (branch) arrays.
+        Order of the weir array and of the first friction slots (one per branch).
+    friction_slots
+        Key of every friction slot: ``("branch", id)``, ``("group", id)``, ``("group", id, branch)``;
+        ``friction_values`` holds their values.
     branch_inherits
         Branch ids that use the global friction.
     boundary_ids, lateral_ids
@@ -197,6 +218,7 @@ class CompiledNetwork:
     observables: list[str]
     crest_levels: np.ndarray = field(repr=False)
     friction_values: np.ndarray = field(repr=False)
+    friction_slots: list[tuple] = field(default_factory=list, repr=False)
 
     @property
     def n_hpoints(self) -> int:
@@ -232,22 +254,22 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     """
     grid = layout_grid(network, settings.structure_length)
     n_hp = grid.n_points
-    storage = _storage(network, grid, settings.min_storage_area)
+    channels = channel_geometry(network, grid, settings.cross_sections, settings.min_storage_area)
     weirs, culverts, pumps = list(network.weirs), list(network.culverts), list(network.pumps)
-    lk_type, lk_sidx = _structure_links(grid, weirs, culverts, pumps)
+    orifices, uweirs, bridges = list(network.orifices), list(network.universal_weirs), list(network.bridges)
+    lk_type, lk_sidx = _structure_links(grid, weirs, culverts + bridges, pumps, orifices, uweirs)
     lk_k1, lk_k2 = grid.link_k1, grid.link_k2
     nl_ptr, nl_link, nl_sign, lk_nb, lk_ns = connectivity(n_hp, lk_k1, lk_k2, lk_type)
     forcing, forcing_keys, forcing_is_level = _forcing(network, grid)
     ob_type, ob_i1, ob_i2, ob_w, observables = _observables(network, grid)
-    fr_type = np.array(
-        [FRICTION_CODES[(b.friction or network.friction).type] for b in network.branches], dtype=np.int64
-    )
-    friction_values = np.array([(b.friction or network.friction).value for b in network.branches], dtype=float)
-    lk_ftype = fr_type[grid.link_branch]
+    fr_type = channels.slot_type
+    friction_values = channels.slot_value
+    lk_ftype = fr_type[channels.link_slot]
     level_points = forcing["b_hp"][forcing["b_type"] == BOUNDARY_LEVEL]
     plan = solver_plan(n_hp, lk_type, lk_k1, lk_k2, lk_nb, lk_ns, lk_ftype, level_points, forcing["lat_hp"])
+    columns = {key: i for i, key in enumerate(forcing_keys)}
     arrays = NetArrays(
-        **storage,
+        **channels.storage,
         nl_ptr=nl_ptr,
         nl_link=nl_link,
         nl_sign=nl_sign,
@@ -256,11 +278,11 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         lk_type=lk_type,
         lk_len=grid.link_length,
         lk_ilen=1.0 / grid.link_length,
-        lk_p1=grid.link_p1,
-        lk_b1=grid.link_b1,
-        lk_p2=grid.link_p2,
-        lk_b2=grid.link_b2,
-        lk_fric=grid.link_branch,
+        lk_p1=channels.link_p1,
+        lk_b1=channels.link_b1,
+        lk_p2=channels.link_p2,
+        lk_b2=channels.link_b2,
+        lk_fric=channels.link_slot,
         lk_sidx=lk_sidx,
         lk_edge=plan.link_edge,
         lk_nb1=lk_nb[0].copy(),
@@ -272,7 +294,8 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         mo_runs=plan.momentum_runs,
         mo_other=plan.momentum_other,
         fr_type=fr_type,
-        **_structure_arrays(weirs, culverts, pumps),
+        **_structure_arrays(network, weirs, culverts, bridges, pumps, orifices, uweirs, channels.profile_table,
+                            columns),
         **forcing,
         sv_cptr=plan.symbolic.cptr,
         sv_cedge=plan.symbolic.cedge,
@@ -308,85 +331,88 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         observables=observables,
         crest_levels=np.array([w.crest_level for w in weirs], dtype=float),
         friction_values=friction_values,
+        friction_slots=channels.slot_key,
     )
 
 
-def _storage(network: Network, grid: Grid, min_storage_area: float) -> dict[str, np.ndarray]:
-    """The ``hp_*``, ``sc_*`` and ``tab_*`` arrays: each h-point's storage and the tables of every profile and node.
+def _structure_arrays(network: Network, weirs: list[Weir], culverts: list[Culvert], bridges: list[Bridge],
+                      pumps: list[Pump], orifices: list[Orifice], uweirs: list[UniversalWeir],
+                      profile_table: dict[str, int], columns: dict[str, int]) -> dict[str, np.ndarray]:
+    """The ``w_*``, ``c_*``, ``p_*``, ``o_*`` and ``u_*`` arrays (one entry per structure; bridges after culverts)."""
+    profiles = {p.id: p for p in network.profiles}
 
-    A point's storage is the sum of its contributions: the half-segments of the channel it represents,
-    and its node storage (a table of length 1 m), plus the minimum storage area ``min_storage_area`` (m²).
-    """
-    zw = [zw_of(p) for p in network.profiles]
-    contributions = [list(sections) for sections in grid.sections]
-    n_hp = len(contributions)
-    hp_bed = np.array([min(b for _, b, _ in c) for c in contributions])
-    hp_len = np.array([sum(length for _, _, length in c) for c in contributions])
-    for node in network.nodes:
-        i = grid.node_index[node.id]
-        if node.storage_table is not None:
-            h, wf, wt, bottom = storage_zw(node.storage_table)
-            zw.append((h, wf, wt))
-            contributions[i].append((len(zw) - 1, bottom, 1.0))
-        elif node.storage_area > 0:
-            zw.append((np.array([0.0, 1.0]), np.zeros(2), np.full(2, node.storage_area)))
-            contributions[i].append((len(zw) - 1, float(hp_bed[i]), 1.0))
-    tables: ProfileTables = build_tables(zw)
-    sc_ptr = np.zeros(n_hp + 1, dtype=np.int64)
-    sc_ptr[1:] = np.cumsum([len(c) for c in contributions])
-    flat = [entry for c in contributions for entry in c]
+    def barrel(c: Culvert | Bridge) -> tuple[int, float, float, int]:
+        """Shape code, width (m), crown height (m) and table of a culvert or bridge barrel."""
+        if isinstance(c, Culvert) and c.shape != "profile":
+            shape = CULVERT_RECTANGULAR if c.shape == "rectangular" else CULVERT_CIRCULAR
+            return shape, float(c.width if c.shape == "rectangular" else c.diameter), c.opening_height, -1
+        p = profiles[c.profile]
+        crown = 1.0e10
+        if isinstance(p, CircularProfile):
+            crown = p.diameter
+        elif getattr(p, "closed", False):
+            crown = p.height if p.type == "rectangular" else p.heights[-1]
+        return CULVERT_PROFILE, 0.0, float(crown), profile_table[p.id]
+
+    barrels = [barrel(c) for c in [*culverts, *bridges]]
+    inverts = [c.inverts for c in culverts] + [(b.bed_level, b.bed_level) for b in bridges]
+    strips_w, strips_z, u_ptr = [], [], [0]
+    for u in uweirs:
+        for (ya, za), (yb, zb) in zip(zip(u.y, u.z, strict=True), zip(u.y[1:], u.z[1:], strict=True), strict=True):
+            if yb <= ya:
+                continue
+            n = 1 if za == zb else 8  # a sloping piece of the crest in strips
+            for k in range(n):
+                strips_w.append((yb - ya) / n)
+                strips_z.append(u.crest_level + za + (zb - za) * (k + 0.5) / n)
+        u_ptr.append(len(strips_w))
+    as_float = lambda v: np.asarray(v, dtype=float)  # noqa: E731
+    as_int = lambda v: np.asarray(v, dtype=np.int64)  # noqa: E731
     return dict(
-        hp_bed=hp_bed,
-        hp_amin=np.full(n_hp, min_storage_area),
-        hp_ilen=np.divide(1.0, hp_len, out=np.zeros(n_hp), where=hp_len > 0),
-        sc_ptr=sc_ptr,
-        sc_prof=np.array([p for p, _, _ in flat], dtype=np.int64),
-        sc_bed=np.array([b for _, b, _ in flat], dtype=float),
-        sc_len=np.array([length for _, _, length in flat], dtype=float),
-        tab_off=tables.off,
-        tab_n=tables.n,
-        tab_dd=tables.dd,
-        tab_idd=1.0 / tables.dd,
-        tab_af=tables.af,
-        tab_pf=tables.pf,
-        tab_at=tables.at,
-        tab_wt=tables.wt,
-        tab_wf_top=tables.wf_top,
-        tab_wt_top=tables.wt_top,
-        tab_top=tables.top,
-        tab_flow=flow_records(tables),
-    )
-
-
-def _structure_arrays(weirs: list[Weir], culverts: list[Culvert], pumps: list[Pump]) -> dict[str, np.ndarray]:
-    """The ``w_*``, ``c_*`` and ``p_*`` arrays (one entry per weir, culvert, pump)."""
-    return dict(
-        w_width=np.array([w.crest_width for w in weirs], dtype=float),
-        w_cmu=np.array([w.discharge_coefficient * w.lateral_contraction for w in weirs], dtype=float),
-        w_dir=np.array([DIRECTION_CODES[w.allowed_flow] for w in weirs], dtype=np.int64),
-        c_shape=np.array([CULVERT_RECTANGULAR if c.shape == "rectangular" else CULVERT_CIRCULAR for c in culverts],
-                         dtype=np.int64),
-        c_width=np.array([c.width if c.shape == "rectangular" else c.diameter for c in culverts], dtype=float),
-        c_height=np.array([c.opening_height for c in culverts], dtype=float),
-        c_invert=np.array([c.invert_level for c in culverts], dtype=float),
-        c_length=np.array([c.length for c in culverts], dtype=float),
-        c_xin=np.array([c.inlet_loss for c in culverts], dtype=float),
-        c_xout=np.array([c.outlet_loss for c in culverts], dtype=float),
-        c_ftype=np.array([FRICTION_CODES[c.friction.type] for c in culverts], dtype=np.int64),
-        c_fval=np.array([c.friction.value for c in culverts], dtype=float),
-        c_dir=np.array([DIRECTION_CODES[c.allowed_flow] for c in culverts], dtype=np.int64),
-        p_cap=np.array([p.capacity for p in pumps], dtype=float),
-        p_on=np.array([p.start_level for p in pumps], dtype=float),
-        p_off=np.array([p.stop_level for p in pumps], dtype=float),
-        p_sign=np.array([1.0 if p.direction == "positive" else -1.0 for p in pumps], dtype=float),
+        w_width=as_float([w.crest_width for w in weirs]),
+        w_cmu=as_float([w.discharge_coefficient * w.lateral_contraction for w in weirs]),
+        w_dir=as_int([DIRECTION_CODES[w.allowed_flow] for w in weirs]),
+        w_col=as_int([columns.get(f"crest:{w.id}", -1) for w in weirs]),
+        c_shape=as_int([b[0] for b in barrels]),
+        c_width=as_float([b[1] for b in barrels]),
+        c_height=as_float([b[2] for b in barrels]),
+        c_invert=as_float([i[0] for i in inverts]),
+        c_invert2=as_float([i[1] for i in inverts]),
+        c_length=as_float([c.length for c in [*culverts, *bridges]]),
+        c_xin=as_float([c.inlet_loss + c.bend_loss for c in culverts] + [b.inlet_loss for b in bridges]),
+        c_xout=as_float([c.outlet_loss for c in [*culverts, *bridges]]),
+        c_expand=as_int([int(c.outlet_expansion) for c in culverts] + [1] * len(bridges)),
+        c_prof=as_int([b[3] for b in barrels]),
+        c_ftype=as_int([FRICTION_CODES[c.friction.type] for c in [*culverts, *bridges]]),
+        c_fval=as_float([c.friction.value for c in [*culverts, *bridges]]),
+        c_dir=as_int([DIRECTION_CODES[c.allowed_flow] for c in [*culverts, *bridges]]),
+        p_cap=as_float([p.capacity for p in pumps]),
+        p_on=as_float([p.start_level for p in pumps]),
+        p_off=as_float([p.stop_level for p in pumps]),
+        p_sign=as_float([1.0 if p.direction == "positive" else -1.0 for p in pumps]),
+        pc_col=as_int([columns.get(f"capacity:{p.id}", -1) for p in pumps]),
+        o_crest=as_float([o.crest_level for o in orifices]),
+        o_width=as_float([o.crest_width for o in orifices]),
+        o_gate=as_float([o.gate_lower_edge_level for o in orifices]),
+        o_mu=as_float([o.discharge_coefficient for o in orifices]),
+        o_dir=as_int([DIRECTION_CODES[o.allowed_flow] for o in orifices]),
+        o_qpos=as_float([np.inf if o.max_flow_positive is None else o.max_flow_positive for o in orifices]),
+        o_qneg=as_float([np.inf if o.max_flow_negative is None else o.max_flow_negative for o in orifices]),
+        o_col=as_int([columns.get(f"gate:{o.id}", -1) for o in orifices]),
+        u_ptr=as_int(u_ptr),
+        u_width=as_float(strips_w),
+        u_crest=as_float(strips_z),
+        u_ce=as_float([u.discharge_coefficient for u in uweirs]),
+        u_dir=as_int([DIRECTION_CODES[u.allowed_flow] for u in uweirs]),
     )
 
 
 def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[str], list[bool]]:
-    """The ``b_*`` and ``lat_*`` arrays, and the forcing columns: boundaries first, then laterals.
+    """The ``b_*`` and ``lat_*`` arrays, and the forcing columns: boundaries, laterals, then structure settings.
 
-    Returns the arrays, the key of each forcing column (``boundary:<id>``, ``lateral:<id>``) and whether
-    it holds a level (m AD) rather than a discharge (m³/s). A rating boundary has no column (-1).
+    Returns the arrays, the key of each forcing column (``boundary:<id>``, ``lateral:<id>``, ``crest:<weir>``,
+    ``gate:<orifice>``, ``capacity:<pump>``) and whether it holds a level (m AD; the value at the end of a
+    step) rather than a discharge (m³/s; the step mean). A rating boundary has no column (-1).
     """
     keys: list[str] = []
     is_level: list[bool] = []
@@ -410,6 +436,13 @@ def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[
         lat_col.append(len(keys))
         keys.append(f"lateral:{lat.id}")
         is_level.append(False)
+    for table, prefix, name, level in (("weirs", "crest", "crest_series", True),
+                                       ("orifices", "gate", "gate_series", True),
+                                       ("pumps", "capacity", "capacity_series", False)):
+        for item in getattr(network, table):
+            if getattr(item, name) is not None:
+                keys.append(f"{prefix}:{item.id}")
+                is_level.append(level)
     arrays = dict(
         b_hp=np.asarray(b_hp, dtype=np.int64),
         b_type=np.asarray(b_type, dtype=np.int64),
@@ -423,15 +456,17 @@ def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[
     return arrays, keys, is_level
 
 
-def _structure_links(grid: Grid, weirs: list, culverts: list, pumps: list) -> tuple[np.ndarray, np.ndarray]:
-    """Per link: its type code and its index in the weir, culvert or pump arrays (-1 for a channel)."""
-    position = {s.id: i for group in (weirs, culverts, pumps) for i, s in enumerate(group)}
+def _structure_links(grid: Grid, weirs: list, culverts: list, pumps: list, orifices: list,
+                     uweirs: list) -> tuple[np.ndarray, np.ndarray]:
+    """Per link: its type code and its index in the arrays of its kind (-1 for a channel)."""
+    kinds = ((weirs, LINK_WEIR), (culverts, LINK_CULVERT), (pumps, LINK_PUMP), (orifices, LINK_ORIFICE),
+             (uweirs, LINK_UNIVERSAL_WEIR))
+    position = {s.id: (code, i) for group, code in kinds for i, s in enumerate(group)}
     lk_type = np.full(grid.n_links, LINK_CHANNEL, dtype=np.int64)
     lk_sidx = np.full(grid.n_links, -1, dtype=np.int64)
     for li, s in enumerate(grid.link_structure):
         if s is not None:
-            lk_type[li] = LINK_WEIR if isinstance(s, Weir) else LINK_CULVERT if isinstance(s, Culvert) else LINK_PUMP
-            lk_sidx[li] = position[s.id]
+            lk_type[li], lk_sidx[li] = position[s.id]
     return lk_type, lk_sidx
 
 

@@ -10,7 +10,11 @@ changing them never recompiles anything:
 - ``weir:<id>.crest_level`` — crest level of a weir, m AD;
 - ``friction:global`` — the friction value of every branch that inherits the global friction
   (unit of the case's friction type, e.g. k_s in m^(1/3)/s);
-- ``friction:branch:<id>`` — the friction value of one branch.
+- ``friction:branch:<id>`` — the friction value of one branch;
+- ``friction:group:<id>`` — the value of a friction group (``[[friction_groups]]``; its values on particular
+  branches stay);
+- ``friction:scale`` — a factor on the conveyance of every channel friction coefficient (k_s and C times the
+  factor, n divided by it; 1 leaves the case as it is). Culverts and bridges keep their own friction.
 """
 
 from __future__ import annotations
@@ -40,7 +44,8 @@ log = logging.getLogger(__name__)
 def parse_target(target: str) -> tuple[str, str]:
     """Split a target string into (kind, id).
 
-    The kinds are ``("weir", id)``, ``("friction", "global")`` and ``("branch", id)``.
+    The kinds are ``("weir", id)``, ``("friction", "global")``, ``("branch", id)``, ``("group", id)`` and
+    ``("scale", "all")``.
 
     Raises
     ------
@@ -53,9 +58,13 @@ def parse_target(target: str) -> tuple[str, str]:
         return "friction", "global"
     if target.startswith("friction:branch:"):
         return "branch", target[len("friction:branch:") :]
+    if target.startswith("friction:group:"):
+        return "group", target[len("friction:group:") :]
+    if target == "friction:scale":
+        return "scale", "all"
     raise KeyError(
-        f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global' "
-        "or 'friction:branch:<id>'"
+        f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global', "
+        "'friction:branch:<id>', 'friction:group:<id>' or 'friction:scale'"
     )
 
 
@@ -124,26 +133,52 @@ class Simulator:
         out = {f"weir:{w}.crest_level": float(v) for w, v in zip(c.weir_ids, c.crest_levels, strict=True)}
         if c.branch_inherits:
             out["friction:global"] = float(self.case.spec.friction.value)
-        for b, v in zip(c.branch_ids, c.friction_values, strict=True):
+        for b, v in zip(c.branch_ids, c.friction_values, strict=False):
             if b not in c.branch_inherits:
                 out[f"friction:branch:{b}"] = float(v)
+        for key, v in zip(c.friction_slots, c.friction_values, strict=True):
+            if key[0] == "group" and len(key) == 2:
+                out[f"friction:group:{key[1]}"] = float(v)
         return out
 
     def parameter_arrays(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray]:
-        """Crest levels (m AD, per weir) and friction values (per branch) for a set of targets."""
+        """Crest levels (m AD, per weir) and friction values (per friction slot) for a set of targets."""
         c = self.compiled
         crest = c.crest_levels.copy()
         fric = c.friction_values.copy()
         ftype = {code: name for name, code in FRICTION_CODES.items()}
         weir_pos = {w: i for i, w in enumerate(c.weir_ids)}
         branch_pos = {b: i for i, b in enumerate(c.branch_ids)}
-        # Global first, so that a branch-specific value given in the same call wins.
-        items = sorted((parameters or {}).items(), key=lambda kv: kv[0] != "friction:global")
+        # Global first, so that a branch-specific value given in the same call wins; the scale last.
+        items = sorted((parameters or {}).items(),
+                       key=lambda kv: (kv[0] == "friction:scale", kv[0] != "friction:global"))
+        slots = {key: i for i, key in enumerate(c.friction_slots)}
         for target, value in items:
             kind, ident = parse_target(target)
             value = float(value)
             if not np.isfinite(value):
                 raise ValueError(f"{target}: value {value} is not finite")
+            if kind == "scale":
+                if not 0.05 <= value <= 20.0:
+                    raise ValueError(f"{target}: factor {value:g} is outside 0.05-20")
+                for i, code in enumerate(c.arrays.fr_type):
+                    name = ftype[int(code)]
+                    if name == "white-colebrook":
+                        raise KeyError(f"{target}: case {self.case.name!r} has White-Colebrook friction, whose "
+                                       "conveyance a factor on the coefficient does not scale")
+                    fric[i] = fric[i] / value if name == "manning" else fric[i] * value
+                continue
+            if kind == "group":
+                if ("group", ident) not in slots:
+                    raise KeyError(f"{target}: no friction group {ident!r} in case {self.case.name!r}")
+                i = slots[("group", ident)]
+                name = ftype[int(c.arrays.fr_type[i])]
+                low, high, unit = FRICTION_RANGES[name]
+                if not low <= value <= high:
+                    raise ValueError(f"{target}: {name} value {value:g} {unit} is outside the plausible range "
+                                     f"{low:g}-{high:g} {unit}")
+                fric[i] = value
+                continue
             if kind == "weir":
                 if ident not in weir_pos:
                     raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")

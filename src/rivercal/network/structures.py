@@ -94,6 +94,9 @@ class Culvert(_OnBranch):
         Wall friction (default Manning n = 0.015 s/m^(1/3), concrete).
     bend_loss
         Loss coefficient of bends (a siphon), dimensionless.
+    outlet_expansion
+        Whether the exit loss is ``outlet_loss (1 - A/A_2)²``, A the culvert's flow area and A_2 the channel's
+        downstream (a Borda-Carnot expansion loss, D-Flow FM's culvert), instead of ``outlet_loss``.
     allowed_flow
         ``both``, ``positive``, ``negative`` or ``none``.
     """
@@ -113,6 +116,11 @@ class Culvert(_OnBranch):
     inlet_loss: Real = Field(default=0.5, ge=0, description="entrance loss coefficient, -")
     outlet_loss: Real = Field(default=1.0, ge=0, description="exit loss coefficient, -")
     bend_loss: Real = Field(default=0.0, ge=0, description="loss coefficient of bends (a siphon), -")
+    outlet_expansion: bool = Field(
+        default=False,
+        description="exit loss outlet_loss (1 - A/A_2)² with A_2 the channel's flow area downstream (Borda-Carnot, "
+        "as D-Flow FM) instead of the constant outlet_loss",
+    )
     friction: Friction = Field(
         default=Friction(type="manning", value=0.015), description="wall friction (default Manning n = 0.015)"
     )

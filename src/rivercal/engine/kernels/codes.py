@@ -15,6 +15,8 @@ LINK_CHANNEL = 0
 LINK_WEIR = 1
 LINK_CULVERT = 2
 LINK_PUMP = 3
+LINK_ORIFICE = 4
+LINK_UNIVERSAL_WEIR = 5
 
 # -- boundary kinds (``b_type``) ------------------------------------------------------------------
 BOUNDARY_DISCHARGE = 0
@@ -25,6 +27,7 @@ BOUNDARY_RATING = 2
 FRICTION_STRICKLER = 0
 FRICTION_MANNING = 1
 FRICTION_CHEZY = 2
+FRICTION_WHITE_COLEBROOK = 3
 
 # -- flow directions a structure lets through (``w_dir``, ``c_dir``) ------------------------------
 FLOW_BOTH = 0
@@ -35,6 +38,7 @@ FLOW_NONE = 3
 # -- culvert barrel shapes (``c_shape``) ----------------------------------------------------------
 CULVERT_RECTANGULAR = 0
 CULVERT_CIRCULAR = 1
+CULVERT_PROFILE = 2  # the shape of a profile table (a bridge, an egg-shaped or open culvert)
 
 # -- observables (``ob_type``) --------------------------------------------------------------------
 OBS_LEVEL = 0

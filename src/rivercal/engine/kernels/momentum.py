@@ -150,7 +150,7 @@ def _momentum_other(net, work, link, z, u, q, dt):
     sign, depth, _ = _upwind(net, link, z, u)
     per = work.cper[link]
     ftype = net.lk_ftype[link]
-    radius = (a_up / per if per > 0.0 else depth) if ftype == FRICTION_CHEZY else 0.0
+    radius = (a_up / per if per > 0.0 else depth) if ftype >= FRICTION_CHEZY else 0.0  # Chézy, White-Colebrook
     inv_dt = 1.0 / dt
     ql = qlat[k1] + qlat[k2]
     b = inv_dt + 0.5 * ql / a_up if ql != 0.0 else inv_dt  # skips a division: exact, the term is +0 then

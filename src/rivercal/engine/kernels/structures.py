@@ -8,9 +8,17 @@ D-Flow FM ``weir.f90``):
 
 - weir, submerged (h1 - zs ≤ 1.5 (h2 - zs)): Q = c_e c_w W √(2g(h1 - h2)) (h2 - zs);
 - weir, free: Q = c_e c_w W (2/3) √((2/3) g) (h1 - zs)^1.5 (thesis Eq. 3-4);
-- culvert: Q = A(d) √(2g ΔE / ξ) with ξ = ξ_in + 2gL/(C²R) + ξ_out, where d and ΔE are the
-  critical depth min(2/3 H1, D) and H1 - d in free flow, the downstream depth min(H2, D) and
-  H1 - H2 when submerged or pressurised.
+- culvert (and bridge): Q = A(d) √(2g ΔE / ξ) with ξ = ξ_in + ξ_bend + 2gL/(C²R) + ξ_out, where d
+  and ΔE are the critical depth min(2/3 H1, D) and H1 - d in free flow, the downstream depth
+  min(H2, D) and H1 - H2 when submerged or pressurised; H1 and H2 are measured from the downstream
+  invert (a culvert may have two). With the expansion option the exit loss is ξ_out (1 - A/A_2)²,
+  A_2 the flow area of the channel downstream (Borda–Carnot, as D-Flow FM's culvert);
+- orifice (a crest under a gate of opening a = gate - z_s): weir flow as above (with μ for c_e c_w)
+  while the flow depth over the crest (2/3 H1 free, H2 submerged) stays below a; gate flow above it,
+  free Q = μ W a √(2g(H1 - μ a)) while H2 < μ a, submerged Q = μ W a √(2g(h1 - h2));
+- universal weir: the weir law on each strip of its crest (flat pieces, sloping pieces in 8 strips),
+  summed; the link carries their total area and the discharge-weighted velocity, so that at
+  convergence Q = Σ Q_strip exactly.
 """
 
 from __future__ import annotations
@@ -21,14 +29,19 @@ import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.codes import (
+    CULVERT_PROFILE,
     CULVERT_RECTANGULAR,
     FLOW_BOTH,
     FLOW_NEGATIVE,
     FLOW_POSITIVE,
+    FRICTION_CHEZY,
     FRICTION_MANNING,
     FRICTION_STRICKLER,
+    LINK_CULVERT,
+    LINK_ORIFICE,
     LINK_WEIR,
 )
+from rivercal.engine.kernels.lookup import flow_geometry
 
 __all__ = [
     "G",
@@ -36,8 +49,11 @@ __all__ = [
     "culvert_link",
     "direction_allowed",
     "friction_c2r",
+    "orifice_link",
+    "apply_settings",
     "structure_coefficients",
     "switch_pumps",
+    "universal_weir_link",
     "weir_link",
 ]
 
@@ -58,12 +74,18 @@ def direction_allowed(code, sign):
 
 @kernel
 def friction_c2r(ftype, value, r, r43):
-    """C² R (m²/s²) for hydraulic radius ``r`` (m) and r43 = R^(4/3): Strickler, Manning or Chézy."""
+    """C² R (m²/s²) for hydraulic radius ``r`` (m) and r43 = R^(4/3): Strickler, Manning, Chézy or White-Colebrook.
+
+    White-Colebrook (rough turbulent, ``value`` = k_n in m): C = 18 log10(12 R / k_n), at least 1 m^(1/2)/s.
+    """
     if ftype == FRICTION_STRICKLER:
         return value * value * r43
     if ftype == FRICTION_MANNING:
         return r43 / (value * value)
-    return value * value * r
+    if ftype == FRICTION_CHEZY:
+        return value * value * r
+    c = max(18.0 * math.log10(max(12.0 * r / value, 1.0)), 1.0)
+    return c * c * r
 
 
 @kernel
@@ -93,7 +115,7 @@ def weir_link(z1, z2, crest, width, cmu, dircode, length, u_old, dt):
 
 @kernel
 def culvert_area_perimeter(shape, width, height, d):
-    """Flow area (m²) and wetted perimeter (m) of a culvert barrel at depth ``d`` (m)."""
+    """Flow area (m²) and wetted perimeter (m) of a rectangular or circular culvert barrel at depth ``d`` (m)."""
     if d <= 0.0:
         return 0.0, 0.0
     if shape == CULVERT_RECTANGULAR:
@@ -108,35 +130,142 @@ def culvert_area_perimeter(shape, width, height, d):
 
 
 @kernel
-def culvert_link(z1, z2, shape, width, height, invert, clen, xin, xout, ftype, fval, dircode, length, u_old, dt):
-    """Flux area (m²), f and r of a culvert link for levels z1, z2 (m AD) at its two ends."""
+def culvert_link(z1, z2, shape, width, height, inv1, inv2, clen, xin, xout, ftype, fval, dircode, length, u_old, dt,
+                 prof, tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, expand, a1, a2):
+    """Flux area (m²), f and r of a culvert (or bridge) link for levels z1, z2 (m AD) at its two ends.
+
+    ``inv1`` and ``inv2`` are the inverts (m AD) at the k1 and k2 end; depths are measured from the
+    downstream one. A barrel of shape ``CULVERT_PROFILE`` reads area and perimeter from profile table
+    ``prof`` (its ``height`` is its crown, or infinite for an open profile). With ``expand`` the exit loss
+    is ``xout (1 - A / A_2)²``, A_2 the channel's flow area downstream (``a1``, ``a2`` at the k1, k2 end, m²).
+    """
     if z1 >= z2:
-        smax, smin, sign = z1, z2, 1.0
+        smax, smin, sign, inv_up, inv_dn, a_dn = z1, z2, 1.0, inv1, inv2, a2
     else:
-        smax, smin, sign = z2, z1, -1.0
-    h1 = smax - invert
-    if h1 <= 0.0 or not direction_allowed(dircode, sign):
+        smax, smin, sign, inv_up, inv_dn, a_dn = z2, z1, -1.0, inv2, inv1, a1
+    if smax - inv_up <= 0.0 or not direction_allowed(dircode, sign):
         return 0.0, 0.0, 0.0
-    h2 = max(smin - invert, 0.0)
+    h1 = smax - inv_dn
+    if h1 <= 0.0:
+        return 0.0, 0.0, 0.0
+    h2 = max(smin - inv_dn, 0.0)
     dcrit = min((2.0 / 3.0) * h1, height)
     free = h2 < dcrit
     d = dcrit if free else min(h2, height)
-    area, per = culvert_area_perimeter(shape, width, height, d)
+    if shape == CULVERT_PROFILE:
+        area, per, _ = flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, prof, d)
+    else:
+        area, per = culvert_area_perimeter(shape, width, height, d)
     if area <= 0.0:
         return 0.0, 0.0, 0.0
     radius = area / per
-    xi = xin + xout + 2.0 * G * clen / friction_c2r(ftype, fval, radius, radius * np.cbrt(radius))
+    exit_loss = xout
+    if expand:
+        exit_loss = xout * max(1.0 - area / a_dn, 0.0) ** 2 if a_dn > 0.0 else xout
+    xi = xin + exit_loss + 2.0 * G * clen / friction_c2r(ftype, fval, radius, radius * np.cbrt(radius))
     head = (h1 - d) if free else (h1 - h2)
     us = math.sqrt(2.0 * G * max(head, 0.0) / xi)
     cu = 2.0 * G / (xi * length)
-    extra = cu * (smin - invert - d) if free else 0.0
+    extra = cu * (smin - inv_dn - d) if free else 0.0
     b = 1.0 / dt + us / length
     return area, cu / b, (u_old / dt + sign * extra) / b
 
 
 @kernel
+def orifice_link(z1, z2, crest, width, gate, mu, dircode, qpos, qneg, length, u_old, dt):
+    """Flux area (m²), f and r of an orifice link (a crest under a gate) for levels z1, z2 (m AD).
+
+    ``qpos``/``qneg`` cap the discharge in each direction (m³/s; infinite: no cap).
+    """
+    if z1 >= z2:
+        smax, smin, sign, cap = z1, z2, 1.0, qpos
+    else:
+        smax, smin, sign, cap = z2, z1, -1.0, qneg
+    h1 = smax - crest
+    if h1 <= 0.0 or not direction_allowed(dircode, sign):
+        return 0.0, 0.0, 0.0
+    h2 = smin - crest
+    opening = gate - crest
+    if h1 > 1.5 * h2 and (2.0 / 3.0) * h1 <= opening:  # free weir flow under a gate out of the water
+        area = mu * width * (2.0 / 3.0) * h1
+        us = math.sqrt((2.0 / 3.0) * G * h1)
+        cu = G / (1.5 * length)
+        extra = cu * (smin - crest)
+    elif h1 <= 1.5 * h2 and h2 <= opening:  # submerged weir flow
+        area = mu * width * h2
+        us = math.sqrt(2.0 * G * (smax - smin))
+        cu = 2.0 * G / length
+        extra = 0.0
+    elif h2 < mu * opening:  # free gate flow
+        area = mu * width * opening
+        us = math.sqrt(2.0 * G * max(h1 - mu * opening, 0.0))
+        cu = 2.0 * G / length
+        extra = cu * (smin - crest - mu * opening)
+    else:  # submerged gate flow
+        area = mu * width * opening
+        us = math.sqrt(2.0 * G * (smax - smin))
+        cu = 2.0 * G / length
+        extra = 0.0
+    if area <= 0.0:
+        return 0.0, 0.0, 0.0
+    if area * us > cap:  # the discharge limit: a fixed discharge
+        return area, 0.0, sign * cap / area
+    b = 1.0 / dt + us / length
+    return area, cu / b, (u_old / dt + sign * extra) / b
+
+
+@kernel
+def universal_weir_link(z1, z2, lo, hi, strip_width, strip_crest, ce, dircode, length, u_old, dt):
+    """Flux area (m²), f and r of a universal weir: the weir law on each crest strip ``lo..hi``, summed.
+
+    Each strip ``k`` has width ``strip_width[k]`` (m) and crest ``strip_crest[k]`` (m AD). The link carries the
+    total flow area and the discharge-weighted velocity (see the module docstring).
+    """
+    if z1 >= z2:
+        smax, smin, sign = z1, z2, 1.0
+    else:
+        smax, smin, sign = z2, z1, -1.0
+    if not direction_allowed(dircode, sign):
+        return 0.0, 0.0, 0.0
+    area = 0.0
+    flow = 0.0
+    flow_us = 0.0
+    cu_sum = 0.0
+    extra_sum = 0.0
+    for k in range(lo, hi):
+        crest = strip_crest[k]
+        h1 = smax - crest
+        if h1 <= 0.0:
+            continue
+        h2 = smin - crest
+        if h1 > 1.5 * h2:
+            a = ce * strip_width[k] * (2.0 / 3.0) * h1
+            us = math.sqrt((2.0 / 3.0) * G * h1)
+            cu = G / (1.5 * length)
+            extra = cu * (smin - crest)
+        else:
+            a = ce * strip_width[k] * h2
+            us = math.sqrt(2.0 * G * (smax - smin))
+            cu = 2.0 * G / length
+            extra = 0.0
+        area += a
+        flow += a * us
+        flow_us += a * us * us
+        cu_sum += a * cu
+        extra_sum += a * extra
+    if area <= 0.0 or flow <= 0.0:
+        return 0.0, 0.0, 0.0
+    us_eff = flow_us / flow
+    b = 1.0 / dt + us_eff / length
+    return area, (cu_sum / area) / b, (u_old / dt + sign * extra_sum / area) / b
+
+
+@kernel
 def switch_pumps(net, work, z, pump_on):
-    """Pump switches from the suction-side level at time n; a pump link carries a fixed flux ``rco``."""
+    """Pump switches from the suction-side level at time n; a pump link carries a fixed flux ``rco``.
+
+    The capacity is ``work.pcap`` (m³/s): the pump's own, or its series' value of this step.
+    """
     for link in work.pump_links:
         s = net.lk_sidx[link]
         ksuc = net.lk_k1[link] if net.p_sign[s] > 0.0 else net.lk_k2[link]
@@ -146,25 +275,61 @@ def switch_pumps(net, work, z, pump_on):
             pump_on[s] = 1.0
         work.area[link] = 0.0
         work.fco[link] = 0.0
-        work.rco[link] = net.p_sign[s] * net.p_cap[s] * pump_on[s]
+        work.rco[link] = net.p_sign[s] * work.pcap[s] * pump_on[s]
+
+
+@kernel
+def _channel_area(net, p, bed, z):
+    """Flow area (m²) of profile table ``p`` with its bed at ``bed`` (m AD) at level ``z`` (m AD)."""
+    return flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af, net.tab_pf,
+                         net.tab_flow, p, z - bed)[0]
 
 
 @kernel
 def structure_coefficients(net, work, zk, u, crest, dt):
-    """Weir and culvert links linearised at the levels ``zk`` (m AD) of the current iterate."""
+    """Structure links linearised at the levels ``zk`` (m AD) of the current iterate."""
     for link in work.struct_links:
         s = net.lk_sidx[link]
         k1 = net.lk_k1[link]
         k2 = net.lk_k2[link]
         z1 = zk[k1]
         z2 = zk[k2]
-        if net.lk_type[link] == LINK_WEIR:
+        t = net.lk_type[link]
+        if t == LINK_WEIR:
             a, f, r = weir_link(z1, z2, crest[s], net.w_width[s], net.w_cmu[s], net.w_dir[s], net.lk_len[link],
                                 u[link], dt)
-        else:
+        elif t == LINK_CULVERT:
+            expand = net.c_expand[s] > 0
+            a1 = _channel_area(net, net.lk_p1[link], net.lk_b1[link], z1) if expand else 0.0
+            a2 = _channel_area(net, net.lk_p2[link], net.lk_b2[link], z2) if expand else 0.0
             a, f, r = culvert_link(z1, z2, net.c_shape[s], net.c_width[s], net.c_height[s], net.c_invert[s],
-                                   net.c_length[s], net.c_xin[s], net.c_xout[s], net.c_ftype[s], net.c_fval[s],
-                                   net.c_dir[s], net.lk_len[link], u[link], dt)
+                                   net.c_invert2[s], net.c_length[s], net.c_xin[s], net.c_xout[s], net.c_ftype[s],
+                                   net.c_fval[s], net.c_dir[s], net.lk_len[link], u[link], dt, net.c_prof[s],
+                                   net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
+                                   net.tab_pf, net.tab_flow, expand, a1, a2)
+        elif t == LINK_ORIFICE:
+            a, f, r = orifice_link(z1, z2, net.o_crest[s], net.o_width[s], work.ogate[s], net.o_mu[s], net.o_dir[s],
+                                   net.o_qpos[s], net.o_qneg[s], net.lk_len[link], u[link], dt)
+        else:
+            a, f, r = universal_weir_link(z1, z2, net.u_ptr[s], net.u_ptr[s + 1], net.u_width, net.u_crest,
+                                          net.u_ce[s], net.u_dir[s], net.lk_len[link], u[link], dt)
         work.area[link] = a
         work.fco[link] = f
         work.rco[link] = r
+
+
+@kernel
+def apply_settings(net, work, n, forcing, crest):
+    """Structure settings that follow a series: weir crests (m AD), orifice gates (m AD), pump capacities (m³/s).
+
+    The columns of ``forcing`` are ``net.w_col``, ``net.o_col``, ``net.pc_col`` (-1: a constant setting).
+    """
+    for s in range(net.w_col.size):
+        if net.w_col[s] >= 0:
+            crest[s] = forcing[n, net.w_col[s]]
+    for s in range(net.o_col.size):
+        if net.o_col[s] >= 0:
+            work.ogate[s] = max(forcing[n, net.o_col[s]], net.o_crest[s])
+    for s in range(net.pc_col.size):
+        if net.pc_col[s] >= 0:
+            work.pcap[s] = max(forcing[n, net.pc_col[s]], 0.0)

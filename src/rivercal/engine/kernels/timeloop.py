@@ -27,7 +27,9 @@ import numpy as np
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.codes import (
     LINK_CULVERT,
+    LINK_ORIFICE,
     LINK_PUMP,
+    LINK_UNIVERSAL_WEIR,
     LINK_WEIR,
     N_STATS,
     STAT_STEPS,
@@ -38,7 +40,7 @@ from rivercal.engine.kernels.forcing import apply_forcing
 from rivercal.engine.kernels.momentum import channel_coefficients
 from rivercal.engine.kernels.picard import picard_iterations
 from rivercal.engine.kernels.record import record
-from rivercal.engine.kernels.structures import switch_pumps
+from rivercal.engine.kernels.structures import apply_settings, switch_pumps
 
 __all__ = ["Work", "make_work", "run"]
 
@@ -51,12 +53,12 @@ __all__ = ["Work", "make_work", "run"]
 #: (:func:`.assemble.assemble`): low and high end and reference level (m AD), the volume there (m³) and the
 #: storage area (m²); the momentum terms of each channel link (:func:`.momentum.channel_coefficients`), its
 #: wetted perimeter (m) and R^(4/3) (m^(4/3)) at the upwind depth, and its friction value (unit of its
-#: friction type).
+#: friction type); the gates of the orifices (m AD) and the capacities of the pumps (m³/s) of this step.
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
-     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric"],
+     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric", "ogate", "pcap"],
 )
 
 
@@ -72,12 +74,13 @@ def make_work(net) -> Work:
         lval=np.zeros(net.sv_nedge), area=np.zeros(n_l), fco=np.zeros(n_l), rco=np.zeros(n_l),
         un=np.zeros(n_l), qn=np.zeros(n_l),
         rq0=np.zeros(n_b), rslope=np.zeros(n_b),
-        struct_links=np.flatnonzero((net.lk_type == LINK_WEIR) | (net.lk_type == LINK_CULVERT)).astype(np.int64),
+        struct_links=np.flatnonzero(np.isin(net.lk_type, (LINK_WEIR, LINK_CULVERT, LINK_ORIFICE,
+                                                          LINK_UNIVERSAL_WEIR))).astype(np.int64),
         pump_links=np.flatnonzero(net.lk_type == LINK_PUMP).astype(np.int64),
         stats=np.zeros(N_STATS, dtype=np.int64),
         zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
         cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l), cper=np.ones(n_l), cr43=np.ones(n_l),
-        lfric=np.ones(n_l),
+        lfric=np.ones(n_l), ogate=net.o_gate.copy(), pcap=net.p_cap.copy(),
     )
 
 
@@ -93,7 +96,8 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     work
         :class:`Work` arrays (scratch, allocated once by the caller).
     crest, fric
-        Run-time parameters: weir crest levels (m AD) and friction values per branch.
+        Run-time parameters: weir crest levels (m AD; a weir whose crest follows a series takes its value
+        each step) and friction values per friction slot (branches, then friction groups).
     z, dz, vol, u, q, pump_on
         State, updated in place: levels (m AD), their change over the last step (m) and volumes
         (m³) at h-points, velocities (m/s) and fluxes (m³/s) at links, pump switches (0/1).
@@ -125,8 +129,13 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     work.fixed[:] = False
     for link in range(work.lfric.size):
         work.lfric[link] = fric[net.lk_fric[link]]
+    for s in range(work.ogate.size):
+        work.ogate[s] = net.o_gate[s]
+    for s in range(work.pcap.size):
+        work.pcap[s] = net.p_cap[s]
     for n in range(forcing.shape[0]):
         balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
+        apply_settings(net, work, n, forcing, crest)
         channel_coefficients(net, work, z, u0, q0, dt, min_depth)
         switch_pumps(net, work, z, pump_on)
         work.stats[STAT_STEPS] += 1

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal.case.load import Case
-from rivercal.case.schema import branch_layout, chainages
+from rivercal.network.grid import branch_layout, chainages
 from rivercal.engine.geometry import MIN_TOP
 
 __all__ = ["ExportResult", "export_dhydro"]

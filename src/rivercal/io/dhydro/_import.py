@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal.case.load import load_case
-from rivercal.case.schema import branch_layout
+from rivercal.network.grid import branch_layout
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io.dhydro._context import Context, ImportOptions, unquote
 from rivercal.io.dhydro._forcing import convert_forcing, read_exchange
@@ -144,7 +144,8 @@ def _engine(ctx: Context) -> None:
         interval = math.gcd(int(span), int(interval)) or span
     dt_max = min(float(fm.time.dtmax or MAX_DT), MAX_DT)
     dt = ctx.options.dt or max(d for d in range(1, int(dt_max) + 1) if interval % d == 0)
-    engine = {"dt": float(dt), "output_interval": float(interval), "structure_length": STRUCTURE_LENGTH}
+    engine = {"dt": float(dt), "output_interval": float(interval), "structure_length": STRUCTURE_LENGTH,
+              "cross_sections": "interpolated"}
     ctx.case["engine"] = engine
     ctx.ledger.approximated("setting", "DtMax/DtUser", f"D-Flow FM adapts its time step to a Courant limit (at most "
                             f"DtMax = {fm.time.dtmax:g} s); the case steps {dt:g} s (implicit, no Courant limit), "
@@ -209,7 +210,7 @@ def _fit_the_grid(ctx: Context) -> None:
         node = lat.get("node")
         if node is None:
             b = branches[lat["branch"]]
-            from rivercal.case.schema import chainages
+            from rivercal.network.grid import chainages
 
             chain = chainages(layouts[lat["branch"]])
             k = int(np.argmin(np.abs(chain - lat["chainage"])))
@@ -297,7 +298,7 @@ def _clean(value):
 
 
 def _summary(ctx: Context, case) -> dict:
-    from rivercal.case.schema import chainages
+    from rivercal.network.grid import chainages
 
     net = case.network
     by_branch: dict[str, list] = defaultdict(list)
