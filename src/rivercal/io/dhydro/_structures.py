@@ -279,6 +279,7 @@ def _culvert(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], st
     item["length"] = max(float(s.length), 0.001)
     item["inlet_loss"] = float(s.inletlosscoeff)
     item["outlet_loss"] = float(s.outletlosscoeff)
+    item["outlet_expansion"] = True  # D-Flow FM's exit loss: outletLossCoeff (1 - A / A_downstream)²
     if s.bendlosscoeff:
         item["bend_loss"] = float(s.bendlosscoeff)
     if s.bedfrictiontype is not None and s.bedfriction is not None:
