@@ -358,7 +358,8 @@ def _structure_arrays(network: Network, weirs: list[Weir], culverts: list[Culver
     inverts = [c.inverts for c in culverts] + [(b.bed_level, b.bed_level) for b in bridges]
     strips_w, strips_z, u_ptr = [], [], [0]
     for u in uweirs:
-        for (ya, za), (yb, zb) in zip(zip(u.y, u.z, strict=True), zip(u.y[1:], u.z[1:], strict=True), strict=True):
+        for k in range(len(u.y) - 1):
+            (ya, za), (yb, zb) = (u.y[k], u.z[k]), (u.y[k + 1], u.z[k + 1])
             if yb <= ya:
                 continue
             n = 1 if za == zb else 8  # a sloping piece of the crest in strips

@@ -161,9 +161,10 @@ class Simulator:
             if kind == "scale":
                 if not 0.05 <= value <= 20.0:
                     raise ValueError(f"{target}: factor {value:g} is outside 0.05-20")
+                used = set(np.unique(c.arrays.lk_fric).tolist())
                 for i, code in enumerate(c.arrays.fr_type):
                     name = ftype[int(code)]
-                    if name == "white-colebrook":
+                    if name == "white-colebrook" and i in used:
                         raise KeyError(f"{target}: case {self.case.name!r} has White-Colebrook friction, whose "
                                        "conveyance a factor on the coefficient does not scale")
                     fric[i] = fric[i] / value if name == "manning" else fric[i] * value

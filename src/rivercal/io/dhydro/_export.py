@@ -34,7 +34,42 @@ from rivercal.case.load import Case
 from rivercal.network.grid import branch_layout, chainages
 from rivercal.engine.geometry import MIN_TOP
 
-__all__ = ["ExportResult", "export_dhydro"]
+__all__ = ["SETTINGS_FILE", "ExportResult", "export_dhydro", "read_engine_settings"]
+
+#: The file beside an exported MDU with the engine settings D-Flow FM files cannot express.
+SETTINGS_FILE = "rivercal.ini"
+#: Engine settings written there: case field → key.
+_ENGINE_KEYS = {"cross_sections": "crossSections", "theta": "theta", "min_depth": "minDepth",
+                "min_storage_area": "minStorageArea", "max_iterations": "maxIterations", "tolerance": "tolerance",
+                "max_velocity": "maxVelocity", "structure_length": "structureLength"}
+
+
+def _write_engine_settings(engine, path: Path) -> None:
+    lines = ["# Engine settings of the rivercal case this model was exported from (D-HYDRO does not read this",
+             "# file; rivercal's import does).", "[engine]"]
+    lines += [f"{key} = {getattr(engine, name)}" for name, key in _ENGINE_KEYS.items()]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def read_engine_settings(folder: Path) -> dict | None:
+    """The engine settings an export left beside its MDU (case fields → values), or None."""
+    from hydrolib.core.dflowfm.ini.parser import Parser
+
+    path = Path(folder) / SETTINGS_FILE
+    if not path.is_file():
+        return None
+    out: dict = {}
+    for section in Parser.parse(path).sections:
+        if section.header.lower() != "engine":
+            continue
+        values = {k.lower(): v for k, v in section.flatten(duplicate_key_as_list=False, with_comments=False).items()}
+        for name, key in _ENGINE_KEYS.items():
+            text = values.get(key.lower())
+            if text is None:
+                continue
+            out[name] = text.strip() if name == "cross_sections" else (
+                int(text) if name == "max_iterations" else float(text))
+    return out
 
 _FRICTION = {"strickler": "Strickler", "manning": "Manning", "chezy": "Chezy", "white-colebrook": "WhiteColebrook"}
 
@@ -136,6 +171,9 @@ def export_dhydro(case: Case, out: Path | str, *, forcing: dict[str, pd.Series] 
     else:
         fm.physics.uniffrictcoef1d = float(spec.friction.value)
     fm.save(recurse=True)
+    _write_engine_settings(spec.engine, out / SETTINGS_FILE)
+    result.notes.append(f"the engine settings that D-Flow FM files cannot express are in {SETTINGS_FILE} (D-HYDRO "
+                        "ignores it; rivercal's import reads it)")
     result.files = sorted(p for p in out.iterdir() if p.is_file())
     (out / "export.md").write_text(_report(case, result), encoding="utf-8")
     result.files.append(out / "export.md")

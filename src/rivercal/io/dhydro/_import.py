@@ -147,6 +147,13 @@ def _engine(ctx: Context) -> None:
     engine = {"dt": float(dt), "output_interval": float(interval), "structure_length": STRUCTURE_LENGTH,
               "cross_sections": "interpolated"}
     ctx.case["engine"] = engine
+    from rivercal.io.dhydro._export import SETTINGS_FILE, read_engine_settings
+
+    exported = read_engine_settings(ctx.model.mdu.parent)
+    if exported:
+        engine.update(exported)
+        ctx.ledger.exact("setting", SETTINGS_FILE, "engine settings written by rivercal's export (cross-section "
+                         "placement, numerics) taken over")
     ctx.ledger.approximated("setting", "DtMax/DtUser", f"D-Flow FM adapts its time step to a Courant limit (at most "
                             f"DtMax = {fm.time.dtmax:g} s); the case steps {dt:g} s (implicit, no Courant limit), "
                             f"output every {interval:g} s (the his interval)")
