@@ -63,7 +63,7 @@ class Channels:
     slot_key
         Per slot: ``("branch", id)``, ``("group", id)`` or ``("group", id, branch)``.
     profile_table
-        Table index of each profile id as a culvert or bridge barrel (plain shape, closed where closed).
+        Table index of each profile id that a culvert or bridge barrel takes its shape from.
     """
 
     storage: dict[str, np.ndarray]
@@ -198,6 +198,9 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
     link_b2 = grid.link_b2.astype(float).copy()
     link_slot = np.empty(n_l, dtype=np.int64)
     contributions: list[list[tuple[int, float, float]]] = [[] for _ in range(grid.n_points)]
+    for k, p in enumerate(network.profiles):  # plain profiles first, in their order (the tables of before)
+        if _plain(p):
+            b._add(("plain", k), zw_of(p))
     if mode == "interpolated":
         for li in range(n_l):
             br = branches[grid.link_branch_id[li]]
@@ -221,7 +224,10 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
             for (p, bed, half), bid in zip(sections, point_branch[i], strict=True):
                 contributions[i].append((b.table(p, branches[bid]), bed, half))
     profile_table = {}
+    barrels = {c.profile for c in [*network.culverts, *network.bridges] if getattr(c, "profile", None)}
     for k, p in enumerate(network.profiles):
+        if p.id not in barrels:
+            continue
         key = ("barrel", k)
         b._add(key, zw_of(p) if _plain(p) else _kernel_columns(section_table(p), "strickler"))
         profile_table[p.id] = b.index[key]

@@ -20,6 +20,10 @@ from rivercal.engine.kernels.codes import (
     BOUNDARY_DISCHARGE,
     BOUNDARY_LEVEL,
     BOUNDARY_RATING,
+    C_EXPAND,
+    C_INVERT2,
+    C_PROF,
+    C_WIDTH,
     CULVERT_CIRCULAR,
     CULVERT_PROFILE,
     CULVERT_RECTANGULAR,
@@ -33,8 +37,10 @@ from rivercal.engine.kernels.codes import (
     LINK_PUMP,
     LINK_UNIVERSAL_WEIR,
     LINK_WEIR,
+    O_WIDTH,
     OBS_FLUX,
     OBS_LEVEL,
+    U_WIDTH,
 )
 from rivercal.engine.plan import connectivity, solver_plan
 from rivercal.network import Bridge, CircularProfile, Culvert, Network, Orifice, Pump, UniversalWeir, Weir
@@ -45,6 +51,7 @@ __all__ = [
     "FRICTION_CODES",
     "CompiledNetwork",
     "NetArrays",
+    "StructureArrays",
     "compile_network",
 ]
 
@@ -107,18 +114,14 @@ class NetArrays(NamedTuple):
     w_width: np.ndarray  # m
     w_cmu: np.ndarray  # c_e * c_w
     w_dir: np.ndarray
-    w_col: np.ndarray  # forcing column of the crest series, -1 for a constant crest
     # culverts, then bridges (culverts of an open profile)
     c_shape: np.ndarray  # CULVERT_RECTANGULAR, CULVERT_CIRCULAR or CULVERT_PROFILE
     c_width: np.ndarray  # m (diameter for circular)
     c_height: np.ndarray  # m (the crown of a profile; 1e10 for an open one)
     c_invert: np.ndarray  # m AD, at the k1 end
-    c_invert2: np.ndarray  # m AD, at the k2 end
     c_length: np.ndarray  # m
     c_xin: np.ndarray  # entrance and bend losses
     c_xout: np.ndarray
-    c_expand: np.ndarray  # 1: exit loss xout (1 - A/A_2)²
-    c_prof: np.ndarray  # table of a profile-shaped barrel, -1 otherwise
     c_ftype: np.ndarray
     c_fval: np.ndarray
     c_dir: np.ndarray
@@ -127,22 +130,6 @@ class NetArrays(NamedTuple):
     p_on: np.ndarray  # m AD
     p_off: np.ndarray  # m AD
     p_sign: np.ndarray  # +1 branch direction, -1 against
-    pc_col: np.ndarray  # forcing column of the capacity series, -1 for a constant capacity
-    # orifices
-    o_crest: np.ndarray  # m AD
-    o_width: np.ndarray  # m
-    o_gate: np.ndarray  # m AD (the constant, or the series' start)
-    o_mu: np.ndarray
-    o_dir: np.ndarray
-    o_qpos: np.ndarray  # m³/s, inf without a limit
-    o_qneg: np.ndarray
-    o_col: np.ndarray  # forcing column of the gate series, -1 for a constant gate
-    # universal weirs: crest strips (CSR)
-    u_ptr: np.ndarray
-    u_width: np.ndarray  # m
-    u_crest: np.ndarray  # m AD
-    u_ce: np.ndarray
-    u_dir: np.ndarray
     # boundaries
     b_hp: np.ndarray
     b_type: np.ndarray
@@ -170,6 +157,24 @@ class NetArrays(NamedTuple):
     ob_w: np.ndarray
 
 
+class StructureArrays(NamedTuple):
+    """What the structure kernels know beyond :class:`NetArrays`: the D-HYDRO structures and the settings series.
+
+    Kept apart from :class:`NetArrays`, which nearly every kernel receives: a kernel call passes a named
+    tuple field by field, and five more arrays in it slowed a synthetic week by a third (measured).
+    ``ogate`` is scratch: the orifice gates of the current step (m AD).
+    """
+
+    c_extra: np.ndarray  # per culvert and bridge the C_* columns: invert at the k2 end (m AD), expansion, barrel table
+    o_par: np.ndarray  # per orifice the O_* columns: crest (m AD), width (m), gate (m AD), mu, direction, limits (m³/s)
+    u_par: np.ndarray  # per universal weir the U_* columns: c_e, direction, first and end crest strip
+    u_strip: np.ndarray  # per crest strip: width (m), crest (m AD)
+    set_col: np.ndarray  # forcing column of each setting series (-1: constant): weirs', orifices' gates, pumps'
+    links: np.ndarray  # the links of orifices, universal weirs and culverts or bridges with an extension
+    ogate: np.ndarray
+    pnom: np.ndarray  # the pumps' own capacities, m³/s (a capacity series writes NetArrays.p_cap each step)
+
+
 @dataclass(frozen=True)
 class CompiledNetwork:
     """The flat kernel arrays plus the index maps that translate names to positions.
@@ -178,6 +183,8 @@ class CompiledNetwork:
     ----------
     arrays
         Kernel input.
+    structures
+        Kernel input of the structure kernels (:class:`StructureArrays`).
     hp_label, hp_branch, hp_chainage, hp_xy
         Per h-point: label, branch id ("" for nodes), chainage (m; nan for nodes), map position (m).
     link_label, link_branch, link_chainage
@@ -200,6 +207,7 @@ class CompiledNetwork:
     """
 
     arrays: NetArrays
+    structures: StructureArrays
     hp_label: list[str]
     hp_branch: list[str]
     hp_chainage: np.ndarray
@@ -268,6 +276,14 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     level_points = forcing["b_hp"][forcing["b_type"] == BOUNDARY_LEVEL]
     plan = solver_plan(n_hp, lk_type, lk_k1, lk_k2, lk_nb, lk_ns, lk_ftype, level_points, forcing["lat_hp"])
     columns = {key: i for i, key in enumerate(forcing_keys)}
+    structure_arrays = _structure_arrays(network, weirs, culverts, bridges, pumps, orifices, uweirs,
+                                         channels.profile_table, columns)
+    extra = StructureArrays(*(structure_arrays[name] for name in ("c_extra", "o_par", "u_par", "u_strip",
+                                                                 "set_col")),
+                            links=_extended_links(lk_type, lk_sidx, structure_arrays, n_culverts=len(culverts)),
+                            ogate=np.zeros(len(orifices)), pnom=structure_arrays["p_cap"].copy())
+    for name in ("c_extra", "o_par", "u_par", "u_strip", "set_col"):
+        del structure_arrays[name]
     arrays = NetArrays(
         **channels.storage,
         nl_ptr=nl_ptr,
@@ -294,8 +310,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         mo_runs=plan.momentum_runs,
         mo_other=plan.momentum_other,
         fr_type=fr_type,
-        **_structure_arrays(network, weirs, culverts, bridges, pumps, orifices, uweirs, channels.profile_table,
-                            columns),
+        **structure_arrays,
         **forcing,
         sv_cptr=plan.symbolic.cptr,
         sv_cedge=plan.symbolic.cedge,
@@ -313,6 +328,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     )
     return CompiledNetwork(
         arrays=arrays,
+        structures=extra,
         hp_label=grid.hp_label,
         hp_branch=grid.hp_branch,
         hp_chainage=grid.hp_chainage,
@@ -369,42 +385,42 @@ def _structure_arrays(network: Network, weirs: list[Weir], culverts: list[Culver
         u_ptr.append(len(strips_w))
     as_float = lambda v: np.asarray(v, dtype=float)  # noqa: E731
     as_int = lambda v: np.asarray(v, dtype=np.int64)  # noqa: E731
+    o_par = np.zeros((len(orifices), O_WIDTH))
+    for k, o in enumerate(orifices):
+        o_par[k] = (o.crest_level, o.crest_width, o.gate_lower_edge_level, o.discharge_coefficient,
+                    DIRECTION_CODES[o.allowed_flow], np.inf if o.max_flow_positive is None else o.max_flow_positive,
+                    np.inf if o.max_flow_negative is None else o.max_flow_negative)
+    u_par = np.zeros((len(uweirs), U_WIDTH))
+    for k, u in enumerate(uweirs):
+        u_par[k] = (u.discharge_coefficient, DIRECTION_CODES[u.allowed_flow], u_ptr[k], u_ptr[k + 1])
+    c_extra = np.zeros((len(barrels), C_WIDTH))
+    for k, (inv, b) in enumerate(zip(inverts, barrels, strict=True)):
+        c_extra[k] = (inv[1], float(culverts[k].outlet_expansion) if k < len(culverts) else 1.0, b[3])
+    set_col = ([columns.get(f"crest:{w.id}", -1) for w in weirs] + [columns.get(f"gate:{o.id}", -1) for o in orifices]
+               + [columns.get(f"capacity:{p.id}", -1) for p in pumps])
     return dict(
         w_width=as_float([w.crest_width for w in weirs]),
         w_cmu=as_float([w.discharge_coefficient * w.lateral_contraction for w in weirs]),
         w_dir=as_int([DIRECTION_CODES[w.allowed_flow] for w in weirs]),
-        w_col=as_int([columns.get(f"crest:{w.id}", -1) for w in weirs]),
         c_shape=as_int([b[0] for b in barrels]),
         c_width=as_float([b[1] for b in barrels]),
         c_height=as_float([b[2] for b in barrels]),
         c_invert=as_float([i[0] for i in inverts]),
-        c_invert2=as_float([i[1] for i in inverts]),
         c_length=as_float([c.length for c in [*culverts, *bridges]]),
         c_xin=as_float([c.inlet_loss + c.bend_loss for c in culverts] + [b.inlet_loss for b in bridges]),
         c_xout=as_float([c.outlet_loss for c in [*culverts, *bridges]]),
-        c_expand=as_int([int(c.outlet_expansion) for c in culverts] + [1] * len(bridges)),
-        c_prof=as_int([b[3] for b in barrels]),
         c_ftype=as_int([FRICTION_CODES[c.friction.type] for c in [*culverts, *bridges]]),
         c_fval=as_float([c.friction.value for c in [*culverts, *bridges]]),
         c_dir=as_int([DIRECTION_CODES[c.allowed_flow] for c in [*culverts, *bridges]]),
+        c_extra=c_extra,
         p_cap=as_float([p.capacity for p in pumps]),
         p_on=as_float([p.start_level for p in pumps]),
         p_off=as_float([p.stop_level for p in pumps]),
         p_sign=as_float([1.0 if p.direction == "positive" else -1.0 for p in pumps]),
-        pc_col=as_int([columns.get(f"capacity:{p.id}", -1) for p in pumps]),
-        o_crest=as_float([o.crest_level for o in orifices]),
-        o_width=as_float([o.crest_width for o in orifices]),
-        o_gate=as_float([o.gate_lower_edge_level for o in orifices]),
-        o_mu=as_float([o.discharge_coefficient for o in orifices]),
-        o_dir=as_int([DIRECTION_CODES[o.allowed_flow] for o in orifices]),
-        o_qpos=as_float([np.inf if o.max_flow_positive is None else o.max_flow_positive for o in orifices]),
-        o_qneg=as_float([np.inf if o.max_flow_negative is None else o.max_flow_negative for o in orifices]),
-        o_col=as_int([columns.get(f"gate:{o.id}", -1) for o in orifices]),
-        u_ptr=as_int(u_ptr),
-        u_width=as_float(strips_w),
-        u_crest=as_float(strips_z),
-        u_ce=as_float([u.discharge_coefficient for u in uweirs]),
-        u_dir=as_int([DIRECTION_CODES[u.allowed_flow] for u in uweirs]),
+        o_par=o_par,
+        u_par=u_par,
+        u_strip=np.column_stack([as_float(strips_w), as_float(strips_z)]).reshape(-1, 2),
+        set_col=as_int(set_col),
     )
 
 
@@ -455,6 +471,24 @@ def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[
         lat_col=np.asarray(lat_col, dtype=np.int64),
     )
     return arrays, keys, is_level
+
+
+def _extended_links(lk_type: np.ndarray, lk_sidx: np.ndarray, arrays: dict, n_culverts: int) -> np.ndarray:
+    """The links whose structure has a D-HYDRO extension (done by :func:`.structures.extended_coefficients`).
+
+    Orifices, universal weirs, culverts with two inverts, a profile barrel or the expansion loss, and bridges
+    (the culverts after the first ``n_culverts``).
+    """
+    extra = arrays["c_extra"]
+    out = []
+    for link in np.flatnonzero(lk_type != LINK_CHANNEL):
+        s = lk_sidx[link]
+        if lk_type[link] in (LINK_ORIFICE, LINK_UNIVERSAL_WEIR):
+            out.append(link)
+        elif lk_type[link] == LINK_CULVERT and (s >= n_culverts or extra[s, C_EXPAND] > 0 or extra[s, C_PROF] >= 0
+                                                 or extra[s, C_INVERT2] != arrays["c_invert"][s]):
+            out.append(link)
+    return np.asarray(out, dtype=np.int64)
 
 
 def _structure_links(grid: Grid, weirs: list, culverts: list, pumps: list, orifices: list,

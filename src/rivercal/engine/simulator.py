@@ -31,7 +31,7 @@ from rivercal.case.load import Case
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
 from rivercal.engine.kernels.codes import BOUNDARY_LEVEL, STAT_DRYING, STAT_SOLVES, STAT_STEPS, STATUS_LEVEL, STATUS_OK
 from rivercal.engine.kernels.lookup import hp_volume_width
-from rivercal.engine.kernels.timeloop import make_work, run
+from rivercal.engine.kernels.timeloop import make_work, run, run_ext
 from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
 from rivercal.errors import EngineDivergedError
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
@@ -101,7 +101,7 @@ class Simulator:
                 raise KeyError(f"forcing for unknown boundaries/laterals: {sorted(unknown)}")
             self.forcing.update(forcing)
         self._forcing_cache: dict[tuple, np.ndarray] = {}
-        self._work = make_work(self.compiled.arrays)
+        self._work = make_work(self.compiled.arrays, self.compiled.structures)
         #: Counters of the last compiled run: steps, level solves, drying re-solves.
         self.last_run_stats: dict[str, int] = {}
 
@@ -364,11 +364,19 @@ class Simulator:
         initial_volume = self._domain_volume(state)
         s = self.settings
         self._work.stats[:] = 0
-        status, step, index = run(
-            a, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
-            float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
-            float(s.max_velocity), int(out_every), obs, zs, qs, balance,
-        )
+        sx = self.compiled.structures
+        if sx.links.size or (sx.set_col >= 0).any():
+            status, step, index = run_ext(
+                a, sx, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
+                float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+                float(s.max_velocity), int(out_every), obs, zs, qs, balance,
+            )
+        else:
+            status, step, index = run(
+                a, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
+                float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+                float(s.max_velocity), int(out_every), obs, zs, qs, balance,
+            )
         stats = self._work.stats
         steps, solves, drying = int(stats[STAT_STEPS]), int(stats[STAT_SOLVES]), int(stats[STAT_DRYING])
         log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)

@@ -1,5 +1,6 @@
-"""Bed friction: the law (Strickler, Manning, Chezy, White-Colebrook), its coefficient with a plausible range,
-and named friction groups that cross-section profiles refer to.
+"""Bed friction: the law and its coefficient with a plausible range, and the friction groups profiles refer to.
+
+The laws: Strickler, Manning, Chézy and White-Colebrook.
 """
 
 from __future__ import annotations
@@ -68,7 +69,8 @@ def _check_range(kind: str, value: float, path: str) -> None:
     elif kind == "manning" and value > high:
         hint = '; is it a Strickler k_s? then write type = "strickler"'
     raise FieldProblem(
-        path, f"{kind} coefficient {num(value)} {unit} is outside the plausible range {num(low)}-{num(high)} {unit}{hint}"
+        path,
+        f"{kind} coefficient {num(value)} {unit} is outside the plausible range {num(low)}-{num(high)} {unit}{hint}",
     )
 
 

@@ -29,28 +29,48 @@ import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.codes import (
+    C_EXPAND,
+    C_INVERT2,
+    C_PROF,
     CULVERT_PROFILE,
     CULVERT_RECTANGULAR,
     FLOW_BOTH,
     FLOW_NEGATIVE,
     FLOW_POSITIVE,
-    FRICTION_CHEZY,
     FRICTION_MANNING,
     FRICTION_STRICKLER,
+    FRICTION_WHITE_COLEBROOK,
     LINK_CULVERT,
     LINK_ORIFICE,
     LINK_WEIR,
+    O_CREST,
+    O_DIR,
+    O_GATE,
+    O_MU,
+    O_QNEG,
+    O_QPOS,
+    O_SPAN,
+    STRIP_CREST,
+    STRIP_SPAN,
+    U_CE,
+    U_DIR,
+    U_END,
+    U_FIRST,
 )
 from rivercal.engine.kernels.lookup import flow_geometry
 
 __all__ = [
     "G",
+    "apply_settings",
     "culvert_area_perimeter",
     "culvert_link",
+    "culvert_link_ext",
     "direction_allowed",
+    "extended_coefficients",
     "friction_c2r",
+    "friction_c2r_any",
     "orifice_link",
-    "apply_settings",
+    "reset_settings",
     "structure_coefficients",
     "switch_pumps",
     "universal_weir_link",
@@ -74,16 +94,26 @@ def direction_allowed(code, sign):
 
 @kernel
 def friction_c2r(ftype, value, r, r43):
-    """C² R (m²/s²) for hydraulic radius ``r`` (m) and r43 = R^(4/3): Strickler, Manning, Chézy or White-Colebrook.
+    """C² R (m²/s²) for hydraulic radius ``r`` (m) and r43 = R^(4/3): Strickler, Manning or Chézy.
 
-    White-Colebrook (rough turbulent, ``value`` = k_n in m): C = 18 log10(12 R / k_n), at least 1 m^(1/2)/s.
+    Cheap arithmetic only, so that the vectorised momentum loop stays vectorised; White-Colebrook links are
+    never in that loop (:func:`friction_c2r_any`).
     """
     if ftype == FRICTION_STRICKLER:
         return value * value * r43
     if ftype == FRICTION_MANNING:
         return r43 / (value * value)
-    if ftype == FRICTION_CHEZY:
-        return value * value * r
+    return value * value * r
+
+
+@kernel
+def friction_c2r_any(ftype, value, r, r43):
+    """C² R (m²/s²) as :func:`friction_c2r`, and for White-Colebrook (``value`` = k_n, m).
+
+    White-Colebrook, rough turbulent: C = 18 log10(12 R / k_n), at least 1 m^(1/2)/s.
+    """
+    if ftype != FRICTION_WHITE_COLEBROOK:
+        return friction_c2r(ftype, value, r, r43)
     c = max(18.0 * math.log10(max(12.0 * r / value, 1.0)), 1.0)
     return c * c * r
 
@@ -130,9 +160,36 @@ def culvert_area_perimeter(shape, width, height, d):
 
 
 @kernel
-def culvert_link(z1, z2, shape, width, height, inv1, inv2, clen, xin, xout, ftype, fval, dircode, length, u_old, dt,
-                 prof, tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, expand, a1, a2):
-    """Flux area (m²), f and r of a culvert (or bridge) link for levels z1, z2 (m AD) at its two ends.
+def culvert_link(z1, z2, shape, width, height, invert, clen, xin, xout, ftype, fval, dircode, length, u_old, dt):
+    """Flux area (m²), f and r of a culvert link for levels z1, z2 (m AD) at its two ends (one invert, m AD)."""
+    if z1 >= z2:
+        smax, smin, sign = z1, z2, 1.0
+    else:
+        smax, smin, sign = z2, z1, -1.0
+    h1 = smax - invert
+    if h1 <= 0.0 or not direction_allowed(dircode, sign):
+        return 0.0, 0.0, 0.0
+    h2 = max(smin - invert, 0.0)
+    dcrit = min((2.0 / 3.0) * h1, height)
+    free = h2 < dcrit
+    d = dcrit if free else min(h2, height)
+    area, per = culvert_area_perimeter(shape, width, height, d)
+    if area <= 0.0:
+        return 0.0, 0.0, 0.0
+    radius = area / per
+    xi = xin + xout + 2.0 * G * clen / friction_c2r(ftype, fval, radius, radius * np.cbrt(radius))
+    head = (h1 - d) if free else (h1 - h2)
+    us = math.sqrt(2.0 * G * max(head, 0.0) / xi)
+    cu = 2.0 * G / (xi * length)
+    extra = cu * (smin - invert - d) if free else 0.0
+    b = 1.0 / dt + us / length
+    return area, cu / b, (u_old / dt + sign * extra) / b
+
+
+@kernel
+def culvert_link_ext(z1, z2, shape, width, height, inv1, inv2, clen, xin, xout, ftype, fval, dircode, length, u_old,
+                     dt, prof, tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, expand, a1, a2):
+    """Flux area (m²), f and r of a culvert (or bridge) link with the D-HYDRO extensions, levels z1, z2 (m AD).
 
     ``inv1`` and ``inv2`` are the inverts (m AD) at the k1 and k2 end; depths are measured from the
     downstream one. A barrel of shape ``CULVERT_PROFILE`` reads area and perimeter from profile table
@@ -162,7 +219,7 @@ def culvert_link(z1, z2, shape, width, height, inv1, inv2, clen, xin, xout, ftyp
     exit_loss = xout
     if expand:
         exit_loss = xout * max(1.0 - area / a_dn, 0.0) ** 2 if a_dn > 0.0 else xout
-    xi = xin + exit_loss + 2.0 * G * clen / friction_c2r(ftype, fval, radius, radius * np.cbrt(radius))
+    xi = xin + exit_loss + 2.0 * G * clen / friction_c2r_any(ftype, fval, radius, radius * np.cbrt(radius))
     head = (h1 - d) if free else (h1 - h2)
     us = math.sqrt(2.0 * G * max(head, 0.0) / xi)
     cu = 2.0 * G / (xi * length)
@@ -215,11 +272,11 @@ def orifice_link(z1, z2, crest, width, gate, mu, dircode, qpos, qneg, length, u_
 
 
 @kernel
-def universal_weir_link(z1, z2, lo, hi, strip_width, strip_crest, ce, dircode, length, u_old, dt):
-    """Flux area (m²), f and r of a universal weir: the weir law on each crest strip ``lo..hi``, summed.
+def universal_weir_link(z1, z2, u_strip, lo, hi, ce, dircode, length, u_old, dt):
+    """Flux area (m²), f and r of a universal weir: the weir law on its crest strips ``lo..hi``, summed.
 
-    Each strip ``k`` has width ``strip_width[k]`` (m) and crest ``strip_crest[k]`` (m AD). The link carries the
-    total flow area and the discharge-weighted velocity (see the module docstring).
+    Each strip is a row of ``u_strip``: its width (m) and crest (m AD). The link carries the total flow
+    area and the discharge-weighted velocity (see the module docstring).
     """
     if z1 >= z2:
         smax, smin, sign = z1, z2, 1.0
@@ -233,18 +290,18 @@ def universal_weir_link(z1, z2, lo, hi, strip_width, strip_crest, ce, dircode, l
     cu_sum = 0.0
     extra_sum = 0.0
     for k in range(lo, hi):
-        crest = strip_crest[k]
+        crest = u_strip[k, STRIP_CREST]
         h1 = smax - crest
         if h1 <= 0.0:
             continue
         h2 = smin - crest
         if h1 > 1.5 * h2:
-            a = ce * strip_width[k] * (2.0 / 3.0) * h1
+            a = ce * u_strip[k, STRIP_SPAN] * (2.0 / 3.0) * h1
             us = math.sqrt((2.0 / 3.0) * G * h1)
             cu = G / (1.5 * length)
             extra = cu * (smin - crest)
         else:
-            a = ce * strip_width[k] * h2
+            a = ce * u_strip[k, STRIP_SPAN] * h2
             us = math.sqrt(2.0 * G * (smax - smin))
             cu = 2.0 * G / length
             extra = 0.0
@@ -264,7 +321,7 @@ def universal_weir_link(z1, z2, lo, hi, strip_width, strip_crest, ce, dircode, l
 def switch_pumps(net, work, z, pump_on):
     """Pump switches from the suction-side level at time n; a pump link carries a fixed flux ``rco``.
 
-    The capacity is ``work.pcap`` (m³/s): the pump's own, or its series' value of this step.
+    The capacity is ``net.p_cap`` (m³/s), which a capacity series sets each step (:func:`apply_settings`).
     """
     for link in work.pump_links:
         s = net.lk_sidx[link]
@@ -275,7 +332,7 @@ def switch_pumps(net, work, z, pump_on):
             pump_on[s] = 1.0
         work.area[link] = 0.0
         work.fco[link] = 0.0
-        work.rco[link] = net.p_sign[s] * work.pcap[s] * pump_on[s]
+        work.rco[link] = net.p_sign[s] * net.p_cap[s] * pump_on[s]
 
 
 @kernel
@@ -287,49 +344,88 @@ def _channel_area(net, p, bed, z):
 
 @kernel
 def structure_coefficients(net, work, zk, u, crest, dt):
-    """Structure links linearised at the levels ``zk`` (m AD) of the current iterate."""
+    """Weir and culvert links linearised at the levels ``zk`` (m AD) of the current iterate.
+
+    The structures with D-HYDRO's extensions (orifices, universal weirs, culverts with two inverts, a profile
+    barrel or the expansion loss, bridges) are done by :func:`extended_coefficients`.
+    """
     for link in work.struct_links:
         s = net.lk_sidx[link]
         k1 = net.lk_k1[link]
         k2 = net.lk_k2[link]
         z1 = zk[k1]
         z2 = zk[k2]
-        t = net.lk_type[link]
-        if t == LINK_WEIR:
+        if net.lk_type[link] == LINK_WEIR:
             a, f, r = weir_link(z1, z2, crest[s], net.w_width[s], net.w_cmu[s], net.w_dir[s], net.lk_len[link],
                                 u[link], dt)
-        elif t == LINK_CULVERT:
-            expand = net.c_expand[s] > 0
-            a1 = _channel_area(net, net.lk_p1[link], net.lk_b1[link], z1) if expand else 0.0
-            a2 = _channel_area(net, net.lk_p2[link], net.lk_b2[link], z2) if expand else 0.0
-            a, f, r = culvert_link(z1, z2, net.c_shape[s], net.c_width[s], net.c_height[s], net.c_invert[s],
-                                   net.c_invert2[s], net.c_length[s], net.c_xin[s], net.c_xout[s], net.c_ftype[s],
-                                   net.c_fval[s], net.c_dir[s], net.lk_len[link], u[link], dt, net.c_prof[s],
-                                   net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
-                                   net.tab_pf, net.tab_flow, expand, a1, a2)
-        elif t == LINK_ORIFICE:
-            a, f, r = orifice_link(z1, z2, net.o_crest[s], net.o_width[s], work.ogate[s], net.o_mu[s], net.o_dir[s],
-                                   net.o_qpos[s], net.o_qneg[s], net.lk_len[link], u[link], dt)
         else:
-            a, f, r = universal_weir_link(z1, z2, net.u_ptr[s], net.u_ptr[s + 1], net.u_width, net.u_crest,
-                                          net.u_ce[s], net.u_dir[s], net.lk_len[link], u[link], dt)
+            a, f, r = culvert_link(z1, z2, net.c_shape[s], net.c_width[s], net.c_height[s], net.c_invert[s],
+                                   net.c_length[s], net.c_xin[s], net.c_xout[s], net.c_ftype[s], net.c_fval[s],
+                                   net.c_dir[s], net.lk_len[link], u[link], dt)
         work.area[link] = a
         work.fco[link] = f
         work.rco[link] = r
 
 
 @kernel
-def apply_settings(net, work, n, forcing, crest):
+def extended_coefficients(net, sx, work, zk, u, dt):
+    """The links of ``sx.links`` (orifices, universal weirs, extended culverts and bridges) linearised at ``zk``."""
+    for link in sx.links:
+        s = net.lk_sidx[link]
+        k1 = net.lk_k1[link]
+        k2 = net.lk_k2[link]
+        z1 = zk[k1]
+        z2 = zk[k2]
+        t = net.lk_type[link]
+        if t == LINK_CULVERT:
+            ex = sx.c_extra[s]
+            expand = ex[C_EXPAND] > 0.0
+            a1 = _channel_area(net, net.lk_p1[link], net.lk_b1[link], z1) if expand else 0.0
+            a2 = _channel_area(net, net.lk_p2[link], net.lk_b2[link], z2) if expand else 0.0
+            a, f, r = culvert_link_ext(z1, z2, net.c_shape[s], net.c_width[s], net.c_height[s], net.c_invert[s],
+                                       ex[C_INVERT2], net.c_length[s], net.c_xin[s], net.c_xout[s], net.c_ftype[s],
+                                       net.c_fval[s], net.c_dir[s], net.lk_len[link], u[link], dt, int(ex[C_PROF]),
+                                       net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
+                                       net.tab_pf, net.tab_flow, expand, a1, a2)
+        elif t == LINK_ORIFICE:
+            o = sx.o_par[s]
+            a, f, r = orifice_link(z1, z2, o[O_CREST], o[O_SPAN], sx.ogate[s], o[O_MU], int(o[O_DIR]), o[O_QPOS],
+                                   o[O_QNEG], net.lk_len[link], u[link], dt)
+        else:
+            w = sx.u_par[s]
+            a, f, r = universal_weir_link(z1, z2, sx.u_strip, int(w[U_FIRST]), int(w[U_END]), w[U_CE],
+                                          int(w[U_DIR]), net.lk_len[link], u[link], dt)
+        work.area[link] = a
+        work.fco[link] = f
+        work.rco[link] = r
+
+
+@kernel
+def reset_settings(net, sx):
+    """The orifice gates (m AD) and pump capacities (m³/s) of the structures themselves, before a run."""
+    for s in range(sx.ogate.size):
+        sx.ogate[s] = sx.o_par[s, O_GATE]
+    for s in range(sx.pnom.size):
+        net.p_cap[s] = sx.pnom[s]
+
+
+@kernel
+def apply_settings(net, sx, n, forcing, crest):
     """Structure settings that follow a series: weir crests (m AD), orifice gates (m AD), pump capacities (m³/s).
 
-    The columns of ``forcing`` are ``net.w_col``, ``net.o_col``, ``net.pc_col`` (-1: a constant setting).
+    ``sx.set_col`` holds the forcing column of each setting (-1: a constant), the weirs', the orifices' and
+    the pumps' in that order; a pump's capacity of the step goes into ``net.p_cap``.
     """
-    for s in range(net.w_col.size):
-        if net.w_col[s] >= 0:
-            crest[s] = forcing[n, net.w_col[s]]
-    for s in range(net.o_col.size):
-        if net.o_col[s] >= 0:
-            work.ogate[s] = max(forcing[n, net.o_col[s]], net.o_crest[s])
-    for s in range(net.pc_col.size):
-        if net.pc_col[s] >= 0:
-            work.pcap[s] = max(forcing[n, net.pc_col[s]], 0.0)
+    n_w = crest.size
+    n_o = sx.ogate.size
+    for k in range(sx.set_col.size):
+        col = sx.set_col[k]
+        if col < 0:
+            continue
+        if k < n_w:
+            crest[k] = forcing[n, col]
+        elif k < n_w + n_o:
+            s = k - n_w
+            sx.ogate[s] = max(forcing[n, col], sx.o_par[s, O_CREST])
+        else:
+            net.p_cap[k - n_w - n_o] = max(forcing[n, col], 0.0)

@@ -16,4 +16,5 @@ from rivercal.io.dhydro._forcing import read_exchange
 from rivercal.io.dhydro._import import ImportResult, import_dhydro
 from rivercal.io.dhydro._ledger import Entry, Ledger
 
-__all__ = ["Entry", "ExportResult", "ImportOptions", "ImportResult", "Ledger", "export_dhydro", "import_dhydro", "read_exchange"]
+__all__ = ["Entry", "ExportResult", "ImportOptions", "ImportResult", "Ledger", "export_dhydro", "import_dhydro",
+           "read_exchange"]

@@ -31,8 +31,8 @@ import numpy as np
 import pandas as pd
 
 from rivercal.case.load import Case
-from rivercal.network.grid import branch_layout, chainages
 from rivercal.engine.geometry import MIN_TOP
+from rivercal.network.grid import branch_layout, chainages
 
 __all__ = ["SETTINGS_FILE", "ExportResult", "export_dhydro", "read_engine_settings"]
 
@@ -328,7 +328,8 @@ class _Writer:
         models = [main]
         for group in self.net.friction_groups:
             fm = FrictionModel(
-                global_=[FrictGlobal(frictionid=group.id, frictiontype=_FRICTION[group.type], frictionvalue=group.value)],
+                global_=[FrictGlobal(frictionid=group.id, frictiontype=_FRICTION[group.type],
+                                     frictionvalue=group.value)],
                 branch=[FrictBranch(branchid=bf.branch, frictiontype=_FRICTION[group.type], functiontype="constant",
                                     numlocations=0, frictionvalues=[bf.value]) for bf in group.branches])
             fm.filepath = Path(f"roughness-{group.id}.ini")

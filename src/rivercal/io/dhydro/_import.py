@@ -12,7 +12,6 @@ import numpy as np
 import pandas as pd
 
 from rivercal.case.load import load_case
-from rivercal.network.grid import branch_layout
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io.dhydro._context import Context, ImportOptions, unquote
 from rivercal.io.dhydro._forcing import convert_forcing, read_exchange
@@ -21,6 +20,7 @@ from rivercal.io.dhydro._network import convert_network
 from rivercal.io.dhydro._read import load_fm_model
 from rivercal.io.dhydro._structures import convert_structures
 from rivercal.network import Branch, Bridge, Culvert, Orifice, Pump, UniversalWeir, Weir
+from rivercal.network.grid import branch_layout
 
 __all__ = ["ImportResult", "import_dhydro"]
 
@@ -89,7 +89,8 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
             raise CaseError(f"cannot read the exchange file: {' '.join(str(exc).split())}", file=str(path)) from None
         ctx.exchange.update(found)
     ctx.case["case"] = {"name": mdu.stem, "description": f"imported from D-Flow FM model {mdu.name}",
-                        "start": start.isoformat().replace("+00:00", "Z"), "end": end.isoformat().replace("+00:00", "Z")}
+                        "start": start.isoformat().replace("+00:00", "Z"),
+                        "end": end.isoformat().replace("+00:00", "Z")}
     convert_network(ctx)
     convert_structures(ctx)
     convert_forcing(ctx)
@@ -111,7 +112,8 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
         shown = "; ".join(f"{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1 else "") + f": {note}"
                           for (kind, note), ids in list(groups.items())[:4])
         more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
-        raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: {shown}{more}"
+        raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "
+                        f"{shown}{more}"
                         f"; see {out / 'import.md'}, or import with --allow-partial to leave them out", file=str(mdu))
     try:
         case = load_case(out)
@@ -181,7 +183,8 @@ def _fit_the_grid(ctx: Context) -> None:
             if table == "culverts" and "invert_level_end" not in item and item["invert_level"] < bed:
                 item["invert_level_end"] = item["invert_level"]
             if table == "pumps" and item["stop_level"] <= bed:
-                ctx.ledger.approximated(*ctx.origin(item["id"], "pump"), f"the stop level {item['stop_level']:g} m AD is not above "
+                ctx.ledger.approximated(*ctx.origin(item["id"], "pump"),
+                                        f"the stop level {item['stop_level']:g} m AD is not above "
                                         f"the bed ({bed:.3f} m AD): raised to 1 cm above it")
                 item["stop_level"] = bed + 0.01
                 item["start_level"] = max(item["start_level"], bed + 0.02)
@@ -207,7 +210,8 @@ def _fit_the_grid(ctx: Context) -> None:
         for seg in layouts[st["branch"]]:
             if seg.structure is not None and seg.a + 1e-9 < st["chainage"] < seg.b - 1e-9:
                 end = seg.a if st["chainage"] - seg.a <= seg.b - st["chainage"] else seg.b
-                ctx.ledger.approximated(*ctx.origin(st["id"], "station"), f"at {st['chainage']:g} m it lies between the calculation "
+                ctx.ledger.approximated(*ctx.origin(st["id"], "station"),
+                                        f"at {st['chainage']:g} m it lies between the calculation "
                                         f"points around structure {seg.structure.id!r}; moved to the nearer point "
                                         f"({end:g} m), whose level D-Flow FM reports there too")
                 st["chainage"] = end

@@ -110,7 +110,8 @@ class Ledger:
             f"{self.counts('approximated')}, refused {self.counts('refused')}",
         ]
         if partial and self.blocking:
-            lines.append(f"- **partial import**: {len(self.blocking)} refused object(s) change the hydraulics; the case "
+            lines.append(f"- **partial import**: {len(self.blocking)} refused object(s) change the hydraulics; "
+                         "the case "
                          "leaves them out (allowed by --allow-partial)")
         lines += ["", "| kind | read | exact | approximated | refused |", "|---|---:|---:|---:|---:|"]
         for k in kinds:

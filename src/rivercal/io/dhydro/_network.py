@@ -14,6 +14,7 @@ D-Flow FM → case:
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
 from typing import Any
 
@@ -82,7 +83,7 @@ def _friction_groups(ctx: Context) -> None:
     branch_values: dict[str, dict[str, float]] = defaultdict(dict)
     main_laws: dict[str, dict] = {}
     for blocks in ctx.model.frictions:
-        for kind_, bid, reason in blocks.failed:
+        for _, bid, reason in blocks.failed:
             ctx.ledger.refused("friction group", bid, f"{blocks.path.name}: {reason}")
         group_id = None
         for obj in blocks.objects:
@@ -234,7 +235,7 @@ def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) 
             if any(t < f for t, f in zip(total, flow, strict=True)):
                 notes.append("total widths below the flow widths raised to them")
             total = [max(t, f) for t, f in zip(total, flow, strict=True)]
-        closed = any(b < a for a, b in zip(flow, flow[1:], strict=False)) or flow[-1] == 0
+        closed = any(b < a for a, b in itertools.pairwise(flow)) or flow[-1] == 0
         if total is not None and not closed:
             total = list(np.maximum.accumulate(total))
         if len(levels) < 2:
@@ -264,7 +265,7 @@ def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) 
     elif kind in ("YZCrsDef", "XYZCrsDef"):
         y = [float(v) for v in d.ycoordinates] if kind == "YZCrsDef" else _along(d)
         z = [float(v) for v in d.zcoordinates]
-        if any(b < a for a, b in zip(y, y[1:], strict=False)):
+        if any(b < a for a, b in itertools.pairwise(y)):
             if kind == "YZCrsDef":
                 return None, 0.0, "y coordinates decrease: not a single-valued profile"
         bottom = min(z)

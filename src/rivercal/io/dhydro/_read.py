@@ -195,7 +195,8 @@ def _blocks(model: Any, expected: str, base: Path, ledger: Ledger, what: str,
     return _parse_blocks(full, ledger, what, kind_of)
 
 
-def _warn_unknown_keys(path: Path, ledger: Ledger, what: str, kind_of: Callable[[dict], tuple[str, Any] | None]) -> None:
+def _warn_unknown_keys(path: Path, ledger: Ledger, what: str,
+                       kind_of: Callable[[dict], tuple[str, Any] | None]) -> None:
     """Warn about the keys of each block that its hydrolib-core model does not know (some models ignore them)."""
     from hydrolib.core.dflowfm.ini.parser import Parser
 
@@ -256,7 +257,7 @@ def _number(text: Any) -> float | None:
 
 @contextlib.contextmanager
 def _relative_to(folder: Path) -> Iterator[None]:
-    """Within the block, hydrolib-core resolves the file names that blocks refer to (``.bc``, ``.tim``) from ``folder``."""
+    """Within the block, hydrolib-core resolves the file names that blocks name (``.bc``, ``.tim``) from ``folder``."""
     from hydrolib.core.base.file_manager import ResolveRelativeMode, file_load_context
 
     with file_load_context() as context:

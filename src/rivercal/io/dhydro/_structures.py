@@ -92,7 +92,7 @@ def convert_structures(ctx: Context) -> None:
             ctx.case[table] = items
     # D-Flow FM reports every structure's levels either side and discharge: so does the case
     taken = {st["id"] for st in ctx.case["stations"]}
-    for table, items in tables.items():
+    for items in tables.values():
         for item in items:
             sid = item["id"] if item["id"] not in taken else f"{item['id']}_structure"
             sid = sid.replace(".", "_")
