@@ -28,6 +28,15 @@ def imported(tmp_path_factory):
     return result, data, folder
 
 
+def _copy_model(folder, tmp_path):
+    """A copy of the test model in ``tmp_path / "model"`` (to change a file of it)."""
+    model = tmp_path / "model"
+    model.mkdir()
+    for f in (folder / "model").iterdir():
+        (model / f.name).write_bytes(f.read_bytes())
+    return model
+
+
 def _by_id(items: list[dict], key: str) -> dict:
     return next(i for i in items if i["id"] == key)
 
@@ -172,10 +181,7 @@ def test_refusals_that_change_the_hydraulics_stop_the_import(imported, tmp_path)
 
 def test_unknown_keywords_are_read_past_with_a_warning(imported, tmp_path) -> None:
     _, _, folder = imported
-    model = tmp_path / "model"
-    model.mkdir()
-    for f in (folder / "model").iterdir():
-        (model / f.name).write_bytes(f.read_bytes())
+    model = _copy_model(folder, tmp_path)
     mdu = model / "test.mdu"
     text = mdu.read_text(encoding="utf-8")
     text = re.sub(r"(\[geometry\]\n)", r"\1SomeNewerKeyword = 3\n", text, count=1, flags=re.I)
@@ -193,10 +199,7 @@ def test_a_broken_block_costs_that_block_only(imported, tmp_path) -> None:
     """hydrolib-core keeps a file it cannot validate as an opaque DiskOnlyFileModel: the import reads it block by
     block, refuses the broken block by name and converts the others."""
     _, _, folder = imported
-    model = tmp_path / "model"
-    model.mkdir()
-    for f in (folder / "model").iterdir():
-        (model / f.name).write_bytes(f.read_bytes())
+    model = _copy_model(folder, tmp_path)
     structures = model / "structures.ini"
     text = structures.read_text(encoding="utf-8")
     text = re.sub(r"(id\s*=\s*culvert2\b[^\[]*?)length\s*=\s*8\.0\n", r"\1", text, flags=re.S)  # a required key
@@ -209,10 +212,7 @@ def test_a_broken_block_costs_that_block_only(imported, tmp_path) -> None:
 
 def test_the_period_from_start_and_stop_datetimes(imported, tmp_path) -> None:
     _, _, folder = imported
-    model = tmp_path / "model"
-    model.mkdir()
-    for f in (folder / "model").iterdir():
-        (model / f.name).write_bytes(f.read_bytes())
+    model = _copy_model(folder, tmp_path)
     mdu = model / "test.mdu"
     text = mdu.read_text(encoding="utf-8")
     text = re.sub(r"(?im)^(startdatetime\s*=).*$", r"\1 20200101060000", text)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -110,7 +111,10 @@ def load_fm_model(mdu: Path, ledger: Ledger) -> LoadedModel:
         raise CaseError("the D-Flow FM model file does not exist", file=str(mdu))
     unknown: list[tuple[str, list[str]]] = []
     try:
-        with _recording_unknown_keywords(unknown):
+        with _recording_unknown_keywords(unknown), warnings.catch_warnings():
+            # hydrolib-core warns that [Initial] blocks of initial-field files are deprecated in newer D-Flow FM
+            # versions; real models still carry them, and the import reads them as they are
+            warnings.filterwarnings("ignore", category=DeprecationWarning, module="pydantic")
             fm = FMModel(filepath=mdu)
     except ValidationError as exc:
         raise CaseError(f"hydrolib-core cannot read the model: {_first_error(exc)}", file=str(mdu)) from None
