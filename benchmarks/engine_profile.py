@@ -26,7 +26,7 @@ from rivercal.engine.kernels.assemble import assemble
 from rivercal.engine.kernels.fluxes import compute_fluxes, limit_draining_links
 from rivercal.engine.kernels.momentum import _link_geometry, _link_newton, _momentum_other, _momentum_simple
 from rivercal.engine.kernels.solver import ldl_solve_packed
-from rivercal.engine.kernels.structures import structure_coefficients, switch_pumps
+from rivercal.engine.kernels.structures import extended_coefficients, structure_coefficients, switch_pumps
 from rivercal.model import load_model
 
 
@@ -56,10 +56,11 @@ def _newton(net, work, calls):
 
 
 @numba.njit
-def _structures(net, work, z, u, crest, pump_on, dt, calls):
+def _structures(net, sx, work, z, u, crest, pump_on, dt, calls):
     for _ in range(calls):
         switch_pumps(net, work, z, pump_on)
         structure_coefficients(net, work, z, u, crest, dt)
+        extended_coefficients(net, sx, work, z, u, dt)
 
 
 @numba.njit
@@ -140,7 +141,8 @@ def main() -> None:
         "momentum_inner": _time(_simple, (net, work, z, u, q, dt), c, r),
         "momentum_other": _time(_other, (net, work, z, u, q, dt), c, r),
         "newton": _time(_newton, (net, work), c, r),
-        "structures": _time(_structures, (net, work, z, u, crest, state.pump_on.copy(), dt), c, r),
+        "structures": _time(_structures, (net, sim.compiled.structures, work, z, u, crest, state.pump_on.copy(), dt),
+                            c, r),
         "assemble": _time(_assemble, (net, work, z.copy(), vol, u, theta, dt), c, r),
     }
     diag, off, rhs = work.diag.copy(), work.off.copy(), work.rhs.copy()

@@ -19,6 +19,7 @@ BENCHMARKS = {
     "calibrate-dud": ["bench", "calibrate", "--algorithms", "dud", "--json"],
     "calibrate-all": ["bench", "calibrate", "--json"],
     "hupsel": ["bench", "hupsel", "--json"],
+    "dhydro": ["bench", "dhydro", "--json"],
     "online": ["bench", "online", "--replay", "--json"],
     "dashboard": ["benchmarks/dashboard_load.py"],
     "engines": ["bench", "engines", "--json"],

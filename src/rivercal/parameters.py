@@ -13,9 +13,11 @@ deviation (a weak constraint), and targets:
   value = -0.15 m); the parameter's bounds must keep every target inside its own range.
 
 A target is the name of a quantity that the model declares settable (the model contract,
-:mod:`rivercal.models.contract`): ``weir:<id>.crest_level`` (m AD) or ``friction:global`` of the embedded
-engine, ``roughness:factor`` of a SWMM model, a placeholder name of an external program … This module
-checks only the form of a name; the calibration problem checks it against the model it runs.
+:mod:`rivercal.models.contract`): ``weir:<id>.crest_level`` (m AD), ``friction:global``, ``friction:branch:<id>``,
+``friction:group:<id>`` (in the unit of the friction law) or ``friction:scale`` (a factor on every channel
+friction's conveyance) of the embedded engine, ``roughness:factor`` of a SWMM model, a placeholder name of
+an external program … This module checks only the form of a name; the calibration problem checks it
+against the model it runs.
 
 Transforms (what the optimiser sees, and the first DuD step λ):
 

@@ -86,6 +86,8 @@ def test_documented_defaults_match_the_schema(heading: str, model) -> None:
     for name, value in model().model_dump().items():
         if value is None:
             assert documented[name] == "none", name
+        elif isinstance(value, str):
+            assert documented[name] == f'`"{value}"`', name
         else:
             assert float(documented[name]) == pytest.approx(value), name
 

@@ -287,13 +287,15 @@ def test_duplicate_id(tmp_path: Path) -> None:
 # -- topology ----------------------------------------------------------------------------------------
 
 
-def test_disconnected_network(tmp_path: Path) -> None:
+def test_disconnected_network_loads_as_two_parts(tmp_path: Path) -> None:
     data = mini_case()
-    # J2 - D and U2 lose their link to the rest when b2 is gone: no chain of branches reaches them
+    # J2 - D and U2 lose their link to the rest when b2 is gone: the network has two parts, each solved alike
     data["branches"] = [b for b in data["branches"] if b["id"] != "b2"]
     data["weirs"] = [w for w in data["weirs"] if w["branch"] != "b2"]
     data["stations"] = [s for s in data["stations"] if s["id"] != "SW1"]
-    expect(load_error(tmp_path, data), "case.toml", "nodes[2].id", "disconnected", "'J2'")
+    write_case(tmp_path, data)
+    parts = load_case(tmp_path).network.parts()
+    assert sorted(sorted(p) for p in parts) == [["D", "J2", "U2"], ["J1", "R", "U1"]]
 
 
 def test_node_referenced_by_nothing(tmp_path: Path) -> None:

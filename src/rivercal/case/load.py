@@ -44,7 +44,8 @@ class Case:
     forcing
         Time series of boundaries and laterals by key ``"boundary:<id>"`` / ``"lateral:<id>"``;
         values in m³/s (discharges) or m AD (levels); UTC DatetimeIndex. Constant values are
-        stored as two-point series spanning the period.
+        stored as two-point series spanning the period. Structure settings that follow a series:
+        ``"crest:<weir>"`` and ``"gate:<orifice>"`` (m AD), ``"capacity:<pump>"`` (m³/s).
     """
 
     spec: CaseFile
@@ -168,8 +169,8 @@ def case_from_dict(data: dict[str, Any], root: Path) -> Case:
 
 # -- pydantic errors → one line a water manager can act on --------------------------------------------
 
-_TAGS = {"rectangular", "trapezoidal", "zw"}
-_TAG_NAMES = "'rectangular', 'trapezoidal' or 'zw'"
+_TAGS = {"rectangular", "trapezoidal", "circular", "zw", "yz"}
+_TAG_NAMES = "'rectangular', 'trapezoidal', 'circular', 'zw' or 'yz'"
 
 
 def _case_error(exc: ValidationError, label: str) -> CaseError:
@@ -377,6 +378,25 @@ def _load_forcing(spec: CaseFile, root: Path) -> dict[str, pd.Series]:
                     file=str(root / ref.file), field=ref.column, used_by=used_by)
         series.name = key
         forcing[key] = series
+    settings = [("weirs", "weir", "crest_series", "crest", True), ("orifices", "orifice", "gate_series", "gate", True),
+                ("pumps", "pump", "capacity_series", "capacity", False)]
+    for table, kind, name, prefix, is_level in settings:
+        for i, item in enumerate(getattr(spec, table)):
+            ref = getattr(item, name)
+            if ref is None:
+                continue
+            used_by = f"{table}[{i}].{name} of {kind} {item.id!r}"
+            series = _column(root, ref, tables, field=f"{table}[{i}].{name}", used_by=used_by)
+            check_coverage(series, start, end, file=str(root / ref.file), field=ref.column, used_by=used_by)
+            check_range(series, MAX_LEVEL if is_level else MAX_DISCHARGE, "m AD" if is_level else "m³/s",
+                        file=str(root / ref.file), field=ref.column, used_by=used_by)
+            if not is_level and (series < 0).any():
+                bad = series.index[series < 0][0]
+                raise CaseError(f"{ref.column}: a pump capacity cannot be negative, got {series[bad]:g} m³/s at "
+                                f"{bad.isoformat()} (referenced by {used_by})", file=str(root / ref.file))
+            key = f"{prefix}:{item.id}"
+            series.name = key
+            forcing[key] = series
     return forcing
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from rivercal.errors import StructureOverlap
-from rivercal.network import Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
+from rivercal.network import STRUCTURE_TABLES, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
 from rivercal.network.grid import Segment, branch_layout, chainages
 from rivercal.parameters import Parameter
 
@@ -43,7 +43,8 @@ __all__ = [
 EARLIEST = datetime(1700, 1, 1, tzinfo=UTC)
 LATEST = datetime(2200, 1, 1, tzinfo=UTC)
 #: The model quantities of the embedded engine that case parameters may target.
-_ENGINE_TARGET = re.compile(r"^(weir:[A-Za-z0-9_.\-]+\.crest_level|friction:global|friction:branch:[A-Za-z0-9_.\-]+)$")
+_ENGINE_TARGET = re.compile(r"^(weir:[A-Za-z0-9_.\-]+\.crest_level|friction:global|friction:branch:[A-Za-z0-9_.\-]+"
+                            r"|friction:group:[A-Za-z0-9_.\-]+|friction:scale)$")
 #: Longest spin-up, h (one leap year).
 MAX_SPINUP_HOURS = 8784.0
 
@@ -140,6 +141,11 @@ class EngineSettings(_Model):
         must be far enough apart for each to get its own segment.
     max_velocity
         Velocity above which the run is declared diverged, m/s.
+    cross_sections
+        ``nearest`` (each calculation point takes the shape of the nearest cross-section) or
+        ``interpolated`` (each link takes the cross-section interpolated between the two around its
+        middle, at the bed level there, and each point stores the water of its half-links, as D-Flow FM
+        does).
     """
 
     dt: Real = Field(default=60.0, ge=0.1, le=3600, description="time step, s (0.1-3600)")
@@ -171,6 +177,12 @@ class EngineSettings(_Model):
     )
     max_velocity: Real = Field(
         default=20.0, gt=0, description="flow velocity above which a run is declared diverged, m/s"
+    )
+    cross_sections: Literal["nearest", "interpolated"] = Field(
+        default="nearest",
+        description="'nearest': each calculation point takes the shape of the nearest cross-section; "
+        "'interpolated': each link takes the cross-section interpolated at its middle and each point the "
+        "storage of its half-links (as D-Flow FM)",
     )
 
     @model_validator(mode="after")
@@ -314,6 +326,7 @@ class CaseFile(Network):
     @model_validator(mode="after")
     def _calibration_refers_to_the_network(self) -> CaseFile:
         weirs = {w.id for w in self.weirs}
+        scheduled = {w.id for w in self.weirs if w.crest_series is not None}
         branches = {b.id for b in self.branches}
         names: set[str] = set()
         for i, p in enumerate(self.parameters):
@@ -324,10 +337,18 @@ class CaseFile(Network):
                 if not _ENGINE_TARGET.match(target):
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r}: {target!r} is not a quantity of the embedded engine; "
-                                       "expected 'weir:<id>.crest_level', 'friction:global' or 'friction:branch:<id>'")
+                                       "expected 'weir:<id>.crest_level', 'friction:global', 'friction:branch:<id>', "
+                                       "'friction:group:<id>' or 'friction:scale'")
                 if target.startswith("weir:") and target[5:-12] not in weirs:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown weir {target[5:-12]!r}")
+                if target.startswith("weir:") and target[5:-12] in scheduled:
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r} sets the crest of weir {target[5:-12]!r}, whose crest "
+                                       "follows a time series (crest_series); calibrate a weir with a constant crest")
+                if target.startswith("friction:group:") and target[15:] not in {g.id for g in self.friction_groups}:
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r} refers to unknown friction group {target[15:]!r}")
                 if target.startswith("friction:branch:") and target[16:] not in branches:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown branch {target[16:]!r}")
@@ -387,12 +408,11 @@ class CaseFile(Network):
     def _fits_the_grid(self) -> CaseFile:
         where = {
             s.id: (f"{table}[{i}]", kind)
-            for table, kind, items in (("weirs", "weir", self.weirs), ("culverts", "culvert", self.culverts),
-                                       ("pumps", "pump", self.pumps))
-            for i, s in enumerate(items)
+            for table, kind in STRUCTURE_TABLES
+            for i, s in enumerate(getattr(self, table))
         }
         on_branch: dict[str, list[Weir | Culvert | Pump]] = {b.id: [] for b in self.branches}
-        for s in [*self.weirs, *self.culverts, *self.pumps]:
+        for s in self.structures:
             on_branch[s.branch].append(s)
         length = self.engine.structure_length
         layouts: dict[str, list[Segment]] = {}
@@ -403,12 +423,15 @@ class CaseFile(Network):
                 path, kind = where[exc.structure.id]
                 prev_path, prev_kind = where[exc.previous.id]
                 gap = abs(exc.structure.chainage - exc.previous.chainage)
+                need = (f"each structure needs its own segment of engine.structure_length = {length:g} m; move one "
+                        "of them or lower engine.structure_length") if br.points is None else (
+                        "each structure needs its own stretch between two calculation points; add a point between "
+                        "them to the branch's points")
                 raise FieldProblem(
                     f"{path}.chainage",
                     f"{kind} {exc.structure.id!r} at chainage {exc.structure.chainage:g} m of branch {br.id!r} is "
                     f"too close to {prev_kind} {exc.previous.id!r} ({prev_path}, at {exc.previous.chainage:g} m, "
-                    f"{gap:g} m away): each structure needs its own segment of engine.structure_length = "
-                    f"{length:g} m; move one of them or lower engine.structure_length",
+                    f"{gap:g} m away): {need}",
                 ) from None
         self._check_laterals(layouts)
         self._check_level_stations(layouts, where)

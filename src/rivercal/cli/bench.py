@@ -6,6 +6,7 @@ and the black box.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -89,6 +90,29 @@ def hupsel(as_json: JsonOpt = False) -> None:
     out_console.print(table)
     out_console.print(f"a-priori parameters: NSE cal {rows[0]['nse_calibration_default']:.3f}, "
                       f"val {rows[0]['nse_validation_default']:.3f}")
+
+
+@app.command("dhydro")
+@guard
+def dhydro(
+    out: Annotated[Path | None, typer.Option("--out", help="Also write the table per location (CSV) here.")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The imported D-HYDRO model Dellen against D-HYDRO's computed levels at 144 locations over 7 days."""
+    from rivercal.bench.dhydro import compare_dellen
+
+    result = compare_dellen()
+    summary = result.summary()
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        result.table.to_csv(out / "dellen_rmse.csv", index=False)
+        summary["table"] = str(out / "dellen_rmse.csv")
+    if as_json:
+        emit_json(summary)
+        return
+    out_console.print(f"Dellen, {summary['locations']} locations over {summary['dhydro_period_s'] / 86400:g} days: "
+                      f"RMSE median {summary['rmse_median_m']:.3f} m, 90 % {summary['rmse_p90_m']:.3f} m, max "
+                      f"{summary['rmse_max_m']:.3f} m; simulated in {summary['wall_s']:.2f} s")
 
 
 @app.command("online")

@@ -15,29 +15,35 @@ from typing import NamedTuple
 import numpy as np
 
 from rivercal.case.schema import EngineSettings
-from rivercal.engine.geometry import ProfileTables, build_tables, flow_records, storage_zw, zw_of
+from rivercal.engine.channels import FRICTION_CODES, channel_geometry
 from rivercal.engine.kernels.codes import (
     BOUNDARY_DISCHARGE,
     BOUNDARY_LEVEL,
     BOUNDARY_RATING,
+    C_EXPAND,
+    C_INVERT2,
+    C_PROF,
+    C_WIDTH,
     CULVERT_CIRCULAR,
+    CULVERT_PROFILE,
     CULVERT_RECTANGULAR,
     FLOW_BOTH,
     FLOW_NEGATIVE,
     FLOW_NONE,
     FLOW_POSITIVE,
-    FRICTION_CHEZY,
-    FRICTION_MANNING,
-    FRICTION_STRICKLER,
     LINK_CHANNEL,
     LINK_CULVERT,
+    LINK_ORIFICE,
     LINK_PUMP,
+    LINK_UNIVERSAL_WEIR,
     LINK_WEIR,
+    O_WIDTH,
     OBS_FLUX,
     OBS_LEVEL,
+    U_WIDTH,
 )
 from rivercal.engine.plan import connectivity, solver_plan
-from rivercal.network import Culvert, Network, Pump, Weir
+from rivercal.network import Bridge, CircularProfile, Culvert, Network, Orifice, Pump, UniversalWeir, Weir
 from rivercal.network.grid import Grid, layout_grid
 
 __all__ = [
@@ -45,11 +51,10 @@ __all__ = [
     "FRICTION_CODES",
     "CompiledNetwork",
     "NetArrays",
+    "StructureArrays",
     "compile_network",
 ]
 
-#: Friction type names of the case → codes of the kernel arrays.
-FRICTION_CODES = {"strickler": FRICTION_STRICKLER, "manning": FRICTION_MANNING, "chezy": FRICTION_CHEZY}
 #: ``allowed_flow`` of a structure → codes of the kernel arrays.
 DIRECTION_CODES = {"both": FLOW_BOTH, "positive": FLOW_POSITIVE, "negative": FLOW_NEGATIVE, "none": FLOW_NONE}
 _BOUNDARY_CODES = {"discharge": BOUNDARY_DISCHARGE, "level": BOUNDARY_LEVEL, "rating": BOUNDARY_RATING}
@@ -79,7 +84,7 @@ class NetArrays(NamedTuple):
     lk_b1: np.ndarray  # bed at the k1 end, m AD
     lk_p2: np.ndarray
     lk_b2: np.ndarray
-    lk_fric: np.ndarray  # friction group (branch index)
+    lk_fric: np.ndarray  # friction slot (channels.Channels: branches, then friction groups)
     lk_sidx: np.ndarray  # index in the weir/culvert/pump arrays
     lk_edge: np.ndarray  # solver edge, -1 for pumps
     lk_nb1: np.ndarray  # the one other channel link at k1 (NB_JUNCTION: a junction, NB_NONE: none or a structure)
@@ -103,19 +108,19 @@ class NetArrays(NamedTuple):
     tab_wt_top: np.ndarray
     tab_top: np.ndarray
     tab_flow: np.ndarray  # per table cell: af, pf and r43 and their increments to the next cell (FLOW_WIDTH values)
-    # friction groups
+    # friction slots
     fr_type: np.ndarray
     # weirs
     w_width: np.ndarray  # m
     w_cmu: np.ndarray  # c_e * c_w
     w_dir: np.ndarray
-    # culverts
-    c_shape: np.ndarray  # 0 rectangular, 1 circular
+    # culverts, then bridges (culverts of an open profile)
+    c_shape: np.ndarray  # CULVERT_RECTANGULAR, CULVERT_CIRCULAR or CULVERT_PROFILE
     c_width: np.ndarray  # m (diameter for circular)
-    c_height: np.ndarray  # m
-    c_invert: np.ndarray  # m AD
+    c_height: np.ndarray  # m (the crown of a profile; 1e10 for an open one)
+    c_invert: np.ndarray  # m AD, at the k1 end
     c_length: np.ndarray  # m
-    c_xin: np.ndarray
+    c_xin: np.ndarray  # entrance and bend losses
     c_xout: np.ndarray
     c_ftype: np.ndarray
     c_fval: np.ndarray
@@ -152,6 +157,24 @@ class NetArrays(NamedTuple):
     ob_w: np.ndarray
 
 
+class StructureArrays(NamedTuple):
+    """What the structure kernels know beyond :class:`NetArrays`: the D-HYDRO structures and the settings series.
+
+    Kept apart from :class:`NetArrays`, which nearly every kernel receives: a kernel call passes a named
+    tuple field by field, and five more arrays in it slowed a synthetic week by a third (measured).
+    ``ogate`` is scratch: the orifice gates of the current step (m AD).
+    """
+
+    c_extra: np.ndarray  # per culvert and bridge the C_* columns: invert at the k2 end (m AD), expansion, barrel table
+    o_par: np.ndarray  # per orifice the O_* columns: crest (m AD), width (m), gate (m AD), mu, direction, limits (m³/s)
+    u_par: np.ndarray  # per universal weir the U_* columns: c_e, direction, first and end crest strip
+    u_strip: np.ndarray  # per crest strip: width (m), crest (m AD)
+    set_col: np.ndarray  # forcing column of each setting series (-1: constant): weirs', orifices' gates, pumps'
+    links: np.ndarray  # the links of orifices, universal weirs and culverts or bridges with an extension
+    ogate: np.ndarray
+    pnom: np.ndarray  # the pumps' own capacities, m³/s (a capacity series writes NetArrays.p_cap each step)
+
+
 @dataclass(frozen=True)
 class CompiledNetwork:
     """The flat kernel arrays plus the index maps that translate names to positions.
@@ -160,6 +183,8 @@ class CompiledNetwork:
     ----------
     arrays
         Kernel input.
+    structures
+        Kernel input of the structure kernels (:class:`StructureArrays`).
     hp_label, hp_branch, hp_chainage, hp_xy
         Per h-point: label, branch id ("" for nodes), chainage (m; nan for nodes), map position (m).
     link_label, link_branch, link_chainage
@@ -167,7 +192,10 @@ class CompiledNetwork:
     structure_link
         Link index of each structure id.
     weir_ids, branch_ids
-        Order of the weir and friction-group (branch) arrays.
+        Order of the weir array and of the first friction slots (one per branch).
+    friction_slots
+        Key of every friction slot: ``("branch", id)``, ``("group", id)``, ``("group", id, branch)``;
+        ``friction_values`` holds their values.
     branch_inherits
         Branch ids that use the global friction.
     boundary_ids, lateral_ids
@@ -179,6 +207,7 @@ class CompiledNetwork:
     """
 
     arrays: NetArrays
+    structures: StructureArrays
     hp_label: list[str]
     hp_branch: list[str]
     hp_chainage: np.ndarray
@@ -197,6 +226,7 @@ class CompiledNetwork:
     observables: list[str]
     crest_levels: np.ndarray = field(repr=False)
     friction_values: np.ndarray = field(repr=False)
+    friction_slots: list[tuple] = field(default_factory=list, repr=False)
 
     @property
     def n_hpoints(self) -> int:
@@ -232,22 +262,30 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     """
     grid = layout_grid(network, settings.structure_length)
     n_hp = grid.n_points
-    storage = _storage(network, grid, settings.min_storage_area)
+    channels = channel_geometry(network, grid, settings.cross_sections, settings.min_storage_area)
     weirs, culverts, pumps = list(network.weirs), list(network.culverts), list(network.pumps)
-    lk_type, lk_sidx = _structure_links(grid, weirs, culverts, pumps)
+    orifices, uweirs, bridges = list(network.orifices), list(network.universal_weirs), list(network.bridges)
+    lk_type, lk_sidx = _structure_links(grid, weirs, culverts + bridges, pumps, orifices, uweirs)
     lk_k1, lk_k2 = grid.link_k1, grid.link_k2
     nl_ptr, nl_link, nl_sign, lk_nb, lk_ns = connectivity(n_hp, lk_k1, lk_k2, lk_type)
     forcing, forcing_keys, forcing_is_level = _forcing(network, grid)
     ob_type, ob_i1, ob_i2, ob_w, observables = _observables(network, grid)
-    fr_type = np.array(
-        [FRICTION_CODES[(b.friction or network.friction).type] for b in network.branches], dtype=np.int64
-    )
-    friction_values = np.array([(b.friction or network.friction).value for b in network.branches], dtype=float)
-    lk_ftype = fr_type[grid.link_branch]
+    fr_type = channels.slot_type
+    friction_values = channels.slot_value
+    lk_ftype = fr_type[channels.link_slot]
     level_points = forcing["b_hp"][forcing["b_type"] == BOUNDARY_LEVEL]
     plan = solver_plan(n_hp, lk_type, lk_k1, lk_k2, lk_nb, lk_ns, lk_ftype, level_points, forcing["lat_hp"])
+    columns = {key: i for i, key in enumerate(forcing_keys)}
+    structure_arrays = _structure_arrays(network, weirs, culverts, bridges, pumps, orifices, uweirs,
+                                         channels.profile_table, columns)
+    extra = StructureArrays(*(structure_arrays[name] for name in ("c_extra", "o_par", "u_par", "u_strip",
+                                                                 "set_col")),
+                            links=_extended_links(lk_type, lk_sidx, structure_arrays, n_culverts=len(culverts)),
+                            ogate=np.zeros(len(orifices)), pnom=structure_arrays["p_cap"].copy())
+    for name in ("c_extra", "o_par", "u_par", "u_strip", "set_col"):
+        del structure_arrays[name]
     arrays = NetArrays(
-        **storage,
+        **channels.storage,
         nl_ptr=nl_ptr,
         nl_link=nl_link,
         nl_sign=nl_sign,
@@ -256,11 +294,11 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         lk_type=lk_type,
         lk_len=grid.link_length,
         lk_ilen=1.0 / grid.link_length,
-        lk_p1=grid.link_p1,
-        lk_b1=grid.link_b1,
-        lk_p2=grid.link_p2,
-        lk_b2=grid.link_b2,
-        lk_fric=grid.link_branch,
+        lk_p1=channels.link_p1,
+        lk_b1=channels.link_b1,
+        lk_p2=channels.link_p2,
+        lk_b2=channels.link_b2,
+        lk_fric=channels.link_slot,
         lk_sidx=lk_sidx,
         lk_edge=plan.link_edge,
         lk_nb1=lk_nb[0].copy(),
@@ -272,7 +310,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         mo_runs=plan.momentum_runs,
         mo_other=plan.momentum_other,
         fr_type=fr_type,
-        **_structure_arrays(weirs, culverts, pumps),
+        **structure_arrays,
         **forcing,
         sv_cptr=plan.symbolic.cptr,
         sv_cedge=plan.symbolic.cedge,
@@ -290,6 +328,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     )
     return CompiledNetwork(
         arrays=arrays,
+        structures=extra,
         hp_label=grid.hp_label,
         hp_branch=grid.hp_branch,
         hp_chainage=grid.hp_chainage,
@@ -308,85 +347,89 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         observables=observables,
         crest_levels=np.array([w.crest_level for w in weirs], dtype=float),
         friction_values=friction_values,
+        friction_slots=channels.slot_key,
     )
 
 
-def _storage(network: Network, grid: Grid, min_storage_area: float) -> dict[str, np.ndarray]:
-    """The ``hp_*``, ``sc_*`` and ``tab_*`` arrays: each h-point's storage and the tables of every profile and node.
+def _structure_arrays(network: Network, weirs: list[Weir], culverts: list[Culvert], bridges: list[Bridge],
+                      pumps: list[Pump], orifices: list[Orifice], uweirs: list[UniversalWeir],
+                      profile_table: dict[str, int], columns: dict[str, int]) -> dict[str, np.ndarray]:
+    """The ``w_*``, ``c_*``, ``p_*``, ``o_*`` and ``u_*`` arrays (one entry per structure; bridges after culverts)."""
+    profiles = {p.id: p for p in network.profiles}
 
-    A point's storage is the sum of its contributions: the half-segments of the channel it represents,
-    and its node storage (a table of length 1 m), plus the minimum storage area ``min_storage_area`` (m²).
-    """
-    zw = [zw_of(p) for p in network.profiles]
-    contributions = [list(sections) for sections in grid.sections]
-    n_hp = len(contributions)
-    hp_bed = np.array([min(b for _, b, _ in c) for c in contributions])
-    hp_len = np.array([sum(length for _, _, length in c) for c in contributions])
-    for node in network.nodes:
-        i = grid.node_index[node.id]
-        if node.storage_table is not None:
-            h, wf, wt, bottom = storage_zw(node.storage_table)
-            zw.append((h, wf, wt))
-            contributions[i].append((len(zw) - 1, bottom, 1.0))
-        elif node.storage_area > 0:
-            zw.append((np.array([0.0, 1.0]), np.zeros(2), np.full(2, node.storage_area)))
-            contributions[i].append((len(zw) - 1, float(hp_bed[i]), 1.0))
-    tables: ProfileTables = build_tables(zw)
-    sc_ptr = np.zeros(n_hp + 1, dtype=np.int64)
-    sc_ptr[1:] = np.cumsum([len(c) for c in contributions])
-    flat = [entry for c in contributions for entry in c]
+    def barrel(c: Culvert | Bridge) -> tuple[int, float, float, int]:
+        """Shape code, width (m), crown height (m) and table of a culvert or bridge barrel."""
+        if isinstance(c, Culvert) and c.shape != "profile":
+            shape = CULVERT_RECTANGULAR if c.shape == "rectangular" else CULVERT_CIRCULAR
+            return shape, float(c.width if c.shape == "rectangular" else c.diameter), c.opening_height, -1
+        p = profiles[c.profile]
+        crown = 1.0e10
+        if isinstance(p, CircularProfile):
+            crown = p.diameter
+        elif getattr(p, "closed", False):
+            crown = p.height if p.type == "rectangular" else p.heights[-1]
+        return CULVERT_PROFILE, 0.0, float(crown), profile_table[p.id]
+
+    barrels = [barrel(c) for c in [*culverts, *bridges]]
+    inverts = [c.inverts for c in culverts] + [(b.bed_level, b.bed_level) for b in bridges]
+    strips_w, strips_z, u_ptr = [], [], [0]
+    for u in uweirs:
+        for k in range(len(u.y) - 1):
+            (ya, za), (yb, zb) = (u.y[k], u.z[k]), (u.y[k + 1], u.z[k + 1])
+            if yb <= ya:
+                continue
+            n = 1 if za == zb else 8  # a sloping piece of the crest in strips
+            for k in range(n):
+                strips_w.append((yb - ya) / n)
+                strips_z.append(u.crest_level + za + (zb - za) * (k + 0.5) / n)
+        u_ptr.append(len(strips_w))
+    as_float = lambda v: np.asarray(v, dtype=float)  # noqa: E731
+    as_int = lambda v: np.asarray(v, dtype=np.int64)  # noqa: E731
+    o_par = np.zeros((len(orifices), O_WIDTH))
+    for k, o in enumerate(orifices):
+        o_par[k] = (o.crest_level, o.crest_width, o.gate_lower_edge_level, o.discharge_coefficient,
+                    DIRECTION_CODES[o.allowed_flow], np.inf if o.max_flow_positive is None else o.max_flow_positive,
+                    np.inf if o.max_flow_negative is None else o.max_flow_negative)
+    u_par = np.zeros((len(uweirs), U_WIDTH))
+    for k, u in enumerate(uweirs):
+        u_par[k] = (u.discharge_coefficient, DIRECTION_CODES[u.allowed_flow], u_ptr[k], u_ptr[k + 1])
+    c_extra = np.zeros((len(barrels), C_WIDTH))
+    for k, (inv, b) in enumerate(zip(inverts, barrels, strict=True)):
+        c_extra[k] = (inv[1], float(culverts[k].outlet_expansion) if k < len(culverts) else 1.0, b[3])
+    set_col = ([columns.get(f"crest:{w.id}", -1) for w in weirs] + [columns.get(f"gate:{o.id}", -1) for o in orifices]
+               + [columns.get(f"capacity:{p.id}", -1) for p in pumps])
     return dict(
-        hp_bed=hp_bed,
-        hp_amin=np.full(n_hp, min_storage_area),
-        hp_ilen=np.divide(1.0, hp_len, out=np.zeros(n_hp), where=hp_len > 0),
-        sc_ptr=sc_ptr,
-        sc_prof=np.array([p for p, _, _ in flat], dtype=np.int64),
-        sc_bed=np.array([b for _, b, _ in flat], dtype=float),
-        sc_len=np.array([length for _, _, length in flat], dtype=float),
-        tab_off=tables.off,
-        tab_n=tables.n,
-        tab_dd=tables.dd,
-        tab_idd=1.0 / tables.dd,
-        tab_af=tables.af,
-        tab_pf=tables.pf,
-        tab_at=tables.at,
-        tab_wt=tables.wt,
-        tab_wf_top=tables.wf_top,
-        tab_wt_top=tables.wt_top,
-        tab_top=tables.top,
-        tab_flow=flow_records(tables),
-    )
-
-
-def _structure_arrays(weirs: list[Weir], culverts: list[Culvert], pumps: list[Pump]) -> dict[str, np.ndarray]:
-    """The ``w_*``, ``c_*`` and ``p_*`` arrays (one entry per weir, culvert, pump)."""
-    return dict(
-        w_width=np.array([w.crest_width for w in weirs], dtype=float),
-        w_cmu=np.array([w.discharge_coefficient * w.lateral_contraction for w in weirs], dtype=float),
-        w_dir=np.array([DIRECTION_CODES[w.allowed_flow] for w in weirs], dtype=np.int64),
-        c_shape=np.array([CULVERT_RECTANGULAR if c.shape == "rectangular" else CULVERT_CIRCULAR for c in culverts],
-                         dtype=np.int64),
-        c_width=np.array([c.width if c.shape == "rectangular" else c.diameter for c in culverts], dtype=float),
-        c_height=np.array([c.opening_height for c in culverts], dtype=float),
-        c_invert=np.array([c.invert_level for c in culverts], dtype=float),
-        c_length=np.array([c.length for c in culverts], dtype=float),
-        c_xin=np.array([c.inlet_loss for c in culverts], dtype=float),
-        c_xout=np.array([c.outlet_loss for c in culverts], dtype=float),
-        c_ftype=np.array([FRICTION_CODES[c.friction.type] for c in culverts], dtype=np.int64),
-        c_fval=np.array([c.friction.value for c in culverts], dtype=float),
-        c_dir=np.array([DIRECTION_CODES[c.allowed_flow] for c in culverts], dtype=np.int64),
-        p_cap=np.array([p.capacity for p in pumps], dtype=float),
-        p_on=np.array([p.start_level for p in pumps], dtype=float),
-        p_off=np.array([p.stop_level for p in pumps], dtype=float),
-        p_sign=np.array([1.0 if p.direction == "positive" else -1.0 for p in pumps], dtype=float),
+        w_width=as_float([w.crest_width for w in weirs]),
+        w_cmu=as_float([w.discharge_coefficient * w.lateral_contraction for w in weirs]),
+        w_dir=as_int([DIRECTION_CODES[w.allowed_flow] for w in weirs]),
+        c_shape=as_int([b[0] for b in barrels]),
+        c_width=as_float([b[1] for b in barrels]),
+        c_height=as_float([b[2] for b in barrels]),
+        c_invert=as_float([i[0] for i in inverts]),
+        c_length=as_float([c.length for c in [*culverts, *bridges]]),
+        c_xin=as_float([c.inlet_loss + c.bend_loss for c in culverts] + [b.inlet_loss for b in bridges]),
+        c_xout=as_float([c.outlet_loss for c in [*culverts, *bridges]]),
+        c_ftype=as_int([FRICTION_CODES[c.friction.type] for c in [*culverts, *bridges]]),
+        c_fval=as_float([c.friction.value for c in [*culverts, *bridges]]),
+        c_dir=as_int([DIRECTION_CODES[c.allowed_flow] for c in [*culverts, *bridges]]),
+        c_extra=c_extra,
+        p_cap=as_float([p.capacity for p in pumps]),
+        p_on=as_float([p.start_level for p in pumps]),
+        p_off=as_float([p.stop_level for p in pumps]),
+        p_sign=as_float([1.0 if p.direction == "positive" else -1.0 for p in pumps]),
+        o_par=o_par,
+        u_par=u_par,
+        u_strip=np.column_stack([as_float(strips_w), as_float(strips_z)]).reshape(-1, 2),
+        set_col=as_int(set_col),
     )
 
 
 def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[str], list[bool]]:
-    """The ``b_*`` and ``lat_*`` arrays, and the forcing columns: boundaries first, then laterals.
+    """The ``b_*`` and ``lat_*`` arrays, and the forcing columns: boundaries, laterals, then structure settings.
 
-    Returns the arrays, the key of each forcing column (``boundary:<id>``, ``lateral:<id>``) and whether
-    it holds a level (m AD) rather than a discharge (m³/s). A rating boundary has no column (-1).
+    Returns the arrays, the key of each forcing column (``boundary:<id>``, ``lateral:<id>``, ``crest:<weir>``,
+    ``gate:<orifice>``, ``capacity:<pump>``) and whether it holds a level (m AD; the value at the end of a
+    step) rather than a discharge (m³/s; the step mean). A rating boundary has no column (-1).
     """
     keys: list[str] = []
     is_level: list[bool] = []
@@ -410,6 +453,13 @@ def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[
         lat_col.append(len(keys))
         keys.append(f"lateral:{lat.id}")
         is_level.append(False)
+    for table, prefix, name, level in (("weirs", "crest", "crest_series", True),
+                                       ("orifices", "gate", "gate_series", True),
+                                       ("pumps", "capacity", "capacity_series", False)):
+        for item in getattr(network, table):
+            if getattr(item, name) is not None:
+                keys.append(f"{prefix}:{item.id}")
+                is_level.append(level)
     arrays = dict(
         b_hp=np.asarray(b_hp, dtype=np.int64),
         b_type=np.asarray(b_type, dtype=np.int64),
@@ -423,15 +473,35 @@ def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[
     return arrays, keys, is_level
 
 
-def _structure_links(grid: Grid, weirs: list, culverts: list, pumps: list) -> tuple[np.ndarray, np.ndarray]:
-    """Per link: its type code and its index in the weir, culvert or pump arrays (-1 for a channel)."""
-    position = {s.id: i for group in (weirs, culverts, pumps) for i, s in enumerate(group)}
+def _extended_links(lk_type: np.ndarray, lk_sidx: np.ndarray, arrays: dict, n_culverts: int) -> np.ndarray:
+    """The links whose structure has a D-HYDRO extension (done by :func:`.structures.extended_coefficients`).
+
+    Orifices, universal weirs, culverts with two inverts, a profile barrel or the expansion loss, and bridges
+    (the culverts after the first ``n_culverts``).
+    """
+    extra = arrays["c_extra"]
+    out = []
+    for link in np.flatnonzero(lk_type != LINK_CHANNEL):
+        s = lk_sidx[link]
+        if lk_type[link] in (LINK_ORIFICE, LINK_UNIVERSAL_WEIR):
+            out.append(link)
+        elif lk_type[link] == LINK_CULVERT and (s >= n_culverts or extra[s, C_EXPAND] > 0 or extra[s, C_PROF] >= 0
+                                                 or extra[s, C_INVERT2] != arrays["c_invert"][s]):
+            out.append(link)
+    return np.asarray(out, dtype=np.int64)
+
+
+def _structure_links(grid: Grid, weirs: list, culverts: list, pumps: list, orifices: list,
+                     uweirs: list) -> tuple[np.ndarray, np.ndarray]:
+    """Per link: its type code and its index in the arrays of its kind (-1 for a channel)."""
+    kinds = ((weirs, LINK_WEIR), (culverts, LINK_CULVERT), (pumps, LINK_PUMP), (orifices, LINK_ORIFICE),
+             (uweirs, LINK_UNIVERSAL_WEIR))
+    position = {s.id: (code, i) for group, code in kinds for i, s in enumerate(group)}
     lk_type = np.full(grid.n_links, LINK_CHANNEL, dtype=np.int64)
     lk_sidx = np.full(grid.n_links, -1, dtype=np.int64)
     for li, s in enumerate(grid.link_structure):
         if s is not None:
-            lk_type[li] = LINK_WEIR if isinstance(s, Weir) else LINK_CULVERT if isinstance(s, Culvert) else LINK_PUMP
-            lk_sidx[li] = position[s.id]
+            lk_type[li], lk_sidx[li] = position[s.id]
     return lk_type, lk_sidx
 
 

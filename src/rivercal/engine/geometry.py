@@ -114,13 +114,17 @@ def _integrate_width(d: np.ndarray, h: np.ndarray, w: np.ndarray) -> np.ndarray:
     return cum[seg] + w[seg] * x + 0.5 * slope[seg] * x**2
 
 
-def build_tables(zw: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> ProfileTables:
-    """Tabulate a list of ZW tables (heights, flow widths, total widths) for the kernels."""
+def build_tables(zw: list[tuple]) -> ProfileTables:
+    """Tabulate a list of ZW tables (heights, flow widths, total widths) for the kernels.
+
+    An entry may also be a table already on the depth grid (``CELLS + 1`` levels from 0 to its top):
+    (af, pf, at, r43, flow width above, total width above, top), e.g. from :mod:`rivercal.engine.sections`.
+    """
     off, n, dd, wft, wtt, tops = [], [], [], [], [], []
     af_all, pf_all, at_all, wt_all, r43_all = [], [], [], [], []
     pos = 0
-    for h, wf, wt in zw:
-        af, pf, at, r43, wf_top, wt_top, top = _tabulate(h, wf, wt)
+    for entry in zw:
+        af, pf, at, r43, wf_top, wt_top, top = _tabulate(*entry) if len(entry) == 3 else entry
         off.append(pos)
         n.append(af.size)
         dd.append(top / CELLS)

@@ -411,7 +411,7 @@ def momentum_runs(lk_type: np.ndarray, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_
     starting at k2. For such *simple* links the momentum pass reads the levels, the neighbours' velocities
     and fluxes contiguously (:func:`rivercal.engine.kernels.momentum.channel_coefficients`). A channel link
     next to a junction, a structure, a branch end or a lateral, or with Chézy friction (whose hydraulic
-    radius costs a division that the others do not need), is one of the others.
+    radius costs a division that the others do not need; White-Colebrook too), is one of the others.
 
     Parameters
     ----------
@@ -434,7 +434,7 @@ def momentum_runs(lk_type: np.ndarray, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_
     n = lk_type.size
     index = np.arange(n)
     simple = ((lk_type == LINK_CHANNEL) & (lk_k2 == lk_k1 + 1) & (lk_nb[0] == index - 1) & (lk_ns[0] == 1)
-              & (lk_nb[1] == index + 1) & (lk_ns[1] == -1) & (lk_ftype != FRICTION_CHEZY)
+              & (lk_nb[1] == index + 1) & (lk_ns[1] == -1) & (lk_ftype < FRICTION_CHEZY)
               & ~np.isin(lk_k1, lateral_points) & ~np.isin(lk_k2, lateral_points))
     rows = []
     link = 0

@@ -10,7 +10,11 @@ changing them never recompiles anything:
 - ``weir:<id>.crest_level`` — crest level of a weir, m AD;
 - ``friction:global`` — the friction value of every branch that inherits the global friction
   (unit of the case's friction type, e.g. k_s in m^(1/3)/s);
-- ``friction:branch:<id>`` — the friction value of one branch.
+- ``friction:branch:<id>`` — the friction value of one branch;
+- ``friction:group:<id>`` — the value of a friction group (``[[friction_groups]]``; its values on particular
+  branches stay);
+- ``friction:scale`` — a factor on the conveyance of every channel friction coefficient (k_s and C times the
+  factor, n divided by it; 1 leaves the case as it is). Culverts and bridges keep their own friction.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from rivercal.case.load import Case
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
 from rivercal.engine.kernels.codes import BOUNDARY_LEVEL, STAT_DRYING, STAT_SOLVES, STAT_STEPS, STATUS_LEVEL, STATUS_OK
 from rivercal.engine.kernels.lookup import hp_volume_width
-from rivercal.engine.kernels.timeloop import make_work, run
+from rivercal.engine.kernels.timeloop import make_work, run, run_ext
 from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
 from rivercal.errors import EngineDivergedError
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
@@ -40,7 +44,8 @@ log = logging.getLogger(__name__)
 def parse_target(target: str) -> tuple[str, str]:
     """Split a target string into (kind, id).
 
-    The kinds are ``("weir", id)``, ``("friction", "global")`` and ``("branch", id)``.
+    The kinds are ``("weir", id)``, ``("friction", "global")``, ``("branch", id)``, ``("group", id)`` and
+    ``("scale", "all")``.
 
     Raises
     ------
@@ -53,9 +58,13 @@ def parse_target(target: str) -> tuple[str, str]:
         return "friction", "global"
     if target.startswith("friction:branch:"):
         return "branch", target[len("friction:branch:") :]
+    if target.startswith("friction:group:"):
+        return "group", target[len("friction:group:") :]
+    if target == "friction:scale":
+        return "scale", "all"
     raise KeyError(
-        f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global' "
-        "or 'friction:branch:<id>'"
+        f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global', "
+        "'friction:branch:<id>', 'friction:group:<id>' or 'friction:scale'"
     )
 
 
@@ -92,7 +101,7 @@ class Simulator:
                 raise KeyError(f"forcing for unknown boundaries/laterals: {sorted(unknown)}")
             self.forcing.update(forcing)
         self._forcing_cache: dict[tuple, np.ndarray] = {}
-        self._work = make_work(self.compiled.arrays)
+        self._work = make_work(self.compiled.arrays, self.compiled.structures)
         #: Counters of the last compiled run: steps, level solves, drying re-solves.
         self.last_run_stats: dict[str, int] = {}
 
@@ -124,26 +133,53 @@ class Simulator:
         out = {f"weir:{w}.crest_level": float(v) for w, v in zip(c.weir_ids, c.crest_levels, strict=True)}
         if c.branch_inherits:
             out["friction:global"] = float(self.case.spec.friction.value)
-        for b, v in zip(c.branch_ids, c.friction_values, strict=True):
+        for b, v in zip(c.branch_ids, c.friction_values, strict=False):
             if b not in c.branch_inherits:
                 out[f"friction:branch:{b}"] = float(v)
+        for key, v in zip(c.friction_slots, c.friction_values, strict=True):
+            if key[0] == "group" and len(key) == 2:
+                out[f"friction:group:{key[1]}"] = float(v)
         return out
 
     def parameter_arrays(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray]:
-        """Crest levels (m AD, per weir) and friction values (per branch) for a set of targets."""
+        """Crest levels (m AD, per weir) and friction values (per friction slot) for a set of targets."""
         c = self.compiled
         crest = c.crest_levels.copy()
         fric = c.friction_values.copy()
         ftype = {code: name for name, code in FRICTION_CODES.items()}
         weir_pos = {w: i for i, w in enumerate(c.weir_ids)}
         branch_pos = {b: i for i, b in enumerate(c.branch_ids)}
-        # Global first, so that a branch-specific value given in the same call wins.
-        items = sorted((parameters or {}).items(), key=lambda kv: kv[0] != "friction:global")
+        # Global first, so that a branch-specific value given in the same call wins; the scale last.
+        items = sorted((parameters or {}).items(),
+                       key=lambda kv: (kv[0] == "friction:scale", kv[0] != "friction:global"))
+        slots = {key: i for i, key in enumerate(c.friction_slots)}
         for target, value in items:
             kind, ident = parse_target(target)
             value = float(value)
             if not np.isfinite(value):
                 raise ValueError(f"{target}: value {value} is not finite")
+            if kind == "scale":
+                if not 0.05 <= value <= 20.0:
+                    raise ValueError(f"{target}: factor {value:g} is outside 0.05-20")
+                used = set(np.unique(c.arrays.lk_fric).tolist())
+                for i, code in enumerate(c.arrays.fr_type):
+                    name = ftype[int(code)]
+                    if name == "white-colebrook" and i in used:
+                        raise KeyError(f"{target}: case {self.case.name!r} has White-Colebrook friction, whose "
+                                       "conveyance a factor on the coefficient does not scale")
+                    fric[i] = fric[i] / value if name == "manning" else fric[i] * value
+                continue
+            if kind == "group":
+                if ("group", ident) not in slots:
+                    raise KeyError(f"{target}: no friction group {ident!r} in case {self.case.name!r}")
+                i = slots[("group", ident)]
+                name = ftype[int(c.arrays.fr_type[i])]
+                low, high, unit = FRICTION_RANGES[name]
+                if not low <= value <= high:
+                    raise ValueError(f"{target}: {name} value {value:g} {unit} is outside the plausible range "
+                                     f"{low:g}-{high:g} {unit}")
+                fric[i] = value
+                continue
             if kind == "weir":
                 if ident not in weir_pos:
                     raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")
@@ -328,11 +364,19 @@ class Simulator:
         initial_volume = self._domain_volume(state)
         s = self.settings
         self._work.stats[:] = 0
-        status, step, index = run(
-            a, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
-            float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
-            float(s.max_velocity), int(out_every), obs, zs, qs, balance,
-        )
+        sx = self.compiled.structures
+        if sx.links.size or (sx.set_col >= 0).any():
+            status, step, index = run_ext(
+                a, sx, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
+                float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+                float(s.max_velocity), int(out_every), obs, zs, qs, balance,
+            )
+        else:
+            status, step, index = run(
+                a, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
+                float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+                float(s.max_velocity), int(out_every), obs, zs, qs, balance,
+            )
         stats = self._work.stats
         steps, solves, drying = int(stats[STAT_STEPS]), int(stats[STAT_SOLVES]), int(stats[STAT_DRYING])
         log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)

@@ -10,7 +10,10 @@ Quantities:
 - ``weir:<id>.crest_level`` — crest level of a weir, m AD;
 - ``friction:global`` — the friction value of every branch that inherits the case's friction (unit of
   the case's friction type, e.g. k_s in m^(1/3)/s), present when some branch inherits it;
-- ``friction:branch:<id>`` — the friction value of one branch (unit of its friction type).
+- ``friction:branch:<id>`` — the friction value of one branch (unit of its friction type);
+- ``friction:group:<id>`` — the value of a friction group (``[[friction_groups]]``, unit of its law);
+- ``friction:scale`` — a factor (-) on the conveyance of every channel friction coefficient, present when
+  no link uses White-Colebrook friction (a factor on its coefficient does not scale its conveyance).
 
 Friction bounds are the plausible ranges of :data:`rivercal.network.FRICTION_RANGES`.
 """
@@ -21,6 +24,7 @@ import functools
 from collections.abc import Mapping
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from rivercal.case.load import Case, load_case
@@ -84,6 +88,16 @@ class EmbeddedModel(Simulator):
             low, high, unit = FRICTION_RANGES[kind]
             out[f"friction:branch:{b}"] = Quantity(f"friction:branch:{b}", unit, low, high,
                                                    f"{kind} friction of branch {b}")
+        for i, key in enumerate(c.friction_slots):
+            if key[0] == "group" and len(key) == 2:
+                kind = names[int(c.arrays.fr_type[i])]
+                low, high, unit = FRICTION_RANGES[kind]
+                out[f"friction:group:{key[1]}"] = Quantity(f"friction:group:{key[1]}", unit, low, high,
+                                                           f"{kind} friction of friction group {key[1]}")
+        used = set(np.unique(c.arrays.lk_fric).tolist())  # the friction slots some link uses
+        if all(names[int(code)] != "white-colebrook" for i, code in enumerate(c.arrays.fr_type) if i in used):
+            out["friction:scale"] = Quantity("friction:scale", "-", 0.05, 20.0,
+                                             "factor on the conveyance of every channel friction coefficient")
         return out
 
     @functools.cached_property

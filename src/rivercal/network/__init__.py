@@ -4,15 +4,15 @@ These pydantic models are both the in-memory network description and the schema 
 part of ``case.toml`` (see ``docs/case-format.md``). One module per kind of object, each with its
 own checks:
 
-- :mod:`~rivercal.network.friction` — the friction law and its plausible ranges;
-- :mod:`~rivercal.network.profiles` — cross-section shapes;
+- :mod:`~rivercal.network.friction` — the friction law and its plausible ranges, friction groups;
+- :mod:`~rivercal.network.profiles` — cross-section shapes (rectangular, trapezoidal, circular, ZW, YZ);
 - :mod:`~rivercal.network.nodes` — connection nodes and their storage;
 - :mod:`~rivercal.network.branches` — branches and the cross-sections along them;
-- :mod:`~rivercal.network.structures` — weirs, culverts and pumps;
+- :mod:`~rivercal.network.structures` — weirs, universal weirs, orifices, culverts, bridges and pumps;
 - :mod:`~rivercal.network.forcing` — boundaries, laterals and the series they read;
 - :mod:`~rivercal.network.stations` — observation stations;
 - :mod:`~rivercal.network.topology` — the :class:`Network` and the rules that need all of it
-  (unknown ids, connectivity, a crest below the bed).
+  (unknown ids, a crest below the bed).
 
 Field-level rules (positive widths, monotone tables, finite numbers) are checked by the objects
 themselves. Every rule that fails raises :class:`~rivercal.errors.FieldProblem`, a ``ValueError``
@@ -42,12 +42,20 @@ from rivercal.network._base import (
 )
 from rivercal.network.branches import MAX_POINTS_PER_BRANCH, Branch, CrossSection
 from rivercal.network.forcing import Boundary, Lateral, RatingTable, SeriesRef
-from rivercal.network.friction import FRICTION_RANGES, Friction
+from rivercal.network.friction import FRICTION_RANGES, BranchFriction, Friction, FrictionGroup
 from rivercal.network.nodes import Node, StorageTable
-from rivercal.network.profiles import Profile, RectangularProfile, TrapezoidalProfile, ZWProfile
+from rivercal.network.profiles import (
+    CircularProfile,
+    Profile,
+    RectangularProfile,
+    TrapezoidalProfile,
+    YZProfile,
+    ZWProfile,
+    profile_sections,
+)
 from rivercal.network.stations import Station
-from rivercal.network.structures import Culvert, Pump, Weir
-from rivercal.network.topology import Network
+from rivercal.network.structures import Bridge, Culvert, Orifice, Pump, UniversalWeir, Weir
+from rivercal.network.topology import STRUCTURE_TABLES, Network
 
 __all__ = [
     "FRICTION_RANGES",
@@ -56,18 +64,24 @@ __all__ = [
     "MAX_POINTS_PER_BRANCH",
     "MAX_SIZE",
     "MIN_SIZE",
+    "STRUCTURE_TABLES",
     "Boundary",
     "Branch",
+    "BranchFriction",
+    "Bridge",
+    "CircularProfile",
     "CrossSection",
     "Culvert",
     "Discharge",
     "FieldProblem",
     "Friction",
+    "FrictionGroup",
     "Identifier",
     "Lateral",
     "Level",
     "Network",
     "Node",
+    "Orifice",
     "Profile",
     "Pump",
     "RatingTable",
@@ -78,6 +92,9 @@ __all__ = [
     "Station",
     "StorageTable",
     "TrapezoidalProfile",
+    "UniversalWeir",
     "Weir",
+    "YZProfile",
     "ZWProfile",
+    "profile_sections",
 ]

@@ -53,6 +53,10 @@ class Branch(NetworkModel):
         At least one cross-section, ordered by chainage.
     geometry
         Optional polyline ``[[x, y], ...]`` in m for plots.
+    points
+        Optional chainages of the calculation points, m, from 0 to ``length`` (as a D-Flow FM grid
+        gives them). Then ``dx`` is not used, and a structure occupies the stretch between the two
+        points around it instead of a segment of ``engine.structure_length``.
     """
 
     id: Identifier = Field(description="branch id (its own friction is the parameter friction:branch:<id>)")
@@ -68,6 +72,10 @@ class Branch(NetworkModel):
     )
     geometry: list[tuple[Real, Real]] | None = Field(
         default=None, min_length=2, description="polyline [[x, y], ...] of the channel axis, m (optional, for plots)"
+    )
+    points: list[Real] | None = Field(
+        default=None, min_length=2,
+        description="chainages of the calculation points, m, from 0 to length (optional; then dx is not used)",
     )
 
     @model_validator(mode="after")
@@ -89,6 +97,9 @@ class Branch(NetworkModel):
                 f"cross-section at chainage {num(chainages[-1])} m lies beyond the end of the branch "
                 f"({num(self.length)} m long)",
             )
+        if self.points is not None:
+            self._check_points()
+            return self
         points = self.length / self.dx
         if points > MAX_POINTS_PER_BRANCH:
             raise FieldProblem(
@@ -97,6 +108,21 @@ class Branch(NetworkModel):
                 f"(at most {MAX_POINTS_PER_BRANCH:,}); dx and length are in metres",
             )
         return self
+
+    def _check_points(self) -> None:
+        pts = self.points
+        tol = 1e-6 * max(1.0, self.length)
+        if abs(pts[0]) > tol:
+            raise FieldProblem("points[0]", f"the first calculation point must be at chainage 0, got {num(pts[0])} m")
+        if abs(pts[-1] - self.length) > tol:
+            raise FieldProblem(f"points[{len(pts) - 1}]", f"the last calculation point must be at the end of the "
+                                                          f"branch ({num(self.length)} m), got {num(pts[-1])} m")
+        for i, (a, b) in enumerate(itertools.pairwise(pts), start=1):
+            if not b > a:
+                raise FieldProblem(f"points[{i}]", f"calculation points must increase strictly, but {num(b)} m "
+                                                   f"follows {num(a)} m")
+        if len(pts) > MAX_POINTS_PER_BRANCH:
+            raise FieldProblem("points", f"{len(pts):,} calculation points (at most {MAX_POINTS_PER_BRANCH:,})")
 
     def bed_level_at(self, chainage: float) -> float:
         """Bed level at a chainage, m AD (linear between cross-sections, constant beyond)."""

@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from rivercal.errors import StructureOverlap
-from rivercal.network import Branch, Culvert, Network, Pump, Weir
+from rivercal.network import Branch, Bridge, Culvert, Network, Orifice, Pump, UniversalWeir, Weir
 
 __all__ = ["Grid", "Segment", "StructureOverlap", "branch_layout", "chainages", "layout_grid"]
 
-Structure = Weir | Culvert | Pump
+Structure = Weir | Culvert | Pump | Orifice | UniversalWeir | Bridge
 
 
 @dataclass(frozen=True)
@@ -44,6 +44,9 @@ class Segment:
 
 def branch_layout(branch: Branch, structures: list[Structure], structure_length: float) -> list[Segment]:
     """Split a branch into channel segments (at most ``dx`` long) and one short segment per structure.
+
+    A branch with explicit calculation points (``points``) is split at them instead, and each structure
+    occupies the stretch between the two points around it (two structures in one stretch overlap).
 
     A structure occupies a segment of ``structure_length`` (at most the branch length) centred on its
     chainage. When the channel piece between that segment and an end of the branch would be shorter
@@ -72,6 +75,8 @@ def branch_layout(branch: Branch, structures: list[Structure], structure_length:
     StructureOverlap
         When a structure's segment would overlap the previous one.
     """
+    if branch.points is not None:
+        return _points_layout(branch, structures, structure_length)
     length = branch.length
     half = 0.5 * min(structure_length, length)
     snap = max(0.5 * half, 0.5 * branch.dx)
@@ -94,6 +99,18 @@ def branch_layout(branch: Branch, structures: list[Structure], structure_length:
     if pos < length - 1e-9:
         segs.extend(_fill(pos, length, branch.dx))
     return segs
+
+
+def _points_layout(branch: Branch, structures: list[Structure], structure_length: float) -> list[Segment]:
+    """The layout of a branch with given calculation points: a structure occupies the stretch around it."""
+    pts = [0.0, *branch.points[1:-1], branch.length]
+    owner: dict[int, Structure] = {}
+    for s in sorted(structures, key=lambda s: s.chainage):
+        j = int(np.clip(np.searchsorted(pts, s.chainage, side="right") - 1, 0, len(pts) - 2))
+        if j in owner:
+            raise StructureOverlap(s, owner[j], branch.id, structure_length)
+        owner[j] = s
+    return [Segment(pts[j], pts[j + 1], owner.get(j)) for j in range(len(pts) - 1)]
 
 
 def chainages(segments: list[Segment]) -> np.ndarray:
@@ -227,7 +244,7 @@ def layout_grid(network: Network, structure_length: float) -> Grid:
     hp_xy = [(n.x if n.x is not None else np.nan, n.y if n.y is not None else np.nan) for n in network.nodes]
     sections: dict[int, list[tuple[int, float, float]]] = defaultdict(list)
     on_branch: dict[str, list[Structure]] = defaultdict(list)
-    for s in [*network.weirs, *network.culverts, *network.pumps]:
+    for s in network.structures:
         on_branch[s.branch].append(s)
 
     k1, k2, length, chainage, branch_index, branch_id = [], [], [], [], [], []

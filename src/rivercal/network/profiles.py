@@ -1,4 +1,8 @@
-"""Cross-section shapes: rectangular, trapezoidal and tabulated level-width ("ZW") profiles."""
+"""Cross-section shapes: rectangular, trapezoidal, circular, tabulated level-width ("ZW") and surveyed ("YZ") profiles.
+
+A profile may name the friction groups (``[[friction_groups]]``) of its sections; a profile without
+them takes the friction of the branch it lies on (or the global friction).
+"""
 
 from __future__ import annotations
 
@@ -16,12 +20,31 @@ from rivercal.network._base import (
     non_decreasing,
     non_negative,
     num,
+    nums,
     same_length,
     strictly_increasing,
     tiny,
 )
 
-__all__ = ["Profile", "RectangularProfile", "TrapezoidalProfile", "ZWProfile"]
+__all__ = [
+    "CircularProfile",
+    "Profile",
+    "RectangularProfile",
+    "TrapezoidalProfile",
+    "YZProfile",
+    "ZWProfile",
+    "profile_sections",
+]
+
+_FRICTION = (
+    "friction groups of the profile's sections (ids of [[friction_groups]]); default: the branch's friction"
+)
+
+
+def _one_friction(friction: list[str] | None, what: str) -> None:
+    if friction is not None and len(friction) != 1:
+        raise FieldProblem("friction", f"a {what} profile has one friction section, so friction takes one group id, "
+                                       f"got {len(friction)}")
 
 
 
@@ -33,13 +56,27 @@ class RectangularProfile(NetworkModel):
     width
         Bottom (= flow) width, m.
     height
-        Bank height above the bed, m (optional; used for freeboard checks and plots).
+        Bank height above the bed, m (optional; used for freeboard checks and plots); the inside
+        height of a closed profile.
+    closed
+        A closed conduit (a box culvert or sewer): no width above ``height``.
+    friction
+        The friction group of the profile (one id); default: the branch's friction.
     """
 
     id: Identifier
     type: Literal["rectangular"] = Field(description="profile type 'rectangular'")
     width: Size = Field(ge=MIN_SIZE, description="width of the channel, m")
     height: Size | None = Field(default=None, ge=MIN_SIZE, description="bank height above the bed, m (optional)")
+    closed: bool = Field(default=False, description="a closed conduit of this width and height (needs height)")
+    friction: list[Identifier] | None = Field(default=None, min_length=1, description=_FRICTION)
+
+    @model_validator(mode="after")
+    def _check(self) -> RectangularProfile:
+        if self.closed and self.height is None:
+            raise FieldProblem("height", "a closed rectangular profile needs its inside height (m)")
+        _one_friction(self.friction, "rectangular")
+        return self
 
 
 class TrapezoidalProfile(NetworkModel):
@@ -54,6 +91,8 @@ class TrapezoidalProfile(NetworkModel):
     height
         Bank height above the bed, m (optional). The table used by the engine extends the banks
         up to ``max(height, 10 m)`` and continues with vertical walls above.
+    friction
+        The friction group of the profile (one id); default: the branch's friction.
     """
 
     id: Identifier
@@ -63,9 +102,11 @@ class TrapezoidalProfile(NetworkModel):
         ge=0, le=1000, description="horizontal run per metre rise of each bank, m/m (1.5 means 1:1.5; 0 = vertical)"
     )
     height: Size | None = Field(default=None, ge=MIN_SIZE, description="bank height above the bed, m (optional)")
+    friction: list[Identifier] | None = Field(default=None, min_length=1, description=_FRICTION)
 
     @model_validator(mode="after")
     def _not_degenerate(self) -> TrapezoidalProfile:
+        _one_friction(self.friction, "trapezoidal")
         if self.bottom_width == 0 and self.side_slope == 0:
             raise FieldProblem("bottom_width", "bottom_width and side_slope are both 0: the profile has no width")
         if 0 < self.bottom_width < MIN_SIZE:
@@ -92,6 +133,14 @@ class ZWProfile(NetworkModel):
     height
         Bank height above the bed, m (optional): the top of the main channel, above which water
         spreads over the floodplain part of the table.
+    closed
+        A closed conduit (a sewer pipe): the widths may narrow upward, and above the last height
+        the conduit is closed.
+    section_widths
+        Widths of the main channel and of up to two floodplains (m) that split the flow width into
+        friction sections (D-Flow FM "zwRiver"): the flow width is filled main channel first.
+    friction
+        Friction group of each section (one id per section); default: the branch's friction.
     """
 
     id: Identifier
@@ -109,6 +158,12 @@ class ZWProfile(NetworkModel):
     height: Size | None = Field(
         default=None, ge=MIN_SIZE, description="bank height above the bed, m (optional; top of the main channel)"
     )
+    closed: bool = Field(default=False, description="a closed conduit: widths may narrow, closed above the table")
+    section_widths: list[Size] | None = Field(
+        default=None, min_length=1, max_length=3,
+        description="flow widths of the main channel and up to two floodplains, m (friction sections)",
+    )
+    friction: list[Identifier] | None = Field(default=None, min_length=1, description=_FRICTION)
 
     @model_validator(mode="after")
     def _check_table(self) -> ZWProfile:
@@ -129,12 +184,29 @@ class ZWProfile(NetworkModel):
             for i, w in enumerate(widths):
                 if 0 < w < MIN_SIZE:
                     raise FieldProblem(f"{name}[{i}]", tiny(w, "m", MIN_SIZE))
-            non_decreasing(widths, name, "m", "a profile cannot narrow upward")
-        if self.flow_widths[-1] <= 0:
+            if not self.closed:
+                non_decreasing(widths, name, "m", "an open profile cannot narrow upward (set closed = true for a pipe)")
+        if not self.closed and self.flow_widths[-1] <= 0:
             raise FieldProblem(
                 f"flow_widths[{len(self.flow_widths) - 1}]",
                 "the top flow width must be positive, otherwise the profile cannot convey flow",
             )
+        if max(self.flow_widths) <= 0:
+            raise FieldProblem("flow_widths", "all flow widths are 0: the profile cannot convey flow")
+        if self.section_widths is not None:
+            top = max(self.flow_widths)
+            if sum(self.section_widths) < top - MIN_SIZE:
+                raise FieldProblem(
+                    "section_widths",
+                    f"the sections {nums(self.section_widths)} m together are narrower than the widest flow width "
+                    f"{num(top)} m; they must cover it",
+                )
+            if self.section_widths[0] < MIN_SIZE:
+                raise FieldProblem("section_widths[0]", "the main channel must have a width (at least 1 mm)")
+        sections = len(self.section_widths) if self.section_widths is not None else 1
+        if self.friction is not None and len(self.friction) != sections:
+            raise FieldProblem("friction", f"the profile has {sections} friction section(s) but friction names "
+                                           f"{len(self.friction)} group(s); give one per section")
         if self.total_widths is not None:
             for i, (t, f) in enumerate(zip(self.total_widths, self.flow_widths, strict=True)):
                 if t < f:
@@ -151,5 +223,103 @@ class ZWProfile(NetworkModel):
         return list(self.total_widths if self.total_widths is not None else self.flow_widths)
 
 
-Profile = Annotated[RectangularProfile | TrapezoidalProfile | ZWProfile, Field(discriminator="type")]
+class CircularProfile(NetworkModel):
+    """A circular closed conduit (a pipe).
+
+    Attributes
+    ----------
+    diameter
+        Inside diameter, m.
+    friction
+        The friction group of the profile (one id); default: the branch's friction.
+    """
+
+    id: Identifier
+    type: Literal["circular"] = Field(description="profile type 'circular' (a closed pipe)")
+    diameter: Size = Field(ge=MIN_SIZE, description="inside diameter, m")
+    friction: list[Identifier] | None = Field(default=None, min_length=1, description=_FRICTION)
+
+    @model_validator(mode="after")
+    def _check(self) -> CircularProfile:
+        _one_friction(self.friction, "circular")
+        return self
+
+
+class YZProfile(NetworkModel):
+    """A surveyed cross-section: horizontal positions and heights of the bed, relative to its lowest point.
+
+    The conveyance is computed as D-Flow FM does for yz profiles: ``segmented`` sums the conveyance
+    of each piece between two survey points (each with its own depth and hydraulic radius), which
+    keeps shallow banks from lowering the conveyance of the deep channel; ``lumped`` uses the
+    hydraulic radius A/P of each friction section as a whole. Above the highest of the two end
+    points the walls are vertical.
+
+    Attributes
+    ----------
+    y
+        Horizontal positions across the section, m, non-decreasing (equal values make a vertical wall).
+    z
+        Height of the bed at each position above the lowest point, m (the lowest is 0); its level
+        is the cross-section's ``bed_level``.
+    conveyance
+        ``segmented`` (default) or ``lumped``.
+    friction_positions
+        Positions y (m) that bound the friction sections, from the first y to the last.
+    friction
+        Friction group of each section (one id per section); default: the branch's friction.
+    """
+
+    id: Identifier
+    type: Literal["yz"] = Field(description="profile type 'yz' (a surveyed cross-section)")
+    y: list[Real] = Field(min_length=2, description="horizontal positions across the section, m, non-decreasing")
+    z: list[Size] = Field(min_length=2, description="height of the bed above the lowest point at each y, m")
+    conveyance: Literal["segmented", "lumped"] = Field(
+        default="segmented", description="'segmented' (conveyance summed piece by piece) or 'lumped' (A/P per section)"
+    )
+    friction_positions: list[Real] | None = Field(
+        default=None, min_length=2, description="y positions that bound the friction sections, m, from first to last y"
+    )
+    friction: list[Identifier] | None = Field(default=None, min_length=1, description=_FRICTION)
+
+    @model_validator(mode="after")
+    def _check(self) -> YZProfile:
+        same_length(self.y, "y", self.z, "z")
+        non_decreasing(self.y, "y", "m", "positions run from one bank to the other")
+        non_negative(self.z, "z", "m")
+        if min(self.z) != 0.0:
+            raise FieldProblem(
+                "z", f"heights are measured from the lowest point of the profile, so the lowest must be 0, got "
+                     f"{num(min(self.z))} m (the level of that point is the cross-section's bed_level)")
+        if self.y[-1] - self.y[0] < MIN_SIZE:
+            raise FieldProblem("y", "the profile has no width: the first and last y are the same")
+        sections = 1
+        if self.friction_positions is not None:
+            pos = self.friction_positions
+            strictly_increasing(pos, "friction_positions", "m")
+            tol = 1e-6 * max(1.0, abs(self.y[0]), abs(self.y[-1]))
+            if abs(pos[0] - self.y[0]) > tol or abs(pos[-1] - self.y[-1]) > tol:
+                raise FieldProblem(
+                    "friction_positions",
+                    f"the friction sections must run from the first y ({num(self.y[0])} m) to the last "
+                    f"({num(self.y[-1])} m), got {nums(pos)}",
+                )
+            sections = len(pos) - 1
+        if self.friction is not None and len(self.friction) != sections:
+            raise FieldProblem("friction", f"the profile has {sections} friction section(s) but friction names "
+                                           f"{len(self.friction)} group(s); give one per section")
+        return self
+
+
+Profile = Annotated[
+    RectangularProfile | TrapezoidalProfile | CircularProfile | ZWProfile | YZProfile, Field(discriminator="type")
+]
+
+
+def profile_sections(profile: RectangularProfile | TrapezoidalProfile | CircularProfile | ZWProfile | YZProfile) -> int:
+    """Number of friction sections of a profile."""
+    if isinstance(profile, ZWProfile) and profile.section_widths is not None:
+        return len(profile.section_widths)
+    if isinstance(profile, YZProfile) and profile.friction_positions is not None:
+        return len(profile.friction_positions) - 1
+    return 1
 

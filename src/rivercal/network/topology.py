@@ -1,7 +1,8 @@
 """The whole network and the rules that need all of it.
 
-Ids are unique, every reference names an object that exists, the branches form one connected
-graph, structures lie within their branch and above its bed, boundaries sit at end nodes.
+Ids are unique, every reference names an object that exists, structures lie within their branch
+and above its bed, boundaries sit at end nodes. The branches may form several disconnected parts
+(a D-Flow FM model may hold separate channels); :meth:`Network.parts` lists them.
 """
 
 from __future__ import annotations
@@ -15,13 +16,23 @@ from rivercal.errors import FieldProblem
 from rivercal.network._base import NetworkModel, num
 from rivercal.network.branches import Branch
 from rivercal.network.forcing import Boundary, Lateral
-from rivercal.network.friction import Friction
+from rivercal.network.friction import Friction, FrictionGroup
 from rivercal.network.nodes import Node
-from rivercal.network.profiles import Profile, RectangularProfile, TrapezoidalProfile, ZWProfile
+from rivercal.network.profiles import Profile
 from rivercal.network.stations import Station
-from rivercal.network.structures import Culvert, Pump, Weir
+from rivercal.network.structures import Bridge, Culvert, Orifice, Pump, UniversalWeir, Weir
 
-__all__ = ["Network"]
+#: The structure tables of a network, in the order of the engine's layout: (table, kind of object).
+STRUCTURE_TABLES = (
+    ("weirs", "weir"),
+    ("culverts", "culvert"),
+    ("pumps", "pump"),
+    ("orifices", "orifice"),
+    ("universal_weirs", "universal weir"),
+    ("bridges", "bridge"),
+)
+
+__all__ = ["STRUCTURE_TABLES", "Network"]
 
 
 class Network(NetworkModel):
@@ -31,9 +42,11 @@ class Network(NetworkModel):
     ----------
     friction
         Global friction, inherited by every branch without its own (``friction:global``).
+    friction_groups
+        Named friction groups that profiles refer to per section (``friction:group:<id>``).
     profiles, nodes, branches
         Geometry and topology.
-    weirs, culverts, pumps
+    weirs, culverts, pumps, orifices, universal_weirs, bridges
         Structures on branches.
     boundaries, laterals
         Forcing locations.
@@ -45,18 +58,25 @@ class Network(NetworkModel):
         default=Friction(type="strickler", value=30.0),
         description="global friction, used by every branch without its own (default Strickler 30 m^(1/3)/s)",
     )
+    friction_groups: list[FrictionGroup] = Field(
+        default=[], description="named friction groups that profiles refer to, section by section"
+    )
     profiles: list[Profile] = Field(min_length=1, description="cross-section shapes, referenced by id")
     nodes: list[Node] = Field(min_length=2, description="connection nodes (branch ends)")
     branches: list[Branch] = Field(min_length=1, description="channel reaches between two nodes")
     weirs: list[Weir] = Field(default=[], description="weirs on branches")
     culverts: list[Culvert] = Field(default=[], description="culverts on branches")
     pumps: list[Pump] = Field(default=[], description="pumps on branches")
+    orifices: list[Orifice] = Field(default=[], description="orifices (gated weirs) on branches")
+    universal_weirs: list[UniversalWeir] = Field(default=[], description="weirs with a crest of any shape")
+    bridges: list[Bridge] = Field(default=[], description="bridges on branches")
     boundaries: list[Boundary] = Field(default=[], description="boundary conditions at end nodes")
     laterals: list[Lateral] = Field(default=[], description="point inflows and extractions")
     stations: list[Station] = Field(default=[], description="observation stations")
 
     @model_validator(mode="after")
     def _check_topology(self) -> Network:
+        _unique(self.friction_groups, "friction_groups", "friction group")
         _unique(self.profiles, "profiles", "profile")
         _unique(self.nodes, "nodes", "node")
         _unique(self.branches, "branches", "branch")
@@ -86,7 +106,7 @@ class Network(NetworkModel):
                 raise FieldProblem(
                     f"nodes[{i}].id", f"node {n.id!r} is not the end of any branch; remove it or connect a branch to it"
                 )
-        self._check_connected()
+        self._check_friction_groups(branches)
         self._check_structures(branches)
         boundary_at: dict[str, Boundary] = {}
         for i, bd in enumerate(self.boundaries):
@@ -120,12 +140,12 @@ class Network(NetworkModel):
                     )
             else:
                 self._check_on_branch(lat, where, "lateral", branches)
-        structures = {s.id for s in [*self.weirs, *self.culverts, *self.pumps]}
+        structures = {s.id for s in self.structures}
         for i, st in enumerate(self.stations):
             if st.structure is not None and st.structure not in structures:
                 raise FieldProblem(
                     f"stations[{i}].structure",
-                    f"station {st.id!r} refers to unknown structure {st.structure!r} (no weir, culvert or pump "
+                    f"station {st.id!r} refers to unknown structure {st.structure!r} (no structure "
                     f"has that id){_known(structures, st.structure)}",
                 )
             if st.branch is not None:
@@ -144,33 +164,48 @@ class Network(NetworkModel):
                 f"{item.branch!r} ({num(length)} m long)",
             )
 
-    def _check_connected(self) -> None:
+    def parts(self) -> list[list[str]]:
+        """The connected parts of the network: lists of node ids, the part of the first node first."""
         adjacency: dict[str, set[str]] = defaultdict(set)
         for b in self.branches:
             adjacency[b.from_node].add(b.to_node)
             adjacency[b.to_node].add(b.from_node)
-        start = self.nodes[0].id
-        seen = {start}
-        queue = deque([start])
-        while queue:
-            for nb in adjacency[queue.popleft()]:
-                if nb not in seen:
-                    seen.add(nb)
-                    queue.append(nb)
-        missing = [(i, n.id) for i, n in enumerate(self.nodes) if n.id not in seen]
-        if missing:
-            i, node = missing[0]
-            others = ", ".join(repr(m) for _, m in missing[:5]) + (", ..." if len(missing) > 5 else "")
-            raise FieldProblem(
-                f"nodes[{i}].id",
-                f"the network is disconnected: no chain of branches leads from node {start!r} to node {node!r} "
-                f"(unreachable: {others}); every node must be connected to the rest of the network",
-            )
+        seen: set[str] = set()
+        parts: list[list[str]] = []
+        for n in self.nodes:
+            if n.id in seen:
+                continue
+            part = [n.id]
+            seen.add(n.id)
+            queue = deque([n.id])
+            while queue:
+                for nb in sorted(adjacency[queue.popleft()]):
+                    if nb not in seen:
+                        seen.add(nb)
+                        part.append(nb)
+                        queue.append(nb)
+            parts.append(part)
+        return parts
+
+    def _check_friction_groups(self, branches: dict[str, Branch]) -> None:
+        groups = {g.id for g in self.friction_groups}
+        for i, g in enumerate(self.friction_groups):
+            for j, bf in enumerate(g.branches):
+                if bf.branch not in branches:
+                    raise FieldProblem(f"friction_groups[{i}].branches[{j}].branch",
+                                       f"friction group {g.id!r} refers to unknown branch {bf.branch!r}"
+                                       f"{_known(branches, bf.branch)}")
+        for i, p in enumerate(self.profiles):
+            for j, gid in enumerate(p.friction or []):
+                if gid not in groups:
+                    raise FieldProblem(f"profiles[{i}].friction[{j}]",
+                                       f"profile {p.id!r} refers to unknown friction group {gid!r}"
+                                       f"{_known(groups, gid)}")
 
     def _check_structures(self, branches: dict[str, Branch]) -> None:
-        groups = (("weirs", "weir", self.weirs), ("culverts", "culvert", self.culverts), ("pumps", "pump", self.pumps))
-        for table, what, items in groups:
-            for i, s in enumerate(items):
+        profiles = {p.id for p in self.profiles}
+        for table, what in STRUCTURE_TABLES:
+            for i, s in enumerate(getattr(self, table)):
                 where = f"{table}[{i}]"
                 if s.branch not in branches:
                     raise FieldProblem(f"{where}.branch", f"{what} {s.id!r} refers to unknown branch {s.branch!r}"
@@ -183,23 +218,30 @@ class Network(NetworkModel):
                         f"({num(br.length)} m long)",
                     )
                 bed = br.bed_level_at(s.chainage)
-                if isinstance(s, Weir) and s.crest_level < bed:
+                at = f"({bed:.3f} m AD at chainage {num(s.chainage)} m of branch {br.id!r})"
+                if isinstance(s, Weir | Orifice | UniversalWeir) and s.crest_level < bed:
                     raise FieldProblem(
                         f"{where}.crest_level",
-                        f"the crest of weir {s.id!r} ({num(s.crest_level)} m AD) lies below the bed "
-                        f"({bed:.3f} m AD at chainage {num(s.chainage)} m of branch {br.id!r})",
+                        f"the crest of {what} {s.id!r} ({num(s.crest_level)} m AD) lies below the bed {at}",
                     )
-                if isinstance(s, Culvert) and s.invert_level < bed - 1e-9:
-                    raise FieldProblem(
-                        f"{where}.invert_level",
-                        f"the invert of culvert {s.id!r} ({num(s.invert_level)} m AD) lies below the bed "
-                        f"({bed:.3f} m AD at chainage {num(s.chainage)} m of branch {br.id!r})",
-                    )
+                if isinstance(s, Culvert):
+                    if s.invert_level_end is None and s.invert_level < bed - 1e-9:
+                        raise FieldProblem(
+                            f"{where}.invert_level",
+                            f"the invert of culvert {s.id!r} ({num(s.invert_level)} m AD) lies below the bed {at}; "
+                            "a siphon or sloping culvert gives both inverts (invert_level and invert_level_end)",
+                        )
+                    if s.profile is not None and s.profile not in profiles:
+                        raise FieldProblem(f"{where}.profile", f"culvert {s.id!r} refers to unknown profile "
+                                                               f"{s.profile!r}{_known(profiles, s.profile)}")
+                if isinstance(s, Bridge) and s.profile not in profiles:
+                    raise FieldProblem(f"{where}.profile", f"bridge {s.id!r} refers to unknown profile "
+                                                           f"{s.profile!r}{_known(profiles, s.profile)}")
                 if isinstance(s, Pump) and s.stop_level <= bed:
                     raise FieldProblem(
                         f"{where}.stop_level",
                         f"pump {s.id!r} would run the suction side dry: its stop level {num(s.stop_level)} m AD is "
-                        f"not above the bed ({bed:.3f} m AD at chainage {num(s.chainage)} m of branch {br.id!r})",
+                        f"not above the bed {at}",
                     )
 
     # -- convenience look-ups -------------------------------------------------------------
@@ -211,19 +253,31 @@ class Network(NetworkModel):
                 return b
         raise KeyError(branch_id)
 
-    def profile(self, profile_id: str) -> RectangularProfile | TrapezoidalProfile | ZWProfile:
+    def profile(self, profile_id: str) -> Profile:
         """The profile with this id."""
         for p in self.profiles:
             if p.id == profile_id:
                 return p
         raise KeyError(profile_id)
 
-    def structure(self, structure_id: str) -> Weir | Culvert | Pump:
-        """The weir, culvert or pump with this id."""
-        for s in [*self.weirs, *self.culverts, *self.pumps]:
+    @property
+    def structures(self) -> list[Weir | Culvert | Pump | Orifice | UniversalWeir | Bridge]:
+        """Every structure, in the order of :data:`STRUCTURE_TABLES`."""
+        return [s for table, _ in STRUCTURE_TABLES for s in getattr(self, table)]
+
+    def structure(self, structure_id: str) -> Weir | Culvert | Pump | Orifice | UniversalWeir | Bridge:
+        """The structure with this id."""
+        for s in self.structures:
             if s.id == structure_id:
                 return s
         raise KeyError(structure_id)
+
+    def friction_group(self, group_id: str) -> FrictionGroup:
+        """The friction group with this id."""
+        for g in self.friction_groups:
+            if g.id == group_id:
+                return g
+        raise KeyError(group_id)
 
     @property
     def observables(self) -> list[str]:
@@ -257,13 +311,13 @@ def _unique(items: list, table: str, what: str) -> None:
 
 def _unique_structures(network: Network) -> None:
     first: dict[str, str] = {}
-    for table, items in (("weirs", network.weirs), ("culverts", network.culverts), ("pumps", network.pumps)):
-        for i, s in enumerate(items):
+    for table, _ in STRUCTURE_TABLES:
+        for i, s in enumerate(getattr(network, table)):
             where = f"{table}[{i}]"
             if s.id in first:
                 raise FieldProblem(
                     f"{where}.id",
-                    f"structure id {s.id!r} is used twice (also by {first[s.id]}); weirs, culverts and pumps "
-                    "share one set of ids",
+                    f"structure id {s.id!r} is used twice (also by {first[s.id]}); all structures share one set "
+                    "of ids",
                 )
             first[s.id] = where

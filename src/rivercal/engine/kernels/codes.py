@@ -15,6 +15,8 @@ LINK_CHANNEL = 0
 LINK_WEIR = 1
 LINK_CULVERT = 2
 LINK_PUMP = 3
+LINK_ORIFICE = 4
+LINK_UNIVERSAL_WEIR = 5
 
 # -- boundary kinds (``b_type``) ------------------------------------------------------------------
 BOUNDARY_DISCHARGE = 0
@@ -25,6 +27,7 @@ BOUNDARY_RATING = 2
 FRICTION_STRICKLER = 0
 FRICTION_MANNING = 1
 FRICTION_CHEZY = 2
+FRICTION_WHITE_COLEBROOK = 3
 
 # -- flow directions a structure lets through (``w_dir``, ``c_dir``) ------------------------------
 FLOW_BOTH = 0
@@ -35,6 +38,32 @@ FLOW_NONE = 3
 # -- culvert barrel shapes (``c_shape``) ----------------------------------------------------------
 CULVERT_RECTANGULAR = 0
 CULVERT_CIRCULAR = 1
+CULVERT_PROFILE = 2  # the shape of a profile table (a bridge, an egg-shaped or open culvert)
+
+# -- columns of ``c_extra`` (a culvert's or bridge's second invert, expansion flag, barrel table) ---------
+C_INVERT2 = 0
+C_EXPAND = 1
+C_PROF = 2
+C_WIDTH = 3
+
+# -- columns of ``o_par`` (an orifice) --------------------------------------------------------------
+O_CREST = 0
+O_SPAN = 1
+O_GATE = 2
+O_MU = 3
+O_DIR = 4
+O_QPOS = 5
+O_QNEG = 6
+O_WIDTH = 7
+
+# -- columns of ``u_par`` (a universal weir) and ``u_strip`` (its crest strips) ---------------------------
+U_CE = 0
+U_DIR = 1
+U_FIRST = 2
+U_END = 3
+U_WIDTH = 4
+STRIP_SPAN = 0
+STRIP_CREST = 1
 
 # -- observables (``ob_type``) --------------------------------------------------------------------
 OBS_LEVEL = 0

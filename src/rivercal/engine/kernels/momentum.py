@@ -26,7 +26,7 @@ import numpy as np
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.codes import FRICTION_CHEZY, LINK_CHANNEL, MO_COUNT, MO_K1, MO_LINK, NB_JUNCTION
 from rivercal.engine.kernels.lookup import flow_geometry
-from rivercal.engine.kernels.structures import G, friction_c2r
+from rivercal.engine.kernels.structures import G, friction_c2r, friction_c2r_any
 
 __all__ = ["channel_coefficients"]
 
@@ -150,7 +150,7 @@ def _momentum_other(net, work, link, z, u, q, dt):
     sign, depth, _ = _upwind(net, link, z, u)
     per = work.cper[link]
     ftype = net.lk_ftype[link]
-    radius = (a_up / per if per > 0.0 else depth) if ftype == FRICTION_CHEZY else 0.0
+    radius = (a_up / per if per > 0.0 else depth) if ftype >= FRICTION_CHEZY else 0.0  # Chézy, White-Colebrook
     inv_dt = 1.0 / dt
     ql = qlat[k1] + qlat[k2]
     b = inv_dt + 0.5 * ql / a_up if ql != 0.0 else inv_dt  # skips a division: exact, the term is +0 then
@@ -197,7 +197,7 @@ def _momentum_other(net, work, link, z, u, q, dt):
     dzl = z[k2] - z[k1]
     work.cb[link] = b
     work.cs[link] = rhs_u - G * ilen * dzl
-    work.cc2r[link] = friction_c2r(ftype, work.lfric[link], radius, work.cr43[link])
+    work.cc2r[link] = friction_c2r_any(ftype, work.lfric[link], radius, work.cr43[link])
     work.cdz[link] = dzl
 
 

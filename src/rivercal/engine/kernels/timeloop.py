@@ -36,11 +36,11 @@ from rivercal.engine.kernels.codes import (
 from rivercal.engine.kernels.fluxes import finish_step, fluxes_within_volume
 from rivercal.engine.kernels.forcing import apply_forcing
 from rivercal.engine.kernels.momentum import channel_coefficients
-from rivercal.engine.kernels.picard import picard_iterations
+from rivercal.engine.kernels.picard import picard_iterations, picard_iterations_ext
 from rivercal.engine.kernels.record import record
-from rivercal.engine.kernels.structures import switch_pumps
+from rivercal.engine.kernels.structures import apply_settings, reset_settings, switch_pumps
 
-__all__ = ["Work", "make_work", "run"]
+__all__ = ["Work", "make_work", "run", "run_ext"]
 
 #: Scratch arrays of :func:`run` (kernels do not allocate; see :mod:`._jit`): matrix diagonal, right-hand
 #: side, iterate (m AD), sources (m³/s), lateral inflow per unit length (m²/s), net inflow (m³/s), Dirichlet
@@ -60,8 +60,8 @@ Work = namedtuple(
 )
 
 
-def make_work(net) -> Work:
-    """Allocate the scratch arrays of :func:`run` for network arrays ``net``."""
+def make_work(net, sx=None) -> Work:
+    """Allocate the scratch arrays of :func:`run` for network arrays ``net`` (``sx``: the structure arrays)."""
     n_h = net.hp_bed.size
     n_l = net.lk_k1.size
     n_b = net.b_hp.size
@@ -72,7 +72,8 @@ def make_work(net) -> Work:
         lval=np.zeros(net.sv_nedge), area=np.zeros(n_l), fco=np.zeros(n_l), rco=np.zeros(n_l),
         un=np.zeros(n_l), qn=np.zeros(n_l),
         rq0=np.zeros(n_b), rslope=np.zeros(n_b),
-        struct_links=np.flatnonzero((net.lk_type == LINK_WEIR) | (net.lk_type == LINK_CULVERT)).astype(np.int64),
+        struct_links=np.setdiff1d(np.flatnonzero((net.lk_type == LINK_WEIR) | (net.lk_type == LINK_CULVERT)),
+                                   sx.links if sx is not None else []).astype(np.int64),
         pump_links=np.flatnonzero(net.lk_type == LINK_PUMP).astype(np.int64),
         stats=np.zeros(N_STATS, dtype=np.int64),
         zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
@@ -131,6 +132,86 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         switch_pumps(net, work, z, pump_on)
         work.stats[STAT_STEPS] += 1
         picard_iterations(net, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
+        fluxes_within_volume(net, work, vol, theta, dt, tol, u0, u1, q1)
+        status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u1, q1, balance)
+        u0, q0, u1, q1 = u1, q1, u0, q0
+        if status != STATUS_OK:
+            _keep(u0, q0, u, q)
+            return status, n, index
+        if (n + 1) % out_every == 0:
+            record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
+    _keep(u0, q0, u, q)
+    return STATUS_OK, forcing.shape[0], -1
+
+
+@kernel
+def run_ext(net, sx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth, vmax,
+        out_every, obs_out, z_out, q_out, balance):
+    """:func:`run` for a network with structures of D-HYDRO's kinds or structure settings that follow a series.
+
+    A separate kernel, so that the time loop of a network without them stays as lean as before (its phases
+    are inlined and receive no more arrays; measured: the same time as before these structures existed).
+    Advance the state over ``forcing.shape[0]`` steps of ``dt`` seconds.
+
+    Parameters
+    ----------
+    net
+        :class:`~rivercal.engine.compile.NetArrays`.
+    sx
+        :class:`~rivercal.engine.compile.StructureArrays` (orifices, universal weirs, culvert extras, settings
+        series).
+    work
+        :class:`Work` arrays (scratch, allocated once by the caller).
+    crest, fric
+        Run-time parameters: weir crest levels (m AD; a weir whose crest follows a series takes its value
+        each step) and friction values per friction slot (branches, then friction groups).
+    z, dz, vol, u, q, pump_on
+        State, updated in place: levels (m AD), their change over the last step (m) and volumes
+        (m³) at h-points, velocities (m/s) and fluxes (m³/s) at links, pump switches (0/1).
+    forcing
+        Per step and forcing column: the step-mean discharge (m³/s) or the level at the end of
+        the step (m AD).
+    dt, theta, max_iter, tol, min_depth, vmax
+        Step (s), implicitness, Picard iterations, level tolerance (m), minimum flow depth (m),
+        divergence velocity (m/s).
+    out_every, obs_out, z_out, q_out
+        Output every ``out_every`` steps: observables into ``obs_out`` (row 0 = initial state) and,
+        when they have rows, full levels and fluxes into ``z_out`` and ``q_out``.
+    balance
+        Accumulates the volume (m³) that entered through each boundary (first entries) and through
+        all laterals (last entry).
+
+    Returns
+    -------
+    tuple of int
+        (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` with the h-point, or
+        ``STATUS_VELOCITY`` with the link at which the run diverged.
+    """
+    n_b = net.b_hp.size
+    record(net, 0, z, q, obs_out, z_out, q_out)
+    # velocities and fluxes at time n (u0, q0) and n+1 (u1, q1): the arrays swap roles after each step
+    u0, q0, u1, q1 = u, q, work.un, work.qn
+    work.src[:] = 0.0
+    work.qlat[:] = 0.0
+    work.fixed[:] = False
+    for link in range(work.lfric.size):
+        work.lfric[link] = fric[net.lk_fric[link]]
+    reset_settings(net, sx)
+    extended = sx.links.size > 0
+    scheduled = False  # any structure setting that follows a series (most cases have none)
+    for k in range(sx.set_col.size):
+        scheduled |= sx.set_col[k] >= 0
+    for n in range(forcing.shape[0]):
+        balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
+        if scheduled:
+            apply_settings(net, sx, n, forcing, crest)
+        channel_coefficients(net, work, z, u0, q0, dt, min_depth)
+        switch_pumps(net, work, z, pump_on)
+        work.stats[STAT_STEPS] += 1
+        if extended:
+            picard_iterations_ext(net, sx, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
+        else:
+            picard_iterations(net, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
         fluxes_within_volume(net, work, vol, theta, dt, tol, u0, u1, q1)
         status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u1, q1, balance)
         u0, q0, u1, q1 = u1, q1, u0, q0

@@ -1,0 +1,546 @@
+"""``export_dhydro``: a case → D-Flow FM 1D files, written with hydrolib-core.
+
+Case → D-Flow FM:
+
+- nodes and branches → the UGRID 1D network (``network_net.nc``), with the case's calculation points
+  (its own grid: structure segments included) as the 1D mesh, so that a structure lies between the two
+  points around it as in the case;
+- profiles → ``crsdef.ini`` (rectangular → rectangle, trapezoidal → a two-level zw table to the top of
+  the engine's table, circular → circle, zw → zw or zwRiver, yz → yz); cross-sections → ``crsloc.ini``
+  with shift = bed level;
+- friction: the global friction and the branches' own → friction group ``Main`` (``roughness-Main.ini``,
+  one ``[Branch]`` block per branch with its own friction); friction groups → one roughness file each;
+- structures → ``structures.ini`` (settings that follow a series → ``structures.bc``); culverts of an
+  analytic shape get a circle or closed rectangle definition of their own;
+- node storage → ``nodeFile.ini``; boundaries and laterals → ``boundaries.ext`` + ``boundaries.bc``
+  (laterals fed by a catchment carry the catchment's runoff as a time series); stations on a branch →
+  observation points (``h``) and observation cross-sections (``Q``). Stations at a structure are not
+  written: D-Flow FM reports every structure's levels and discharge in its history file, and the import
+  makes a station of every structure;
+- ``[initial]`` → ``initialFields.ini``; the period, time step and output interval → the MDU. A spin-up
+  becomes an earlier start with the forcing held at its start value, which is what a spin-up is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rivercal.case.load import Case
+from rivercal.engine.geometry import MIN_TOP
+from rivercal.network.grid import branch_layout, chainages
+
+__all__ = ["SETTINGS_FILE", "ExportResult", "export_dhydro", "read_engine_settings"]
+
+#: The file beside an exported MDU with the engine settings D-Flow FM files cannot express.
+SETTINGS_FILE = "rivercal.ini"
+#: Engine settings written there: case field → key.
+_ENGINE_KEYS = {"cross_sections": "crossSections", "theta": "theta", "min_depth": "minDepth",
+                "min_storage_area": "minStorageArea", "max_iterations": "maxIterations", "tolerance": "tolerance",
+                "max_velocity": "maxVelocity", "structure_length": "structureLength"}
+
+
+def _write_engine_settings(engine, path: Path) -> None:
+    lines = ["# Engine settings of the rivercal case this model was exported from (D-HYDRO does not read this",
+             "# file; rivercal's import does).", "[engine]"]
+    lines += [f"{key} = {getattr(engine, name)}" for name, key in _ENGINE_KEYS.items()]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def read_engine_settings(folder: Path) -> dict | None:
+    """The engine settings an export left beside its MDU (case fields → values), or None."""
+    from hydrolib.core.dflowfm.ini.parser import Parser
+
+    path = Path(folder) / SETTINGS_FILE
+    if not path.is_file():
+        return None
+    out: dict = {}
+    for section in Parser.parse(path).sections:
+        if section.header.lower() != "engine":
+            continue
+        values = {k.lower(): v for k, v in section.flatten(duplicate_key_as_list=False, with_comments=False).items()}
+        for name, key in _ENGINE_KEYS.items():
+            text = values.get(key.lower())
+            if text is None:
+                continue
+            out[name] = text.strip() if name == "cross_sections" else (
+                int(text) if name == "max_iterations" else float(text))
+    return out
+
+_FRICTION = {"strickler": "Strickler", "manning": "Manning", "chezy": "Chezy", "white-colebrook": "WhiteColebrook"}
+
+
+@dataclass
+class ExportResult:
+    """What an export wrote.
+
+    Attributes
+    ----------
+    mdu
+        The MDU file.
+    files
+        Every file written.
+    notes
+        What the D-Flow FM files express differently from the case.
+    """
+
+    mdu: Path
+    files: list[Path] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+def export_dhydro(case: Case, out: Path | str, *, forcing: dict[str, pd.Series] | None = None) -> ExportResult:
+    """Write a case as a D-Flow FM 1D model.
+
+    Parameters
+    ----------
+    case
+        The case.
+    out
+        Folder to write (created).
+    forcing
+        The forcing series by key (``boundary:<id>``, ``lateral:<id>``) including the runoff of
+        catchment-fed ones; default ``case.forcing`` plus the catchments' runoff
+        (:func:`rivercal.hydrology.catchments.catchment_forcing`).
+
+    Returns
+    -------
+    ExportResult
+        The MDU, the files and the notes.
+    """
+    from hydrolib.core.dflowfm.mdu.models import FMModel
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if forcing is None:
+        forcing = dict(case.forcing)
+        if case.spec.catchments:
+            from rivercal.hydrology.catchments import catchment_forcing
+
+            forcing.update(catchment_forcing(case))
+    spec = case.spec
+    result = ExportResult(mdu=out / f"{case.name}.mdu")
+    spin = pd.Timedelta(hours=float(spec.initial.spinup))
+    start = case.start - spin
+    if spin > pd.Timedelta(0):
+        result.notes.append(f"the spin-up of {spec.initial.spinup:g} h becomes an earlier start, {start.isoformat()}, "
+                            "with the forcing held at its value at the case start")
+    fm = FMModel()
+    fm.filepath = result.mdu
+    w = _Writer(case, out, start, forcing, result)
+    fm.geometry.netfile = w.network()
+    defs, locs = w.cross_sections()
+    fm.geometry.crossdeffile = defs
+    fm.geometry.crosslocfile = locs
+    fm.geometry.frictfile = w.frictions()
+    structures = w.structures()
+    if structures is not None:
+        fm.geometry.structurefile = [structures]
+    storage = w.storage_nodes()
+    if storage is not None:
+        fm.geometry.storagenodefile = storage
+    fm.geometry.inifieldfile = w.initial()
+    fm.external_forcing.extforcefilenew = w.external_forcing()
+    obs, crs = w.stations()
+    if obs is not None:
+        fm.output.obsfile = [obs]
+    if crs is not None:
+        fm.output.crsfile = [crs]
+    t = fm.time
+    t.refdate = int(start.strftime("%Y%m%d"))
+    offset = (start - start.normalize()).total_seconds()
+    t.tunit = "S"
+    t.tstart = offset
+    t.tstop = offset + (case.end - start).total_seconds()
+    t.dtuser = float(spec.engine.output_interval)
+    t.dtmax = float(spec.engine.dt)
+    t.dtinit = float(spec.engine.dt)
+    fm.output.hisinterval = [float(spec.engine.output_interval), 0.0, 0.0]
+    fm.numerics.teta0 = float(spec.engine.theta)
+    fm.geometry.dxdoubleat1dendnodes = False
+    fm.physics.uniffricttype = {"chezy": 0, "manning": 1, "white-colebrook": 2}.get(spec.friction.type, 1)
+    if spec.friction.type == "strickler":
+        fm.physics.uniffricttype = 1
+        fm.physics.uniffrictcoef1d = 1.0 / spec.friction.value
+        result.notes.append("the MDU's uniform friction is the global Strickler value as a Manning n (1/k_s); the "
+                            "friction that counts is in roughness-Main.ini")
+    else:
+        fm.physics.uniffrictcoef1d = float(spec.friction.value)
+    fm.save(recurse=True)
+    _write_engine_settings(spec.engine, out / SETTINGS_FILE)
+    result.notes.append(f"the engine settings that D-Flow FM files cannot express are in {SETTINGS_FILE} (D-HYDRO "
+                        "ignores it; rivercal's import reads it)")
+    result.files = sorted(p for p in out.iterdir() if p.is_file())
+    (out / "export.md").write_text(_report(case, result), encoding="utf-8")
+    result.files.append(out / "export.md")
+    return result
+
+
+def _report(case: Case, result: ExportResult) -> str:
+    lines = ["# Export of a case to D-Flow FM", "", f"- case: `{case.root}`", f"- model: `{result.mdu}`", "",
+             "## Differences", ""]
+    lines += [f"- {n}" for n in result.notes] or ["None."]
+    lines += ["", "## Files", ""] + [f"- `{p.name}`" for p in result.files]
+    return "\n".join(lines) + "\n"
+
+
+class _Writer:
+    """The parts of a D-Flow FM model, one method per file."""
+
+    def __init__(self, case: Case, out: Path, start: pd.Timestamp, forcing: dict[str, pd.Series],
+                 result: ExportResult):
+        self.case = case
+        self.spec = case.spec
+        self.net = case.network
+        self.out = out
+        self.start = start
+        self.forcing = forcing
+        self.result = result
+        self.extra_defs: list = []
+
+    # -- network -------------------------------------------------------------------------------------
+
+    def network(self):
+        from hydrolib.core.dflowfm.net.models import Branch, NetworkModel
+
+        net = self.net
+        model = NetworkModel()
+        model.filepath = Path("network_net.nc")
+        nodes = {n.id: n for n in net.nodes}
+        xy = {}
+        missing = [n for n in net.nodes if n.x is None]
+        for k, n in enumerate(net.nodes):
+            xy[n.id] = (float(n.x), float(n.y)) if n.x is not None else (1000.0 * k, -1.0e5)
+        if missing:
+            self.result.notes.append(f"{len(missing)} node(s) without map coordinates were placed on a line")
+        structures = {b.id: [s for s in net.structures if s.branch == b.id] for b in net.branches}
+        self.points: dict[str, np.ndarray] = {}
+        geo_lengths = {}
+        for b in net.branches:
+            chain = chainages(branch_layout(b, structures[b.id], self.spec.engine.structure_length))
+            self.points[b.id] = chain
+            a, c = xy[b.from_node], xy[b.to_node]
+            if b.geometry:
+                geometry = np.asarray(b.geometry, dtype=float)
+                geometry[0], geometry[-1] = a, c
+            else:
+                geometry = np.array([a, c], dtype=float)
+            length = float(np.hypot(*np.diff(geometry, axis=0).T).sum())
+            if length <= 0:
+                geometry = np.array([a, (a[0] + b.length, a[1])], dtype=float)
+                length = b.length
+            geo_lengths[b.id] = length
+            branch = Branch(geometry=geometry, branch_offsets=chain * (length / b.length))
+            model.network.mesh1d_add_branch(branch, name=b.id, force_midpoint=False)
+        m1 = model.network._mesh1d
+        by_xy = {(round(x, 6), round(y, 6)): nid for nid, (x, y) in xy.items()}
+        m1.network1d_node_id = np.array([by_xy[(round(float(x), 6), round(float(y), 6))]
+                                         for x, y in zip(m1.network1d_node_x, m1.network1d_node_y, strict=True)],
+                                        dtype=object)
+        m1.network1d_node_long_name = m1.network1d_node_id.copy()
+        ids = [str(v) for v in m1.network1d_branch_id]
+        m1.network1d_branch_length = np.array([self.net.branch(i).length for i in ids], dtype=float)
+        offsets = np.asarray(m1.mesh1d_node_branch_offset, dtype=float).copy()
+        for k, bi in enumerate(np.asarray(m1.mesh1d_node_branch_id, dtype=int)):
+            bid = ids[bi]
+            chain = self.points[bid]
+            offsets[k] = chain[int(np.argmin(np.abs(chain - offsets[k] * self.net.branch(bid).length
+                                                    / geo_lengths[bid])))]
+        m1.mesh1d_node_branch_offset = offsets
+        del nodes
+        return model
+
+    # -- cross-sections ----------------------------------------------------------------------------
+
+    def cross_sections(self):
+        from hydrolib.core.dflowfm.crosssection.models import CrossDefModel, CrossLocModel, CrossSection
+
+        defs = []
+        self.def_ids: dict[tuple[str, str | None], str] = {}
+        for p in self.net.profiles:
+            defs.append(self._definition(p, p.id, p.friction))
+        locs = []
+        for b in self.net.branches:
+            for k, cs in enumerate(b.cross_sections):
+                locs.append(CrossSection(id=f"{b.id}_{k + 1}", branchid=b.id, chainage=cs.chainage, shift=cs.bed_level,
+                                         definitionid=cs.profile))
+        defs += self.extra_defs
+        self._defs = defs
+        model_defs = CrossDefModel(definition=defs)
+        model_defs.filepath = Path("crsdef.ini")
+        model_locs = CrossLocModel(crosssection=locs)
+        model_locs.filepath = Path("crsloc.ini")
+        self._crossdef_model = model_defs
+        return model_defs, model_locs
+
+    def _definition(self, p, did: str, friction: list[str] | None):
+        from hydrolib.core.dflowfm.crosssection import models as m
+
+        ids = list(friction) if friction else ["Main"]
+        kind = p.type
+        if kind == "rectangular":
+            height = p.height if p.height is not None else MIN_TOP
+            if not p.closed and (p.height or 0) < MIN_TOP:
+                height = MIN_TOP
+            return m.RectangleCrsDef(id=did, width=p.width, height=height, closed=bool(p.closed), frictionid=ids[0])
+        if kind == "trapezoidal":
+            top = max(p.height or 0.0, MIN_TOP)
+            widths = [p.bottom_width, p.bottom_width + 2.0 * p.side_slope * top]
+            return m.ZWCrsDef(id=did, numlevels=2, levels=[0.0, top], flowwidths=widths, totalwidths=widths,
+                              frictionid=ids[0])
+        if kind == "circular":
+            return m.CircleCrsDef(id=did, diameter=p.diameter, frictionid=ids[0])
+        if kind == "zw":
+            total = p.storage_widths
+            heights = list(p.heights)
+            flow = list(p.flow_widths)
+            if not p.closed and heights[-1] < MIN_TOP:  # the engine's table continues with vertical walls
+                pass
+            if p.section_widths is not None:
+                sw = list(p.section_widths) + [0.0] * (3 - len(p.section_widths))
+                ids3 = (ids + [ids[-1]] * 3)[:3]
+                return m.ZWRiverCrsDef(id=did, numlevels=len(heights), levels=heights, flowwidths=flow,
+                                       totalwidths=total, mainwidth=sw[0], fp1width=sw[1], fp2width=sw[2],
+                                       frictionids=ids3)
+            return m.ZWCrsDef(id=did, numlevels=len(heights), levels=heights, flowwidths=flow, totalwidths=total,
+                              frictionid=ids[0])
+        positions = list(p.friction_positions) if p.friction_positions else [p.y[0], p.y[-1]]
+        return m.YZCrsDef(id=did, yzcount=len(p.y), ycoordinates=list(p.y), zcoordinates=list(p.z),
+                          conveyance=p.conveyance, sectioncount=len(positions) - 1, frictionpositions=positions,
+                          frictionids=ids, singlevaluedz=True)
+
+    # -- friction ------------------------------------------------------------------------------------
+
+    def frictions(self):
+        from hydrolib.core.dflowfm.friction.models import FrictBranch, FrictGlobal, FrictionModel
+
+        g = self.spec.friction
+        branches = [FrictBranch(branchid=b.id, frictiontype=_FRICTION[b.friction.type], functiontype="constant",
+                                numlocations=0, frictionvalues=[b.friction.value])
+                    for b in self.net.branches if b.friction is not None]
+        main = FrictionModel(global_=[FrictGlobal(frictionid="Main", frictiontype=_FRICTION[g.type],
+                                                  frictionvalue=g.value)], branch=branches)
+        main.filepath = Path("roughness-Main.ini")
+        models = [main]
+        for group in self.net.friction_groups:
+            fm = FrictionModel(
+                global_=[FrictGlobal(frictionid=group.id, frictiontype=_FRICTION[group.type],
+                                     frictionvalue=group.value)],
+                branch=[FrictBranch(branchid=bf.branch, frictiontype=_FRICTION[group.type], functiontype="constant",
+                                    numlocations=0, frictionvalues=[bf.value]) for bf in group.branches])
+            fm.filepath = Path(f"roughness-{group.id}.ini")
+            models.append(fm)
+        return models
+
+    # -- structures ----------------------------------------------------------------------------------
+
+    def _series_forcing(self, key: str, name: str, quantity: str, unit: str):
+        """A .bc time-series block of a forcing key (for structure settings, boundaries, laterals)."""
+        from hydrolib.core.dflowfm.bc.models import QuantityUnitPair, TimeSeries
+
+        series = self.forcing[key]
+        held = _with_spinup(series, self.start, self.case.start)
+        minutes = (held.index - self.start).total_seconds().to_numpy() / 60.0
+        unit_time = f"minutes since {self.start.strftime('%Y-%m-%d %H:%M:%S')}"
+        return TimeSeries(name=name, function="timeseries", timeinterpolation="linear",
+                          quantityunitpair=[QuantityUnitPair(quantity="time", unit=unit_time),
+                                            QuantityUnitPair(quantity=quantity, unit=unit)],
+                          datablock=[[float(t), float(v)] for t, v in zip(minutes, held.to_numpy(), strict=True)])
+
+    def structures(self):
+        from hydrolib.core.dflowfm.bc.models import ForcingModel
+        from hydrolib.core.dflowfm.crosssection.models import CircleCrsDef, RectangleCrsDef
+        from hydrolib.core.dflowfm.structure import models as sm
+
+        items = []
+        blocks = []
+        bc = ForcingModel(forcing=[])
+        bc.filepath = Path("structures.bc")
+
+        def setting(key, name, quantity, unit, constant):
+            if key in self.case.forcing:
+                blocks.append(self._series_forcing(key, name, quantity, unit))
+                return bc
+            return constant
+
+        for w in self.net.weirs:
+            crest = setting(f"crest:{w.id}", w.id, "weir_crestLevel", "m", w.crest_level)
+            items.append(sm.Weir(id=w.id, name=w.id, branchid=w.branch, chainage=w.chainage,
+                                 allowedflowdir=w.allowed_flow, crestlevel=crest, crestwidth=w.crest_width,
+                                 corrcoeff=w.discharge_coefficient * w.lateral_contraction, usevelocityheight=False))
+        for c in self.net.culverts:
+            if c.shape == "profile":
+                csdef = c.profile
+            else:
+                csdef = f"culvert_{c.id}"
+                if c.shape == "circular":
+                    self._defs.append(CircleCrsDef(id=csdef, diameter=c.diameter))
+                else:
+                    self._defs.append(RectangleCrsDef(id=csdef, width=c.width, height=c.height, closed=True))
+            left, right = c.inverts
+            items.append(sm.Culvert(id=c.id, name=c.id, branchid=c.branch, chainage=c.chainage,
+                                    allowedflowdir=c.allowed_flow, leftlevel=left, rightlevel=right, csdefid=csdef,
+                                    length=c.length, inletlosscoeff=c.inlet_loss, outletlosscoeff=c.outlet_loss,
+                                    valveonoff=False, bedfrictiontype=_FRICTION[c.friction.type],
+                                    bedfriction=c.friction.value, bendlosscoeff=c.bend_loss or None))
+        for p in self.net.pumps:
+            cap = setting(f"capacity:{p.id}", p.id, "pump_capacity", "m3/s", p.capacity)
+            items.append(sm.Pump(id=p.id, name=p.id, branchid=p.branch, chainage=p.chainage, orientation=p.direction,
+                                 controlside="suctionSide", numstages=1, capacity=cap,
+                                 startlevelsuctionside=[p.start_level], stoplevelsuctionside=[p.stop_level]))
+        for o in self.net.orifices:
+            gate = setting(f"gate:{o.id}", o.id, "orifice_gateLowerEdgeLevel", "m", o.gate_lower_edge_level)
+            items.append(sm.Orifice(id=o.id, name=o.id, branchid=o.branch, chainage=o.chainage,
+                                    allowedflowdir=o.allowed_flow, crestlevel=o.crest_level, crestwidth=o.crest_width,
+                                    gateloweredgelevel=gate, corrcoeff=o.discharge_coefficient, usevelocityheight=False,
+                                    uselimitflowpos=o.max_flow_positive is not None, limitflowpos=o.max_flow_positive,
+                                    uselimitflowneg=o.max_flow_negative is not None, limitflowneg=o.max_flow_negative))
+        for u in self.net.universal_weirs:
+            items.append(sm.UniversalWeir(id=u.id, name=u.id, branchid=u.branch, chainage=u.chainage,
+                                          allowedflowdir=u.allowed_flow, numlevels=len(u.y), yvalues=list(u.y),
+                                          zvalues=[u.crest_level + z for z in u.z], crestlevel=u.crest_level,
+                                          dischargecoeff=u.discharge_coefficient))
+        for b in self.net.bridges:
+            items.append(sm.Bridge(id=b.id, name=b.id, branchid=b.branch, chainage=b.chainage,
+                                   allowedflowdir=b.allowed_flow, csdefid=b.profile, shift=b.bed_level,
+                                   inletlosscoeff=b.inlet_loss, outletlosscoeff=b.outlet_loss,
+                                   frictiontype=_FRICTION[b.friction.type], friction=b.friction.value,
+                                   length=b.length))
+        self._crossdef_model.definition = self._defs
+        if not items:
+            return None
+        bc.forcing = blocks
+        model = sm.StructureModel(structure=items)
+        model.filepath = Path("structures.ini")
+        return model
+
+    # -- storage, initial state --------------------------------------------------------------------------
+
+    def storage_nodes(self):
+        from hydrolib.core.dflowfm.storagenode.models import StorageNode, StorageNodeModel
+
+        items = []
+        beds = {}
+        for b in self.net.branches:
+            for node, cs in ((b.from_node, b.cross_sections[0]), (b.to_node, b.cross_sections[-1])):
+                bed = b.bed_level_at(0.0 if node == b.from_node else b.length)
+                beds[node] = min(beds.get(node, math.inf), bed)
+                del cs
+        for n in self.net.nodes:
+            if n.storage_table is not None:
+                t = n.storage_table
+                items.append(StorageNode(id=n.id, name=n.id, nodeid=n.id, usetable=True, numlevels=len(t.levels),
+                                         levels=list(t.levels), storagearea=list(t.areas), interpolate="linear"))
+            elif n.storage_area > 0:
+                items.append(StorageNode(id=n.id, name=n.id, nodeid=n.id, usetable=False, bedlevel=beds[n.id],
+                                         area=n.storage_area, streetlevel=beds[n.id] + 1.0e4,
+                                         streetstoragearea=n.storage_area, storagetype="reservoir"))
+        if not items:
+            return None
+        model = StorageNodeModel(storagenode=items)
+        model.filepath = Path("nodeFile.ini")
+        return model
+
+    def initial(self):
+        from hydrolib.core.base.models import DiskOnlyFileModel
+        from hydrolib.core.dflowfm.inifield.models import IniFieldModel, InitialField
+        from hydrolib.core.dflowfm.onedfield.models import OneDFieldGlobal, OneDFieldModel
+
+        ini = self.spec.initial
+        if ini.level is not None and ini.depth > 0:
+            self.result.notes.append("the initial state max(bed + depth, level) has no D-Flow FM counterpart: the "
+                                     "initial depth is written, the minimum level is not")
+        quantity, value = ("waterdepth", ini.depth) if ini.level is None or ini.depth > 0 else ("waterlevel",
+                                                                                                ini.level)
+        name = f"initial_{quantity}.ini"
+        OneDFieldModel(global_=OneDFieldGlobal(quantity=quantity, unit="m", value=value)).save(self.out / name)
+        model = IniFieldModel(initial=[InitialField(quantity=quantity, datafile=DiskOnlyFileModel(filepath=Path(name)),
+                                                    datafiletype="1dField")])
+        model.filepath = Path("initialFields.ini")
+        return model
+
+    # -- boundaries and laterals ------------------------------------------------------------------------
+
+    def external_forcing(self):
+        from hydrolib.core.dflowfm.bc.models import Constant, ForcingModel, QHTable, QuantityUnitPair
+        from hydrolib.core.dflowfm.ext.models import Boundary, ExtModel, Lateral
+
+        bc = ForcingModel(forcing=[])
+        bc.filepath = Path("boundaries.bc")
+        boundaries, laterals = [], []
+        for b in self.net.boundaries:
+            if b.type == "rating":
+                bc.forcing.append(QHTable(
+                    name=b.node, function="qhtable",
+                    quantityunitpair=[QuantityUnitPair(quantity="qhbnd discharge", unit="m3/s"),
+                                      QuantityUnitPair(quantity="qhbnd waterlevel", unit="m")],
+                    datablock=[[q, h] for q, h in zip(b.rating.discharges, b.rating.levels, strict=True)]))
+                quantity = "qhbnd"
+            else:
+                quantity = "waterlevelbnd" if b.type == "level" else "dischargebnd"
+                unit = "m" if b.type == "level" else "m3/s"
+                if b.value is not None:
+                    bc.forcing.append(Constant(name=b.node, function="constant",
+                                               quantityunitpair=[QuantityUnitPair(quantity=quantity, unit=unit)],
+                                               datablock=[[b.value]]))
+                else:
+                    bc.forcing.append(self._series_forcing(f"boundary:{b.id}", b.node, quantity, unit))
+            boundaries.append(Boundary(quantity=quantity, nodeid=b.node, forcingfile=bc))
+            if b.id != b.node:
+                self.result.notes.append(f"boundary {b.id!r} is named after its node {b.node!r} (D-Flow FM names "
+                                         "boundaries by node)")
+        for lat in self.net.laterals:
+            where = {"nodeid": lat.node} if lat.node is not None else {"branchid": lat.branch,
+                                                                      "chainage": lat.chainage}
+            if lat.value is not None:
+                discharge = lat.value
+            else:
+                bc.forcing.append(self._series_forcing(f"lateral:{lat.id}", lat.id, "lateral_discharge", "m3/s"))
+                discharge = bc
+            laterals.append(Lateral(id=lat.id, name=lat.id, **where, discharge=discharge))
+        model = ExtModel(boundary=boundaries, lateral=laterals)
+        model.filepath = Path("boundaries.ext")
+        return model
+
+    # -- stations --------------------------------------------------------------------------------------
+
+    def stations(self):
+        from hydrolib.core.dflowfm.obs.models import ObservationPoint, ObservationPointModel
+        from hydrolib.core.dflowfm.obscrosssection.models import ObservationCrossSection, ObservationCrossSectionModel
+
+        points, sections, skipped = [], [], []
+        for st in self.net.stations:
+            if st.structure is not None:
+                skipped.append(st.id)
+                continue
+            quantities = st.quantities or ["h"]
+            if "h" in quantities:
+                points.append(ObservationPoint(name=st.id, branchid=st.branch, chainage=st.chainage))
+            if "Q" in quantities:
+                sections.append(ObservationCrossSection(name=st.id, branchid=st.branch, chainage=st.chainage))
+        if skipped:
+            self.result.notes.append(f"stations at a structure ({', '.join(skipped)}) are not written: D-Flow FM "
+                                     "reports every structure's levels and discharge in its history file")
+        obs = crs = None
+        if points:
+            obs = ObservationPointModel(observationpoint=points)
+            obs.filepath = Path("obs.ini")
+        if sections:
+            crs = ObservationCrossSectionModel(observationcrosssection=sections)
+            crs.filepath = Path("obscrs.ini")
+        return obs, crs
+
+
+def _with_spinup(series: pd.Series, start: pd.Timestamp, case_start: pd.Timestamp) -> pd.Series:
+    """The series from ``start``: held at its value at ``case_start`` before it (a spin-up)."""
+    if start >= case_start:
+        return series
+    t = (series.index - case_start).total_seconds().to_numpy()
+    first = float(np.interp(0.0, t, series.to_numpy(dtype=float)))
+    after = series[series.index >= case_start]
+    head = pd.Series([first, first], index=pd.DatetimeIndex([start, case_start]))
+    return pd.concat([head.iloc[:1], head.iloc[1:] if after.index[0] > case_start else head.iloc[:0], after])

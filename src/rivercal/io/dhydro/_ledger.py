@@ -1,0 +1,149 @@
+"""The account of an import: every object read, and whether it was converted exactly, approximated or refused.
+
+``import.md`` in the case folder is written from it. A refusal that would change the hydraulics
+(a structure, a boundary, a lateral, a branch) makes the import fail unless partial imports are
+allowed; a refusal that does not (an observation point that lies nowhere, a display-only file) is
+only listed.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Literal
+
+__all__ = ["Entry", "Ledger", "Status"]
+
+Status = Literal["exact", "approximated", "refused"]
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One object of the D-Flow FM model and what became of it.
+
+    Attributes
+    ----------
+    kind
+        Kind of object (``branch``, ``profile``, ``weir``, ``lateral``, ``setting``, ...).
+    id
+        Its id in the D-Flow FM files.
+    status
+        ``exact``, ``approximated`` or ``refused``.
+    note
+        How it was approximated and the expected effect, or why it was refused.
+    hydraulic
+        Whether a refusal changes the hydraulics (then the import fails unless partial imports are allowed).
+    """
+
+    kind: str
+    id: str
+    status: Status
+    note: str = ""
+    hydraulic: bool = True
+
+
+@dataclass
+class Ledger:
+    """The running account of an import (see the module docstring)."""
+
+    entries: list[Entry] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    renamed: dict[str, dict[str, str]] = field(default_factory=dict)
+
+    def exact(self, kind: str, id_: str, note: str = "") -> None:
+        """Record an object converted exactly."""
+        self._add(Entry(kind, id_, "exact", note))
+
+    def approximated(self, kind: str, id_: str, note: str) -> None:
+        """Record an object converted with an approximation; ``note`` says how and the expected effect."""
+        self._add(Entry(kind, id_, "approximated", note))
+
+    def refused(self, kind: str, id_: str, note: str, *, hydraulic: bool = True) -> None:
+        """Record an object that was not converted; ``note`` says why."""
+        self._add(Entry(kind, id_, "refused", note, hydraulic))
+
+    def _add(self, entry: Entry) -> None:
+        """Record an entry; a second one for the same object keeps the worse status and both notes."""
+        for k, e in enumerate(self.entries):
+            if e.kind == entry.kind and e.id == entry.id:
+                rank = {"exact": 0, "approximated": 1, "refused": 2}
+                status = max(e.status, entry.status, key=rank.__getitem__)
+                note = "; ".join(n for n in (e.note if e.status != "exact" else "",
+                                             entry.note if entry.status != "exact" else "") if n)
+                self.entries[k] = Entry(e.kind, e.id, status, note or e.note,
+                                        entry.hydraulic if entry.status == "refused" else e.hydraulic)
+                return
+        self.entries.append(entry)
+
+    def warn(self, text: str) -> None:
+        """Record a warning about the files (an unknown keyword, a file read block by block)."""
+        self.warnings.append(text)
+
+    def status_of(self, kind: str, id_: str) -> Status | None:
+        """The status recorded last for an object, or None."""
+        for e in reversed(self.entries):
+            if e.kind == kind and e.id == id_:
+                return e.status
+        return None
+
+    @property
+    def blocking(self) -> list[Entry]:
+        """Refusals that change the hydraulics."""
+        return [e for e in self.entries if e.status == "refused" and e.hydraulic]
+
+    def counts(self, status: Status) -> int:
+        """Number of objects with a status."""
+        return sum(1 for e in self.entries if e.status == status)
+
+    def markdown(self, *, model: str, case_folder: str, partial: bool) -> str:
+        """``import.md``: a summary table, the warnings, then every object by kind."""
+        kinds = list(dict.fromkeys(e.kind for e in self.entries))
+        per: dict[str, Counter] = {k: Counter() for k in kinds}
+        for e in self.entries:
+            per[e.kind][e.status] += 1
+        lines = [
+            "# Import of a D-Flow FM model",
+            "",
+            f"- model: `{model}`",
+            f"- case: `{case_folder}`",
+            f"- objects read: {len(self.entries)}; exact {self.counts('exact')}, approximated "
+            f"{self.counts('approximated')}, refused {self.counts('refused')}",
+        ]
+        if partial and self.blocking:
+            lines.append(f"- **partial import**: {len(self.blocking)} refused object(s) change the hydraulics; "
+                         "the case "
+                         "leaves them out (allowed by --allow-partial)")
+        lines += ["", "| kind | read | exact | approximated | refused |", "|---|---:|---:|---:|---:|"]
+        for k in kinds:
+            c = per[k]
+            lines.append(f"| {k} | {sum(c.values())} | {c['exact']} | {c['approximated']} | {c['refused']} |")
+        lines += ["", "## Warnings", ""]
+        lines += [f"- {w}" for w in self.warnings] or ["None."]
+        if self.renamed:
+            lines += ["", "## Renamed ids", "", "Ids with characters a case does not allow ('#', spaces, ...) were "
+                      "renamed:", "", "| kind | D-Flow FM id | case id |", "|---|---|---|"]
+            for kind, names in self.renamed.items():
+                lines += [f"| {kind} | `{old}` | `{new}` |" for old, new in names.items()]
+        for status, title in (("refused", "Refused"), ("approximated", "Approximated")):
+            chosen = [e for e in self.entries if e.status == status]
+            lines += ["", f"## {title}", ""]
+            if not chosen:
+                lines.append("None.")
+                continue
+            lines += ["| kind | id | " + ("why" if status == "refused" else "how, and the expected effect") + " |",
+                      "|---|---|---|"]
+            groups: dict[tuple[str, str], list[str]] = {}
+            for e in chosen:  # objects with the same note share a row
+                groups.setdefault((e.kind, e.note), []).append(e.id)
+            for (kind, note), ids in groups.items():
+                lines.append(f"| {kind} | {', '.join(f'`{i}`' for i in ids)} | {_cell(note)} |")
+        lines += ["", "## Converted exactly", ""]
+        for k in kinds:
+            ids = [e.id for e in self.entries if e.kind == k and e.status == "exact"]
+            if ids:
+                lines.append(f"- {k} ({len(ids)}): " + ", ".join(f"`{i}`" for i in ids))
+        return "\n".join(lines) + "\n"
+
+
+def _cell(text: str) -> str:
+    return " ".join(text.split()).replace("|", "\\|")

@@ -1,0 +1,374 @@
+"""Structures of a D-Flow FM model as case tables.
+
+D-Flow FM → case: ``weir`` → ``[[weirs]]``; ``universalWeir`` → ``[[universal_weirs]]``; ``orifice`` →
+``[[orifices]]``; ``culvert`` (also a siphon) → ``[[culverts]]``; ``bridge`` → ``[[bridges]]``; ``pump`` →
+``[[pumps]]``; ``compound`` → its members (one member: exact; more: the members would need one segment
+together, which a case cannot express, so the others are refused); ``generalStructure`` and ``gate`` →
+an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused. Settings given as time series
+(``.tim``/``.bc``) or supplied in real time (DIMR exchange files) become structure-setting series.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rivercal.io.dhydro._context import Context, unquote
+from rivercal.io.dhydro._forcing import forcing_series
+from rivercal.io.dhydro._network import add_profile, friction_of
+
+__all__ = ["convert_structures"]
+
+SETTINGS_FILE = "settings.csv"
+
+
+def _direction(value: Any) -> str:
+    name = str(getattr(value, "value", value) or "both").lower()
+    return name if name in ("both", "positive", "negative", "none") else "both"
+
+
+def convert_structures(ctx: Context) -> None:
+    """Fill the structure tables of ``ctx.case`` from the model's structure files."""
+    tables: dict[str, list[dict]] = {t: [] for t in ("weirs", "culverts", "pumps", "orifices", "universal_weirs",
+                                                     "bridges")}
+    objects = [s for f in ctx.model.structures for s in f.objects]
+    for f in ctx.model.structures:
+        for kind, sid, reason in f.failed:
+            ctx.ledger.refused(kind, unquote(sid), f"{f.path.name}: {reason}")
+    by_id = {unquote(s.id): s for s in objects}
+    in_compound: dict[str, str] = {}
+    for s in objects:
+        if s.type != "compound":
+            continue
+        cid = unquote(s.id)
+        members = [unquote(m) for m in (s.structureids or [])]
+        missing = [m for m in members if m not in by_id]
+        if missing:
+            ctx.ledger.refused("compound", cid, f"member(s) {', '.join(missing)} not found", hydraulic=False)
+        present = [m for m in members if m in by_id]
+        for m in present[1:]:
+            in_compound[m] = cid
+        for m in present[:1]:
+            in_compound.setdefault(m, "")
+        if len(present) > 1:
+            ctx.ledger.approximated("compound", cid, f"{len(present)} structures side by side; a case gives each "
+                                    "structure a segment of its own, so only the first is kept and the others are "
+                                    "refused")
+        else:
+            ctx.ledger.exact("compound", cid, "one member: the member itself")
+    for s in objects:
+        if s.type == "compound":
+            continue
+        sid = unquote(s.id)
+        if in_compound.get(sid):
+            ctx.ledger.refused(s.type, sid, f"second or later member of compound {in_compound[sid]!r} (see there)")
+            continue
+        if s.branchid is None or s.chainage is None:
+            ctx.ledger.refused(s.type, sid, "located by x, y coordinates: a structure of the 2D part of a 1D2D "
+                               "model, which a case leaves out", hydraulic=False)
+            continue
+        if not ctx.ids["branch"].known(s.branchid) or ctx.id("branch", s.branchid) not in ctx.branch_length:
+            ctx.ledger.refused(s.type, sid, f"its branch {unquote(s.branchid)!r} is not in the network")
+            continue
+        branch = ctx.id("branch", s.branchid)
+        chainage = min(max(float(s.chainage), 0.0), ctx.branch_length[branch])
+        base = {"id": ctx.id("structure", sid), "branch": branch, "chainage": chainage}
+        handler = _HANDLERS.get(s.type)
+        if handler is None:
+            ctx.ledger.refused(s.type, sid, f"structure type {s.type!r} has no counterpart in a case (2D or "
+                               "morphological structure)")
+            continue
+        table, item, notes, refusal = handler(ctx, s, base)
+        if refusal:
+            ctx.ledger.refused(s.type, sid, refusal)
+            continue
+        tables[table].append(item)
+        ctx.origins[item["id"]] = (s.type, sid)
+        (ctx.ledger.approximated if notes else ctx.ledger.exact)(s.type, sid, "; ".join(notes))
+    for table, items in tables.items():
+        if items:
+            ctx.case[table] = items
+    # D-Flow FM reports every structure's levels either side and discharge: so does the case
+    taken = {st["id"] for st in ctx.case["stations"]}
+    for items in tables.values():
+        for item in items:
+            sid = item["id"] if item["id"] not in taken else f"{item['id']}_structure"
+            sid = sid.replace(".", "_")
+            taken.add(sid)
+            ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
+
+
+# -- settings that may be time series ------------------------------------------------------------------
+
+
+def _setting(ctx: Context, s: Any, field: str, quantity: str, what: str, notes: list[str]) -> tuple[float | None,
+                                                                                                     dict | None, str]:
+    """A structure setting: constant value, series reference (from a file or an exchange file), or a refusal."""
+    sid = unquote(s.id)
+    key = f"{quantity}/{sid}/{field}"
+    exchanged = ctx.exchange.get(key)
+    value = getattr(s, field.lower())
+    if exchanged is not None:
+        ctx.exchange_used.add(key)
+        series = _held(exchanged, ctx)
+        ref = ctx.add_series(SETTINGS_FILE, f"{sid}.{field}", series)
+        notes.append(f"{what} follows its series in the exchange file (each value held until the next exchange "
+                     "time); the value in the structure file is not used")
+        constant = float(value) if isinstance(value, int | float) else float(series.iloc[0])
+        return constant, ref, ""
+    if isinstance(value, int | float):
+        return float(value), None, ""
+    if value is None:
+        return None, None, f"{what} is missing"
+    try:
+        series = forcing_series(ctx, value, name=sid)
+    except ValueError as exc:
+        return None, None, f"{what}: {exc}"
+    if series.nunique() == 1:
+        return float(series.iloc[0]), None, ""
+    ref = ctx.add_series(SETTINGS_FILE, f"{sid}.{field}", series)
+    return float(series.iloc[0]), ref, ""
+
+
+def _held(series: pd.Series, ctx: Context) -> pd.Series:
+    """An exchange series (a value per coupling time, held until the next) as change points with 1 s ramps."""
+    values = series.to_numpy(dtype=float)
+    times = series.index
+    keep_t, keep_v = [times[0]], [values[0]]
+    for k in range(1, len(values)):
+        if values[k] != values[k - 1]:
+            keep_t += [times[k] - pd.Timedelta(seconds=1), times[k]]
+            keep_v += [values[k - 1], values[k]]
+    if keep_t[-1] < ctx.end:
+        keep_t.append(ctx.end)
+        keep_v.append(keep_v[-1])
+    if keep_t[0] > ctx.start:
+        keep_t.insert(0, ctx.start)
+        keep_v.insert(0, keep_v[0])
+    return pd.Series(keep_v, index=pd.DatetimeIndex(keep_t))
+
+
+# -- one handler per type: (table, item, notes, refusal) -------------------------------------------------
+
+
+def _weir(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    notes: list[str] = []
+    crest, ref, why = _setting(ctx, s, "crestLevel", "weirs", "the crest level", notes)
+    if why:
+        return "weirs", {}, notes, why
+    width = s.crestwidth
+    if width is None:
+        width = _width_at(ctx, base["branch"], base["chainage"], crest)
+        notes.append(f"no crest width: the flow width of the channel at the crest, {width:.3g} m, as D-Flow FM takes")
+    item = {**base, "crest_level": crest, "crest_width": float(width),
+            "discharge_coefficient": float(s.corrcoeff), "allowed_flow": _direction(s.allowedflowdir)}
+    if ref:
+        item["crest_series"] = ref
+    if s.usevelocityheight:
+        notes.append("the upstream velocity head is not added to the upstream level (useVelocityHeight); at the "
+                     "velocities of a polder channel (< 0.5 m/s) it is below 1.3 cm")
+    return "weirs", item, notes, ""
+
+
+def _universal_weir(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    y = [float(v) for v in s.yvalues]
+    z = [float(v) for v in s.zvalues]
+    low = min(z)
+    item = {**base, "y": y, "z": [v - low for v in z], "crest_level": float(s.crestlevel),
+            "discharge_coefficient": float(s.dischargecoeff), "allowed_flow": _direction(s.allowedflowdir)}
+    # D-Flow FM shifts the crest shape so that its lowest point lies at crestLevel: z relative to that point
+    return "universal_weirs", item, [], ""
+
+
+def _orifice(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    notes: list[str] = []
+    crest, cref, why = _setting(ctx, s, "crestLevel", "orifices", "the crest level", notes)
+    if why:
+        return "orifices", {}, notes, why
+    if cref:
+        return "orifices", {}, notes, "a crest level that varies in time (only the gate of an orifice may vary)"
+    gate, gref, why = _setting(ctx, s, "gateLowerEdgeLevel", "orifices", "the gate's lower edge", notes)
+    if why:
+        return "orifices", {}, notes, why
+    width = s.crestwidth
+    if width is None:
+        width = _width_at(ctx, base["branch"], base["chainage"], crest)
+        notes.append(f"no crest width: the flow width of the channel at the crest, {width:.3g} m")
+    item = {**base, "crest_level": crest, "crest_width": float(width), "gate_lower_edge_level": gate,
+            "discharge_coefficient": float(s.corrcoeff), "allowed_flow": _direction(s.allowedflowdir)}
+    if gate <= crest:
+        item["gate_lower_edge_level"] = crest + 0.001
+        item["allowed_flow"] = "none"
+        notes.append("the gate is down on the crest (closed): taken as closed")
+    if gref:
+        item["gate_series"] = gref
+    if s.uselimitflowpos and s.limitflowpos is not None:
+        item["max_flow_positive"] = float(s.limitflowpos)
+    if s.uselimitflowneg and s.limitflowneg is not None:
+        item["max_flow_negative"] = float(s.limitflowneg)
+    if s.usevelocityheight:
+        notes.append("the upstream velocity head is not added to the upstream level (useVelocityHeight)")
+    return "orifices", item, notes, ""
+
+
+def _general(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    notes: list[str] = []
+    crest, cref, why = _setting(ctx, s, "crestLevel", "generalStructures", "the crest level", notes)
+    if why or cref:
+        return "orifices", {}, notes, why or "a crest level that varies in time"
+    gate = s.gateloweredgelevel
+    gate = float(gate) if isinstance(gate, int | float) else None
+    width = float(s.crestwidth or _width_at(ctx, base["branch"], base["chainage"], crest))
+    coefficient = float(s.posfreegateflowcoeff or 1.0) * float(s.poscontrcoeffreegate or 1.0)
+    notes.append("general structure taken as an orifice (weir under a gate) of the crest width, with the "
+                 "positive free-gate flow coefficient x contraction as discharge coefficient; the approach "
+                 "widths and levels and the separate drowned/negative coefficients are not used")
+    if gate is None or gate > crest + 100:
+        item = {**base, "crest_level": crest, "crest_width": width,
+                "discharge_coefficient": min(float(s.posfreeweirflowcoeff or 1.0), 2.0),
+                "allowed_flow": _direction(s.allowedflowdir)}
+        notes[-1] = "general structure with its gate out of the water taken as a weir of the crest width"
+        return "weirs", item, notes, ""
+    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": max(gate, crest + 0.001),
+            "discharge_coefficient": min(coefficient, 2.0), "allowed_flow": _direction(s.allowedflowdir)}
+    return "orifices", item, notes, ""
+
+
+def _gate(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    notes: list[str] = []
+    crest, cref, why = _setting(ctx, s, "crestLevel", "gates", "the sill level", notes)
+    if why or cref:
+        return "orifices", {}, notes, why or "a sill level that varies in time"
+    gate, gref, why = _setting(ctx, s, "gateLowerEdgeLevel", "gates", "the gate's lower edge", notes)
+    if why:
+        return "orifices", {}, notes, why
+    width = float(s.crestwidth or _width_at(ctx, base["branch"], base["chainage"], crest))
+    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": max(gate, crest + 0.001),
+            "discharge_coefficient": 1.0}
+    if gref:
+        item["gate_series"] = gref
+    notes.append("gate taken as an orifice of the sill width (the horizontal gate opening is not used)")
+    return "orifices", item, notes, ""
+
+
+def _culvert(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    notes: list[str] = []
+    d = next((x for x in ctx.model.crossdefs.objects if unquote(x.id) == unquote(s.csdefid)), None)
+    if d is None:
+        return "culverts", {}, notes, f"its cross-section definition {unquote(s.csdefid)!r} is missing or unreadable"
+    item: dict = {**base}
+    kind = type(d).__name__
+    ctx.used_definitions.add(unquote(s.csdefid))
+    if kind == "CircleCrsDef":
+        item.update(shape="circular", diameter=float(d.diameter))
+        ctx.ledger.exact("profile", unquote(d.id), "the shape of a culvert (its diameter)")
+    elif kind == "RectangleCrsDef" and d.closed:
+        item.update(shape="rectangular", width=float(d.width), height=float(d.height))
+        ctx.ledger.exact("profile", unquote(d.id), "the shape of a culvert (its width and height)")
+    else:
+        pid, _ = add_profile(ctx, s.csdefid, for_structure=True)
+        if pid is None:
+            return "culverts", {}, notes, f"its cross-section definition {unquote(s.csdefid)!r} was refused"
+        item.update(shape="profile", profile=pid)
+    left, right = float(s.leftlevel), float(s.rightlevel)
+    item["invert_level"] = left
+    if right != left:
+        item["invert_level_end"] = right
+    item["length"] = max(float(s.length), 0.001)
+    item["inlet_loss"] = float(s.inletlosscoeff)
+    item["outlet_loss"] = float(s.outletlosscoeff)
+    item["outlet_expansion"] = True  # D-Flow FM's exit loss: outletLossCoeff (1 - A / A_downstream)²
+    if s.bendlosscoeff:
+        item["bend_loss"] = float(s.bendlosscoeff)
+    if s.bedfrictiontype is not None and s.bedfriction is not None:
+        fr, note = friction_of(s.bedfrictiontype, s.bedfriction)
+        if fr is None:
+            return "culverts", {}, notes, note
+        if note:
+            notes.append(note)
+        item["friction"] = fr
+    else:
+        notes.append("no bed friction given: Manning n = 0.015 (concrete)")
+    item["allowed_flow"] = _direction(s.allowedflowdir)
+    if s.valveonoff:
+        opening = s.valveopeningheight
+        if not isinstance(opening, int | float):
+            return "culverts", {}, notes, "a valve whose opening varies in time"
+        notes.append(f"valve at {float(opening):g} m opening ignored: the culvert is taken fully open (its loss table "
+                     "has no counterpart)")
+    subtype = str(getattr(s.subtype, "value", s.subtype) or "culvert").lower()
+    if subtype == "invertedsiphon":
+        notes.append("an inverted siphon: a culvert with its two inverts and the bend loss")
+    return "culverts", item, notes, ""
+
+
+def _bridge(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    notes: list[str] = []
+    pid, bottom = add_profile(ctx, s.csdefid, for_structure=True)
+    if pid is None:
+        return "bridges", {}, notes, f"its cross-section definition {unquote(s.csdefid)!r} was refused"
+    fr, note = friction_of(s.frictiontype, s.friction)
+    if fr is None:
+        return "bridges", {}, notes, note
+    if note:
+        notes.append(note)
+    item = {**base, "profile": pid, "bed_level": bottom + float(s.shift), "length": max(float(s.length), 0.001),
+            "inlet_loss": float(s.inletlosscoeff), "outlet_loss": float(s.outletlosscoeff), "friction": fr,
+            "allowed_flow": _direction(s.allowedflowdir)}
+    return "bridges", item, notes, ""
+
+
+def _pump(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
+    notes: list[str] = []
+    capacity, cref, why = _setting(ctx, s, "capacity", "pumps", "the capacity", notes)
+    if why:
+        return "pumps", {}, notes, why
+    side = str(getattr(s.controlside, "value", s.controlside) or "suctionSide").lower()
+    stages = int(s.numstages or 1)
+    if side not in ("suctionside",):
+        return "pumps", {}, notes, f"control side {s.controlside!r}: a case pump switches on its suction side only"
+    start, stop = s.startlevelsuctionside, s.stoplevelsuctionside
+    if not start or not stop:
+        return "pumps", {}, notes, "no start/stop levels on the suction side"
+    if stages > 1:
+        notes.append(f"{stages} stages: taken as one stage with the first stage's levels and the full capacity")
+    item = {**base, "capacity": capacity, "start_level": float(start[0]), "stop_level": float(stop[0]),
+            "direction": "negative" if str(getattr(s.orientation, "value", s.orientation)) == "negative"
+            else "positive"}
+    if cref:
+        item["capacity_series"] = cref
+        if capacity <= 0:
+            item["capacity"] = float(getattr(s, "capacity", 0.0) or 0.0) if isinstance(s.capacity, int | float) else 0
+    if item["capacity"] <= 0:
+        if cref is None:
+            return "pumps", {}, notes, "capacity 0: a pump that never runs (left out; it does not change the flow)"
+        item["capacity"] = 1.0
+        notes.append("nominal capacity 1 m³/s (the series sets the real one)")
+    if s.numreductionlevels:
+        notes.append("capacity reduction table (by head) ignored: the pump delivers its capacity at any head")
+    return "pumps", item, notes, ""
+
+
+def _width_at(ctx: Context, branch: str, chainage: float, level: float) -> float:
+    """Flow width (m) of the channel at a chainage and level: D-Flow FM's width for a structure without one."""
+    b = next(x for x in ctx.case["branches"] if x["id"] == branch)
+    cs = min(b["cross_sections"], key=lambda c: abs(c["chainage"] - chainage))
+    prof = next(p for p in ctx.case["profiles"] if p["id"] == cs["profile"])
+    depth = max(level - cs["bed_level"], 0.0)
+    if prof["type"] == "rectangular":
+        return prof["width"]
+    if prof["type"] == "trapezoidal":
+        return prof["bottom_width"] + 2 * prof["side_slope"] * depth
+    if prof["type"] == "circular":
+        return prof["diameter"]
+    if prof["type"] == "zw":
+        return float(np.interp(depth, prof["heights"], prof["flow_widths"]))
+    y, z = np.asarray(prof["y"]), np.asarray(prof["z"])
+    wet = z <= depth
+    return float(y[wet].max() - y[wet].min()) if wet.any() else 1.0
+
+
+_HANDLERS = {"weir": _weir, "universalWeir": _universal_weir, "orifice": _orifice, "culvert": _culvert,
+             "bridge": _bridge, "pump": _pump, "generalStructure": _general, "gate": _gate}

@@ -1,0 +1,37 @@
+"""Calibration on an imported model: Dellen's friction found back by DuD.
+
+The imported D-HYDRO model Dellen (../shared/data) with its roughness scaled by a factor 1.2 (every friction
+group's coefficient: k_s × 1.2, n / 1.2) is the truth; its levels at the 21 observation points over two days
+are the observations. DuD, started from the model as imported (factor 1), must find the factor within 1 %.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from rivercal.io.dhydro import ImportOptions, import_dhydro
+from rivercal.model import load_model
+from rivercal.parameters import Parameter, ParameterSet
+from rivercal.problem import CalibrationProblem, calibrate
+from rivercal.twin import twin_truth
+from tests.shared_data import shared_model
+
+TRUTH = 1.2
+
+
+@pytest.mark.slow
+def test_dud_recovers_a_scaled_roughness_of_dellen(tmp_path) -> None:
+    folder = shared_model("dhydro-dellen")
+    result = import_dhydro(folder / "dflowfm" / "Flow1D.mdu", tmp_path / "case",
+                           ImportOptions(realtime=(folder / "rr_to_flow.nc", folder / "rtc_to_flow.nc")))
+    sim = load_model(result.folder)
+    params = ParameterSet([Parameter(name="FS", targets=["friction:scale"], min=0.5, max=2.0, initial=1.0,
+                                     transform="factor", perturbation=0.1)])
+    window = (sim.start + pd.Timedelta("2D"), sim.start + pd.Timedelta("4D"))
+    observed = [s for s in sim.observables if s.startswith("ObservationPoint_") and s.endswith(".h")]
+    assert len(observed) == 21
+    truth = twin_truth(sim, params.quantities({"FS": TRUTH}), window, series=observed)
+    problem = CalibrationProblem(sim, params, truth.observations, window, state=truth.state)
+    fit = calibrate(problem, "dud", {"max_outer": 15}, workers=1)
+    assert abs(fit.estimates["FS"] - TRUTH) <= 0.01 * TRUTH, fit.result.message
