@@ -9,6 +9,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import logging
+import threading
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import PurePath
 from typing import Any
@@ -24,9 +25,22 @@ log = logging.getLogger("rivercal.store")
 _NS_PER_S = 1_000_000_000
 
 
+_last_stamp = dt.datetime.min.replace(tzinfo=dt.UTC)
+_stamp_lock = threading.Lock()
+
+
 def now_stamp() -> str:
-    """Wall-clock time now as stored: ISO 8601 UTC with milliseconds (``2010-11-01T06:00:03.125Z``)."""
-    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    """Wall-clock time now as stored: ISO 8601 UTC with milliseconds (``2010-11-01T06:00:03.125Z``).
+
+    Strictly increasing within a process: two writes in the same millisecond get stamps 1 ms apart, so
+    that "the value ingested last wins" never depends on the order a query happens to return ties in.
+    """
+    global _last_stamp
+    with _stamp_lock:
+        now = dt.datetime.now(dt.UTC)
+        now = now.replace(microsecond=now.microsecond // 1000 * 1000)
+        _last_stamp = max(now, _last_stamp + dt.timedelta(milliseconds=1))
+        return _last_stamp.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def stamp_to_time(stamps: Any) -> Any:
