@@ -100,11 +100,13 @@ def _print(summary: dict, cal, pset, win) -> None:
     twin = "truth" in summary
     table = Table(title=f"{summary['case']}: {summary['algorithm']} over {win[0]:%Y-%m-%d %H:%M} .. "
                         f"{win[1]:%Y-%m-%d %H:%M}")
-    for col in ("parameter", "start", "estimate", "std", *(["true"] if twin else [])):
+    # σ from the observations' σ as given, and σ scaled by the fit's own residual variance S/(m − p):
+    # the second is right when the given σ are not (uniform or unknown observation errors).
+    for col in ("parameter", "start", "estimate", "σ", "σ scaled", *(["true"] if twin else [])):
         table.add_column(col, justify="right" if col != "parameter" else "left")
     for p in pset:
         row = [p.name, f"{cal.initial[p.name]:.4f}", f"{cal.estimates[p.name]:.4f}",
-               f"{cal.std[p.name]:.2g}" if p.name in cal.std else "-"]
+               *(f"{std[p.name]:.2g}" if p.name in std else "-" for std in (cal.std, cal.std_scaled))]
         if twin:
             row.append(f"{summary['truth'][p.name]:.4f}" if p.name in summary["truth"] else "-")
         table.add_row(*row)
