@@ -42,6 +42,8 @@ def test_version_and_versions_of_the_numeric_stack() -> None:
     (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--seed",
       "-3"], "--seed -3: must be at least 0"),
     (["simulate", "synthetic", "--set", "weir:W99.crest_level=3"], "--set weir:W99.crest_level=3: no weir 'W99'"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--algorithm",
+      "lm"], "--algorithm 'lm': it is now called trf (scipy's trust-region reflective method"),
 ])
 def test_bad_values_exit_2_naming_the_option(args: list[str], message: str) -> None:
     run = CliRunner().invoke(app, args)

@@ -51,10 +51,11 @@ def calibrate(
     """FaWc twin calibration of the default case (truth 20/0.8, start 14/0.1, moderate window) per algorithm."""
     from rivercal.bench.calibrate import bench_calibrate
     from rivercal.optimise import OPTIMISERS
+    from rivercal.optimise.registry import RENAMED
 
     names = parse_names(algorithms, "--algorithms") if algorithms is not None else None
     for name in names or []:
-        check_choice(name, "--algorithms", sorted(OPTIMISERS))
+        check_choice(name, "--algorithms", sorted(OPTIMISERS), former=RENAMED)
     check_number(workers, "--workers", low=1)
     watch_compilation(True)
     result = bench_calibrate(names or None, workers=workers)

@@ -52,6 +52,7 @@ def calibrate(
     import pandas as pd
 
     from rivercal.optimise import OPTIMISERS
+    from rivercal.optimise.registry import RENAMED
     from rivercal.twin import NOISE_MODELS
     from rivercal.workflows.calibrate import calibrate_window
 
@@ -68,7 +69,7 @@ def calibrate(
     check_number(deadline, "--deadline", low=0, low_open=True)
     check_choice(on_failure, "--on-failure", ("raise", "penalty"))
     if algorithm is not None:
-        check_choice(algorithm, "--algorithm", sorted(OPTIMISERS))
+        check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
     truth = parse_assignments(twin, "--twin") if twin is not None else None
     start_values = parse_assignments(start, "--start")
     output_dir(out)

@@ -64,6 +64,7 @@ def online(
     """Run the on-line service: every cycle re-estimates the parameters and forecasts against the DSS."""
     from rivercal.online.service import OnlineConfig
     from rivercal.optimise import OPTIMISERS
+    from rivercal.optimise.registry import RENAMED
     from rivercal.twin import NOISE_MODELS
     from rivercal.twin.practical import PRACTICAL_SCENARIOS
     from rivercal.workflows.online import run_online
@@ -89,7 +90,7 @@ def online(
     durations = {o: parse_duration(v, o) for o, v in (("--window", window), ("--cycle", cycle),
                                                        ("--horizon", horizon))}
     spin = parse_duration(warmup, "--warmup", allow_zero=True)
-    check_choice(algorithm, "--algorithm", sorted(OPTIMISERS))
+    check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
     check_number(deadline, "--deadline", low=0, low_open=True)
     change = parse_assignments(max_change, "--max-change", example="FA=5,Wd=0.1")
     for name, value in change.items():

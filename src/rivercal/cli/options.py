@@ -70,9 +70,15 @@ def check_number(value: float | None, option: str, *, low: float | None = None, 
         raise OptionError(f"{option} {value:g}: must be {where}", option=option)
 
 
-def check_choice(value: str, option: str, choices: Iterable[str], what: str = "choice") -> str:
-    """``value`` if it is one of ``choices`` (``what`` names them in the message, e.g. 'practical scenario')."""
+def check_choice(value: str, option: str, choices: Iterable[str], what: str = "choice",
+                 former: Mapping[str, str] | None = None) -> str:
+    """``value`` if it is one of ``choices`` (``what`` names them in the message, e.g. 'practical scenario').
+
+    ``former`` maps names that were renamed to what they are called now; asking for one says so.
+    """
     choices = list(choices)
+    if former and value in former:
+        raise OptionError(f"{option} {value!r}: it is now called {former[value]}", option=option)
     if value not in choices:
         raise OptionError(f"{option} {value!r}: unknown {what}; choose one of {', '.join(choices)}", option=option)
     return value
