@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint venv clean clean-cache browser
+.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser
 
 # The dashboard tests drive Debian's chromium through chromedriver (never a downloaded browser).
 CHROMIUM := /usr/bin/chromium
@@ -41,6 +41,11 @@ bench: $(STAMP) browser
 	@mkdir -p out/bench
 	$(PY) benchmarks/run_all.py --out out/bench
 
+# The documentation site: docs/ -> docs/_build/html (warnings are errors; the tutorial is executed).
+docs: $(STAMP)
+	$(VENV)/bin/sphinx-build -b html -E -W --keep-going -q docs docs/_build/html
+	@echo "the documentation: docs/_build/html/index.html"
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks scripts
 	$(VENV)/bin/lint-imports
@@ -49,4 +54,4 @@ clean-cache:
 	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
 
 clean: clean-cache
-	rm -rf $(VENV) out .pytest_cache .ruff_cache
+	rm -rf $(VENV) out .pytest_cache .ruff_cache docs/_build docs/tutorial docs/reference/api docs/reference/generated

@@ -140,6 +140,10 @@ class ObservationSeries:
         """As a pandas Series (m AD or m³/s) indexed by UTC time."""
         return pd.Series(self.values, index=self.times, name=self.id)
 
+    def __repr__(self) -> str:
+        sigma = "Eq. 2-6 weight" if self.sigma is None else f"σ={self.sigma:g}"
+        return f"ObservationSeries({self.id!r}, {len(self)} values{_period(self.times)}, {sigma}, {self.n_missing} missing)"
+
 
 @dataclass(frozen=True)
 class ObservationSet:
@@ -211,3 +215,36 @@ class ObservationSet:
     def to_frame(self) -> pd.DataFrame:
         """All series as one frame (outer join on time; NaN where a series has no value)."""
         return pd.concat([s.to_series() for s in self.series], axis=1, sort=True) if self.series else pd.DataFrame()
+
+    def __repr__(self) -> str:
+        times = pd.DatetimeIndex([]).tz_localize("UTC")
+        for s in self.series:
+            times = times.union(s.times[[0, -1]]) if len(s) else times
+        return f"ObservationSet({len(self)} series, {self.n_values} values{_period(times)}, {self.n_missing} missing)"
+
+    def summary(self) -> pd.DataFrame:
+        """One row per series: ``values``, ``missing``, ``sigma`` (m AD or m³/s; NaN: Eq. 2-6 weight),
+        ``first``, ``last`` (UTC) and ``source``.
+
+        Examples
+        --------
+        >>> frame = pd.DataFrame({"S1.h": [1.0, None, 1.2]},
+        ...                      index=pd.date_range("2020-01-01", periods=3, freq="h", tz="UTC"))
+        >>> ObservationSet.from_frame(frame).summary()[["values", "missing", "sigma"]]
+              values  missing  sigma
+        series
+        S1.h       2        1  0.025
+        """
+        rows = [{"series": s.id, "values": len(s), "missing": s.n_missing,
+                 "sigma": np.nan if s.sigma is None else s.sigma,
+                 "first": s.times[0] if len(s) else pd.NaT, "last": s.times[-1] if len(s) else pd.NaT,
+                 "source": s.source} for s in self.series]
+        columns = ["series", "values", "missing", "sigma", "first", "last", "source"]
+        return pd.DataFrame(rows, columns=columns).set_index("series")
+
+
+def _period(times: pd.DatetimeIndex) -> str:
+    """`` from … to …`` of the first and last time (UTC, minutes), or nothing without times."""
+    if not len(times):
+        return ""
+    return f" {times.min():%Y-%m-%d %H:%M} … {times.max():%Y-%m-%d %H:%M} UTC"

@@ -33,10 +33,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["TARGET_PATTERN", "ClusterTarget", "Parameter", "ParameterSet"]
 
@@ -242,3 +245,33 @@ class ParameterSet:
         for p in self.parameters:
             out.update(p.quantities(values.get(p.name, p.initial)))
         return out
+
+    # -- views ---------------------------------------------------------------------------------------
+
+    def __repr__(self) -> str:
+        items = ", ".join(f"{p.name}={p.initial:g} in [{p.min:g}, {p.max:g}]{' ' + p.unit if p.unit else ''}"
+                          for p in self.parameters)
+        return f"ParameterSet({items})"
+
+    def to_frame(self) -> pd.DataFrame:
+        """The parameters as a table, one row per name (values in the parameters' units).
+
+        Columns ``initial``, ``min``, ``max``, ``unit``, ``transform``, ``perturbation``, ``prior_std`` and
+        ``targets`` (the model quantities it sets, comma-separated).
+
+        Examples
+        --------
+        >>> p = Parameter(name="FA", targets=["friction:global"], min=8, max=40, initial=16, perturbation=2,
+        ...               unit="m^(1/3)/s")
+        >>> ParameterSet([p]).to_frame()[["initial", "min", "max", "unit"]]
+              initial  min   max       unit
+        name
+        FA       16.0  8.0  40.0  m^(1/3)/s
+        """
+        import pandas as pd
+
+        rows = [{"name": p.name, "initial": p.initial, "min": p.min, "max": p.max, "unit": p.unit,
+                 "transform": p.transform, "perturbation": p.perturbation, "prior_std": p.prior_std,
+                 "targets": ", ".join(p.quantities(p.initial))} for p in self.parameters]
+        columns = ["name", "initial", "min", "max", "unit", "transform", "perturbation", "prior_std", "targets"]
+        return pd.DataFrame(rows, columns=columns).set_index("name")

@@ -394,6 +394,40 @@ class Simulator:
             raise EngineDivergedError(when, where, what)
         return obs, zs, qs, balance, initial_volume
 
+    # -- views ---------------------------------------------------------------------------------------
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}({self.case.name!r}, {self.start:%Y-%m-%d %H:%M} … {self.end:%Y-%m-%d %H:%M} "
+                f"UTC, Δt {self.dt:g} s, {self.compiled.n_hpoints} points, {self.compiled.n_links} links, "
+                f"{len(self.observables)} series)")
+
+    def quantities_frame(self) -> pd.DataFrame:
+        """The model quantities as a table, one row per quantity name.
+
+        Columns: the case's ``value`` (NaN where the case sets none, e.g. a branch that inherits the global
+        friction) and, where the model declares them (an :class:`~rivercal.models.EmbeddedModel` does),
+        ``unit``, ``min``, ``max`` and ``description``. Values in the unit of each quantity: m AD for crest
+        levels, the friction law's unit for friction.
+
+        Examples
+        --------
+        >>> from rivercal.models import load_model
+        >>> table = load_model("synthetic").quantities_frame()
+        >>> print(table.loc["friction:global", "value"], table.loc["friction:global", "unit"])
+        25.0 m^(1/3)/s
+        """
+        declared = getattr(self, "quantities", {})
+        values = self.default_parameters()
+        rows = []
+        for name in sorted({*values, *declared}):
+            q = declared.get(name)
+            rows.append({"quantity": name, "value": values.get(name, np.nan), "unit": q.unit if q else "",
+                         "min": np.nan if q is None or q.min is None else q.min,
+                         "max": np.nan if q is None or q.max is None else q.max,
+                         "description": q.description if q else ""})
+        columns = ["quantity", "value", "unit", "min", "max", "description"]
+        return pd.DataFrame(rows, columns=columns).set_index("quantity")
+
 
 
 def _ratio(a: float, b: float, what_a: str, what_b: str) -> int:

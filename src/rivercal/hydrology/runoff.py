@@ -19,16 +19,16 @@ Reservoirs and states
 The catchment has a land part (area fraction :math:`1-a_S`) and a surface water part (channels,
 ditches; fraction :math:`a_S`).
 
-=========  ======================================================================  ====
-state      meaning                                                                 unit
-=========  ======================================================================  ====
-``d_v``    :math:`d_V`, storage deficit of the coupled vadose-groundwater reservoir  mm
+=========  =========================================================================  ====
+state      meaning                                                                    unit
+=========  =========================================================================  ====
+``d_v``    :math:`d_V`, storage deficit of the coupled vadose-groundwater reservoir   mm
            (water needed to saturate the soil to the surface; < 0 means ponding)
-``d_g``    :math:`d_G`, groundwater depth below the surface                        mm
-``h_q``    :math:`h_Q`, level of the quickflow reservoir (drains, macropores,      mm
+``d_g``    :math:`d_G`, groundwater depth below the surface                           mm
+``h_q``    :math:`h_Q`, level of the quickflow reservoir (drains, macropores,         mm
            overland flow)
-``h_s``    :math:`h_S`, surface water level above the channel bottom               mm
-=========  ======================================================================  ====
+``h_s``    :math:`h_S`, surface water level above the channel bottom                  mm
+=========  =========================================================================  ====
 
 Fluxes (mm/h). Land fluxes are per unit land area, :math:`Q` per unit catchment area:
 

@@ -338,7 +338,17 @@ def read_pixml(path: str | Path, mapping: Mapping[tuple[str, str], str] | None =
 
     Examples
     --------
-    >>> obs = read_pixml("telemetry.xml", {("0028", "H.up"): "0028.h_up", ("0028", "Q"): "0028.Q"})  # doctest: +SKIP
+    A telemetry file whose level series is called ``H.up`` at location ``0028``:
+
+    >>> import tempfile
+    >>> import pandas as pd
+    >>> frame = pd.DataFrame({"0028.h_up": [14.21, None, 14.25]},
+    ...                      index=pd.date_range("2010-11-01", periods=3, freq="h", tz="UTC"))
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_pixml(Path(folder) / "telemetry.xml", frame, ids={"0028.h_up": ("0028", "H.up")})
+    ...     obs = read_pixml(path, {("0028", "H.up"): "0028.h_up"})
+    >>> obs["0028.h_up"].to_series().tolist(), obs.n_missing
+    ([14.21, 14.25], 1)
     """
     path = Path(path)
     raw = read_pixml_series(path)

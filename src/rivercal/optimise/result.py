@@ -25,11 +25,14 @@ status meaning
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rivercal.errors import RivercalError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "ABORT_STATUSES",
@@ -159,3 +162,29 @@ class OptimiseResult:
             f"OptimiseResult(method={self.method!r}, status={self.status}, success={self.success}, "
             f"aborted={self.aborted}, cost={self.cost:.6g}, nfev={self.nfev}, nit={self.nit}, x={x})"
         )
+
+    def to_frame(self, names: list[str] | None = None) -> pd.DataFrame:
+        """The best point as a table: ``x`` and ``std`` (optimiser coordinates; NaN without ``std``).
+
+        Parameters
+        ----------
+        names
+            Row labels (default ``x0``, ``x1``, ...).
+
+        Examples
+        --------
+        >>> from rivercal.optimise import dud
+        >>> t = np.linspace(0.0, 1.0, 20)
+        >>> res = dud(lambda x: 2.0 * np.exp(-1.5 * t) - x[0] * np.exp(-x[1] * t), [1.0, 1.0], [0, 0], [10, 10])
+        >>> res.to_frame(["a", "k"]).round(3)  # std for residuals of σ = 1
+                     x    std
+        parameter
+        a          2.0  0.572
+        k          1.5  0.801
+        """
+        import pandas as pd
+
+        x = np.atleast_1d(np.asarray(self.x, dtype=float))
+        labels = list(names) if names is not None else [f"x{i}" for i in range(x.size)]
+        std = np.full(x.size, np.nan) if self.std is None else np.asarray(self.std, dtype=float)
+        return pd.DataFrame({"x": x, "std": std}, index=pd.Index(labels, name="parameter"))

@@ -13,30 +13,31 @@ Units and conventions of every column
 
 Tables (current version)
 ------------------------
-``schema_version(version, applied, description, rivercal_version)``
-    One row per applied migration; the schema version is ``max(version)``.
-``runs(id, name UNIQUE, case_name, created, config JSON object, status)``
-    A run of the on-line service; ``status`` in active/stopped/finished/failed.
-``cycles(id, run_id → runs, cycle, window_start, window_end, issue_time, status, attempts, owner,
-algorithm, model_runs, wall_time_s [s], cost_before, cost_after, message, started, finished)``
-    One row per cycle, UNIQUE (run_id, cycle). ``status`` pending/running (unfinished) or
-    done/failed/aborted (final; ``finished`` is set if and only if the status is final). ``attempts``
-    counts how often the cycle was begun; ``owner`` is ``pid@host`` of the process that began it last.
-``estimates(cycle_id → cycles, parameter, value [unit], std [unit], unit, accepted 0/1, reason)``
-    PRIMARY KEY (cycle_id, parameter); a held or rejected estimate (accepted = 0) has a reason.
-``alerts(id, cycle_id → cycles, parameter or NULL, kind, message, magnitude [|Δθ|/σ, dimensionless])``
-``observations(series, time, source, value [m AD or m³/s], ingested)``
-    PRIMARY KEY (series, time, source): one value per series, time and source.
-``forecasts(cycle_id → cycles, kind 'updated'|'dss', series, time, lead_h [h], value [m AD or m³/s])``
-    PRIMARY KEY (cycle_id, kind, series, time); ``lead_h`` = (time − issue time) / 3600 ≥ 0.
-``forecast_scores(cycle_id → cycles, kind, series, lead_from_h [h], lead_to_h [h], rmse, bias
-[m or m³/s], n, scored)``
-    Forecast minus observation over the lead-time bucket (lead_from_h, lead_to_h] (the first bucket
-    includes lead 0); PRIMARY KEY (cycle_id, kind, series, lead_from_h).
-``model_states(cycle_id → cycles, name, time, format, data BLOB)``
-    Model states a cycle hands to the next one (hot start), by name (e.g. ``updated``, ``dss``), at
-    ``time``; ``data`` is opaque to the store (``format`` says how it was written). PRIMARY KEY
-    (cycle_id, name).
+
+- ``schema_version(version, applied, description, rivercal_version)``:
+  One row per applied migration; the schema version is ``max(version)``.
+- ``runs(id, name UNIQUE, case_name, created, config JSON object, status)``:
+  A run of the on-line service; ``status`` in active/stopped/finished/failed.
+- ``cycles(id, run_id → runs, cycle, window_start, window_end, issue_time, status, attempts, owner,
+  algorithm, model_runs, wall_time_s [s], cost_before, cost_after, message, started, finished)``:
+  One row per cycle, UNIQUE (run_id, cycle). ``status`` pending/running (unfinished) or
+  done/failed/aborted (final; ``finished`` is set if and only if the status is final). ``attempts``
+  counts how often the cycle was begun; ``owner`` is ``pid@host`` of the process that began it last.
+- ``estimates(cycle_id → cycles, parameter, value [unit], std [unit], unit, accepted 0/1, reason)``:
+  PRIMARY KEY (cycle_id, parameter); a held or rejected estimate (accepted = 0) has a reason.
+- ``alerts(id, cycle_id → cycles, parameter or NULL, kind, message, magnitude [|Δθ|/σ, dimensionless])``
+- ``observations(series, time, source, value [m AD or m³/s], ingested)``:
+  PRIMARY KEY (series, time, source): one value per series, time and source.
+- ``forecasts(cycle_id → cycles, kind 'updated'|'dss', series, time, lead_h [h], value [m AD or m³/s])``:
+  PRIMARY KEY (cycle_id, kind, series, time); ``lead_h`` = (time − issue time) / 3600 ≥ 0.
+- ``forecast_scores(cycle_id → cycles, kind, series, lead_from_h [h], lead_to_h [h], rmse, bias
+  [m or m³/s], n, scored)``:
+  Forecast minus observation over the lead-time bucket (lead_from_h, lead_to_h] (the first bucket
+  includes lead 0); PRIMARY KEY (cycle_id, kind, series, lead_from_h).
+- ``model_states(cycle_id → cycles, name, time, format, data BLOB)``:
+  Model states a cycle hands to the next one (hot start), by name (e.g. ``updated``, ``dss``), at
+  ``time``; ``data`` is opaque to the store (``format`` says how it was written). PRIMARY KEY
+  (cycle_id, name).
 
 Every child row is deleted with its cycle and every cycle with its run (ON DELETE CASCADE; the store
 turns foreign keys on for each connection).

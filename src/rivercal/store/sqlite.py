@@ -22,13 +22,17 @@ The store is the only module of rivercal that imports :mod:`sqlite3`; ``import r
 
 Examples
 --------
+>>> import tempfile
+>>> from pathlib import Path
 >>> from rivercal.store import Store, Schedule, CycleRecord, EstimateRecord
->>> with Store(tmp_path / "service.db") as store:                                  # doctest: +SKIP
+>>> with tempfile.TemporaryDirectory() as folder, Store(Path(folder) / "service.db") as store:
 ...     run = store.ensure_run("dommel", "dommel", {"window_days": 7})
-...     spec = store.next_cycle(run.id, Schedule("2010-11-01T06:00Z"))
-...     store.begin_cycle(run.id, spec)
-...     store.commit_cycle(run.id, CycleRecord(spec.cycle, spec.window_start, spec.window_end,
-...                        spec.issue_time, estimates=[EstimateRecord("friction:global", 25.2, "m1/3 s-1")]))
+...     spec = store.begin_cycle(run.id, store.next_cycle(run.id, Schedule("2010-11-01T06:00Z")))
+...     store.commit_cycle(run.id, CycleRecord(spec.cycle, spec.window_start, spec.window_end, spec.issue_time,
+...                                            estimates=[EstimateRecord("FA", 25.2, "m^(1/3)/s", std=0.4)]))
+...     store.estimates(run)[["cycle", "parameter", "value", "std", "accepted"]]
+   cycle parameter  value  std  accepted
+0      0        FA   25.2  0.4      True
 """
 
 from __future__ import annotations

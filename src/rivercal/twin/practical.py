@@ -275,9 +275,11 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     --------
     >>> from rivercal.model import load_model
     >>> from rivercal.twin.practical import practical_truth
-    >>> truth = practical_truth(load_model("dommel"), "PI-Fg", "2010-10-18", "2010-11-15")  # doctest: +SKIP
-    >>> truth.true_after  # doctest: +SKIP
-    {'FA': 25.0, 'Wd': 0.0}
+    >>> truth = practical_truth(load_model("dommel"), "PI-Fg", "2010-10-30", "2010-11-02")
+    >>> truth.true_before, truth.true_after
+    ({'FA': 16.0, 'Wd': 0.0}, {'FA': 25.0, 'Wd': 0.0})
+    >>> truth.observations
+    ObservationSet(11 series, 803 values 2010-10-30 00:00 … 2010-11-02 00:00 UTC, 0 missing)
     """
     if isinstance(scenario, str):
         if scenario not in PRACTICAL_SCENARIOS:

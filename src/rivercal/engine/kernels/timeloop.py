@@ -2,13 +2,14 @@
 
 Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003), each phase in its own module:
 
-1. :mod:`.forcing` — boundary discharges and levels, laterals (:func:`~.forcing.apply_forcing`).
-   Extractions (negative laterals) are limited to half of the water present at their point per step.
+1. :mod:`~rivercal.engine.kernels.forcing` — boundary discharges and levels, laterals
+   (:func:`~.forcing.apply_forcing`). Extractions (negative laterals) are limited to half of the water
+   present at their point per step.
 2. :mod:`.momentum` — each channel link's momentum equation from the state at n, with Newton-linearised
    friction, as ``u = r - f (z2 - z1)`` (:func:`~.momentum.channel_coefficients`); pumps switch on the
    suction-side level (:func:`~.structures.switch_pumps`).
-3. :mod:`.picard` — Picard iterations: the structures' laws (:mod:`.structures`: weir, culvert) linearised
-   at the iterate, the level system assembled (:mod:`.assemble`) and solved (:mod:`.solver`).
+3. :mod:`.picard` — Picard iterations: the structures' laws (:mod:`~rivercal.engine.kernels.structures`: weir,
+   culvert) linearised at the iterate, the level system assembled (:mod:`.assemble`) and solved (:mod:`.solver`).
 4. :mod:`.fluxes` — the link fluxes of the solved levels, throttled where a point would drain dry, then
    committed to the volumes (:func:`~.fluxes.finish_step`), with the divergence checks.
 5. :mod:`.record` — the station series at the output times.

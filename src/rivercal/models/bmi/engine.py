@@ -16,17 +16,17 @@ without edges (a weir at the middle of its link, a branch at the mean of its lin
 
 Variables (float64):
 
-=============================================  ======  ====  =====  =========================================
-name                                           units   grid  where  role
-=============================================  ======  ====  =====  =========================================
-``channel_water_surface__elevation``           m       0     node   level (m AD); in and out (a state)
-``channel_water__volume``                      m3      0     node   stored volume; in and out (a state)
-``channel_water_surface__elevation_increment`` m       0     node   level change of the last step (a state)
-``channel_water__volume_flow_rate``            m3 s-1  0     edge   discharge; in and out (a state)
-``channel_water_flow__speed``                  m s-1   0     edge   velocity; in and out (a state)
-``weir_crest__elevation``                      m       1     node   crest levels (m AD); in and out
-``channel_bed__friction_coefficient``          (law)   2     node   friction values; in and out
-=============================================  ======  ====  =====  =========================================
+==============================================  ======  ====  =====  =========================================
+name                                            units   grid  where  role
+==============================================  ======  ====  =====  =========================================
+``channel_water_surface__elevation``            m       0     node   level (m AD); in and out (a state)
+``channel_water__volume``                       m3      0     node   stored volume; in and out (a state)
+``channel_water_surface__elevation_increment``  m       0     node   level change of the last step (a state)
+``channel_water__volume_flow_rate``             m3 s-1  0     edge   discharge; in and out (a state)
+``channel_water_flow__speed``                   m s-1   0     edge   velocity; in and out (a state)
+``weir_crest__elevation``                       m       1     node   crest levels (m AD); in and out
+``channel_bed__friction_coefficient``           (law)   2     node   friction values; in and out
+==============================================  ======  ====  =====  =========================================
 
 The friction unit is that of the case's friction law (k_s: ``m1/3 s-1``); a branch with its own law
 carries that law's value. Setting the level also needs the matching volume (and vice versa): a
