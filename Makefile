@@ -47,7 +47,7 @@ docs: $(STAMP)
 	@echo "the documentation: docs/_build/html/index.html"
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests benchmarks scripts
+	$(VENV)/bin/ruff check src tests benchmarks scripts docs
 	$(VENV)/bin/lint-imports
 
 clean-cache:

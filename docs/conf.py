@@ -2,7 +2,8 @@
 
 Everything the pages need ships with the build (theme, MathJax, figures): the site opens without a
 network connection. The tutorial is executed at every build (sphinx-gallery), the API reference is
-written from the packages' ``__all__`` (``_ext/rivercal_docs.py``), the CLI reference from the typer app and the file formats from their JSON Schemas.
+written from the packages' ``__all__`` (``_ext/rivercal_docs.py``), the CLI reference from the typer app
+and the file formats from their JSON Schemas.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import rivercal  # noqa: E402
 
 project = "rivercal"
 author = "rivercal developers"
-copyright = "rivercal developers, MIT licence"  # noqa: A001
+copyright = "rivercal developers, MIT licence"
 version = release = rivercal.__version__
 
 extensions = [
@@ -65,6 +66,7 @@ sphinx_gallery_conf = {
     "only_warn_on_example_error": False,
     "capture_repr": ("_repr_html_", "__repr__"),
     "download_all_examples": False,
+    "write_computation_times": False,  # its page loads DataTables from a CDN
     "show_signature": False,
     "remove_config_comments": True,
     "image_scrapers": ("matplotlib",),

@@ -19,11 +19,11 @@ import importlib
 import json
 import pkgutil
 import re
-import typing
 import sqlite3
 import tempfile
+import typing
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import typer
 from docutils import nodes
@@ -273,7 +273,7 @@ def _cell(text: str) -> str:
 
 
 def schema_rst(schema: dict[str, Any], kind: str) -> list[str]:
-    """reST lines: one table per object of the schema (the file itself first)."""
+    """The lines of reST: one table per object of the schema (the file itself first)."""
     objects = [(schema.get("title", kind), schema), *sorted(schema.get("$defs", {}).items())]
     lines: list[str] = []
     for i, (name, spec) in enumerate(objects):
@@ -303,9 +303,10 @@ class SchemaDirective(SphinxDirective):
     """``.. rivercal-schema:: case|model``: the schema as tables, and the raw JSON to download."""
 
     required_arguments = 1
-    option_spec = {"file": directives.unchanged}
+    option_spec: ClassVar[dict[str, Any]] = {"file": directives.unchanged}
 
     def run(self) -> list[nodes.Node]:
+        """The tables, after writing the raw schema beside the page."""
         kind = self.arguments[0]
         schema = schema_of(kind)
         folder = Path(self.env.srcdir) / "reference" / "generated"
@@ -345,6 +346,7 @@ class StoreSchemaDirective(SphinxDirective):
     """``.. rivercal-store-schema::``: every table of a new store with its columns and CREATE statement."""
 
     def run(self) -> list[nodes.Node]:
+        """One table and one CREATE statement per table."""
         lines: list[str] = []
         for name, sql, columns in store_tables():
             lines += [f"``{name}``", "~" * (len(name) + 4), "", ".. list-table::", "   :header-rows: 1", "",
@@ -362,7 +364,7 @@ class StoreSchemaDirective(SphinxDirective):
 # -- the command line ------------------------------------------------------------------------------------
 
 def _paragraphs(text: str) -> list[nodes.Node]:
-    """Help text as paragraphs (literal blocks for click's ``\\b`` blocks and indented lines), never parsed as reST."""
+    r"""Help text as paragraphs (literal blocks for click's ``\\b`` blocks and indented lines), never parsed as reST."""
     out: list[nodes.Node] = []
     for block in re.split(r"\n\s*\n", text.strip()):
         if not block.strip():
@@ -405,6 +407,7 @@ class CliDirective(SphinxDirective):
     """``.. rivercal-cli::``: the ``rivercal`` program, every command as a section."""
 
     def run(self) -> list[nodes.Node]:
+        """The command tree from ``rivercal`` down."""
         ctx = CLI.context_class(CLI, info_name="rivercal")
         return [cli_section(CLI, ctx, "rivercal")]
 

@@ -36,7 +36,6 @@ the compiled code from the cache.
 # imported on first use.
 
 import matplotlib.pyplot as plt
-import numpy as np
 
 import rivercal
 

@@ -142,7 +142,8 @@ class ObservationSeries:
 
     def __repr__(self) -> str:
         sigma = "Eq. 2-6 weight" if self.sigma is None else f"σ={self.sigma:g}"
-        return f"ObservationSeries({self.id!r}, {len(self)} values{_period(self.times)}, {sigma}, {self.n_missing} missing)"
+        period = _period(self.times)
+        return f"ObservationSeries({self.id!r}, {len(self)} values{period}, {sigma}, {self.n_missing} missing)"
 
 
 @dataclass(frozen=True)
@@ -223,8 +224,10 @@ class ObservationSet:
         return f"ObservationSet({len(self)} series, {self.n_values} values{_period(times)}, {self.n_missing} missing)"
 
     def summary(self) -> pd.DataFrame:
-        """One row per series: ``values``, ``missing``, ``sigma`` (m AD or m³/s; NaN: Eq. 2-6 weight),
-        ``first``, ``last`` (UTC) and ``source``.
+        """The series as a table, one row per series id.
+
+        Columns ``values``, ``missing``, ``sigma`` (m AD or m³/s; NaN: the weight of thesis Eq. 2-6), ``first``
+        and ``last`` (UTC) and ``source``.
 
         Examples
         --------

@@ -280,7 +280,8 @@ class CalibrationProblem:
         name = getattr(self.model, "name", type(self.model).__name__)
         return (f"CalibrationProblem(model={name!r}, parameters={self.parameters.names}, "
                 f"{len(self.observations)} series / {self.observations.n_values} values, "
-                f"window {self.start:%Y-%m-%d %H:%M} … {self.end:%Y-%m-%d %H:%M} UTC, warmup {self.warmup}, "
+                f"window {self.start:%Y-%m-%d %H:%M} … {self.end:%Y-%m-%d %H:%M} UTC, "
+                f"warmup {self.warmup / pd.Timedelta('1h'):g} h, "
                 f"on_failure={self.on_failure!r})")
 
 
