@@ -364,7 +364,7 @@ class StoreSchemaDirective(SphinxDirective):
 # -- the command line ------------------------------------------------------------------------------------
 
 def _paragraphs(text: str) -> list[nodes.Node]:
-    r"""Help text as paragraphs (literal blocks for click's ``\\b`` blocks and indented lines), never parsed as reST."""
+    r"""Help text as paragraphs (literal blocks for click's ``\b`` blocks and indented lines), never parsed as reST."""
     out: list[nodes.Node] = []
     for block in re.split(r"\n\s*\n", text.strip()):
         if not block.strip():
