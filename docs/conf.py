@@ -36,8 +36,11 @@ extensions = [
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "tutorials/GALLERY_HEADER.rst", "**.ipynb_checkpoints", "tutorial/*.ipynb",
-                    "tutorial/*.py", "tutorial/*.zip", "tutorial/*.md5", "tutorial/*.json"]
+# sphinx-gallery's sources (tutorials/, verification/) and the by-products it writes beside its pages
+exclude_patterns = ["_build", "tutorials", "verification", "tools", "explanation/optimisers-twin.md",
+                    "**.ipynb_checkpoints"] + [
+    f"{gallery}/*.{ext}" for gallery in ("tutorial", "explanation/verification")
+    for ext in ("ipynb", "py", "zip", "md5", "json")]
 templates_path: list[str] = []
 nitpicky = False
 suppress_warnings = ["myst.header"]  # the Markdown pages of the repository start some sections at level 3
@@ -56,10 +59,10 @@ numpydoc_validation_checks: set[str] = set()
 myst_enable_extensions = ["colon_fence", "deflist", "dollarmath"]
 myst_heading_anchors = 3
 
-# -- the tutorial, executed at every build ---------------------------------------------------------------
+# -- the tutorial and the verification figures, executed at every build ---------------------------------------------------------------
 sphinx_gallery_conf = {
-    "examples_dirs": ["tutorials"],
-    "gallery_dirs": ["tutorial"],
+    "examples_dirs": ["tutorials", "verification"],
+    "gallery_dirs": ["tutorial", "explanation/verification"],
     "filename_pattern": r".*\.py",  # execute every script: a tutorial that is not run could rot
     "run_stale_examples": True,  # run the tutorial at every build, even when its text did not change
     "abort_on_example_error": True,
