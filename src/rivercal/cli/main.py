@@ -25,6 +25,8 @@ __all__ = ["app", "main"]
 app = typer.Typer(
     name="rivercal",
     help="On-line parameter estimation for 1D river-network models.",
+    epilog="Documentation (tutorial, how-to guides, explanations, reference): the docs/ folder of the source "
+    "repository; 'make docs' builds it into docs/_build/html/index.html.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
