@@ -59,7 +59,7 @@ numpydoc_validation_checks: set[str] = set()
 myst_enable_extensions = ["colon_fence", "deflist", "dollarmath"]
 myst_heading_anchors = 3
 
-# -- the tutorial and the verification figures, executed at every build ---------------------------------------------------------------
+# -- the tutorial and the verification figures, executed at every build ---------------------------------
 sphinx_gallery_conf = {
     "examples_dirs": ["tutorials", "verification"],
     "gallery_dirs": ["tutorial", "explanation/verification"],

@@ -1,7 +1,8 @@
 """Take the README's dashboard screenshot (docs/dashboard.png) in headless chromium.
 
-Usage: ``python scripts/dashboard_screenshot.py [--db run.sqlite] [--page /estimates]``; without ``--db`` a
-store of 30 synthetic daily cycles is built (tests/dashboard_store.py).
+Usage: ``python scripts/dashboard_screenshot.py [--db run.sqlite] [--page /estimates]``. The committed
+screenshot is of the demo's store: ``make demo && python scripts/dashboard_screenshot.py --db out/demo/run.sqlite``.
+Without ``--db`` a store of 30 synthetic daily cycles is built (tests/dashboard_store.py), for a quick look.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ inflow series, and writes the level (m AD) and the outflow (m³/s) per hour as C
 
 import csv
 import sys
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 AREA = 20_000.0  # m², the reservoir's surface
 
@@ -23,7 +23,7 @@ def read_settings(path):
 
 def inflow(t):
     """m³/s: a base flow and a flood wave on 4 March."""
-    hours = (t - datetime(2021, 3, 1, tzinfo=timezone.utc)).total_seconds() / 3600.0
+    hours = (t - datetime(2021, 3, 1, tzinfo=UTC)).total_seconds() / 3600.0
     return 0.5 + 1.5 * max(0.0, 1.0 - abs(hours - 80.0) / 24.0)
 
 
