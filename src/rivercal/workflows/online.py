@@ -80,6 +80,10 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     t_start = time.perf_counter()
     meta: dict[str, Any] = {"scenario": scenario, "noise": noise, "seed": seed} if scenario else {}
     Path(db).parent.mkdir(parents=True, exist_ok=True)
+    from rivercal.evaluate import DaskCluster
+
+    if isinstance(config.workers, DaskCluster):  # every cycle's problem then refers to the model on the workers
+        config.workers.share(model)
     with Store(db) as store:
         service = OnlineService(model, store, run, config, first, meta=meta)
         if scenario is not None:
