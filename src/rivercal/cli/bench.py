@@ -26,14 +26,25 @@ def engine(
     case: Annotated[str, typer.Option(help="Case to time.")] = "synthetic",
     days: Annotated[float, typer.Option(help="Simulated days.")] = 7.0,
     repeats: Annotated[int, typer.Option(help="Timed runs after warm-up (median reported).")] = 7,
+    points: Annotated[int | None, typer.Option(
+        help="Time a generated lowland network of about this many points instead of --case.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the network generated for --points.")] = 0,
     as_json: JsonOpt = False,
 ) -> None:
-    """Time one simulated week of the synthetic benchmark network (Δt = 60 s)."""
-    from rivercal.bench.engine import bench_engine
+    """Time one simulated week of the synthetic benchmark network, or of a generated one (Δt = 60 s)."""
+    from rivercal.bench.engine import bench_engine, bench_engine_points
     from rivercal.cli.options import open_model
 
     check_number(days, "--days", low=0, high=366, low_open=True)
     check_number(repeats, "--repeats", low=1, high=1000)
+    if points is not None:
+        check_number(points, "--points", low=100, high=10_000_000)
+        check_number(seed, "--seed", low=0)
+        check_number(days, "--days", high=14)  # the generated case spans three weeks, two days of spin-up
+        watch_compilation(True)
+        _print_flat(bench_engine_points(points, seed, days=days, repeats=repeats).to_dict(), "engine benchmark",
+                    as_json)
+        return
     model = open_model(case)  # a bad case fails here, with its file and field
     span = (model.end - model.start).total_seconds() / 86400
     check_number(days, "--days", high=span)
