@@ -5,14 +5,17 @@ one outlet, with side channels that split off and join again. :func:`generate_ca
 network from a seed:
 
 - **catchments** of about :data:`CATCHMENT_KM` km of stream, each a tree grown upstream from its
-  outlet: every branch 2-5 km long ends upstream either in a confluence of two branches or in a source
+  outlet on a trunk canal that collects them all and ends at a held level (a pumping station or the
+  sea; 0.5 m AD): every branch 2-5 km long ends upstream either in a confluence of two branches or in a source
   (a discharge boundary with the base flow of a ditch system); about one branch in eight between two confluences has a
   parallel side channel between the same two nodes (a bifurcation and a confluence: a loop);
 - **beds** falling 0.3-0.5 m per km towards the outlet; trapezoidal profiles (side slope 1.5, 2.5 m
-  deep) whose bottom width grows with the square root of the stream length upstream (1.5-14 m);
+  deep) whose bottom width grows with the square root of the stream length upstream (1.5-14 m); the
+  trunk is 20 m plus 2 m per catchment wide, 6 m deep, its bed at -3 m AD;
 - **weirs** every ~1 km with the crest 0.9 m above the bed, as wide as the bottom; a culvert on every
-  seventh branch; a lateral inflow per branch; a Q(h) rating at each outlet;
-- **stations** at every outlet weir and every tenth weir (levels either side and the discharge);
+  seventh branch; a lateral inflow per branch;
+- **stations** at every outlet weir, every tenth weir and the first weir of each region (levels either
+  side and the discharge), and on each trunk reach (level and discharge);
 - **parameters** ``FA`` (global friction) and ``F1`` … ``F20``: the friction of 20 regions (branches in
   order of growth, in 20 contiguous groups), for calibration tests at scale;
 - **forcing**: three weeks of hourly inflows, a base flow and two storms whose timing differs by
@@ -41,6 +44,9 @@ _START = pd.Timestamp("2020-01-01T00:00:00Z")
 _DAYS = 21
 _REGIONS = 20
 _CLASSES = 3  # lateral inflow classes per catchment (small, medium, large streams)
+_TRUNK_DX = 5000.0  # length of a trunk canal reach between two catchment outlets, m
+_TRUNK_BED = -3.0  # bed of the trunk canal, m AD
+_TRUNK_LEVEL = 0.5  # level held at the trunk's end (the pumping station or the sea), m AD
 
 
 @dataclass
@@ -142,8 +148,7 @@ def generate_case(out: str | Path, points: int, seed: int = 0, name: str | None 
     next_id = [0]
     branches: list[_Branch] = []
     for c in range(n_catchments):
-        row, col = divmod(c, 5)
-        branches += _grow(rng, km / n_catchments * 0.93, c, (col * 60000.0, row * 60000.0), nodes, next_id)
+        branches += _grow(rng, km / n_catchments * 0.93, c, (c * _TRUNK_DX, 0.0), nodes, next_id)
     side = []
     confluences = {b.down for b in branches}
     for b in branches:  # a side channel between two confluences (never at a source, whose node ends the network)
@@ -199,6 +204,16 @@ def _case_toml(name: str, branches: list[_Branch], nodes: dict[str, tuple[float,
                   "side_slope = 1.5", "height = 2.5", ""]
     for nid, (x, y) in nodes.items():
         lines += ["[[nodes]]", f'id = "{nid}"', f"x = {x}", f"y = {y}", ""]
+    trunk_width = 20.0 + 2.0 * n_catchments
+    lines += ["[[profiles]]", 'id = "trunk"', 'type = "trapezoidal"', f"bottom_width = {trunk_width:g}",
+              "side_slope = 2.0", "height = 6.0", "", "[[nodes]]", 'id = "END"', f"x = {n_catchments * _TRUNK_DX}",
+              "y = 0.0", ""]
+    for c in range(n_catchments):  # the trunk canal that collects every catchment's outflow
+        down = f"O{c + 1}" if c + 1 < n_catchments else "END"
+        lines += ["[[branches]]", f'id = "T{c}"', f'from_node = "O{c}"', f'to_node = "{down}"',
+                  f"length = {_TRUNK_DX:g}", f"dx = {2 * _DX:g}", "cross_sections = [",
+                  f'  {{ chainage = 0.0, profile = "trunk", bed_level = {_TRUNK_BED} }},',
+                  f'  {{ chainage = {_TRUNK_DX:g}, profile = "trunk", bed_level = {_TRUNK_BED} }},', "]", ""]
     weirs, culverts, laterals, stations, regions = [], [], [], [], []
     for i, b in enumerate(branches):
         lines += ["[[branches]]", f'id = "{b.id}"', f'from_node = "{b.up}"', f'to_node = "{b.down}"',
@@ -228,10 +243,7 @@ def _case_toml(name: str, branches: list[_Branch], nodes: dict[str, tuple[float,
     for n in sorted(ups - downs):  # sources: one branch starts there, none ends there
         lines += ["[[boundaries]]", f'id = "Q{n}"', f'node = "{n}"', 'type = "discharge"',
                   'series = { file = "forcing.csv", column = "Q_source" }', ""]
-    for c in range(n_catchments):
-        lines += ["[[boundaries]]", f'id = "out{c}"', f'node = "O{c}"', 'type = "rating"',
-                  "rating = { levels = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0], "
-                  "discharges = [0.0, 0.5, 2.0, 5.0, 10.0, 30.0] }", ""]
+    lines += ["[[boundaries]]", 'id = "end"', 'node = "END"', 'type = "level"', f"value = {_TRUNK_LEVEL}", ""]
     for lid, bid, ch, column in laterals:
         lines += ["[[laterals]]", f'id = "{lid}"', f'branch = "{bid}"', f"chainage = {ch}",
                   f'series = {{ file = "forcing.csv", column = "{column}" }}', ""]
@@ -239,6 +251,7 @@ def _case_toml(name: str, branches: list[_Branch], nodes: dict[str, tuple[float,
     for b in branches:
         if b.weirs and b.down.startswith("O"):
             stations.append(b.weirs[-1][0])
+    point_stations = [f"T{c}" for c in range(n_catchments)]
     for k, (wid, *_rest) in enumerate(weirs):
         if k % 10 == 0:
             stations.append(wid)
@@ -249,6 +262,9 @@ def _case_toml(name: str, branches: list[_Branch], nodes: dict[str, tuple[float,
     stations = list(dict.fromkeys(stations))
     for sid in stations:
         lines += ["[[stations]]", f'id = "S{sid}"', f'structure = "{sid}"', 'quantities = ["h_up", "h_down", "Q"]', ""]
+    for tid in point_stations:
+        lines += ["[[stations]]", f'id = "S{tid}"', f'branch = "{tid}"', f"chainage = {_TRUNK_DX / 2:g}",
+                  'quantities = ["h", "Q"]', ""]
     lines += ["[[parameters]]", 'name = "FA"', 'targets = ["friction:global"]', "min = 10.0", "max = 50.0",
               "initial = 25.0", "perturbation = 2.0", 'unit = "m^(1/3)/s"', ""]
     for r in range(_REGIONS):
@@ -261,7 +277,8 @@ def _case_toml(name: str, branches: list[_Branch], nodes: dict[str, tuple[float,
     lines += ["[calibration]", 'algorithm = "dud"', "", "[[windows]]", 'name = "week"',
               f'start = "{_START + pd.Timedelta(days=3):%Y-%m-%dT%H:%M:%SZ}"',
               f'end = "{_START + pd.Timedelta(days=10):%Y-%m-%dT%H:%M:%SZ}"', 'description = "the first storm"', ""]
-    counts = {"weirs": len(weirs), "culverts": len(culverts), "laterals": len(laterals), "stations": len(stations)}
+    counts = {"weirs": len(weirs), "culverts": len(culverts), "laterals": len(laterals),
+              "stations": len(stations) + len(point_stations)}
     return "\n".join(lines), counts
 
 
