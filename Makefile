@@ -14,6 +14,10 @@ CHROMEDRIVER := /usr/bin/chromedriver
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "rivercal needs Python >= 3.11 (found " + sys.version.split()[0] + "); set PYTHON=python3.11")'
+	@# The PostgreSQL store's tests start a real server (initdb/pg_ctl of Debian's postgresql package).
+	@command -v initdb >/dev/null 2>&1 || ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || { \
+		echo "installing PostgreSQL (Debian package postgresql) for the store tests"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq postgresql >/dev/null; }
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[dev]"

@@ -35,7 +35,9 @@ def online(
     case: CaseArg,
     date_from: Annotated[str, typer.Option("--from", help="Issue time of the first cycle (UTC), e.g. 2010-10-18.")],
     date_to: Annotated[str, typer.Option("--to", help="Issue time of the last cycle (UTC), e.g. 2010-11-15.")],
-    db: Annotated[Path, typer.Option(help="The SQLite store (created if missing).")] = Path("out/online/run.sqlite"),
+    db: Annotated[str, typer.Option(
+        help="The store: an SQLite file (created if missing) or a postgresql://USER@HOST/DB URL (SQLite is the "
+             "embedded default).")] = "out/online/run.sqlite",
     scenario: Annotated[str | None, typer.Option(
         help="Twin observations of a scenario of thesis ch. 5: PI-0, PI-Fg, PI-Wg, PI-Fl, PI-Wl.")] = None,
     observations: Annotated[list[Path], typer.Option(
@@ -108,7 +110,7 @@ def online(
     check_number(workers, "--workers", low=1)
     address = dask_address(dask, workers)
     files = [(p.name, read_observations(p)) for p in observations]
-    _store_file(db, "--db")
+    db = _store_file(db, "--db")
     if out is not None:
         output_dir(out)
     # -- then what needs the case
@@ -140,8 +142,15 @@ def online(
         print_summary(summary)
 
 
-def _store_file(db: Path, option: str) -> Path:
-    """A store file: absent (it is created) or an SQLite file."""
+def _store_file(db: str | Path, option: str, *, must_exist: bool = False) -> str | Path:
+    """A store: a PostgreSQL URL as it is, or a file that is absent (it is created) or an SQLite file."""
+    from rivercal.store import is_url
+
+    if is_url(db):
+        return str(db)
+    db = Path(db)
+    if must_exist and not db.is_file():
+        raise OptionError(f"{option} {db}: no such store", option=option)
     output_file(db, option)
     if db.is_file() and db.stat().st_size > 0:
         with db.open("rb") as fh:
@@ -211,7 +220,8 @@ def demo(
 
 
 def report(
-    db: Annotated[Path, typer.Option(help="The SQLite store of an on-line run.")],
+    db: Annotated[str, typer.Option(
+        help="The store of an on-line run: an SQLite file or a postgresql://USER@HOST/DB URL.")],
     out: Annotated[Path, typer.Option(help="Folder for the report (index.html, figures, CSV).")],
     run: Annotated[str | None, typer.Option(help="Run name (default: the only run, or the latest).")] = None,
     as_json: JsonOpt = False,
@@ -220,9 +230,7 @@ def report(
     from rivercal.report.online import write_online_report
     from rivercal.store import Store
 
-    if not db.is_file():
-        raise OptionError(f"--db {db}: no such store", option="--db")
-    _store_file(db, "--db")
+    db = _store_file(db, "--db", must_exist=True)
     output_dir(out)
     with Store(db, readonly=True) as store:
         runs = store.runs()
