@@ -11,12 +11,15 @@ the CLI).
 to load the case and prepare the network (``load_s``), of that the one-off minimum-degree elimination
 order (``ordering_s``) and the solver schedule built from it (``schedule_s``); the memory of the
 network's arrays (``model_mb``) and the process' peak resident memory (``peak_rss_mb``); and the cost
-per point and time step (``ns_per_point_step``), the number that should not grow with N.
+per point and time step (``ns_per_point_step``), the number that should not grow with N. On a shared
+machine the processor time of the runs (``cpu_s_median``, ``cpu_ns_per_point_step``; the run's own
+process time, whole simulate call) is steadier than their wall time; ``load_average`` says how shared.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
 import resource
 import statistics
@@ -57,6 +60,9 @@ class EngineBenchmark:
     compiled: bool
     steps_per_s: float
     ns_per_point_step: float
+    cpu_s_median: float = float("nan")
+    cpu_ns_per_point_step: float = float("nan")
+    load_average: float = float("nan")
     load_s: float = float("nan")
     ordering_s: float = float("nan")
     schedule_s: float = float("nan")
@@ -93,9 +99,11 @@ def bench_engine(case: str = "synthetic", days: float = 7.0, repeats: int = 7) -
     compile_s = time.perf_counter() - t0
     compiled = _kernel_cache_misses() > misses
     sim.simulate(start=start, end=end, state=state)  # warm-up: caches, page faults
-    walls = []
+    walls, cpus = [], []
     for _ in range(repeats):
+        cpu0 = time.process_time()
         result, _ = sim.simulate(start=start, end=end, state=state)
+        cpus.append(time.process_time() - cpu0)
         walls.append(result.wall_time)
     c = sim.compiled
     steps = days * 86400.0 / sim.dt
@@ -117,6 +125,9 @@ def bench_engine(case: str = "synthetic", days: float = 7.0, repeats: int = 7) -
         compiled=compiled,
         steps_per_s=steps / median,
         ns_per_point_step=median / (steps * c.n_hpoints) * 1e9,
+        cpu_s_median=statistics.median(cpus),
+        cpu_ns_per_point_step=statistics.median(cpus) / (steps * c.n_hpoints) * 1e9,
+        load_average=os.getloadavg()[0],
         load_s=load_s,
         **_ordering(sim),
         model_mb=_nbytes(c.arrays, sim._work) / 2**20,

@@ -82,6 +82,28 @@ def calibrate(
     out_console.print(table)
 
 
+@app.command("dask")
+@guard
+def dask(
+    every: Annotated[int, typer.Option(help="Every N-th FaWc scenario (3: 12 of 36).")] = 3,
+    repeats: Annotated[int, typer.Option(help="Timed runs per cluster size (median reported).")] = 3,
+    tasks: Annotated[int, typer.Option(help="No-op tasks of the overhead measurement.")] = 400,
+    as_json: JsonOpt = False,
+) -> None:
+    """Twin scenarios on a local Dask cluster of 1 and of 2 workers: speed-up, overhead per task, 64 workers."""
+    from rivercal.bench.dask import bench_dask
+
+    check_number(every, "--every", low=1, high=36)
+    check_number(repeats, "--repeats", low=1, high=100)
+    check_number(tasks, "--tasks", low=10, high=100_000)
+    watch_compilation(True)
+    result = bench_dask(every=every, repeats=repeats, tasks=tasks).to_dict()
+    if as_json:
+        emit_json(result)
+        return
+    _print_flat({k: v for k, v in result.items() if not isinstance(v, list)}, "Dask benchmark", False)
+
+
 @app.command("hupsel")
 @guard
 def hupsel(as_json: JsonOpt = False) -> None:
