@@ -206,5 +206,26 @@ def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed() -> None:
         kill_left(workers)
 
 
+
+def test_the_command_line_runs_on_a_dask_cluster_and_checks_the_address(tmp_path: Path) -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    from rivercal.cli.main import app
+
+    runner = CliRunner()
+    base = ["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-09-28", "--twin", "FA=20",
+            "--json"]
+    serial = runner.invoke(app, [*base, "--workers", "1", "--out", str(tmp_path / "a")])
+    dask = runner.invoke(app, [*base, "--dask", "local:2", "--out", str(tmp_path / "b")])
+    assert serial.exit_code == 0 and dask.exit_code == 0, dask.output
+    a, b = json.loads(serial.stdout.splitlines()[-1]), json.loads(dask.stdout.splitlines()[-1])
+    assert a["estimates"] == b["estimates"] and a["model_runs"] == b["model_runs"]
+    for args, text in ((["--dask", "localhost"], "local:N"), (["--dask", "local:2", "--workers", "2"], "not both")):
+        bad = runner.invoke(app, [*base, *args, "--out", str(tmp_path / "c")])
+        assert bad.exit_code == 2 and "--dask" in bad.output and text in bad.output, bad.output
+
+
 if __name__ == "__main__":
     parent()
