@@ -46,8 +46,11 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=40000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--dask", default="local:2")
+    parser.add_argument("--deadline", type=float, default=None,
+                        help="wall-clock limit of the calibration, s (the service's guardrail; default none)")
     args = parser.parse_args()
-    out: dict = {"points_asked": args.points, "dask": args.dask, "parameters": len(PARAMS), "algorithm": "sparse_dud"}
+    out: dict = {"points_asked": args.points, "dask": args.dask, "parameters": len(PARAMS), "algorithm": "sparse_dud",
+                 "deadline_s": args.deadline}
     with tempfile.TemporaryDirectory(prefix="rivercal-online-scale-") as folder:
         t = time.perf_counter()
         generate_case(Path(folder) / "case", args.points, args.seed)
@@ -57,7 +60,7 @@ def main() -> None:
         out["load_s"] = round(time.perf_counter() - t, 2)
         out["points"] = model.compiled.n_hpoints
         issue = model.start + pd.Timedelta(days=9)
-        config = OnlineConfig(parameters=PARAMS, algorithm="sparse_dud", deadline_s=None, window="7D",
+        config = OnlineConfig(parameters=PARAMS, algorithm="sparse_dud", deadline_s=args.deadline, window="7D",
                               warmup="24h", horizon="48h")
         known = {p.name: p for p in model.case.spec.parameters}
         truth_q = {**known["F5"].quantities(32.0)}
