@@ -134,7 +134,7 @@ def bench_dask(every: int = 3, repeats: int = 3, tasks: int = 400) -> DaskBenchm
         round_trip_ms=trip * 1e3, scenario_s_mean=statistics.mean(durations), scenario_s_max=max(durations),
         expected_s_64_workers=expected, load_average=os.getloadavg()[0], runs_1_worker=walls[1],
         runs_2_workers=walls[2],
-        note=(f"every {every}th FaWc scenario (moderate window), each calibration one task; 64 workers: the "
+        note=(f"one FaWc scenario in {every} (moderate window), each calibration one task; 64 workers: the "
               "truths (the 1-worker time not spent in calibrations, per truth, scheduled on 64), then the "
               "longest-first list schedule of the calibrations as measured on 1 worker, plus the per-task "
               "overhead spread over the workers; with more workers than scenarios the longest one bounds the time"),
