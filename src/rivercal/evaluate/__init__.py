@@ -98,7 +98,7 @@ class Tasks:
         future: Future = Future()
         try:
             future.set_result(fn(self.obj, *args))
-        except BaseException as exc:
+        except Exception as exc:  # handed to the caller through the future, as a pool does
             future.set_exception(exc)
         return future
 

@@ -17,6 +17,7 @@ ends (Dask's process wrapper watches a pipe to its parent and exits when it clos
 from __future__ import annotations
 
 import logging
+import pickle
 import re
 import uuid
 from concurrent.futures import Future
@@ -134,7 +135,7 @@ class DaskCluster:
         token = uuid.uuid4().hex
         try:
             payload = _shipping.dumps(obj, {k: t for k, (t, _) in self._shared.items()})
-        except (pickle_errors()) as exc:
+        except (pickle.PicklingError, TypeError, AttributeError) as exc:
             raise ClusterError(f"cannot send {type(obj).__name__} to the Dask workers: it cannot be pickled "
                                f"({exc})") from None
         self.client.register_plugin(Install(token, payload), name=f"rivercal-{token}")
@@ -172,9 +173,3 @@ class DaskCluster:
     def __repr__(self) -> str:
         return f"DaskCluster({self.address!r})"
 
-
-def pickle_errors() -> tuple[type[BaseException], ...]:
-    """The errors pickling raises for an object that cannot be pickled."""
-    import pickle
-
-    return (pickle.PicklingError, TypeError, AttributeError)
