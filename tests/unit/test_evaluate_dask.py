@@ -172,7 +172,8 @@ def test_bad_addresses_and_unsuitable_clusters_are_refused() -> None:
         DaskCluster("tcp://127.0.0.1:9", timeout_s=1.0)
     import distributed
 
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc, \
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address="127.0.0.1:0") as lc, \
             pytest.raises(ClusterError, match="--nthreads 1"):
         DaskCluster(lc.scheduler_address)
 

@@ -86,7 +86,8 @@ class DaskCluster:
         try:
             if local is not None:
                 self._cluster = distributed.LocalCluster(
-                    n_workers=int(local.group(1)), threads_per_worker=1, processes=True, dashboard_address=None,
+                    n_workers=int(local.group(1)), threads_per_worker=1, processes=True,
+                    dashboard_address="127.0.0.1:0",  # its HTTP server on a free port of this machine only
                     silence_logs=logging.WARNING)
                 self.client = distributed.Client(self._cluster, timeout=timeout_s)
             else:
