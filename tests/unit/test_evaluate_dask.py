@@ -92,17 +92,17 @@ def _strict_problem(on_failure: str) -> CalibrationProblem:
 
     from rivercal.case import case_from_dict
     from rivercal.case.load import resolve_case_path
-    from rivercal.engine import Simulator
+    from rivercal.model import build_model
     from rivercal.observations import ObservationSeries, ObservationSet
     from rivercal.parameters import Parameter
 
     root = resolve_case_path("synthetic")
     data = tomllib.loads((root / "case.toml").read_text(encoding="utf-8"))
-    normal = Simulator(case_from_dict(data, root))
+    normal = build_model(case_from_dict(data, root))
     start = normal.start + pd.Timedelta(hours=6)
     _, state = normal.simulate(None, end=start - pd.Timedelta(hours=1))
     data["engine"]["max_velocity"] = 0.5
-    strict = Simulator(case_from_dict(data, root))
+    strict = build_model(case_from_dict(data, root))
     window = (start, start + pd.Timedelta(hours=3))
     times = pd.date_range(*window, freq="h")
     obs = ObservationSet((ObservationSeries.from_series(pd.Series(np.full(times.size, 11.0), index=times),
