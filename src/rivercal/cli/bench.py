@@ -34,9 +34,13 @@ def engine(
     """Time one simulated week of the synthetic benchmark network, or of a generated one (Δt = 60 s)."""
     from rivercal.bench.engine import bench_engine, bench_engine_points
     from rivercal.cli.options import open_model
+    from rivercal.errors import OptionError
 
     check_number(days, "--days", low=0, high=366, low_open=True)
     check_number(repeats, "--repeats", low=1, high=1000)
+    if abs(days * 24 - round(days * 24)) > 1e-9:
+        raise OptionError(f"--days {days:g}: give whole hours (a multiple of 1/24 day), the output interval",
+                          option="--days")
     if points is not None:
         check_number(points, "--points", low=100, high=10_000_000)
         check_number(seed, "--seed", low=0)
