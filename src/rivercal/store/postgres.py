@@ -14,7 +14,8 @@
 - **Durability**: ``synchronous="FULL"`` keeps PostgreSQL's ``synchronous_commit = on`` (a commit is on
   disk when it returns); ``"NORMAL"`` sets it ``off`` (a crash of the server may lose the last commits;
   a killed client never loses a committed one).
-- **Migrations**: :data:`~rivercal.store.schema.PG_MIGRATIONS`, the same versions as the SQLite file;
+- **Migrations**: :data:`~rivercal.store.schema.PG_MIGRATIONS`, the same versions as the SQLite file (a step
+  written in plain SQL is shared by both);
   the version table carries the comment ``rivercal store`` (SQLite's application id) so that a database
   holding other tables is not taken for a store.
 
@@ -31,7 +32,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any, Literal
 
 from rivercal.store.records import StoreError
-from rivercal.store.schema import APPLICATION_ID, PG_MIGRATIONS, PG_SCHEMA_VERSION_DDL
+from rivercal.store.schema import APPLICATION_ID, PG_SCHEMA_VERSION_DDL, for_postgresql
 from rivercal.store.sqlite import Store
 
 __all__ = ["PostgresStore"]
@@ -153,7 +154,7 @@ class PostgresStore(Store):
         return int(row[0]) if row and row[0] is not None else 0
 
     def _steps(self) -> tuple:
-        return PG_MIGRATIONS
+        return for_postgresql(super()._steps())
 
     def _first_step(self, conn: Any) -> None:
         conn.execute(PG_SCHEMA_VERSION_DDL)

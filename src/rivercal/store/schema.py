@@ -64,7 +64,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 __all__ = ["APPLICATION_ID", "MIGRATIONS", "PG_MIGRATIONS", "SCHEMA_VERSION", "Migration", "current_version",
-           "user_tables"]
+           "for_postgresql", "user_tables"]
 
 #: ``PRAGMA application_id`` of a rivercal store ("RVCL"), so that other SQLite files are recognised.
 APPLICATION_ID = 0x5256434C
@@ -236,7 +236,8 @@ SCHEMA_VERSION = MIGRATIONS[-1].version
 # The tables, columns, keys and checks of the SQLite steps above in PostgreSQL's types: BIGINT for data times
 # (Unix seconds) and ids (an identity column where SQLite has INTEGER PRIMARY KEY), DOUBLE PRECISION for REAL
 # (PostgreSQL's REAL is 4 bytes), BYTEA for BLOB, the JSON check through PostgreSQL's json type. A step here
-# always matches the step of the same version above; both lists grow together.
+# always matches the step of the same version above. Steps after version 4 are written once, in plain SQL that
+# both servers run, and need nothing here.
 
 PG_SCHEMA_VERSION_DDL = """
 CREATE TABLE IF NOT EXISTS schema_version (
@@ -355,10 +356,20 @@ _PG_V4 = _statements(
     )""",
 )
 
-#: The PostgreSQL steps, one per SQLite step of the same version and description.
-PG_MIGRATIONS: tuple[Migration, ...] = tuple(
-    Migration(m.version, m.description, apply) for m, apply in zip(MIGRATIONS, (_PG_V1, _PG_V2, _PG_V3, _PG_V4),
-                                                                    strict=True))
+#: PostgreSQL's own form of the steps written in SQLite's dialect (INTEGER PRIMARY KEY, REAL, BLOB, WITHOUT
+#: ROWID, json_valid). Every later step is plain SQL both servers run (BIGINT, DOUBLE PRECISION, TEXT, CHECK,
+#: ALTER TABLE … ADD COLUMN) and is used as it stands; a step that cannot be written so adds its form here.
+_PG_STEPS: dict[int, Callable[[_Connection], None]] = {1: _PG_V1, 2: _PG_V2, 3: _PG_V3, 4: _PG_V4}
+
+
+
+def for_postgresql(steps: Sequence[Migration]) -> tuple[Migration, ...]:
+    """The steps as PostgreSQL runs them: the same versions and descriptions, PostgreSQL's form where one exists."""
+    return tuple(Migration(m.version, m.description, _PG_STEPS.get(m.version, m.apply)) for m in steps)
+
+
+#: The PostgreSQL steps: the same versions and descriptions as :data:`MIGRATIONS`.
+PG_MIGRATIONS: tuple[Migration, ...] = for_postgresql(MIGRATIONS)
 
 
 def user_tables(conn: _Connection) -> list[str]:
