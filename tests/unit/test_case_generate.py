@@ -79,3 +79,12 @@ def test_the_command_writes_a_case_and_refuses_bad_sizes(tmp_path: Path) -> None
     assert summary["branches"] >= 5 and (tmp_path / "c" / "case.toml").is_file()
     bad = runner.invoke(app, ["case", "generate", "--points", "10", "--out", str(tmp_path / "d")])
     assert bad.exit_code == 2 and "--points" in bad.output
+    again = runner.invoke(app, ["case", "generate", "--points", "600", "--out", str(tmp_path / "c"), "--json"])
+    assert again.exit_code == 0, again.output  # a generated case is replaced
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "case.toml").write_text('[case]\nname = "dommel"\n', encoding="utf-8")
+    kept = runner.invoke(app, ["case", "generate", "--points", "500", "--out", str(mine)])
+    assert kept.exit_code == 2 and "did not write" in kept.output and "--out" in kept.output
+    assert (mine / "case.toml").read_text(encoding="utf-8") == '[case]\nname = "dommel"\n'
+    assert not (mine / "forcing.csv").exists()

@@ -47,6 +47,7 @@ _CLASSES = 3  # lateral inflow classes per catchment (small, medium, large strea
 _TRUNK_DX = 5000.0  # length of a trunk canal reach between two catchment outlets, m
 _TRUNK_BED = -3.0  # bed of the trunk canal, m AD
 _TRUNK_LEVEL = 0.5  # level held at the trunk's end (the pumping station or the sea), m AD
+_HEADER = "# Generated lowland network: rivercal case generate"  # first line of a generated case.toml
 
 
 @dataclass
@@ -136,11 +137,16 @@ def generate_case(out: str | Path, points: int, seed: int = 0, name: str | None 
     ------
     ValueError
         For fewer than 100 points or a negative seed.
+    FileExistsError
+        If ``out`` holds a ``case.toml`` that the generator did not write (a generated one is replaced).
     """
     if points < 100:
         raise ValueError(f"points must be at least 100, got {points}")
     if seed < 0:
         raise ValueError(f"seed must not be negative, got {seed}")
+    existing = Path(out) / "case.toml"
+    if existing.is_file() and not existing.read_text(encoding="utf-8", errors="replace").startswith(_HEADER):
+        raise FileExistsError(f"{existing}: a case the generator did not write; give another folder")
     rng = np.random.default_rng(seed)
     km = points * _DX / 1000.0 * 0.86  # a branch of n dx has n + 1 points; each structure adds about 1.5
     n_catchments = max(1, math.ceil(km / CATCHMENT_KM))
@@ -194,7 +200,7 @@ def _forcing(rng: np.random.Generator, n_catchments: int) -> pd.DataFrame:
 def _case_toml(name: str, branches: list[_Branch], nodes: dict[str, tuple[float, float]], n_catchments: int,
                rng: np.random.Generator, points: int, seed: int) -> tuple[str, dict[str, int]]:
     end = _START + pd.Timedelta(days=_DAYS)
-    lines = [f"# Generated lowland network: rivercal case generate --points {points} --seed {seed}", "[case]",
+    lines = [f"{_HEADER} --points {points} --seed {seed}", "[case]",
              f'name = "{name}"', f'description = "Generated lowland network, {len(branches)} branches"',
              f'start = "{_START:%Y-%m-%dT%H:%M:%SZ}"', f'end = "{end:%Y-%m-%dT%H:%M:%SZ}"', "",
              "[engine]", "dt = 60.0", "output_interval = 3600.0", "", "[initial]", "depth = 1.0", "spinup = 48.0", "",

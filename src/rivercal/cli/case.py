@@ -37,11 +37,16 @@ def generate(
     """Write a realistic lowland network of about POINTS points: catchments of weir-controlled streams, loops."""
     from rivercal.case.generate import generate_case
     from rivercal.cli.options import check_number, output_dir
+    from rivercal.errors import OptionError
 
     check_number(points, "--points", low=100, high=10_000_000)
     check_number(seed, "--seed", low=0)
     output_dir(out)
-    made = generate_case(out, points, seed, name=name)
+    try:
+        made = generate_case(out, points, seed, name=name)
+    except FileExistsError as exc:
+        raise OptionError(f"--out {out}: holds a case.toml that the generator did not write; give another folder "
+                          "(nothing was written)", option="--out") from exc
     summary = {"case": str(made.path), "catchments": made.catchments, "branches": made.branches,
                "length_km": made.length_km, "weirs": made.weirs, "culverts": made.culverts,
                "laterals": made.laterals, "stations": made.stations}
