@@ -3,7 +3,9 @@
 Usage: ``python benchmarks/online_scale.py --points 40000 --dask local:2`` prints one JSON object: the
 network, the cycle's wall time and model runs, and where the time went (a timeline of the service's own
 log records, seconds from the start of the cycle), plus the time of one model run over the cycle's
-window, from which the time on more workers follows (see ``more_workers``).
+window, from which the time on more workers follows (see ``more_workers``). On a shared machine the
+workers' processor time over the cycle's wall time (``cores_used_by_workers``) says how much of the two
+cores they got.
 
 The observations are a twin: the generated network run with the friction of region F5 raised from 25 to
 32 m^(1/3)/s; the service starts from 25 everywhere (the DSS), 7-day window, 24 h warm-up, 48 h horizon.
@@ -15,6 +17,7 @@ import argparse
 import json
 import logging
 import math
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -39,6 +42,11 @@ class Timeline(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         self.events.append((round(time.perf_counter() - self.t0, 2), record.getMessage()[:160]))
+
+
+def _worker_cpu(cluster: DaskCluster) -> float:
+    """Processor time of the cluster's worker processes so far, s."""
+    return sum(cluster.client.run(time.process_time).values())
 
 
 def main() -> None:
@@ -82,9 +90,14 @@ def main() -> None:
             with Store(Path(folder) / "online.sqlite") as store:
                 store.ingest(observations, source="twin")
                 service = OnlineService(model, store, "scale", config, issue)
+                cpu0 = time.process_time(), _worker_cpu(cluster)
                 timeline.t0 = time.perf_counter()
                 outcomes = service.replay(issue)
                 out["cycle_wall_s"] = round(time.perf_counter() - timeline.t0, 2)
+                out["cycle_cpu_s_service"] = round(time.process_time() - cpu0[0], 2)
+                out["cycle_cpu_s_workers"] = round(_worker_cpu(cluster) - cpu0[1], 2)
+                out["cores_used_by_workers"] = round(out["cycle_cpu_s_workers"] / out["cycle_wall_s"], 2)
+                out["load_average"] = round(os.getloadavg()[0], 2)
                 cycle = store.cycles(service.run).iloc[0]
                 out["cycle_status"] = str(cycle["status"])
                 out["calibration_model_runs"] = int(cycle["model_runs"])
