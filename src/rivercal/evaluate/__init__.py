@@ -174,11 +174,21 @@ class Evaluator:
                 future.cancel()
 
     def __call__(self, xs: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """Evaluate ``fun`` at every point; the results in the order of the points."""
-        out: list[Any] = [None] * len(xs)
-        for i, r in self.as_completed(xs):
-            out[i] = r
-        return out
+        """Evaluate ``fun`` at every point; the results in the order of the points.
+
+        If runs fail, the error raised is that of the first failed point in the order of the points, as
+        in a serial loop (not whichever failure finished first), so a failure reads the same wherever
+        the batch ran.
+        """
+        points = [np.asarray(x, dtype=float) for x in xs]
+        if self.cluster is None and (self.workers == 1 or len(points) <= 1):
+            return [self.fun(x) for x in points]
+        futures = [self._tasks.submit(_call, x) for x in points]
+        try:
+            return [future.result() for future in futures]
+        finally:
+            for future in futures:
+                future.cancel()
 
     def close(self) -> None:
         """Stop the worker processes (or remove the function from the Dask workers)."""
