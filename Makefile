@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser
+.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres
 
 # The dashboard tests drive Debian's chromium through chromedriver (never a downloaded browser).
 CHROMIUM := /usr/bin/chromium
@@ -31,10 +31,17 @@ $(CHROMIUM) $(CHROMEDRIVER):
 
 browser: $(CHROMIUM) $(CHROMEDRIVER)
 
-test: $(STAMP) browser
+# The PostgreSQL store's tests start a real server (initdb/pg_ctl of Debian's postgresql package) in a
+# temporary folder; nothing is configured system-wide.
+postgres:
+	@command -v initdb >/dev/null 2>&1 || ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || { \
+		command -v apt-get >/dev/null || { echo "make test needs Debian's postgresql package (apt-get)"; exit 1; }; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
+
+test: $(STAMP) browser postgres
 	$(PY) -m pytest -n auto -q
 
-test-fast: $(STAMP) browser
+test-fast: $(STAMP) browser postgres
 	$(PY) -m pytest -n auto -q -m "not slow"
 
 bench: $(STAMP) browser

@@ -24,6 +24,9 @@ BENCHMARKS = {
     "dashboard": ["benchmarks/dashboard_load.py"],
     "engines": ["bench", "engines", "--json"],
     "blackbox": ["bench", "blackbox", "--json"],
+    "dask": ["bench", "dask", "--json"],
+    "engine-points-40000": ["bench", "engine", "--points", "40000", "--repeats", "3", "--json"],
+    "online-scale": ["benchmarks/online_scale.py", "--points", "40000", "--dask", "local:2"],
 }
 
 

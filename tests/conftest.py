@@ -141,3 +141,24 @@ def assert_valid_pi(schema, path) -> None:
     """Fail with every schema error of a PI file (not only the first)."""
     errors = [f"{e.path}: {e.reason}" for e in schema.iter_errors(str(path))]
     assert not errors, f"{path} does not validate against {Path(schema.url).name}:\n" + "\n".join(errors[:10])
+
+
+# -- a real PostgreSQL server (one per test process), a fresh database per test -----------------------------
+
+
+@pytest.fixture(scope="session")
+def postgres_server():
+    from tests.postgres import PostgresServer, missing
+
+    why = missing()
+    if why is not None:
+        pytest.fail(f"the PostgreSQL store tests need a server: {why}")
+    server = PostgresServer().start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture
+def pg_url(postgres_server) -> str:
+    """The URL of a new, empty database on the test server."""
+    return postgres_server.new_database()

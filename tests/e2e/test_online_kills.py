@@ -6,11 +6,13 @@ and over; the last start runs to its end. Each delay is drawn (seeded) uniformly
 would take to finish, judged from the reference's timeline and the cycles already stored, so that kills
 land anywhere in it: in the start-up, in cycles, in commits, between cycles. The store must then hold
 exactly what the reference holds, apart from wall-clock stamps, owners and attempt counts; and after
-every kill, every process of the killed run (its evaluation workers) must be gone within seconds.
+every kill, every process of the killed run (its evaluation workers) must be gone within seconds. The
+same test runs against a real PostgreSQL server (a fresh database; fewer kills, to keep the suite short).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import signal
@@ -52,17 +54,40 @@ CONTENT = {
 }
 
 
-def command(folder: Path) -> list[str]:
+def command(db: str) -> list[str]:
     return [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-05",
-            "--to", "2010-11-12", "--db", str(folder / "run.sqlite"), "--workers", "2", "--quiet"]
+            "--to", "2010-11-12", "--db", db, "--workers", "2", "--quiet"]
 
 
-def contents(db: Path) -> dict[str, list[tuple]]:
+@contextlib.contextmanager
+def reading(db: str):
+    """A plain read connection to the store (sqlite3 or psycopg), outside rivercal."""
+    if db.startswith("postgresql://"):
+        import psycopg
+
+        with psycopg.connect(db, autocommit=True) as con:
+            yield con
+        return
+    if not Path(db).exists():
+        raise FileNotFoundError(db)
+    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
+        yield con
+
+
+_MISSING = (sqlite3.OperationalError, FileNotFoundError)  # killed before, or while, the tables were made
+
+
+def contents(db: str) -> dict[str, list[tuple]]:
     """Every table's rows (see CONTENT), sorted."""
-    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
-        tables = {name for (name,) in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+    with reading(db) as con:
+        if db.startswith("postgresql://"):
+            tables = {name for (name,) in con.execute("SELECT table_name FROM information_schema.tables WHERE "
+                                                       "table_schema = current_schema()").fetchall()}
+        else:
+            tables = {name for (name,) in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
         assert tables == set(CONTENT), f"tables changed: compare {sorted(tables ^ set(CONTENT))} too"
-        return {table: sorted(con.execute(sql).fetchall(), key=repr) for table, sql in CONTENT.items()}
+        return {table: sorted((tuple(bytes(v) if isinstance(v, memoryview) else v for v in row)
+                               for row in con.execute(sql).fetchall()), key=repr) for table, sql in CONTENT.items()}
 
 
 def differences(got: dict[str, list[tuple]], want: dict[str, list[tuple]]) -> list[str]:
@@ -82,32 +107,34 @@ def stamp(text: str) -> float:
     return datetime.fromisoformat(text.replace("Z", "+00:00")).timestamp()
 
 
-def timeline(db: Path, started: float, ended: float) -> tuple[float, list[float]]:
+def timeline(db: str, started: float, ended: float) -> tuple[float, list[float]]:
     """The reference's start-up (s from its start to its first cycle) and the time left after each cycle, s."""
-    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
+    with reading(db) as con:
         rows = con.execute("SELECT started, finished FROM cycles ORDER BY cycle").fetchall()
     return stamp(rows[0][0]) - started, [ended - stamp(finished) for _, finished in rows]
 
 
-def cycles_done(db: Path) -> int:
-    if not db.exists():
-        return 0
-    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
-        try:
+def cycles_done(db: str) -> int:
+    try:
+        with reading(db) as con:
             return con.execute("SELECT count(*) FROM cycles WHERE status = 'done'").fetchone()[0]
-        except sqlite3.OperationalError:  # killed while the tables were being created
-            return 0
+    except (*_MISSING, *_pg_errors()):
+        return 0
 
 
-def phase(db: Path, since: float) -> str:
+def _pg_errors() -> tuple[type[BaseException], ...]:
+    import psycopg
+
+    return (psycopg.errors.UndefinedTable,)
+
+
+def phase(db: str, since: float) -> str:
     """Where a start killed at wall time ``since`` or later stopped: in its start-up, in a cycle, after one."""
-    if not db.exists():
-        return "start-up"
-    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
-        try:
+    try:
+        with reading(db) as con:
             rows = con.execute("SELECT cycle, status, started FROM cycles ORDER BY cycle").fetchall()
-        except sqlite3.OperationalError:  # killed while the tables were being created
-            return "start-up"
+    except (*_MISSING, *_pg_errors()):
+        return "start-up"
     begun = [(cycle, status) for cycle, status, started in rows if started and stamp(started) >= since]
     if not begun:
         return "start-up"
@@ -115,21 +142,28 @@ def phase(db: Path, since: float) -> str:
     return f"in cycle {cycle}" if status == "running" else f"after cycle {cycle}"
 
 
-def test_random_sigkills_then_resume_store_equals_an_uninterrupted_run(tmp_path: Path) -> None:
-    reference = tmp_path / "reference"
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_random_sigkills_then_resume_store_equals_an_uninterrupted_run(tmp_path: Path, backend: str,
+                                                                      request) -> None:
+    if backend == "postgresql":
+        reference, killed = request.getfixturevalue("postgres_server").new_database(), \
+            request.getfixturevalue("postgres_server").new_database()
+        kills = KILLS // 2
+    else:
+        reference, killed = str(tmp_path / "reference" / "run.sqlite"), str(tmp_path / "killed" / "run.sqlite")
+        kills = KILLS
     started = time.time()
     run = subprocess.run(command(reference), capture_output=True, text=True, timeout=600)
     ended = time.time()
     assert run.returncode == 0, run.stderr[-3000:]
-    startup, left = timeline(reference / "run.sqlite", started, ended)
+    startup, left = timeline(reference, started, ended)
 
-    killed = tmp_path / "killed"
     log = tmp_path / "stderr.txt"
     rng = random.Random(SEED)
     phases, orphans, tracked, starts = [], [], 0, 0
-    while len(phases) < KILLS:
-        assert starts < 3 * KILLS, f"{starts} starts but only {len(phases)} kills: the runs end too soon"
-        done = cycles_done(killed / "run.sqlite")
+    while len(phases) < kills:
+        assert starts < 3 * kills, f"{starts} starts but only {len(phases)} kills: the runs end too soon"
+        done = cycles_done(killed)
         with log.open("w") as err:
             since = time.time()
             proc = subprocess.Popen(command(killed), stdout=subprocess.DEVNULL, stderr=err)
@@ -147,7 +181,7 @@ def test_random_sigkills_then_resume_store_equals_an_uninterrupted_run(tmp_path:
         tracked += len(seen)
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
-        phases.append(phase(killed / "run.sqlite", since))
+        phases.append(phase(killed, since))
         try:
             orphans += survivors(seen, within_s=5.0)
         finally:
@@ -156,7 +190,7 @@ def test_random_sigkills_then_resume_store_equals_an_uninterrupted_run(tmp_path:
     starts += 1
     assert final.returncode == 0, final.stderr[-3000:]
 
-    diff = differences(contents(killed / "run.sqlite"), contents(reference / "run.sqlite"))
+    diff = differences(contents(killed), contents(reference))
     print(f"\nreference {ended - started:.1f} s (start-up {startup:.1f} s); {len(phases)} kills "
           f"({', '.join(phases)}); {tracked} worker processes of killed runs, {len(orphans)} alive 5 s later; "
           f"{starts - 1} resumes; {len(diff)} differences")

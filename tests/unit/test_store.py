@@ -30,9 +30,17 @@ T0 = pd.Timestamp("2010-11-01T06:00:00Z")
 SCHEDULE = Schedule(T0)
 
 
+@pytest.fixture(params=["sqlite", "postgresql"])
+def location(request, tmp_path: Path):
+    """Where a store lives: a SQLite file, or a fresh database on a real PostgreSQL server (same contract)."""
+    if request.param == "postgresql":
+        return request.getfixturevalue("pg_url")
+    return tmp_path / "service.db"
+
+
 @pytest.fixture
-def store(tmp_path: Path):
-    with Store(tmp_path / "service.db") as s:
+def store(location):
+    with Store(location) as s:
         yield s
 
 
@@ -386,8 +394,8 @@ def test_netcdf_export_follows_cf(store: Store, run_id: int, tmp_path: Path) -> 
         nc.close()
 
 
-def test_readers_see_committed_data_while_a_writer_holds_the_lock(tmp_path: Path) -> None:
-    path = tmp_path / "service.db"
+def test_readers_see_committed_data_while_a_writer_holds_the_lock(location) -> None:
+    path = location
     with Store(path) as writer, Store(path, readonly=True) as reader, Store(path, timeout_s=0.1) as other:
         run = writer.create_run("r", "c", {})
         with writer._transaction() as conn:  # a long write, as a cycle's commit
@@ -398,9 +406,9 @@ def test_readers_see_committed_data_while_a_writer_holds_the_lock(tmp_path: Path
         assert reader.get_run("r").status == "stopped"
 
 
-def test_model_states_are_committed_with_the_cycle_and_read_back(tmp_path: Path) -> None:
+def test_model_states_are_committed_with_the_cycle_and_read_back(location) -> None:
     """The hot-start state travels with its cycle: stored atomically, replaced on retry, latest final one wins."""
-    with Store(tmp_path / "s.db") as store:
+    with Store(location) as store:
         run = store.create_run("states", "dommel", {})
         schedule = Schedule(first_issue="2010-11-01")
         blobs = {}

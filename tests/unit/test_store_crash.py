@@ -1,7 +1,7 @@
 """Crash safety of the store: SIGKILL a service in the middle of a cycle, restart it, lose nothing.
 
 DESIGN.md: "nothing that was stored is lost when a process is killed". This file is also the worker:
-``python test_store_crash.py DB N PAUSE`` runs cycles 0..N-1 of a fake service through the store
+``python test_store_crash.py DB N PAUSE FOLDER`` runs cycles 0..N-1 of a fake service through the store
 (ingest the window's observations, begin the cycle, "compute" by sleeping, commit estimates, alerts and
 forecasts in one transaction). With PAUSE = ``<phase>:<cycle>`` it stops at that point — inside the
 ingest transaction, during the computation, inside the commit transaction, or between two cycles —
@@ -89,10 +89,10 @@ def pause(marker: Path) -> None:
     raise SystemExit("pause was not ended by a kill")
 
 
-def worker(db: Path, n: int, pause_at: str) -> None:
+def worker(db: str, n: int, pause_at: str, folder: Path) -> None:
     phase, _, at = pause_at.partition(":")
     at_cycle = int(at) if at else -1
-    marker = db.with_suffix(".paused")
+    marker = folder / "paused"
     log = logging.getLogger("rivercal.store")
     log.setLevel(logging.DEBUG)
     current = {"cycle": -1}
@@ -102,7 +102,7 @@ def worker(db: Path, n: int, pause_at: str) -> None:
         log.addHandler(handler)
     with Store(db) as store:
         run = store.ensure_run("crash-test", "synthetic", {"cycles": n})
-        db.with_suffix(".alive").write_text(str(os.getpid()))
+        (folder / "alive").write_text(str(os.getpid()))
         while (spec := store.next_cycle(run.id, SCHEDULE)).cycle < n:
             current["cycle"] = spec.cycle
             store.ingest(window_observations(spec), "feed")
@@ -119,8 +119,17 @@ def worker(db: Path, n: int, pause_at: str) -> None:
 # the tests
 
 
-def _start(db: Path, pause_at: str = "none", n: int = N_CYCLES) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, str(HERE), str(db), str(n), pause_at], stdout=subprocess.PIPE,
+@pytest.fixture(params=["sqlite", "postgresql"])
+def backend(request, tmp_path: Path) -> tuple[str, Path]:
+    """(store location, folder of the worker's marker files): a SQLite file or a real PostgreSQL database."""
+    if request.param == "postgresql":
+        return request.getfixturevalue("pg_url"), tmp_path
+    return str(tmp_path / "service.db"), tmp_path
+
+
+def _start(backend: tuple[str, Path], pause_at: str = "none", n: int = N_CYCLES) -> subprocess.Popen:
+    db, folder = backend
+    return subprocess.Popen([sys.executable, str(HERE), db, str(n), pause_at, str(folder)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
 
@@ -143,8 +152,9 @@ def _kill(proc: subprocess.Popen) -> None:
     proc.stderr.close()
 
 
-def _finish(db: Path) -> None:
-    done = subprocess.run([sys.executable, str(HERE), str(db), str(N_CYCLES), "none"], capture_output=True,
+def _finish(backend: tuple[str, Path]) -> None:
+    db, folder = backend
+    done = subprocess.run([sys.executable, str(HERE), db, str(N_CYCLES), "none", str(folder)], capture_output=True,
                           text=True, timeout=60)
     assert done.returncode == 0, done.stderr[-3000:]
 
@@ -158,7 +168,7 @@ def _n_observations(k_last: int) -> int:
     return len(SERIES) * (int((last - first) / pd.Timedelta(hours=1)) + 1)
 
 
-def assert_complete(db: Path) -> None:
+def assert_complete(db: str) -> None:
     """Every cycle once and done, results matching the cycles, nothing duplicated, a sound file."""
     with Store(db) as store:
         run = store.get_run("crash-test")
@@ -183,10 +193,11 @@ def assert_complete(db: Path) -> None:
         last_ok = max(k for k in range(N_CYCLES) if expected_estimates(k)["weirs"][1])
         assert store.last_accepted(run.id)["weirs"] == pytest.approx(expected_estimates(last_ok)["weirs"][0])
         assert store.integrity_check() == []
-        assert store._conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+        if not db.startswith("postgresql://"):
+            assert store._conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
 
 
-def _state_after_kill(db: Path, phase: str, k: int) -> list[int]:
+def _state_after_kill(db: str, phase: str, k: int) -> list[int]:
     """What a kill at ``phase`` of cycle ``k`` must leave behind: committed cycles only, no partial rows.
 
     Returns the done cycles.
@@ -221,11 +232,11 @@ def _state_after_kill(db: Path, phase: str, k: int) -> list[int]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("pause_at", ["compute:4", "commit:0", "commit:6", "ingest:3", "between:9"])
-def test_sigkill_at_a_point_then_resume(tmp_path: Path, pause_at: str) -> None:
-    db = tmp_path / "service.db"
+def test_sigkill_at_a_point_then_resume(backend: tuple[str, Path], pause_at: str) -> None:
+    db, folder = backend
     phase, _, at = pause_at.partition(":")
-    proc = _start(db, pause_at)
-    _wait_for(db.with_suffix(".paused"), proc)
+    proc = _start(backend, pause_at)
+    _wait_for(folder / "paused", proc)
     if phase == "compute":  # a second service on the same run is refused while the first one lives
         with Store(db) as store:
             run = store.get_run("crash-test")
@@ -233,7 +244,7 @@ def test_sigkill_at_a_point_then_resume(tmp_path: Path, pause_at: str) -> None:
                 store.begin_cycle(run.id, store.first_unfinished(run.id))
     _kill(proc)
     _state_after_kill(db, phase, int(at))
-    _finish(db)  # after "between:9" (the last cycle) the restart finds nothing to do
+    _finish(backend)  # after "between:9" (the last cycle) the restart finds nothing to do
     assert_complete(db)
     with Store(db) as store:
         attempts = store.cycles(store.get_run("crash-test").id).set_index("cycle")["attempts"]
@@ -243,15 +254,15 @@ def test_sigkill_at_a_point_then_resume(tmp_path: Path, pause_at: str) -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [11])
-def test_sigkill_at_random_times_then_resume(tmp_path: Path, seed: int) -> None:
+def test_sigkill_at_random_times_then_resume(backend: tuple[str, Path], seed: int) -> None:
     """Four kills at random moments of the work (any phase, or none), then a run to the end."""
     rng = random.Random(seed)
-    db = tmp_path / "service.db"
+    db, folder = backend
     progress = [0]
     for _ in range(4):
-        alive = db.with_suffix(".alive")
+        alive = folder / "alive"
         alive.unlink(missing_ok=True)
-        proc = _start(db)
+        proc = _start(backend)
         _wait_for(alive, proc)
         time.sleep(rng.uniform(0.0, N_CYCLES * COMPUTE_S * 0.6))
         if proc.poll() is None:
@@ -260,9 +271,9 @@ def test_sigkill_at_random_times_then_resume(tmp_path: Path, seed: int) -> None:
             proc.communicate()
         progress.append(len(_state_after_kill(db, "random", -1)))
     assert progress == sorted(progress)  # nothing committed is ever lost
-    _finish(db)
+    _finish(backend)
     assert_complete(db)
 
 
 if __name__ == "__main__":
-    worker(Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3])
+    worker(sys.argv[1], int(sys.argv[2]), sys.argv[3], Path(sys.argv[4]))

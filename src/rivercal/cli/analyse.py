@@ -13,11 +13,12 @@ from typing import Annotated
 
 import typer
 
-from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
 from rivercal.cli.options import (
     check_choice,
     check_number,
     check_truth,
+    dask_address,
     open_model,
     output_dir,
     parse_assignments,
@@ -26,6 +27,7 @@ from rivercal.cli.options import (
     parse_window,
     select_parameters,
     window_observations,
+    workers_for,
 )
 from rivercal.errors import OptionError
 
@@ -49,6 +51,7 @@ def analyse(
     seed: Annotated[int, typer.Option(help="Seed of the twin noise (≥ 0).")] = 0,
     warmup: Annotated[float, typer.Option(help="Hours simulated before the window in every run.")] = 24.0,
     workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
+    dask: DaskOpt = None,
     rel_step: Annotated[float, typer.Option(
         "--rel-step", help="Finite-difference step as a fraction of each parameter's range.")] = 0.01,
     scheme: Annotated[str, typer.Option(help="Finite differences: forward (p+1 runs) or central (2p+1).")] = "forward",
@@ -86,6 +89,7 @@ def analyse(
     check_number(seed, "--seed", low=0)
     check_number(warmup, "--warmup", low=0, high=8784)  # at most a (leap) year, in hours
     check_number(workers, "--workers", low=1)
+    address = dask_address(dask, workers)
     check_number(sv_threshold, "--sv-threshold", low=0, high=1, low_open=True, high_open=True)
     check_number(k, "--k", low=1)
     check_number(corr_threshold, "--corr-threshold", low=0, high=1, low_open=True, high_open=True)
@@ -114,10 +118,10 @@ def analyse(
     obs = window_observations(observations, model, win) if observations is not None else None
 
     reporter = Reporter(not (quiet or as_json))
-    with reporter.running("starting"):
+    with reporter.running("starting"), workers_for(workers, address) as where:
         summary = analyse_window(model, pset, win, out, analyses=tasks, observations=obs,
                                  source={"file": str(observations)} if observations is not None else None,
-                                 truth=truth, noise=noise, seed=seed, warmup=hours, workers=workers,
+                                 truth=truth, noise=noise, seed=seed, warmup=hours, workers=where,
                                  rel_step=rel_step, scheme=scheme, identifiability_options=options,
                                  bias_window=bias_window, progress=reporter)
     if as_json:

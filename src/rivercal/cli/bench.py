@@ -26,14 +26,29 @@ def engine(
     case: Annotated[str, typer.Option(help="Case to time.")] = "synthetic",
     days: Annotated[float, typer.Option(help="Simulated days.")] = 7.0,
     repeats: Annotated[int, typer.Option(help="Timed runs after warm-up (median reported).")] = 7,
+    points: Annotated[int | None, typer.Option(
+        help="Time a generated lowland network of about this many points instead of --case.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the network generated for --points.")] = 0,
     as_json: JsonOpt = False,
 ) -> None:
-    """Time one simulated week of the synthetic benchmark network (Δt = 60 s)."""
-    from rivercal.bench.engine import bench_engine
+    """Time one simulated week of the synthetic benchmark network, or of a generated one (Δt = 60 s)."""
+    from rivercal.bench.engine import bench_engine, bench_engine_points
     from rivercal.cli.options import open_model
+    from rivercal.errors import OptionError
 
     check_number(days, "--days", low=0, high=366, low_open=True)
     check_number(repeats, "--repeats", low=1, high=1000)
+    if abs(days * 24 - round(days * 24)) > 1e-9:
+        raise OptionError(f"--days {days:g}: give whole hours (a multiple of 1/24 day), the output interval",
+                          option="--days")
+    if points is not None:
+        check_number(points, "--points", low=100, high=10_000_000)
+        check_number(seed, "--seed", low=0)
+        check_number(days, "--days", high=14)  # the generated case spans three weeks, two days of spin-up
+        watch_compilation(True)
+        _print_flat(bench_engine_points(points, seed, days=days, repeats=repeats).to_dict(), "engine benchmark",
+                    as_json)
+        return
     model = open_model(case)  # a bad case fails here, with its file and field
     span = (model.end - model.start).total_seconds() / 86400
     check_number(days, "--days", high=span)
@@ -69,6 +84,28 @@ def calibrate(
         table.add_row(r["algorithm"], str(r["model_runs"]), str(r["iterations"]), f"{r['wall_s']:.2f}",
                       f"{r['fa']:.4f}", f"{r['wc']:.5f}", f"{r['error_fa']:+.1e}", f"{r['error_wc']:+.1e}")
     out_console.print(table)
+
+
+@app.command("dask")
+@guard
+def dask(
+    every: Annotated[int, typer.Option(help="Every N-th FaWc scenario (3: 12 of 36).")] = 3,
+    repeats: Annotated[int, typer.Option(help="Timed runs per cluster size (median reported).")] = 3,
+    tasks: Annotated[int, typer.Option(help="No-op tasks of the overhead measurement.")] = 400,
+    as_json: JsonOpt = False,
+) -> None:
+    """Twin scenarios on a local Dask cluster of 1 and of 2 workers: speed-up, overhead per task, 64 workers."""
+    from rivercal.bench.dask import bench_dask
+
+    check_number(every, "--every", low=1, high=36)
+    check_number(repeats, "--repeats", low=1, high=100)
+    check_number(tasks, "--tasks", low=10, high=100_000)
+    watch_compilation(True)
+    result = bench_dask(every=every, repeats=repeats, tasks=tasks).to_dict()
+    if as_json:
+        emit_json(result)
+        return
+    _print_flat({k: v for k, v in result.items() if not isinstance(v, list)}, "Dask benchmark", False)
 
 
 @app.command("hupsel")

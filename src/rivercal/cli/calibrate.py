@@ -8,11 +8,12 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
 from rivercal.cli.options import (
     check_choice,
     check_number,
     check_truth,
+    dask_address,
     open_model,
     optimiser_options,
     output_dir,
@@ -20,6 +21,7 @@ from rivercal.cli.options import (
     parse_window,
     select_parameters,
     window_observations,
+    workers_for,
 )
 from rivercal.errors import OptionError
 
@@ -41,6 +43,7 @@ def calibrate(
     seed: Annotated[int, typer.Option(help="Seed of the twin noise (≥ 0).")] = 0,
     warmup: Annotated[float, typer.Option(help="Hours simulated before the window in every run.")] = 24.0,
     workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
+    dask: DaskOpt = None,
     max_nfev: Annotated[int | None, typer.Option("--max-nfev", help="Cap on model runs.")] = None,
     deadline: Annotated[float | None, typer.Option(help="Wall-clock limit, s.")] = None,
     on_failure: Annotated[str, typer.Option(help="Failed model run: raise or penalty.")] = "raise",
@@ -65,6 +68,7 @@ def calibrate(
     check_number(seed, "--seed", low=0)
     check_number(warmup, "--warmup", low=0, high=8784)  # at most a (leap) year, in hours
     check_number(workers, "--workers", low=1)
+    address = dask_address(dask, workers)
     check_number(max_nfev, "--max-nfev", low=1)
     check_number(deadline, "--deadline", low=0, low_open=True)
     check_choice(on_failure, "--on-failure", ("raise", "penalty"))
@@ -86,9 +90,9 @@ def calibrate(
     obs = window_observations(observations, model, win) if observations is not None else None
 
     reporter = Reporter(not (quiet or as_json))
-    with reporter.running("calibrating"):
+    with reporter.running("calibrating"), workers_for(workers, address) as where:
         summary, cal = calibrate_window(model, pset, win, out, observations=obs, truth=truth, noise=noise, seed=seed,
-                                        warmup=hours, algorithm=algo, options=opts, workers=workers,
+                                        warmup=hours, algorithm=algo, options=opts, workers=where,
                                         max_nfev=max_nfev, deadline=deadline, on_failure=on_failure,
                                         progress=reporter)
     if as_json:

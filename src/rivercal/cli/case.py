@@ -25,6 +25,39 @@ def schema() -> None:
     emit_json(CaseFile.model_json_schema())
 
 
+@app.command("generate")
+@guard
+def generate(
+    points: Annotated[int, typer.Option(help="Calculation points wanted (about; dx = 100 m).")],
+    out: Annotated[Path, typer.Option("--out", help="The case folder to write.")],
+    seed: Annotated[int, typer.Option(help="Seed of the random network (≥ 0).")] = 0,
+    name: Annotated[str | None, typer.Option(help="Case name (default generated-POINTS-SEED).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Write a realistic lowland network of about POINTS points: catchments of weir-controlled streams, loops."""
+    from rivercal.case.generate import generate_case
+    from rivercal.cli.options import check_number, output_dir
+    from rivercal.errors import OptionError
+
+    check_number(points, "--points", low=100, high=10_000_000)
+    check_number(seed, "--seed", low=0)
+    output_dir(out)
+    try:
+        made = generate_case(out, points, seed, name=name)
+    except FileExistsError as exc:
+        raise OptionError(f"--out {out}: holds a case.toml that the generator did not write; give another folder "
+                          "(nothing was written)", option="--out") from exc
+    summary = {"case": str(made.path), "catchments": made.catchments, "branches": made.branches,
+               "length_km": made.length_km, "weirs": made.weirs, "culverts": made.culverts,
+               "laterals": made.laterals, "stations": made.stations}
+    if as_json:
+        emit_json(summary)
+        return
+    out_console.print(f"wrote {made.path}: {made.catchments} catchments, {made.branches} branches "
+                      f"({made.length_km:g} km), {made.weirs} weirs, {made.culverts} culverts, {made.laterals} "
+                      f"laterals, {made.stations} stations (rivercal case check {made.path} counts its points)")
+
+
 @app.command("check")
 @guard
 def check(case: CaseArg, as_json: JsonOpt = False) -> None:

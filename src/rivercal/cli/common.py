@@ -20,8 +20,8 @@ from rich.console import Console
 
 from rivercal.errors import CaseError, ModelRunError, OptionError, RivercalError
 
-__all__ = ["CaseArg", "JsonOpt", "QuietOpt", "Reporter", "debug_enabled", "emit_json", "err_console", "guard",
-           "out_console", "set_debug", "watch_compilation"]
+__all__ = ["CaseArg", "DaskOpt", "JsonOpt", "QuietOpt", "Reporter", "debug_enabled", "emit_json", "err_console",
+           "guard", "out_console", "set_debug", "watch_compilation"]
 
 out_console = Console()
 err_console = Console(stderr=True, soft_wrap=True)
@@ -30,6 +30,9 @@ CaseArg = Annotated[str, typer.Argument(help="A case folder or the name of a pac
                                              "model.toml of another model (or its folder; e.g. 'dommel-swmm').")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary on the terminal.")]
+DaskOpt = Annotated[str | None, typer.Option(
+    "--dask", help="Run the model runs on a Dask cluster: local:N (N worker processes here) or tcp://HOST:PORT "
+                   "(a running scheduler; see docs/cluster.md).")]
 
 _DEBUG = {"on": False}
 

@@ -11,10 +11,11 @@ from typing import Annotated, Any
 
 import typer
 
-from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
 from rivercal.cli.options import (
     check_choice,
     check_number,
+    dask_address,
     open_model,
     output_dir,
     output_file,
@@ -23,6 +24,7 @@ from rivercal.cli.options import (
     parse_names,
     parse_time,
     read_observations,
+    workers_for,
 )
 from rivercal.errors import OptionError
 
@@ -33,7 +35,9 @@ def online(
     case: CaseArg,
     date_from: Annotated[str, typer.Option("--from", help="Issue time of the first cycle (UTC), e.g. 2010-10-18.")],
     date_to: Annotated[str, typer.Option("--to", help="Issue time of the last cycle (UTC), e.g. 2010-11-15.")],
-    db: Annotated[Path, typer.Option(help="The SQLite store (created if missing).")] = Path("out/online/run.sqlite"),
+    db: Annotated[str, typer.Option(
+        help="The store: an SQLite file (created if missing) or a postgresql://USER@HOST/DB URL (SQLite is the "
+             "embedded default).")] = "out/online/run.sqlite",
     scenario: Annotated[str | None, typer.Option(
         help="Twin observations of a scenario of thesis ch. 5: PI-0, PI-Fg, PI-Wg, PI-Fl, PI-Wl.")] = None,
     observations: Annotated[list[Path], typer.Option(
@@ -57,6 +61,7 @@ def online(
     seed: Annotated[int, typer.Option(help="Seed of the twin noise (≥ 0).")] = 0,
     max_cycles: Annotated[int | None, typer.Option("--max-cycles", help="Stop after this many cycles.")] = None,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
+    dask: DaskOpt = None,
     out: Annotated[Path | None, typer.Option(help="Write the report and exports into this folder.")] = None,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
@@ -103,8 +108,9 @@ def online(
     check_number(seed, "--seed", low=0)
     check_number(max_cycles, "--max-cycles", low=1)
     check_number(workers, "--workers", low=1)
+    address = dask_address(dask, workers)
     files = [(p.name, read_observations(p)) for p in observations]
-    _store_file(db, "--db")
+    db = _store_file(db, "--db")
     if out is not None:
         output_dir(out)
     # -- then what needs the case
@@ -122,11 +128,11 @@ def online(
                           "later", option="--from")
     if last > model.end:
         raise OptionError(f"--to {date_to}: after the end of the case ({model.end:%Y-%m-%d %H:%M})", option="--to")
-    config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
-                          algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
-                          workers=workers)
     reporter = Reporter(not (quiet or as_json))
-    with reporter.running("starting"):
+    with reporter.running("starting"), workers_for(workers, address) as where:
+        config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
+                              algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
+                              workers=where)
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter)
@@ -136,8 +142,15 @@ def online(
         print_summary(summary)
 
 
-def _store_file(db: Path, option: str) -> Path:
-    """A store file: absent (it is created) or an SQLite file."""
+def _store_file(db: str | Path, option: str, *, must_exist: bool = False) -> str | Path:
+    """A store: a PostgreSQL URL as it is, or a file that is absent (it is created) or an SQLite file."""
+    from rivercal.store import is_url
+
+    if is_url(db):
+        return str(db)
+    db = Path(db)
+    if must_exist and not db.is_file():
+        raise OptionError(f"{option} {db}: no such store", option=option)
     output_file(db, option)
     if db.is_file() and db.stat().st_size > 0:
         with db.open("rb") as fh:
@@ -203,11 +216,12 @@ def demo(
     online(case="dommel", date_from="2010-10-18", date_to="2010-11-15", db=db, scenario="PI-Fg", observations=[],
            follow=None, poll=10.0, run="demo-PI-Fg", params="FA,Wd", window="7D", cycle="1D", horizon="48h",
            warmup="24h", algorithm="dud", deadline=60.0, max_change=None, alert_k=3.0, noise="none", seed=0,
-           max_cycles=None, workers=workers, out=out / "report", as_json=as_json, quiet=False)
+           max_cycles=None, workers=workers, dask=None, out=out / "report", as_json=as_json, quiet=False)
 
 
 def report(
-    db: Annotated[Path, typer.Option(help="The SQLite store of an on-line run.")],
+    db: Annotated[str, typer.Option(
+        help="The store of an on-line run: an SQLite file or a postgresql://USER@HOST/DB URL.")],
     out: Annotated[Path, typer.Option(help="Folder for the report (index.html, figures, CSV).")],
     run: Annotated[str | None, typer.Option(help="Run name (default: the only run, or the latest).")] = None,
     as_json: JsonOpt = False,
@@ -216,9 +230,7 @@ def report(
     from rivercal.report.online import write_online_report
     from rivercal.store import Store
 
-    if not db.is_file():
-        raise OptionError(f"--db {db}: no such store", option="--db")
-    _store_file(db, "--db")
+    db = _store_file(db, "--db", must_exist=True)
     output_dir(out)
     with Store(db, readonly=True) as store:
         runs = store.runs()

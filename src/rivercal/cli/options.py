@@ -7,8 +7,9 @@ done here; running a model is the workflows' job (:mod:`rivercal.workflows`).
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,7 @@ __all__ = [
     "check_choice",
     "check_number",
     "check_truth",
+    "dask_address",
     "input_file",
     "open_model",
     "optimiser_options",
@@ -32,6 +34,7 @@ __all__ = [
     "read_observations",
     "select_parameters",
     "window_observations",
+    "workers_for",
 ]
 
 
@@ -47,6 +50,40 @@ def open_model(argument: str, *, show_compilation: bool = True) -> Any:
 
     watch_compilation(show_compilation)
     return load_model(argument)
+
+
+# -- where the runs go -----------------------------------------------------------------------------
+
+
+def dask_address(address: str | None, workers: int | None) -> str | None:
+    """Check ``--dask`` (``local:N`` or ``tcp://HOST:PORT``) and that it is not given with ``--workers``."""
+    import re
+
+    if address is None:
+        return None
+    if workers is not None:
+        raise OptionError("give either --workers (local processes) or --dask (a Dask cluster), not both",
+                          option="--dask")
+    text = address.strip()
+    local = re.fullmatch(r"local:(\d+)", text)
+    if local is not None and int(local.group(1)) >= 1:
+        return text
+    if local is None and re.fullmatch(r"(tcp|tls)://[^\s/:]+:\d+/?", text):
+        return text
+    raise OptionError(f"--dask {address!r}: expected local:N (N ≥ 1 worker processes on this machine) or "
+                      "tcp://HOST:PORT (the address of a running Dask scheduler)", option="--dask")
+
+
+@contextlib.contextmanager
+def workers_for(workers: int | None, address: str | None) -> Iterator[Any]:
+    """The workers of a command: ``--workers`` as given, or a Dask cluster for ``--dask`` (closed after)."""
+    if address is None:
+        yield workers
+        return
+    from rivercal.evaluate import DaskCluster
+
+    with DaskCluster(address) as cluster:
+        yield cluster
 
 
 # -- numbers, names and choices -------------------------------------------------------------------

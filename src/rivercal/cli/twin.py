@@ -14,8 +14,17 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
-from rivercal.cli.options import check_number, open_model, output_dir, parse_names, parse_time, parse_window
+from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.options import (
+    check_number,
+    dask_address,
+    open_model,
+    output_dir,
+    parse_names,
+    parse_time,
+    parse_window,
+    workers_for,
+)
 from rivercal.errors import OptionError
 from rivercal.workflows.twin import SCENARIO_SUITES, SENSITIVITY
 
@@ -41,6 +50,7 @@ def twin(
     ] = PARAMS_DEFAULT,
     out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/twin"),
     workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
+    dask: DaskOpt = None,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -56,6 +66,7 @@ def twin(
     if SENSITIVITY in names and not wanted:
         raise OptionError("--params: give at least one parameter for the sensitivity analysis", option="--params")
     check_number(workers, "--workers", low=1)
+    address = dask_address(dask, workers)
     output_dir(out)
     model = open_model(case, show_compilation=not quiet)
     _check_case(model, names, wanted if SENSITIVITY in names else [], window)
@@ -63,8 +74,8 @@ def twin(
         and params == PARAMS_DEFAULT
     show = not (quiet or as_json)
     reporter = Reporter(show)
-    with reporter.running("starting"):
-        done = run_thesis(model, names, chosen, wanted, out, window=window, workers=workers or default_workers(),
+    with reporter.running("starting"), workers_for(workers or default_workers(), address) as where:
+        done = run_thesis(model, names, chosen, wanted, out, window=window, workers=where,
                           command=_command(), complete=complete, progress=reporter)
     if as_json:
         emit_json(done.summary)

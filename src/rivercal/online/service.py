@@ -40,7 +40,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -50,6 +50,7 @@ from rivercal._time import utc
 from rivercal.analysis.forecast import score_forecasts
 from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
 from rivercal.errors import ModelRunError
+from rivercal.evaluate import Workers
 from rivercal.observations import DEFAULT_SIGMA
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
@@ -110,7 +111,7 @@ class OnlineConfig:
         Failed model run inside a calibration: ``penalty`` (logged; the optimiser steers away) or
         ``raise`` (the cycle fails and keeps the last estimate).
     workers
-        Worker processes of one calibration (None: all cores).
+        Worker processes of one calibration (None: all cores), or a :class:`~rivercal.evaluate.DaskCluster`.
     """
 
     parameters: tuple[str, ...] = ("FA", "Wd")
@@ -133,7 +134,7 @@ class OnlineConfig:
     output_interval_s: float = 3600.0
     dss: dict[str, float] = field(default_factory=dict)
     on_failure: Literal["raise", "penalty"] = "penalty"
-    workers: int | None = None
+    workers: Workers = None
 
     def __post_init__(self) -> None:
         for name in ("window", "period", "horizon"):
@@ -162,7 +163,7 @@ class OnlineConfig:
 
     def stored(self) -> dict[str, Any]:
         """The configuration as stored with the run (JSON types; the worker count is not part of it)."""
-        out = asdict(self)
+        out = asdict(replace(self, workers=None))  # the workers may be a Dask cluster, which is not copied
         out.pop("workers")
         out["parameters"] = list(self.parameters)
         out["series"] = list(self.series) if self.series is not None else None

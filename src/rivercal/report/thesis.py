@@ -496,7 +496,7 @@ def _suite_blocks(suite: str, results: Sequence[ScenarioResult], files: Mapping[
 def write_report(out: str | Path, *, case: str, command: str, suites: Mapping[str, Sequence[ScenarioResult]],
                  files: Mapping[str, Mapping[str, str]], analysis: InitialAnalysis | None = None,
                  analysis_files: Mapping[str, str] | None = None, wall_s: float | None = None,
-                 workers: int | None = None, complete: bool = False) -> Path:
+                 workers: int | str | None = None, complete: bool = False) -> Path:
     """Write ``index.html`` into ``out``: our chapter-4 numbers beside the thesis', with the figures linked.
 
     Parameters
@@ -531,7 +531,7 @@ def write_report(out: str | Path, *, case: str, command: str, suites: Mapping[st
     ran = [s for s in SUITES if s in suites] + (["initial analysis"] if analysis is not None else [])
     page.intro(
         f"Command: {command}",
-        f"Ran: {', '.join(ran) or 'nothing'}; {workers or 'all'} worker processes"
+        f"Ran: {', '.join(ran) or 'nothing'}; {_workers_text(workers)}"
         + (f"; {wall_s:.0f} s wall ({wall_s / 60:.1f} min) in all." if wall_s is not None else "."),
         "Every number marked 'thesis' is typed in from the thesis (seed/thesis-online-parameter-updating.txt) as "
         "cited reference data (rivercal.twin.reference); everything else was computed by this run.",
@@ -558,3 +558,8 @@ def write_report(out: str | Path, *, case: str, command: str, suites: Mapping[st
 
 _TABLES = {"F1W0": "4-5/4-6", "F0W1": "4-5/4-6", "FaWc": "4-7/4-8", "FaWcP": "4-9/4-10", "FaWcN": "4-11/4-12"}
 _SECTIONS = {"F1W0": "4-5-2", "F0W1": "4-5-3", "FaWc": "4-5-4", "FaWcP": "4-5-5", "FaWcN": "4-5-6"}
+
+
+def _workers_text(workers: int | str | None) -> str:
+    """How the runs were spread: a number of worker processes, or the Dask cluster."""
+    return workers if isinstance(workers, str) else f"{workers or 'all'} worker processes"

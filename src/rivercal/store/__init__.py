@@ -1,4 +1,7 @@
-"""The SQLite store of the on-line service (layer 6): runs, cycles, estimates, alerts, forecasts, observations.
+"""The store of the on-line service (layer 6): runs, cycles, estimates, alerts, forecasts, observations.
+
+An SQLite file by default (:mod:`rivercal.store.sqlite`); ``Store("postgresql://…")`` keeps the same records
+in a PostgreSQL database that several services and readers share (:mod:`rivercal.store.postgres`).
 
 ``import rivercal`` does not import this package (it loads :mod:`sqlite3`); import it where needed::
 
@@ -27,7 +30,7 @@ from rivercal.store.records import (
     StoreVersionError,
 )
 from rivercal.store.schema import SCHEMA_VERSION
-from rivercal.store.sqlite import Store
+from rivercal.store.sqlite import Store, is_url
 
 __all__ = [
     "CYCLE_STATUSES",
@@ -48,6 +51,7 @@ __all__ = [
     "StoreVersionError",
     "export_estimates_csv",
     "export_forecasts_csv",
+    "is_url",
     "to_netcdf",
     "to_xarray",
 ]

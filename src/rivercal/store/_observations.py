@@ -168,10 +168,10 @@ class ObservationTables(StoreBase):
         if end is not None:
             where.append("time <= ?")
             params.append(fr.to_unix(end, "end"))
-        sql = ("SELECT series, source, count(*), min(time), max(time), max(gap) / 3600.0 FROM (SELECT series, "
-               "source, time, time - lag(time) OVER (PARTITION BY series, source ORDER BY time) AS gap FROM "
-               "observations" + (" WHERE " + " AND ".join(where) if where else "")
-               + ") GROUP BY series, source ORDER BY series, source")
+        sql = ("SELECT series, source, count(*), min(time), max(time), CAST(max(gap) AS DOUBLE PRECISION) / 3600 "
+               "FROM (SELECT series, source, time, time - lag(time) OVER (PARTITION BY series, source ORDER BY "
+               "time) AS gap FROM observations" + (" WHERE " + " AND ".join(where) if where else "")
+               + ") AS gaps GROUP BY series, source ORDER BY series, source")
         out = fr.frame(self._query(sql, params), ["series", "source", "n", "first", "last", "max_gap_h"])
         out["first"] = fr.from_unix(out["first"].astype("int64"))
         out["last"] = fr.from_unix(out["last"].astype("int64"))

@@ -75,18 +75,23 @@ from rivercal.store.schema import (
     user_tables,
 )
 
-__all__ = ["MIN_SQLITE", "Store"]
+__all__ = ["MIN_SQLITE", "Store", "is_url"]
 
 log = logging.getLogger("rivercal.store")
 
-#: Oldest SQLite library the store works with (window functions: 3.25).
-MIN_SQLITE = (3, 25, 0)
+#: Oldest SQLite library the store works with (window functions: 3.25; INSERT … RETURNING: 3.35).
+MIN_SQLITE = (3, 35, 0)
 
 _CYCLE_COLUMNS = ("cycle", "window_start", "window_end", "issue_time", "status", "attempts", "owner", "algorithm",
                   "model_runs", "wall_time_s", "cost_before", "cost_after", "message", "started", "finished")
 _UNFINISHED = tuple(s for s in CYCLE_STATUSES if s not in FINAL_STATUSES)
 #: Tables whose rows belong to one cycle's results (replaced together when a cycle is committed or re-opened).
 _CYCLE_CHILDREN = ("estimates", "alerts", "forecasts", "forecast_scores", "model_states")
+
+
+def is_url(location: Any) -> bool:
+    """Whether a store location is a PostgreSQL URL (``postgresql://…`` or ``postgres://…``) and not a file."""
+    return isinstance(location, str) and location.startswith(("postgresql://", "postgres://"))
 
 
 def _owner() -> str:
@@ -132,6 +137,14 @@ class Store(ResultTables, ObservationTables):
     StoreVersionError
         If its schema is newer than this rivercal's (or older, when ``readonly``).
     """
+
+    def __new__(cls, path: str | Path = ":memory:", **kwargs: Any) -> Store:
+        """A PostgreSQL store for a ``postgresql://`` URL (:mod:`rivercal.store.postgres`), else SQLite."""
+        if cls is Store and is_url(path):
+            from rivercal.store.postgres import PostgresStore
+
+            return super().__new__(PostgresStore)
+        return super().__new__(cls)
 
     def __init__(self, path: str | Path, *, readonly: bool = False,
                  synchronous: Literal["FULL", "NORMAL"] = "FULL", timeout_s: float = 30.0):
@@ -205,9 +218,21 @@ class Store(ResultTables, ObservationTables):
                 self._conn.execute("ROLLBACK")
             raise
 
+    def _version(self, conn: Any) -> int:
+        return current_version(conn)
+
+    def _first_step(self, conn: Any) -> None:
+        """Before migration step 1: the version table and the file's application id."""
+        conn.execute(SCHEMA_VERSION_DDL)
+        conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+
+    def _steps(self) -> tuple:
+        """The schema's migration steps (this dialect's)."""
+        return MIGRATIONS
+
     def _migrate(self, target: int | None = None) -> None:
         target = SCHEMA_VERSION if target is None else target
-        version = current_version(self._conn)
+        version = self._version(self._conn)
         if version > SCHEMA_VERSION:
             raise StoreVersionError(f"{self.path}: schema version {version} was written by a newer rivercal (this "
                                     f"one knows up to {SCHEMA_VERSION}); upgrade rivercal to use it")
@@ -216,16 +241,15 @@ class Store(ResultTables, ObservationTables):
         if self.readonly:
             raise StoreVersionError(f"{self.path}: schema version {version} is older than {SCHEMA_VERSION}; open it "
                                     "once for writing to migrate it")
-        for step in MIGRATIONS:
+        for step in self._steps():
             if step.version > target:
                 break
             with self._transaction() as conn:
                 # Re-read under the write lock: another process may have migrated meanwhile.
-                if current_version(conn) >= step.version:
+                if self._version(conn) >= step.version:
                     continue
                 if step.version == 1:
-                    conn.execute(SCHEMA_VERSION_DDL)
-                    conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                    self._first_step(conn)
                 step.apply(conn)
                 conn.execute("INSERT INTO schema_version (version, applied, description, rivercal_version) "
                              "VALUES (?, ?, ?, ?)", (step.version, fr.now_stamp(), step.description,
@@ -235,7 +259,7 @@ class Store(ResultTables, ObservationTables):
     @property
     def schema_version(self) -> int:
         """The file's schema version."""
-        return current_version(self._conn)
+        return self._version(self._conn)
 
     def close(self) -> None:
         """Close the connection (uncommitted work, if any, is rolled back)."""
@@ -278,10 +302,10 @@ class Store(ResultTables, ObservationTables):
         with self._transaction() as conn:
             if conn.execute("SELECT 1 FROM runs WHERE name = ?", (name,)).fetchone():
                 raise StoreError(f"{self.path}: a run named {name!r} exists already")
-            cur = conn.execute("INSERT INTO runs (name, case_name, created, config) VALUES (?, ?, ?, ?)",
-                               (name, str(case), fr.now_stamp(), text))
-        log.info("%s: run %r created (id %d, case %s)", self.path, name, cur.lastrowid, case)
-        return int(cur.lastrowid)
+            run_id = int(conn.execute("INSERT INTO runs (name, case_name, created, config) VALUES (?, ?, ?, ?) "
+                                      "RETURNING id", (name, str(case), fr.now_stamp(), text)).fetchone()[0])
+        log.info("%s: run %r created (id %d, case %s)", self.path, name, run_id, case)
+        return run_id
 
     def get_run(self, name: str) -> Run | None:
         """The run named ``name``, or None."""
@@ -318,8 +342,9 @@ class Store(ResultTables, ObservationTables):
     def runs(self) -> pd.DataFrame:
         """All runs: id, name, case, created (UTC), status, cycles (count) and done (count)."""
         rows = self._query("SELECT r.id, r.name, r.case_name, r.created, r.status, count(c.id), "
-                           "coalesce(sum(c.status = 'done'), 0) FROM runs r LEFT JOIN cycles c ON c.run_id = r.id "
-                           "GROUP BY r.id ORDER BY r.id")
+                           "coalesce(sum(CASE WHEN c.status = 'done' THEN 1 ELSE 0 END), 0) FROM runs r LEFT JOIN "
+                           "cycles c ON c.run_id = r.id GROUP BY r.id, r.name, r.case_name, r.created, r.status "
+                           "ORDER BY r.id")
         out = fr.frame(rows, ["id", "name", "case", "created", "status", "cycles", "done"])
         out["created"] = fr.stamp_to_time(out["created"])
         return out
@@ -479,10 +504,10 @@ class Store(ResultTables, ObservationTables):
             if row is None:
                 self._check_new_cycle(conn, run_id, record.cycle)
                 values = [fr.to_unix(t) for t in (record.window_start, record.window_end, record.issue_time)]
-                cur = conn.execute("INSERT INTO cycles (run_id, cycle, window_start, window_end, issue_time, "
-                                   "status, attempts, owner) VALUES (?, ?, ?, ?, ?, 'running', 1, ?)",
-                                   (run_id, record.cycle, *values, _owner()))
-                cycle_id = int(cur.lastrowid)
+                cycle_id = int(conn.execute("INSERT INTO cycles (run_id, cycle, window_start, window_end, "
+                                            "issue_time, status, attempts, owner) VALUES (?, ?, ?, ?, ?, 'running', "
+                                            "1, ?) RETURNING id", (run_id, record.cycle, *values, _owner()))
+                                .fetchone()[0])
             else:
                 self._check_existing_cycle(row, run_id, record.spec)
                 cycle_id, started = int(row[0]), row[7]

@@ -26,7 +26,7 @@ import itertools
 import logging
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import as_completed
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -42,7 +42,7 @@ from rivercal.analysis import (
     summary_statistics,
     thesis_scenarios,
 )
-from rivercal.evaluate import Evaluator, default_workers, process_pool
+from rivercal.evaluate import Evaluator, Tasks, Workers, as_completed
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin.truth import TwinTruth, twin_truth
@@ -258,23 +258,34 @@ def _expected_work(scenario: Scenario) -> int:
     return len(scenario.truth) + (1 if scenario.noise != "none" else 0)
 
 
-def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: int | None = None,
+def _truth_on(model: Any, scenario: Scenario) -> TwinTruth:
+    _setup(model)
+    return _truth(scenario)
+
+
+def _calibrate_on(model: Any, scenario: Scenario, truth: TwinTruth) -> ScenarioResult:
+    _setup(model)
+    return _calibrate(scenario, truth)
+
+
+def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: Workers = None,
                   progress: Callable[[ScenarioResult], None] | None = None) -> list[ScenarioResult]:
     """Run scenarios on ``model`` (the packaged ``dommel`` case or one with the same parameters and windows).
 
     Each distinct truth runs once; the scenarios then run in parallel, one calibration per worker
     process (serial model runs inside each), which keeps every core busy for the whole suite. Scenarios
-    of several suites can go in one call (one pool for all); the likely longest ones are started first
-    so that no core idles at the end. Results come back in the order of ``scenarios``; ``progress`` is
-    called as each one finishes.
+    of several suites can go in one call (one pool for all); all are submitted at once, the likely longest
+    first, so that no worker idles at the end. ``workers`` may be a Dask cluster (the model goes to each of
+    its workers once). Results come back in the order of ``scenarios``; ``progress`` is called as each one
+    finishes.
     """
     _setup(model)
-    workers = default_workers() if workers is None else workers
     keys: dict[tuple, Scenario] = {}
     for s in scenarios:
         keys.setdefault(s.truth_key, s)
     t0 = time.perf_counter()
-    if workers <= 1 or len(scenarios) <= 1:
+    tasks = Tasks(model, workers)
+    if not tasks.parallel or len(scenarios) <= 1:
         truths = {k: _truth(s) for k, s in keys.items()}
         log.info("%d truths in %.1f s", len(truths), time.perf_counter() - t0)
         results = []
@@ -284,12 +295,12 @@ def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: int | N
                 progress(results[-1])
         return results
     out: list[ScenarioResult | None] = [None] * len(scenarios)
-    with process_pool(workers, _setup, (model,)) as pool:
+    with tasks:
         order = sorted(keys, key=lambda k: -_expected_work(keys[k]))
-        truths = dict(zip(order, pool.map(_truth, [keys[k] for k in order]), strict=True))
+        truths = dict(zip(order, tasks.map(_truth_on, [keys[k] for k in order]), strict=True))
         log.info("%d truths in %.1f s", len(truths), time.perf_counter() - t0)
         jobs = sorted(range(len(scenarios)), key=lambda i: -_expected_work(scenarios[i]))
-        futures = {pool.submit(_calibrate, scenarios[i], truths[scenarios[i].truth_key]): i for i in jobs}
+        futures = {tasks.submit(_calibrate_on, scenarios[i], truths[scenarios[i].truth_key]): i for i in jobs}
         for future in as_completed(futures):
             result = future.result()
             out[futures[future]] = result
@@ -348,7 +359,7 @@ def _kind(p: Any) -> str:
 
 
 def initial_analysis(model: Any, names: Sequence[str] = SENSITIVITY_PARAMETERS, window: str = "moderate", *,
-                     workers: int | None = None, identifiability_too: bool = True,
+                     workers: Workers = None, identifiability_too: bool = True,
                      options: IdentifiabilityOptions | None = None) -> InitialAnalysis:
     """Sensitivity (thesis Table 4-4) and identifiability of ``names`` at the base point, one worker pool.
 
@@ -361,7 +372,7 @@ def initial_analysis(model: Any, names: Sequence[str] = SENSITIVITY_PARAMETERS, 
     window
         A window of the case or ``START/END`` (UTC).
     workers
-        Worker processes for the runs (None: all cores).
+        Worker processes for the runs (None: all cores), or a Dask cluster.
     identifiability_too
         Also compute the Jacobian (p + 1 runs) and the identifiability verdict.
     options
@@ -382,9 +393,15 @@ def initial_analysis(model: Any, names: Sequence[str] = SENSITIVITY_PARAMETERS, 
     truth = twin_truth(model, params.quantities({n: _PARAMS[n].initial for n in names}), win)
     problem = CalibrationProblem(model, params, truth.observations, win, state=truth.state)
     problem.sqrt_weights  # noqa: B018 - computed before the workers fork
-    with Evaluator(problem.residuals, workers=workers) as batch:
+    with Evaluator(problem.residuals, workers=workers) as batch, ThreadPoolExecutor(1) as side:
+        # On a cluster the Jacobian's runs go out beside the sensitivity scenarios' (one batch each).
+        ident_job = side.submit(identifiability, problem, batch=batch, options=options) \
+            if identifiability_too and batch.cluster is not None else None
         sens = sensitivity(problem, thesis_scenarios(params), batch=batch)
-        ident = identifiability(problem, batch=batch, options=options) if identifiability_too else None
+        if ident_job is not None:
+            ident = ident_job.result()
+        else:
+            ident = identifiability(problem, batch=batch, options=options) if identifiability_too else None
     runs = sens.nfev + (int(ident.extra["nfev"]) if ident is not None else 0)
     log.info("initial analysis of %d parameters: %d runs in %.1f s", len(params), runs, time.perf_counter() - t0)
     return InitialAnalysis(parameters=tuple(names), kinds={p.name: _kind(p) for p in params}, window=win,

@@ -53,7 +53,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     model
         A loaded model (:func:`rivercal.model.load_model`).
     db
-        The SQLite store (created if missing).
+        The store: an SQLite file (created if missing) or a ``postgresql://`` URL.
     run
         The run's name in the store; a run that exists resumes (with the same configuration only).
     config
@@ -75,11 +75,16 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         Where to say what happens: one step per cycle, a note per finished cycle.
     """
     from rivercal.online.service import OnlineService
-    from rivercal.store import FINAL_STATUSES, Store
+    from rivercal.store import FINAL_STATUSES, Store, is_url
 
     t_start = time.perf_counter()
     meta: dict[str, Any] = {"scenario": scenario, "noise": noise, "seed": seed} if scenario else {}
-    Path(db).parent.mkdir(parents=True, exist_ok=True)
+    if not is_url(db):
+        Path(db).parent.mkdir(parents=True, exist_ok=True)
+    from rivercal.evaluate import DaskCluster
+
+    if isinstance(config.workers, DaskCluster):  # every cycle's problem then refers to the model on the workers
+        config.workers.share(model)
     with Store(db) as store:
         service = OnlineService(model, store, run, config, first, meta=meta)
         if scenario is not None:

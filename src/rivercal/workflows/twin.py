@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,7 +40,7 @@ class ThesisRun:
 
 
 def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], parameters: Sequence[str], out: str | Path,
-               *, window: str | None = None, workers: int = 1, command: str = "", complete: bool = False,
+               *, window: str | None = None, workers: Any = 1, command: str = "", complete: bool = False,
                progress: Progress = NO_PROGRESS) -> ThesisRun:
     """Run the chosen suites' ``scenarios`` and, if ``sensitivity`` is among ``suites``, the initial analysis.
 
@@ -58,7 +59,8 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
     window
         The analysis' window (a case window or START/END); None: ``moderate``.
     workers
-        Worker processes (one pool for every scenario).
+        Worker processes (one pool for every scenario), or a :class:`~rivercal.evaluate.DaskCluster`: then
+        the initial analysis and the scenarios go to the cluster at the same time, so that it stays busy.
     command
         The command that asked for this, for the report.
     complete
@@ -66,6 +68,7 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
     progress
         Where to say what happens: one step per scenario.
     """
+    from rivercal.evaluate import DaskCluster, describe_workers
     from rivercal.report.thesis import targets, write_report
     from rivercal.report.twin import suite_summary, write_initial_analysis, write_suite
     from rivercal.twin.suites import initial_analysis, run_scenarios
@@ -73,13 +76,17 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    done = ThesisRun(summary={"case": model.name, "suites": {}, "workers": workers})
+    where = describe_workers(workers)
+    done = ThesisRun(summary={"case": model.name, "suites": {}, "workers": where})
     analysis_files: dict[str, str] = {}
+    side = ThreadPoolExecutor(1, thread_name_prefix="rivercal-analysis")
+    pending = None
     if SENSITIVITY in suites:
         progress.stage(f"initial analysis: sensitivity and identifiability of {', '.join(parameters)}")
-        done.analysis = initial_analysis(model, list(parameters), window or "moderate", workers=workers)
-        analysis_files = write_initial_analysis(done.analysis, out, model.name)
-        done.summary[SENSITIVITY] = _analysis_summary(done.analysis, analysis_files)
+        if isinstance(workers, DaskCluster):  # a cluster takes the analysis and the scenarios at once
+            pending = side.submit(initial_analysis, model, list(parameters), window or "moderate", workers=workers)
+        else:  # one local pool at a time
+            done.analysis = initial_analysis(model, list(parameters), window or "moderate", workers=workers)
     if scenarios:
         total = len(scenarios)
         finished: list[Any] = []
@@ -94,6 +101,12 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
         for name in suites:
             if name in SCENARIO_SUITES:
                 done.suites[name] = [r for r in results if r.suite == name]
+    if pending is not None:
+        done.analysis = pending.result()
+    if done.analysis is not None:
+        analysis_files = write_initial_analysis(done.analysis, out, model.name)
+        done.summary[SENSITIVITY] = _analysis_summary(done.analysis, analysis_files)
+    side.shutdown()
     files_by_suite = {}
     for name, results in done.suites.items():
         progress.stage(f"{name}: tables and figures")
@@ -103,10 +116,10 @@ def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], para
     progress.stage("writing the report")
     report = write_report(out, case=model.name, command=command, suites=done.suites, files=files_by_suite,
                           analysis=done.analysis, analysis_files=analysis_files, wall_s=done.summary["wall_s"],
-                          workers=workers, complete=complete)
+                          workers=where, complete=complete)
     done.summary["targets"] = [{"target": t, "measured": row["measured"], "met": row["met"]}
                                for t, row in targets(done.suites, wall_s=done.summary["wall_s"], complete=complete,
-                                                     workers=workers).iterrows()]
+                                                     workers=where).iterrows()]
     done.summary["report"] = str(report)
     done.summary = jsonable(done.summary)
     (out / "summary.json").write_text(json.dumps(done.summary, indent=2) + "\n", encoding="utf-8")

@@ -1,10 +1,4 @@
-"""Evaluating batches of parameter vectors, serially or on a pool of worker processes.
-
-The optimisers of :mod:`rivercal.optimise` hand independent points (DuD's p + 1 initial runs, finite-
-difference Jacobians, SCE-UA complexes, grid and GLUE samples) to a ``batch`` callable.
-:class:`Evaluator` is that callable: with one worker it maps the function in this process; with more it
-runs a :class:`concurrent.futures.ProcessPoolExecutor` whose workers each hold their own copy of the
-function — for a calibration problem, their own model and engine state — so runs never share state.
+"""The local pool of worker processes behind :class:`rivercal.evaluate.Evaluator`.
 
 On Linux the workers are forked from this process after the problem is built, so they inherit the
 compiled model without pickling it or recompiling; elsewhere they are spawned and receive the function
@@ -24,16 +18,15 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from typing import Any
 
-import numpy as np
-
-__all__ = ["Evaluator", "default_workers", "end_with_parent", "process_pool"]
+__all__ = ["call_installed", "default_workers", "end_with_parent", "install", "process_pool"]
 
 log = logging.getLogger(__name__)
 
-_WORKER_FUN: Callable[[np.ndarray], np.ndarray] | None = None
+_WORKER_OBJ: Any = None
 #: prctl(2) option: the signal this process gets when the thread that created it ends (Linux).
 _PR_SET_PDEATHSIG = 1
 
@@ -109,13 +102,15 @@ def process_pool(workers: int, initializer: Callable[..., None] | None = None,
                                initializer=_start_worker, initargs=(main, initializer, initargs))
 
 
-def _init_worker(fun: Callable[[np.ndarray], np.ndarray]) -> None:
-    global _WORKER_FUN
-    _WORKER_FUN = fun
+def install(obj: Any) -> None:
+    """Initialiser of a pool worker: the object its tasks work on (inherited at fork, or unpickled once)."""
+    global _WORKER_OBJ
+    _WORKER_OBJ = obj
 
 
-def _call(x: np.ndarray) -> np.ndarray:
-    return _WORKER_FUN(x)  # type: ignore[misc]
+def call_installed(fn: Callable[..., Any], *args: Any) -> Any:
+    """A pool task: ``fn(obj, *args)`` with the installed object."""
+    return fn(_WORKER_OBJ, *args)
 
 
 def default_workers() -> int:
@@ -126,52 +121,3 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-class Evaluator:
-    """A ``batch(list_of_x) -> list_of_results`` callable over ``fun``, serial or parallel.
-
-    Parameters
-    ----------
-    fun
-        The function of one parameter vector (e.g. ``CalibrationProblem.residuals``); picklable when
-        workers are spawned (not on Linux).
-    workers
-        Number of worker processes; None uses :func:`default_workers`, 1 evaluates in this process.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> with Evaluator(np.square, workers=1) as batch:
-    ...     batch([np.array([2.0]), np.array([3.0])])
-    [array([4.]), array([9.])]
-    """
-
-    def __init__(self, fun: Callable[[np.ndarray], np.ndarray], workers: int | None = None):
-        self.fun = fun
-        self.workers = default_workers() if workers is None else int(workers)
-        if self.workers < 1:
-            raise ValueError(f"workers must be at least 1, got {workers}")
-        self._pool: ProcessPoolExecutor | None = None
-
-    def _ensure_pool(self) -> ProcessPoolExecutor:
-        if self._pool is None:
-            self._pool = process_pool(self.workers, _init_worker, (self.fun,))
-        return self._pool
-
-    def __call__(self, xs: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """Evaluate ``fun`` at every point, in order; parallel when there are several points and workers."""
-        xs = [np.asarray(x, dtype=float) for x in xs]
-        if self.workers == 1 or len(xs) <= 1:
-            return [self.fun(x) for x in xs]
-        return list(self._ensure_pool().map(_call, xs))
-
-    def close(self) -> None:
-        """Stop the worker processes."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
-
-    def __enter__(self) -> Evaluator:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()

@@ -1,0 +1,201 @@
+"""Evaluating batches of parameter vectors: in this process, on a pool of local workers, or on a Dask cluster.
+
+The optimisers of :mod:`rivercal.optimise` hand independent points (DuD's p + 1 initial runs, finite-
+difference Jacobians, SCE-UA complexes, grid and GLUE samples) to a ``batch`` callable.
+:class:`Evaluator` is that callable. Where it runs is its ``workers``:
+
+- ``1``: in this process;
+- ``N > 1`` (default: the cores of this machine): a pool of N worker processes
+  (:func:`process_pool`) whose workers each hold their own copy of the function — for a calibration
+  problem, their own model and engine state — so runs never share state. On Linux they are forked after
+  the problem is built and inherit it without pickling; they end with this process, however it ends;
+- a :class:`DaskCluster` (``DaskCluster("local:4")``, ``DaskCluster("tcp://scheduler:8786")``): the
+  function goes to each Dask worker once (not once per evaluation) and the points run as Dask tasks;
+  the scheduler re-runs the points of a worker that is lost.
+
+Either way the results come back in the order of the points, and an exception raised by a run (a diverged
+run under the ``raise`` failure policy) reaches the caller unchanged; budgets and deadlines are the
+optimiser's (:mod:`rivercal.optimise`), checked between batches, whatever runs the batches.
+:meth:`Evaluator.as_completed` yields results as they finish.
+
+:class:`Tasks` is the same machinery for whole jobs over one shared object, e.g. every calibration of a
+twin suite over one model: all of them are submitted at once, so that a cluster stays busy.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import as_completed as _as_completed
+from typing import Any
+
+import numpy as np
+
+from rivercal.evaluate._dask import ClusterError, DaskCluster
+from rivercal.evaluate._pool import call_installed, default_workers, end_with_parent, install, process_pool
+
+__all__ = ["ClusterError", "DaskCluster", "Evaluator", "Tasks", "Workers", "as_completed", "default_workers",
+           "describe_workers", "end_with_parent", "process_pool"]
+
+log = logging.getLogger(__name__)
+
+#: Where work runs: a number of local processes (None: all cores; 1: this process) or a Dask cluster.
+Workers = int | DaskCluster | None
+
+as_completed = _as_completed
+
+
+def describe_workers(workers: Workers) -> int | str:
+    """``workers`` for a summary: the number of local processes, or the Dask address."""
+    if isinstance(workers, DaskCluster):
+        return f"dask {workers.address} ({workers.n_workers} workers)"
+    return default_workers() if workers is None else int(workers)
+
+
+class Tasks:
+    """Run ``fn(obj, *args)`` jobs over one object on workers: this process, local processes or a Dask cluster.
+
+    Parameters
+    ----------
+    obj
+        The object every job works on (a model, a calibration problem); it goes to each worker once.
+    workers
+        See :data:`Workers`.
+    """
+
+    def __init__(self, obj: Any, workers: Workers = None):
+        self.obj = obj
+        self.cluster = workers if isinstance(workers, DaskCluster) else None
+        if self.cluster is None:
+            self.workers = default_workers() if workers is None else int(workers)
+            if self.workers < 1:
+                raise ValueError(f"workers must be at least 1, got {workers}")
+        else:
+            self.workers = self.cluster.n_workers
+        self._pool: ProcessPoolExecutor | None = None
+        self._token: str | None = None
+
+    @property
+    def parallel(self) -> bool:
+        """Whether jobs run outside this process."""
+        return self.cluster is not None or self.workers > 1
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> Future:
+        """Start ``fn(obj, *args)``; a :class:`concurrent.futures.Future` of its result.
+
+        ``fn`` must be a module-level function (it is pickled by reference). Without workers the job runs
+        now, in this process, and the future is done when this returns.
+        """
+        if self.cluster is not None:
+            if self._token is None:
+                self._token = self.cluster.install(self.obj)
+            return self.cluster.submit(self._token, fn, *args)
+        if self.workers > 1:
+            if self._pool is None:
+                self._pool = process_pool(self.workers, install, (self.obj,))
+            return self._pool.submit(call_installed, fn, *args)
+        future: Future = Future()
+        try:
+            future.set_result(fn(self.obj, *args))
+        except Exception as exc:  # handed to the caller through the future, as a pool does
+            future.set_exception(exc)
+        return future
+
+    def map(self, fn: Callable[..., Any], items: Sequence[Any]) -> list[Any]:
+        """``[fn(obj, item) for item in items]``, all submitted at once; the first failure is raised."""
+        futures = [self.submit(fn, item) for item in items]
+        try:
+            return [f.result() for f in futures]
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
+
+    def close(self) -> None:
+        """Stop the local workers, or remove the object from the cluster's workers."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        if self._token is not None and self.cluster is not None:
+            self.cluster.uninstall(self._token)
+            self._token = None
+
+    def __enter__(self) -> Tasks:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _call(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
+    return fun(x)
+
+
+class Evaluator:
+    """A ``batch(list_of_x) -> list_of_results`` callable over ``fun``: serial, local processes or Dask.
+
+    Parameters
+    ----------
+    fun
+        The function of one parameter vector (e.g. ``CalibrationProblem.residuals``); picklable when
+        workers are spawned (not on Linux) or on a Dask cluster.
+    workers
+        See :data:`Workers`: None uses :func:`default_workers`, 1 evaluates in this process, a
+        :class:`DaskCluster` its workers.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> with Evaluator(np.square, workers=1) as batch:
+    ...     batch([np.array([2.0]), np.array([3.0])])
+    [array([4.]), array([9.])]
+    """
+
+    def __init__(self, fun: Callable[[np.ndarray], np.ndarray], workers: Workers = None):
+        self.fun = fun
+        self._tasks = Tasks(fun, workers)
+        self.workers = self._tasks.workers
+        self.cluster = self._tasks.cluster
+
+    def as_completed(self, xs: Sequence[np.ndarray]) -> Iterator[tuple[int, np.ndarray]]:
+        """``(index, fun(xs[index]))`` as each evaluation finishes; the first failure is raised."""
+        points = [np.asarray(x, dtype=float) for x in xs]
+        if self.cluster is None and (self.workers == 1 or len(points) <= 1):
+            for i, x in enumerate(points):
+                yield i, self.fun(x)
+            return
+        futures = {self._tasks.submit(_call, x): i for i, x in enumerate(points)}
+        try:
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+        finally:
+            for future in futures:
+                future.cancel()
+
+    def __call__(self, xs: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """Evaluate ``fun`` at every point; the results in the order of the points.
+
+        If runs fail, the error raised is that of the first failed point in the order of the points, as
+        in a serial loop (not whichever failure finished first), so a failure reads the same wherever
+        the batch ran.
+        """
+        points = [np.asarray(x, dtype=float) for x in xs]
+        if self.cluster is None and (self.workers == 1 or len(points) <= 1):
+            return [self.fun(x) for x in points]
+        futures = [self._tasks.submit(_call, x) for x in points]
+        try:
+            return [future.result() for future in futures]
+        finally:
+            for future in futures:
+                future.cancel()
+
+    def close(self) -> None:
+        """Stop the worker processes (or remove the function from the Dask workers)."""
+        self._tasks.close()
+
+    def __enter__(self) -> Evaluator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

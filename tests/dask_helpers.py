@@ -1,0 +1,52 @@
+"""Functions the Dask tests send to the workers (importable there: the workers get this sys.path)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+#: Per worker process: how often a Counted object was unpickled there.
+LOADS: dict[str, int] = {}
+
+
+class Counted:
+    """An object that counts, in the process that unpickles it, how often that happened (by its label)."""
+
+    def __init__(self, label: str, size: int = 0):
+        self.label = label
+        self.ballast = np.zeros(size)  # a model-sized payload
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        LOADS[self.label] = LOADS.get(self.label, 0) + 1
+
+
+class Scaled:
+    """fun(x) = factor * x, with a Counted model it refers to."""
+
+    def __init__(self, model: Counted, factor: float):
+        self.model = model
+        self.factor = factor
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.factor * np.asarray(x, dtype=float)
+
+
+def loads(label: str) -> int:
+    """On a worker: how often ``label`` was unpickled in this process."""
+    return LOADS.get(label, 0)
+
+
+class KillOnce:
+    """fun(x) = 2x, but the first call anywhere (marker file absent) ends its worker process abruptly."""
+
+    def __init__(self, marker: Path):
+        self.marker = Path(marker)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        if float(x[0]) == 3.0 and not self.marker.exists():
+            self.marker.write_text(str(os.getpid()))
+            os._exit(1)  # the worker dies mid-task, as on a crash or a lost machine
+        return 2.0 * np.asarray(x, dtype=float)
