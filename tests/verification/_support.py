@@ -15,10 +15,12 @@ import numpy as np
 import pandas as pd
 
 from rivercal.case import case_from_dict
-from rivercal.engine import Simulator
+from rivercal.engine import SimulationResult, Simulator
 
 G = 9.81
 START = pd.Timestamp("2020-01-01T00:00:00Z")
+#: Relative closure of the volume balance that :func:`assert_balance_closes` demands (round-off).
+BALANCE_TOL = 1e-6
 
 
 def case_dict(
@@ -107,3 +109,23 @@ def swashes_table(*args: int, cells: int) -> tuple[np.ndarray, dict[str, float]]
         if match:
             header[key] = float(match.group(1))
     return table, header
+
+
+def assert_balance_closes(result: SimulationResult, sim: Simulator) -> None:
+    """The volume balance of a run with snapshots closes to round-off (|residual| <= BALANCE_TOL x throughput).
+
+    Also: every series and level is finite, no level stands 10 m above its bed, and the water a point lacks
+    below its bed (its minimum storage area extends there) stays negligible.
+    """
+    bal = result.balance
+    assert bal.throughput > 0.0
+    assert abs(bal.residual) <= BALANCE_TOL * bal.throughput, f"relative balance error {bal.relative_error:.3g}"
+    assert np.isfinite(result.series.to_numpy()).all()
+    assert np.isfinite(result.levels.to_numpy()).all()
+    levels = result.levels.to_numpy()
+    bed = sim.compiled.arrays.hp_bed
+    assert (levels < bed + 10.0).all()
+    # A point may be drawn a little below its bed (the minimum storage area extends below it, so that
+    # the level matrix stays positive definite); the water it lacks there must stay negligible.
+    deficit = sim.compiled.arrays.hp_amin * np.maximum(bed - levels, 0.0)
+    assert deficit.sum(axis=1).max() <= BALANCE_TOL * bal.throughput

@@ -20,9 +20,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.verification._support import START, case_dict, simulator, write_series
-
-BALANCE_TOL = 1e-6
+from tests.verification._support import START, assert_balance_closes, case_dict, simulator, write_series
 
 
 def _hourly(hours: float) -> pd.DatetimeIndex:
@@ -55,21 +53,6 @@ PROFILES = [
 ]
 
 
-def _assert_balance_closes(result, sim) -> None:
-    bal = result.balance
-    assert bal.throughput > 0.0
-    assert abs(bal.residual) <= BALANCE_TOL * bal.throughput, f"relative balance error {bal.relative_error:.3g}"
-    assert np.isfinite(result.series.to_numpy()).all()
-    assert np.isfinite(result.levels.to_numpy()).all()
-    levels = result.levels.to_numpy()
-    bed = sim.compiled.arrays.hp_bed
-    assert (levels < bed + 10.0).all()
-    # A point may be drawn a little below its bed (the minimum storage area extends below it, so that
-    # the level matrix stays positive definite); the water it lacks there must stay negligible.
-    deficit = sim.compiled.arrays.hp_amin * np.maximum(bed - levels, 0.0)
-    assert deficit.sum(axis=1).max() <= BALANCE_TOL * bal.throughput
-
-
 def test_y_junction_conserves_mass(tmp_path: Path) -> None:
     hours = 48.0
     csv = _forcing_csv(tmp_path, hours)
@@ -92,7 +75,7 @@ def test_y_junction_conserves_mass(tmp_path: Path) -> None:
     )
     sim = simulator(data, tmp_path)
     result, _ = sim.simulate(snapshots=True)
-    _assert_balance_closes(result, sim)
+    assert_balance_closes(result, sim)
     # the boundary accounting against the forcing itself (step means of the linearly interpolated series)
     forcing = pd.read_csv(tmp_path / csv)
     assert result.balance.boundaries["Qa"] == pytest.approx(3600.0 * np.trapezoid(forcing["flood"]), rel=1e-9)
@@ -130,7 +113,7 @@ def test_looped_network_conserves_mass(tmp_path: Path) -> None:
     sim = simulator(data, tmp_path)
     assert sim.compiled.arrays.sv_nedge > sim.compiled.n_links  # loops: the factorisation has fill-in
     result, _ = sim.simulate(snapshots=True)
-    _assert_balance_closes(result, sim)
+    assert_balance_closes(result, sim)
     # the weir arm carries water part of the time and none (head water below the crest) at other times
     weir_q = result.discharges["weir:WP"].to_numpy()
     assert weir_q.max() > 0.5 and (weir_q < 1e-9).any()
@@ -176,7 +159,7 @@ def test_week_with_laterals_weirs_and_a_drying_branch(tmp_path: Path) -> None:
     )
     sim = simulator(data, tmp_path)
     result, state = sim.simulate(snapshots=True)
-    _assert_balance_closes(result, sim)
+    assert_balance_closes(result, sim)
     # the laterals: two rain pulses in, the full extraction out (the outlet reach never runs dry)
     forcing = pd.read_csv(tmp_path / csv)
     expected = 2.0 * 3600.0 * np.trapezoid(forcing["rain"]) - 1.5 * hours * 3600.0

@@ -36,10 +36,16 @@ def channel_coefficients(net, work, z, u, q, dt, min_depth):
     """Flux area A (m²), f (1/s) and r (m/s) of every channel link from the state at time n.
 
     Upwind flow area and implicit friction; upwind advection from the velocity of the link that
-    feeds the upwind point (inflow-weighted over all feeding links at a junction; none across
-    structures or from a boundary); the lateral-inflow momentum sink u q_lat / A with q_lat the
-    mean lateral inflow per unit length (m²/s) of the link's two points. The friction value of each
-    link is ``work.lfric`` (set by :func:`run` from the run's parameters).
+    feeds the upwind point (none across structures or from a boundary); the lateral-inflow momentum
+    sink u q_lat / A with q_lat the mean lateral inflow per unit length (m²/s) of the link's two
+    points. The friction value of each link is ``work.lfric`` (set by :func:`.timeloop.run` from the
+    run's parameters).
+
+    At a junction a link leaving the upwind point takes its own share of what arrives there: the
+    inflow times its share of the outflow, |q_L| / Σ outflows, at the inflow-weighted velocity of the
+    feeding links. The momentum arriving at a junction is so divided among the links that leave it
+    (their shares add up to one); a link that carries nothing away, such as a dead-end branch at rest,
+    takes none, and rests at the junction's level.
 
     Four passes: :func:`_link_geometry` looks up the flow geometry at the upwind depth (a gather from
     the tables); :func:`_momentum_simple` gathers the momentum terms of the links inside a branch, whose
@@ -47,7 +53,7 @@ def channel_coefficients(net, work, z, u, q, dt, min_depth):
     reads contiguously and vectorises; :func:`_momentum_other` does the same for the other channel links
     (at junctions, structures and branch ends); :func:`_link_newton` solves each link's momentum equation.
     The coefficients written for structure and pump links are replaced before use, by
-    :func:`switch_pumps` and :func:`structure_coefficients`.
+    :func:`.structures.switch_pumps` and :func:`.structures.structure_coefficients`.
     """
     _link_geometry(net, work, z, u, min_depth)
     _momentum_simple(net, work, z, u, q, dt)
@@ -169,23 +175,25 @@ def _momentum_other(net, work, link, z, u, q, dt):
             if sm * q[mu] > 0.0:
                 qin = sm * q[mu]
                 uin = sm * u[mu]
-        elif m == NB_JUNCTION:  # junction: inflow-weighted velocity of the feeding links
+        elif m == NB_JUNCTION:  # junction: the link's share of the inflow, at the inflow-weighted velocity
             quin = 0.0
+            qout = 0.0
             blocked = False
             for c in range(nl_ptr[kup], nl_ptr[kup + np.uint64(1)]):
                 j = nl_link[c]
-                if j == link:
-                    continue
                 qj = nl_sign[c] * q[j]
-                if qj > 0.0:
+                if qj < 0.0:
+                    qout -= qj
+                elif qj > 0.0 and j != link:
                     if lk_type[j] != LINK_CHANNEL:
                         blocked = True
                     qin += qj
                     quin += qj * nl_sign[c] * u[j]
-            if blocked:
+            if blocked or qout <= 0.0:
                 qin = 0.0
             elif qin > 0.0:
                 uin = quin / qin
+                qin *= math.fabs(q[link]) / qout
         if qin > 0.0:
             if uin < ul:
                 uc = 0.5 * (ul + uin)  # contraction: energy-head conservative
