@@ -58,7 +58,10 @@ def online(
         "--max-change", help="Largest change per cycle, e.g. 'FA=5,Wd=0.1' (default: none).")] = None,
     alert_k: Annotated[float, typer.Option("--alert-k", help="Alert when an estimate moves more than k σ.")] = 3.0,
     noise: Annotated[str, typer.Option(help="Twin noise of --scenario: none, white, gaussian or pink.")] = "none",
-    seed: Annotated[int, typer.Option(help="Seed of the twin noise (≥ 0).")] = 0,
+    seed: Annotated[int, typer.Option(help="Seed of the twin noise and the realism errors (≥ 0).")] = 0,
+    realism: Annotated[str | None, typer.Option(
+        help="Errors of the twin of --scenario: ideal, noisy, realistic, or a TOML file of error models "
+             "(docs/realism.md).")] = None,
     max_cycles: Annotated[int | None, typer.Option("--max-cycles", help="Stop after this many cycles.")] = None,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
     dask: DaskOpt = None,
@@ -86,6 +89,19 @@ def online(
     check_choice(noise, "--noise", NOISE_MODELS)
     if noise != "none" and scenario is None:
         raise OptionError("--noise applies to the twin observations of --scenario only", option="--noise")
+    level = None
+    if realism is not None:
+        from rivercal.twin.realism import get_realism
+
+        if scenario is None:
+            raise OptionError("--realism applies to the twin of --scenario only", option="--realism")
+        try:
+            level = get_realism(realism)
+        except ValueError as exc:
+            raise OptionError(f"--realism {realism}: {exc}", option="--realism") from None
+        if noise != "none" and not level.ideal:
+            raise OptionError(f"--noise {noise} and --realism {realism} both add observation errors; the realism "
+                              "level has its own sensor noise", option="--noise")
     if follow is not None and not follow.is_dir():
         raise OptionError(f"--follow {follow}: no such folder", option="--follow")
     check_number(poll, "--poll", low=0, low_open=True)
@@ -134,7 +150,7 @@ def online(
                               algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
                               workers=where)
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
-                             noise=noise, seed=seed, observations=files, follow=follow, poll=poll,
+                             noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter)
     if as_json:
         emit_json(summary)
@@ -216,7 +232,7 @@ def demo(
     online(case="dommel", date_from="2010-10-18", date_to="2010-11-15", db=db, scenario="PI-Fg", observations=[],
            follow=None, poll=10.0, run="demo-PI-Fg", params="FA,Wd", window="7D", cycle="1D", horizon="48h",
            warmup="24h", algorithm="dud", deadline=60.0, max_change=None, alert_k=3.0, noise="none", seed=0,
-           max_cycles=None, workers=workers, dask=None, out=out / "report", as_json=as_json, quiet=False)
+           realism=None, max_cycles=None, workers=workers, dask=None, out=out / "report", as_json=as_json, quiet=False)
 
 
 def report(

@@ -40,6 +40,8 @@ import pandas as pd
 from rivercal._time import utc
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
 from rivercal.twin.noise import NOISE_MODELS, add_noise
+from rivercal.twin.realism import REALISM_LEVELS, Realism, apply_sensor_errors, get_realism
+from rivercal.twin.truth_model import truth_model
 
 __all__ = [
     "ADJUSTABLE_WEIRS",
@@ -200,6 +202,11 @@ class PracticalTruth:
         Model quantities (targets → values) that differ from the model's defaults before and after the change.
     true_before, true_after
         True FA (m^(1/3)/s) and Wd (m) before and after the change, None where they do not exist.
+    realism
+        The realism level of the truth and the observations.
+    error_kinds
+        What each observed value is (``ok``, ``outlier``, ``gap``, ``drift``), same shape as the observed
+        series; None when not made.
     """
 
     scenario: PracticalScenario
@@ -214,7 +221,8 @@ class PracticalTruth:
     after: dict[str, float]
     true_before: dict[str, float | None]
     true_after: dict[str, float | None]
-
+    realism: Realism = field(default_factory=lambda: REALISM_LEVELS["ideal"])
+    error_kinds: pd.DataFrame | None = None
 
 
 def _on_grid(what: str, t: pd.Timestamp, origin: pd.Timestamp, interval: float) -> None:
@@ -235,7 +243,7 @@ def _legs(model_start: pd.Timestamp, start: pd.Timestamp, end: pd.Timestamp,
 def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, end: Any, *, noise: str = "none",
                     seed: int = 0, sigma: Mapping[str, float | None] | None = None,
                     series: Sequence[str] | None = None, output_interval: float = 3600.0,
-                    levels: bool = False) -> PracticalTruth:
+                    levels: bool = False, realism: str | Realism | None = None) -> PracticalTruth:
     """Run the truth of a practical scenario and make its observations.
 
     Parameters
@@ -249,7 +257,8 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         The period of the observations (UTC; naive times are taken as UTC). It must lie inside the
         model's period and on its output grid; it may lie entirely before or after the change.
     noise, seed
-        Noise model of :mod:`rivercal.twin.noise` and its seed (the same seed gives the same noise).
+        Noise model of :mod:`rivercal.twin.noise` and its seed (the same seed gives the same noise and the
+        same errors of ``realism``).
     sigma
         σ per quantity or series id for the observation weights (default
         :data:`~rivercal.observations.DEFAULT_SIGMA`: 0.025 m for levels, 0.1 m³/s for discharges).
@@ -259,6 +268,11 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         Interval of the truth and the observations, s (default hourly).
     levels
         Also return the levels at every calculation point (for the network maps of thesis Figs. 5-2 … 5-15).
+    realism
+        A realism level of :mod:`rivercal.twin.realism` (name, TOML file or :class:`Realism`): the truth runs
+        with its rainfall, runoff and structural errors (:func:`~rivercal.twin.truth_model.truth_model`) and
+        the observations carry its sensor errors. None or ``ideal``: the identical twin. It does not combine
+        with ``noise``.
 
     Returns
     -------
@@ -287,6 +301,10 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         scenario = PRACTICAL_SCENARIOS[scenario]
     if noise not in NOISE_MODELS:
         raise ValueError(f"unknown noise model {noise!r}; choose one of {', '.join(NOISE_MODELS)}")
+    level = get_realism(realism) if realism is not None else REALISM_LEVELS["ideal"]
+    if noise != "none" and not level.ideal:
+        raise ValueError(f"noise {noise!r} and realism {level.name!r} both add observation errors; choose one")
+    truth_of = truth_model(model, level, seed)
     start, end, change = utc(start), utc(end), utc(scenario.change_time)
     model_start, model_end = utc(model.start), utc(model.end)
     if not end > start:
@@ -311,7 +329,7 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     for a, b, after in _legs(model_start, start, end, change):
         keep = b > start
         extra = {"snapshots": True} if levels and keep else {}  # the embedded engine's full fields
-        result, state = model.simulate(values[after], a, b, state, output_interval=interval, **extra)
+        result, state = truth_of.simulate(values[after], a, b, state, output_interval=interval, **extra)
         if b == start:
             start_state = state
         if keep:
@@ -324,16 +342,21 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
 
     sigma = dict(sigma if sigma is not None else DEFAULT_SIGMA)
     rng = np.random.default_rng(seed)
-    source = (f"practical scenario {scenario.name} (change {change:%Y-%m-%d %H:%M} UTC), "
-              f"noise {noise} (seed {seed})")
+    errors = f"realism {level.name}" if not level.ideal else f"noise {noise}"
+    source = f"practical scenario {scenario.name} (change {change:%Y-%m-%d %H:%M} UTC), {errors} (seed {seed})"
+    frame = truth[ids]
+    kinds = pd.DataFrame("ok", index=frame.index, columns=frame.columns)
+    if level.sensor is not None:
+        frame, kinds = apply_sensor_errors(frame, level.sensor, seed, model_start, interval)
     observed = []
     for sid in ids:
         quantity = sid.rpartition(".")[2]
-        noisy = add_noise(truth[sid].to_numpy(), quantity, noise, rng)
+        noisy = add_noise(frame[sid].to_numpy(), quantity, noise, rng)
         observed.append(ObservationSeries.from_series(pd.Series(noisy, index=truth.index), id=sid,
                                                       sigma=sigma.get(sid, sigma.get(quantity)), source=source))
     return PracticalTruth(
         scenario=scenario, observations=ObservationSet(tuple(observed)), series=truth, levels=level_frame,
         state=start_state, start=start, end=end, change_time=change, before=values[False], after=values[True],
-        true_before=dict(scenario.true_before), true_after=dict(scenario.true_after),
+        true_before=dict(scenario.true_before), true_after=dict(scenario.true_after), realism=level,
+        error_kinds=kinds,
     )

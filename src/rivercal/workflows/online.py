@@ -42,7 +42,7 @@ def read_observation_file(path: str | Path) -> Any:
 
 
 def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Timestamp, last: pd.Timestamp, *,
-               scenario: str | None = None, noise: str = "none", seed: int = 0,
+               scenario: str | None = None, noise: str = "none", seed: int = 0, realism: Any = None,
                observations: Sequence[tuple[str, Any]] = (), follow: str | Path | None = None, poll: float = 10.0,
                max_cycles: int | None = None, report: str | Path | None = None,
                progress: Progress = NO_PROGRESS) -> dict[str, Any]:
@@ -62,6 +62,9 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         Issue times (UTC) of the first and the last cycle.
     scenario, noise, seed
         Twin observations of a practical scenario of thesis chapter 5, with noise.
+    realism
+        Realism level of the twin (:mod:`rivercal.twin.realism`: a name, a TOML file or a
+        :class:`~rivercal.twin.realism.Realism`); None: the identical twin (with ``noise``).
     observations
         (source name, :class:`~rivercal.observations.ObservationSet`) pairs to ingest.
     follow, poll
@@ -79,6 +82,13 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
 
     t_start = time.perf_counter()
     meta: dict[str, Any] = {"scenario": scenario, "noise": noise, "seed": seed} if scenario else {}
+    level = None
+    if scenario and realism is not None:
+        from rivercal.twin.realism import get_realism
+
+        level = get_realism(realism)
+        if not level.ideal:  # an ideal level is the identical twin: its runs keep the meta of before
+            meta["realism"] = level.summary()
     if not is_url(db):
         Path(db).parent.mkdir(parents=True, exist_ok=True)
     from rivercal.evaluate import DaskCluster
@@ -92,7 +102,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
 
             progress.stage(f"{scenario}: running the truth")
             truth = practical_truth(model, scenario, *service.data_period(last), noise=noise, seed=seed,
-                                    series=service.series)
+                                    series=service.series, realism=level)
             store.ingest(truth.observations, source=f"twin:{scenario}")
         for source, obs in observations:
             store.ingest(obs, source=source)

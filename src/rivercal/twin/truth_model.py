@@ -1,0 +1,171 @@
+"""The truth of a twin experiment under a realism level: rainfall, runoff-parameter and structural errors.
+
+:func:`truth_model` returns the model itself for a level that leaves the truth alone (``ideal``,
+``noisy``), and otherwise a :class:`PerturbedTruth`: the model's case run on the embedded engine with
+
+- the lateral inflows of the rainfall-runoff model fed with the measured rain times one factor per rain
+  event (:func:`~rivercal.twin.realism.event_factors`) and with rainfall-runoff parameters times a
+  factor per catchment and parameter;
+- a finer grid (every branch's ``dx`` times ``grid_factor``) and an own friction per branch: the
+  global value (or the branch's own) times a lognormal factor f_b, normalised so that the
+  length-weighted mean of f_b is 1.
+
+The truth takes the model's quantities: ``friction:global = v`` sets every branch that inherits the
+global friction in the model to v · f_b, ``friction:branch:<id> = v`` sets that branch to v · f_b, crests
+pass unchanged. So a scenario written against the model (``friction:global`` 16 → 25) changes the
+truth alike, and the truth's mean friction is the value the scenario sets.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rivercal.twin.realism import Realism, event_factors, generator, get_realism
+
+__all__ = ["PerturbedTruth", "truth_model"]
+
+log = logging.getLogger(__name__)
+
+
+def truth_model(model: Any, realism: str | Realism, seed: int = 0) -> Any:
+    """The truth of a twin of ``model`` under ``realism`` (the model itself when the level leaves the truth alone).
+
+    Raises
+    ------
+    ValueError
+        When the level changes the truth but the model is not the embedded engine of a case (rainfall,
+        runoff and structural errors need the case's network and catchments).
+    """
+    realism = get_realism(realism)
+    if not realism.changes_truth:
+        return model
+    if getattr(model, "case", None) is None or not hasattr(model, "compiled"):
+        raise ValueError(f"realism {realism.name!r} changes the truth's rain, runoff or structure, which needs a case "
+                         f"on the embedded engine; model {getattr(model, 'name', '?')!r} is not one")
+    return PerturbedTruth(model, realism, seed)
+
+
+class PerturbedTruth:
+    """The model's case with the rainfall, runoff and structural errors of a realism level (module docstring).
+
+    Parameters
+    ----------
+    model
+        An embedded model (:class:`~rivercal.models.EmbeddedModel`).
+    realism
+        The realism level (its ``rain``, ``runoff`` and ``structure`` tables).
+    seed
+        Seed of the errors.
+
+    Attributes
+    ----------
+    truth
+        The embedded model of the perturbed case.
+    branch_factors
+        f_b per branch id (-): the truth's friction of a branch over the model's (1 without structural error).
+    rain_factor
+        The factor on the measured rain per hour (-), or None.
+    runoff_factors
+        Per catchment, the factors on its rainfall-runoff parameters (-).
+    """
+
+    def __init__(self, model: Any, realism: Realism, seed: int = 0):
+        from rivercal.case.load import case_from_dict
+        from rivercal.hydrology.catchments import catchment_forcing, hourly_weather
+        from rivercal.models.embedded import EmbeddedModel
+
+        self.model = model
+        self.realism = realism
+        self.seed = int(seed)
+        case = model.case
+        spec = case.spec
+        self.branch_factors = {b.id: 1.0 for b in spec.branches}
+        data = spec.model_dump(mode="json", exclude_unset=True, by_alias=True)
+        if realism.structure is not None:
+            s = realism.structure
+            rng = generator(seed, "friction")
+            raw = np.exp(s.friction_sigma_ln * rng.standard_normal(len(spec.branches)))
+            lengths = np.array([b.length for b in spec.branches], dtype=float)
+            raw /= float(np.sum(raw * lengths) / np.sum(lengths))
+            self.branch_factors = {b.id: float(f) for b, f in zip(spec.branches, raw, strict=True)}
+            glob = spec.friction
+            for b, item in zip(spec.branches, data["branches"], strict=True):
+                if b.points is None:
+                    item["dx"] = float(b.dx) * s.grid_factor
+                base = b.friction if b.friction is not None else glob
+                item["friction"] = {"type": base.type, "value": float(base.value) * self.branch_factors[b.id]}
+        perturbed = case_from_dict(data, case.root)
+        self.rain_factor = None
+        self.runoff_factors: dict[str, dict[str, float]] = {}
+        if realism.rain is not None and spec.catchments:
+            self.rain_factor = event_factors(hourly_weather(case)["P"], realism.rain, seed)
+        if realism.runoff is not None and spec.catchments:
+            r = realism.runoff
+            for c in spec.catchments:
+                rng = generator(seed, "runoff", c.id)
+                self.runoff_factors[c.id] = {p: float(np.exp(r.sigma_ln * rng.standard_normal())) for p in r.parameters}
+        forcing = catchment_forcing(perturbed, rain_factor=self.rain_factor, parameter_factors=self.runoff_factors)
+        self.truth = EmbeddedModel(perturbed, forcing=forcing)
+        self._inherit = list(model.compiled.branch_inherits)
+        log.info("perturbed truth of %s (%s, seed %d): %d points (model %d)", model.name, realism.name, seed,
+                 self.truth.compiled.n_hpoints, model.compiled.n_hpoints)
+
+    # -- what the twin machinery asks of a model --------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        """The model's name with the realism level."""
+        return f"{self.model.name} (truth, {self.realism.name})"
+
+    @property
+    def start(self) -> pd.Timestamp:
+        """Start of the period (UTC)."""
+        return self.truth.start
+
+    @property
+    def end(self) -> pd.Timestamp:
+        """End of the period (UTC)."""
+        return self.truth.end
+
+    @property
+    def dt(self) -> float:
+        """Time step, s."""
+        return float(self.truth.dt)
+
+    @property
+    def output_interval(self) -> float:
+        """Default output interval, s."""
+        return float(self.truth.output_interval)
+
+    @property
+    def observables(self) -> list[str]:
+        """The simulated series (the model's stations)."""
+        return list(self.truth.observables)
+
+    def default_parameters(self) -> dict[str, float]:
+        """The *model's* defaults: scenarios are written against the model's quantities."""
+        return self.model.default_parameters()
+
+    def quantities_of(self, parameters: Mapping[str, float]) -> dict[str, float]:
+        """The truth's own quantities for the model's (module docstring)."""
+        out: dict[str, float] = {}
+        branch = {}
+        for key, value in parameters.items():
+            if key == "friction:global":
+                for b in self._inherit:
+                    out[f"friction:branch:{b}"] = float(value) * self.branch_factors[b]
+            elif key.startswith("friction:branch:"):
+                branch[key] = float(value) * self.branch_factors[key.removeprefix("friction:branch:")]
+            else:
+                out[key] = float(value)
+        return {**out, **branch}
+
+    def simulate(self, parameters: Mapping[str, float] | None = None, start: Any = None, end: Any = None,
+                 state: Any = None, **options: Any) -> tuple[Any, Any]:
+        """Run the truth with the model's quantities (see :meth:`quantities_of`)."""
+        return self.truth.simulate(self.quantities_of(parameters or {}), start, end, state, **options)
