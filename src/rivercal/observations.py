@@ -19,7 +19,8 @@ import pandas as pd
 
 from rivercal._time import utc_index
 
-__all__ = ["CF_VARIABLES", "DEFAULT_SIGMA", "CFVariable", "ObservationSeries", "ObservationSet"]
+__all__ = ["CF_VARIABLES", "DEFAULT_SIGMA", "CFVariable", "ObservationSeries", "ObservationSet", "ScreenRule",
+           "screen_outliers"]
 
 #: Default standard deviations by quantity: ±2.5 cm for levels and ±0.1 m³/s for discharges, the noise
 #: amplitudes of the reference study's twin experiments (thesis §4-2-3).
@@ -251,3 +252,91 @@ def _period(times: pd.DatetimeIndex) -> str:
     if not len(times):
         return ""
     return f" {times.min():%Y-%m-%d %H:%M} … {times.max():%Y-%m-%d %H:%M} UTC"
+
+# -- screening ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ScreenRule:
+    """How ingestion finds spikes in a series: a Hampel filter over a moving time window.
+
+    A value is an outlier when it differs from the median of the values within ``half_window_h`` of it
+    (itself included) by more than max(``k`` · 1.4826 · MAD, floor), MAD being the median absolute
+    deviation from that median. The floor keeps the smooth rise and fall of a flood wave, whose MAD is
+    small, from being flagged: ``level_floor_m`` for levels, and for discharges the larger of
+    ``discharge_floor`` (m³/s) and ``discharge_floor_rel`` times the median. A value with fewer than
+    ``min_values`` values in its window (itself included) is not judged.
+
+    Attributes
+    ----------
+    half_window_h
+        Half width of the window, h.
+    k
+        Multiple of the robust standard deviation 1.4826 · MAD, -.
+    level_floor_m, discharge_floor, discharge_floor_rel
+        Smallest deviation that counts, m, m³/s, share of the median.
+    min_values
+        Fewest values in a window to judge its middle one.
+    """
+
+    half_window_h: float = 3.0
+    k: float = 5.0
+    level_floor_m: float = 0.08
+    discharge_floor: float = 0.05
+    discharge_floor_rel: float = 0.3
+    min_values: int = 5
+
+    def __post_init__(self) -> None:
+        if not (self.half_window_h > 0 and self.k > 0 and self.min_values >= 3):
+            raise ValueError("screen rule: half_window_h and k must be positive and min_values at least 3")
+        if min(self.level_floor_m, self.discharge_floor, self.discharge_floor_rel) < 0:
+            raise ValueError("screen rule: the floors must not be negative")
+
+
+def screen_outliers(times: pd.DatetimeIndex | np.ndarray, values: np.ndarray, quantity: str,
+                    rule: ScreenRule | None = None) -> np.ndarray:
+    """Which values of a series are spikes (:class:`ScreenRule`); a boolean mask like ``values``.
+
+    Parameters
+    ----------
+    times
+        Increasing times (UTC DatetimeIndex, or int64 seconds).
+    values
+        The values, m AD (``h``, ``h_up``, ``h_down``) or m³/s (``Q``); finite.
+    quantity
+        The quantity of the series (sets the floor).
+    rule
+        The rule (default :class:`ScreenRule`).
+
+    Examples
+    --------
+    >>> t = pd.date_range("2010-11-01", periods=9, freq="h", tz="UTC")
+    >>> v = np.array([1.00, 1.01, 1.02, 1.03, 1.54, 1.05, 1.06, 1.07, 1.08])
+    >>> screen_outliers(t, v, "h").nonzero()[0].tolist()
+    [4]
+    """
+    rule = rule or ScreenRule()
+    v = np.asarray(values, dtype=float)
+    if isinstance(times, pd.DatetimeIndex):
+        seconds = times.as_unit("s").asi8.astype(np.int64)
+    else:
+        seconds = np.asarray(times, dtype=np.int64)
+    n = v.size
+    out = np.zeros(n, dtype=bool)
+    if n < rule.min_values:
+        return out
+    half = round(rule.half_window_h * 3600)
+    lo = np.searchsorted(seconds, seconds - half, side="left")
+    hi = np.searchsorted(seconds, seconds + half, side="right")
+    for i in range(n):
+        if hi[i] - lo[i] < rule.min_values:
+            continue
+        window = v[lo[i]:hi[i]]
+        med = float(np.median(window))
+        mad = float(np.median(np.abs(window - med)))
+        if quantity == "Q":
+            floor = max(rule.discharge_floor, rule.discharge_floor_rel * abs(med))
+        else:
+            floor = rule.level_floor_m
+        out[i] = abs(v[i] - med) > max(rule.k * 1.4826 * mad, floor)
+    return out

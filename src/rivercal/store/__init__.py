@@ -5,7 +5,7 @@ in a PostgreSQL database that several services and readers share (:mod:`rivercal
 
 ``import rivercal`` does not import this package (it loads :mod:`sqlite3`); import it where needed::
 
-    from rivercal.store import Store, Schedule, CycleRecord, EstimateRecord, AlertRecord
+    from rivercal.store import Store, Schedule, CycleRecord, EstimateRecord, AlertRecord, TransitionRecord
 
 See :mod:`rivercal.store.sqlite` for the crash-safety design, :mod:`rivercal.store.schema` for the tables
 and their units, and :mod:`rivercal.store.export` for the CSV and NetCDF exports (functions over a store).
@@ -17,6 +17,7 @@ from rivercal.store.records import (
     CYCLE_STATUSES,
     FINAL_STATUSES,
     FORECAST_KINDS,
+    OBSERVATION_FLAGS,
     RUN_STATUSES,
     AlertRecord,
     CycleRecord,
@@ -28,6 +29,7 @@ from rivercal.store.records import (
     Schedule,
     StoreError,
     StoreVersionError,
+    TransitionRecord,
 )
 from rivercal.store.schema import SCHEMA_VERSION
 from rivercal.store.sqlite import Store, is_url
@@ -36,6 +38,7 @@ __all__ = [
     "CYCLE_STATUSES",
     "FINAL_STATUSES",
     "FORECAST_KINDS",
+    "OBSERVATION_FLAGS",
     "RUN_STATUSES",
     "SCHEMA_VERSION",
     "AlertRecord",
@@ -49,6 +52,7 @@ __all__ = [
     "Store",
     "StoreError",
     "StoreVersionError",
+    "TransitionRecord",
     "export_estimates_csv",
     "export_forecasts_csv",
     "is_url",

@@ -166,14 +166,15 @@ def forecast_rows(forecasts: Mapping[str, pd.DataFrame], cycle: int,
     return rows
 
 
-def resolve_sources(rows: pd.DataFrame, sources: Sequence[str] | None) -> pd.DataFrame:
+def resolve_sources(rows: pd.DataFrame, sources: Sequence[str] | None, keep: Sequence[str] = ()) -> pd.DataFrame:
     """One value per (series, time) from stored rows with columns series, time, source, value, ingested.
 
     With ``sources`` (in priority order) only those sources count and the first listed wins; without,
-    every source counts and the value ingested last wins.
+    every source counts and the value ingested last wins. ``keep`` names further columns to return.
     """
+    columns = ["series", "time", "value", *keep]
     if rows.empty:
-        return rows[["series", "time", "value"]]
+        return rows[columns]
     if sources is not None:
         rank = {s: i for i, s in enumerate(sources)}
         rows = rows[rows["source"].isin(rank)].assign(_rank=lambda f: f["source"].map(rank))
@@ -184,7 +185,7 @@ def resolve_sources(rows: pd.DataFrame, sources: Sequence[str] | None) -> pd.Dat
     rows = rows.drop_duplicates(["series", "time"], keep="first")
     if n > len(rows):
         log.debug("%d values at times another source also covers were set aside", n - len(rows))
-    return rows[["series", "time", "value"]].reset_index(drop=True)
+    return rows[columns].reset_index(drop=True)
 
 
 def frame(rows: Iterable[Sequence[Any]], columns: Sequence[str]) -> pd.DataFrame:

@@ -13,7 +13,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
+from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, ScreenRule, screen_outliers
 from rivercal.store import _frames as fr
 from rivercal.store._base import StoreBase
 from rivercal.store.records import IngestResult
@@ -27,12 +27,21 @@ class ObservationTables(StoreBase):
     """Queries over the observations table."""
 
     def ingest(self, observations: ObservationSet, source: str, *,
-               on_conflict: Literal["keep", "replace"] = "keep") -> IngestResult:
+               on_conflict: Literal["keep", "replace"] = "keep", screen: ScreenRule | None = None) -> IngestResult:
         """Store observations from ``source`` in one transaction; values already stored are not duplicated.
 
         A value whose (series, time, source) is stored already is a duplicate. If its value differs, it is
         a conflict: logged, and the stored value is kept (``on_conflict="keep"``) or replaced
         (``"replace"``, for a source that revises its data).
+
+        Every ingestion records the gaps of the ingested series around the new values (table
+        ``observation_gaps``: two consecutive values further apart than 1.5 times the series' usual
+        step). With ``screen`` the values are screened for spikes
+        (:func:`~rivercal.observations.screen_outliers`) together with the stored values of the same
+        series and source within the rule's window of them, and every flag there is set anew: a spike at
+        the end of one delivery is judged again when the next delivery brings the values after it.
+        Flagged values are stored with flag ``outlier`` and left out of :meth:`observations` and
+        :meth:`observation_table` unless asked for.
 
         Parameters
         ----------
@@ -40,11 +49,16 @@ class ObservationTables(StoreBase):
             Series ``"<station>.<quantity>"`` in m AD or m³/s at whole-second UTC times.
         source
             Where they come from (a feed name, a file name).
+        on_conflict
+            What to do with a stored value that differs.
+        screen
+            The spike screening rule; None: no screening (every value is ``ok``).
 
         Returns
         -------
         IngestResult
-            Unpacks as ``(inserted, duplicates)``; ``.conflicts`` counts differing duplicates.
+            Unpacks as ``(inserted, duplicates)``; ``.conflicts`` counts differing duplicates, ``.outliers``
+            and ``.gaps`` what the ingested series hold around the new values.
         """
         if not source:
             raise ValueError("ingest: source must not be empty")
@@ -52,7 +66,7 @@ class ObservationTables(StoreBase):
             raise ValueError(f"on_conflict must be 'keep' or 'replace', got {on_conflict!r}")
         prepared = [(s.id, fr.index_to_unix(s.times, f"observation series {s.id}"), np.asarray(s.values, float))
                     for s in observations if len(s)]
-        inserted = duplicates = conflicts = 0
+        inserted = duplicates = conflicts = outliers = gaps = 0
         stamp = fr.now_stamp()
         with self._transaction() as conn:
             for series, times, values in prepared:
@@ -83,24 +97,78 @@ class ObservationTables(StoreBase):
                 inserted += len(new)
                 duplicates += int(stored.sum())
                 conflicts += int(differ.sum())
-        log.info("%s: ingested from %s: %d values stored, %d duplicates (%d differing)", self.path, source,
-                 inserted, duplicates, conflicts)
-        return IngestResult(inserted, duplicates, conflicts)
+                if screen is not None:
+                    outliers += self._screen(conn, series, source, int(times.min()), int(times.max()), screen)
+                gaps += self._record_gaps(conn, series, source, int(times.min()), int(times.max()), stamp)
+        log.info("%s: ingested from %s: %d values stored, %d duplicates (%d differing), %d outliers flagged, %d gaps",
+                 self.path, source, inserted, duplicates, conflicts, outliers, gaps)
+        return IngestResult(inserted, duplicates, conflicts, outliers, gaps)
 
-    def _observation_rows(self, series_ids: Sequence[str], start: int | None, end: int | None) -> pd.DataFrame:
-        sql = (f"SELECT series, time, source, value, ingested FROM observations WHERE series IN "
+    @staticmethod
+    def _screen(conn: Any, series: str, source: str, first: int, last: int, rule: ScreenRule) -> int:
+        """Screen the stored values of a series and source around [first, last]; set their flags anew.
+
+        Values within one window of the new ones are judged (with the values within two windows as their
+        context); returns how many of the judged values are outliers.
+        """
+        half = round(rule.half_window_h * 3600)
+        rows = conn.execute("SELECT time, value, flag FROM observations WHERE series = ? AND source = ? AND time "
+                            "BETWEEN ? AND ? ORDER BY time",
+                            (series, source, first - 2 * half, last + 2 * half)).fetchall()
+        if not rows:
+            return 0
+        times = np.array([r[0] for r in rows], dtype=np.int64)
+        values = np.array([r[1] for r in rows], dtype=float)
+        was = np.array([r[2] == "outlier" for r in rows], dtype=bool)
+        now = screen_outliers(times, values, series.rpartition(".")[2], rule)
+        judged = (times >= first - half) & (times <= last + half)
+        change = judged & (now != was)
+        conn.executemany("UPDATE observations SET flag = ? WHERE series = ? AND source = ? AND time = ?",
+                         [("outlier" if now[i] else "ok", series, source, int(times[i]))
+                          for i in np.flatnonzero(change)])
+        return int((now & judged).sum())
+
+    @staticmethod
+    def _record_gaps(conn: Any, series: str, source: str, first: int, last: int, stamp: str) -> int:
+        """Store the gaps of a series and source from the value before ``first`` to the one after ``last``."""
+        before = conn.execute("SELECT max(time) FROM observations WHERE series = ? AND source = ? AND time < ?",
+                              (series, source, first)).fetchone()[0]
+        after = conn.execute("SELECT min(time) FROM observations WHERE series = ? AND source = ? AND time > ?",
+                             (series, source, last)).fetchone()[0]
+        lo = int(before) if before is not None else first
+        hi = int(after) if after is not None else last
+        times = np.array([r[0] for r in conn.execute(
+            "SELECT time FROM observations WHERE series = ? AND source = ? AND time BETWEEN ? AND ? ORDER BY time",
+            (series, source, lo, hi)).fetchall()], dtype=np.int64)
+        conn.execute("DELETE FROM observation_gaps WHERE series = ? AND source = ? AND gap_start >= ? AND "
+                     "gap_start < ?", (series, source, lo, hi))
+        if times.size < 3:
+            return 0
+        steps = np.diff(times)
+        usual = float(np.median(steps))
+        where = np.flatnonzero(steps > 1.5 * usual)
+        conn.executemany("INSERT INTO observation_gaps (series, source, gap_start, gap_end, ingested) "
+                         "VALUES (?, ?, ?, ?, ?)",
+                         [(series, source, int(times[i]), int(times[i + 1]), stamp) for i in where])
+        return int(where.size)
+
+    def _observation_rows(self, series_ids: Sequence[str], start: int | None, end: int | None,
+                          flagged: bool = False) -> pd.DataFrame:
+        sql = (f"SELECT series, time, source, value, ingested, flag FROM observations WHERE series IN "
                f"({', '.join('?' * len(series_ids))})")
         params: list[Any] = list(series_ids)
+        if not flagged:
+            sql += " AND flag = 'ok'"
         if start is not None:
             sql += " AND time >= ?"
             params.append(start)
         if end is not None:
             sql += " AND time <= ?"
             params.append(end)
-        return fr.frame(self._query(sql, params), ["series", "time", "source", "value", "ingested"])
+        return fr.frame(self._query(sql, params), ["series", "time", "source", "value", "ingested", "flag"])
 
     def observation_table(self, series_ids: Iterable[str], start: Any, end: Any, *,
-                          sources: Sequence[str] | None = None) -> pd.DataFrame:
+                          sources: Sequence[str] | None = None, flagged: bool = False) -> pd.DataFrame:
         """Stored observations of some series in [start, end] as a long table, one value per series and time.
 
         Parameters
@@ -111,15 +179,70 @@ class ObservationTables(StoreBase):
             Window (UTC; naive = UTC), both ends included.
         sources
             Sources to use, in priority order (default all; where sources overlap, the latest ingested wins).
+        flagged
+            Also the values flagged as outliers (and a column ``flag``); default only the ``ok`` ones.
 
         Returns
         -------
         DataFrame
-            Columns series, time (UTC), value (m AD or m³/s).
+            Columns series, time (UTC), value (m AD or m³/s) (and flag).
         """
-        rows = fr.resolve_sources(
-            self._observation_rows(list(series_ids), fr.to_unix(start, "start"), fr.to_unix(end, "end")), sources)
+        raw = self._observation_rows(list(series_ids), fr.to_unix(start, "start"), fr.to_unix(end, "end"), flagged)
+        rows = fr.resolve_sources(raw, sources, keep=("flag",) if flagged else ())
         return rows.assign(time=fr.from_unix(rows["time"].to_numpy("int64")))
+
+    def gaps(self, series_ids: Iterable[str] | None = None, start: Any | None = None,
+             end: Any | None = None) -> pd.DataFrame:
+        """The stored gaps of the ingested series that overlap [start, end].
+
+        Returns
+        -------
+        DataFrame
+            Columns series, source, start, end (UTC: the values either side of the gap), hours (h).
+        """
+        where, params = [], []
+        if series_ids is not None:
+            ids = list(series_ids)
+            where.append(f"series IN ({', '.join('?' * len(ids))})")
+            params.extend(ids)
+        if start is not None:
+            where.append("gap_end > ?")
+            params.append(fr.to_unix(start, "start"))
+        if end is not None:
+            where.append("gap_start < ?")
+            params.append(fr.to_unix(end, "end"))
+        sql = ("SELECT series, source, gap_start, gap_end FROM observation_gaps"
+               + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY series, source, gap_start")
+        out = fr.frame(self._query(sql, params), ["series", "source", "start", "end"])
+        hours = (out["end"].astype("int64") - out["start"].astype("int64")) / 3600.0
+        out["start"] = fr.from_unix(out["start"].astype("int64"))
+        out["end"] = fr.from_unix(out["end"].astype("int64"))
+        return out.assign(hours=hours.astype(float))
+
+    def flag_counts(self, series_ids: Iterable[str] | None = None, start: Any | None = None,
+                    end: Any | None = None) -> pd.DataFrame:
+        """How many stored values of each series in [start, end] carry each flag.
+
+        Returns
+        -------
+        DataFrame
+            Columns series, flag, n.
+        """
+        where, params = [], []
+        if series_ids is not None:
+            ids = list(series_ids)
+            where.append(f"series IN ({', '.join('?' * len(ids))})")
+            params.extend(ids)
+        if start is not None:
+            where.append("time >= ?")
+            params.append(fr.to_unix(start, "start"))
+        if end is not None:
+            where.append("time <= ?")
+            params.append(fr.to_unix(end, "end"))
+        sql = ("SELECT series, flag, count(*) FROM observations" + (" WHERE " + " AND ".join(where) if where else "")
+               + " GROUP BY series, flag ORDER BY series, flag")
+        out = fr.frame(self._query(sql, params), ["series", "flag", "n"])
+        return out.assign(n=out["n"].astype(int))
 
     def observations(self, series_ids: Iterable[str], start: Any, end: Any, *, sources: Sequence[str] | None = None,
                      sigma: Mapping[str, float | None] | None = None) -> ObservationSet:

@@ -81,6 +81,28 @@ class ResultTables(StoreBase):
         out["magnitude"] = out["magnitude"].astype(float)
         return out
 
+    def transitions(self, run: int | Run) -> pd.DataFrame:
+        """The transitions the run's cycles estimated or carried on (thesis §6-3), in cycle order.
+
+        Returns
+        -------
+        DataFrame
+            Columns cycle, issue_time (UTC), parameter, time (UTC, of the change), before, after (in
+            ``unit``), unit, found_cycle (the cycle that found the change), cost_single, cost_transition
+            (dimensionless), p_value.
+        """
+        rows = self._query("SELECT c.cycle, c.issue_time, t.parameter, t.time, t.value_before, t.value_after, t.unit, "
+                           "t.found_cycle, t.cost_single, t.cost_transition, t.p_value FROM transitions t JOIN cycles "
+                           "c ON c.id = t.cycle_id WHERE c.run_id = ? ORDER BY c.cycle, t.parameter",
+                           (self._run_id(run),))
+        out = fr.frame(rows, ["cycle", "issue_time", "parameter", "time", "before", "after", "unit", "found_cycle",
+                              "cost_single", "cost_transition", "p_value"])
+        out["issue_time"] = fr.from_unix(out["issue_time"].astype("int64"))
+        out["time"] = fr.from_unix(out["time"].astype("int64"))
+        for col in ("before", "after", "cost_single", "cost_transition", "p_value"):
+            out[col] = out[col].astype(float)
+        return out
+
     def _forecast_rows(self, run_id: int, cycle: int | None, kind: str | None,
                        series: Iterable[str] | None) -> list[tuple]:
         sql = ("SELECT c.cycle, c.id, c.issue_time, f.kind, f.series, f.lead_h, f.time, f.value FROM forecasts f "

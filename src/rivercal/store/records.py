@@ -21,6 +21,7 @@ __all__ = [
     "CYCLE_STATUSES",
     "FINAL_STATUSES",
     "FORECAST_KINDS",
+    "OBSERVATION_FLAGS",
     "RUN_STATUSES",
     "AlertRecord",
     "CycleRecord",
@@ -32,6 +33,7 @@ __all__ = [
     "Schedule",
     "StoreError",
     "StoreVersionError",
+    "TransitionRecord",
 ]
 
 #: Status of a cycle. ``pending`` and ``running`` are unfinished (a restarted service resumes them);
@@ -44,6 +46,8 @@ FINAL_STATUSES = ("done", "failed", "aborted")
 RUN_STATUSES = ("active", "stopped", "finished", "failed")
 #: Forecast kinds: with the cycle's updated parameters, and with the fixed parameters of the DSS.
 FORECAST_KINDS = ("updated", "dss")
+#: Flags of a stored observation: ``ok``, or ``outlier`` (a spike found at ingestion; kept, not used).
+OBSERVATION_FLAGS = ("ok", "outlier")
 
 
 class StoreError(RivercalError):
@@ -233,6 +237,48 @@ class AlertRecord:
 
 
 @dataclass(frozen=True)
+class TransitionRecord:
+    """A change of a parameter inside a cycle's window (thesis §6-3), as the cycle estimated it.
+
+    Attributes
+    ----------
+    parameter
+        Parameter name.
+    time
+        Estimated time of the change (UTC).
+    before, after
+        Values before and after the change, in ``unit``.
+    unit
+        Unit of the values.
+    found_cycle
+        The cycle that found the change; later cycles whose window still holds it keep this index (one
+        intervention, updated while the window slides over it).
+    cost_single, cost_transition, p_value
+        Costs S (dimensionless) of the one-value and the transition fit and the F-test's p-value of the
+        cycle that found it (None in later cycles).
+    """
+
+    parameter: str
+    time: pd.Timestamp
+    before: float
+    after: float
+    unit: str
+    found_cycle: int
+    cost_single: float | None = None
+    cost_transition: float | None = None
+    p_value: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "time", utc(self.time))
+        if not self.parameter:
+            raise ValueError("transition: empty parameter name")
+        if not (math.isfinite(self.before) and math.isfinite(self.after)):
+            raise ValueError(f"transition {self.parameter}: values must be finite, got {self.before}, {self.after}")
+        if self.found_cycle < 0:
+            raise ValueError(f"transition {self.parameter}: found_cycle must be >= 0, got {self.found_cycle}")
+
+
+@dataclass(frozen=True)
 class CycleRecord:
     """Everything one cycle produced; :meth:`Store.commit_cycle` stores it in one transaction.
 
@@ -271,6 +317,13 @@ class CycleRecord:
         lead_from_h, lead_to_h, rmse, bias, n, as :func:`rivercal.analysis.forecast.score_forecasts` gives
         them); stored in the same transaction, replacing the earlier scores of each cycle listed, so that
         a kill between the commit and the scoring cannot leave a cycle unscored.
+    transitions
+        Changes of parameters inside the window that the cycle estimated or carried on.
+    issued, issued_reason
+        Which forecast the cycle issued (``updated`` or ``dss``; None: not decided) and why.
+    skill_updated, skill_dss
+        The rolling forecast skill behind that choice: RMSE (m) of recent level forecasts of each kind
+        (None when nothing was scored).
     """
 
     cycle: int
@@ -289,8 +342,20 @@ class CycleRecord:
     forecasts: Mapping[str, pd.DataFrame] = field(default_factory=dict)
     states: Mapping[str, tuple[Any, str, bytes]] = field(default_factory=dict)
     scores: pd.DataFrame | None = None
+    transitions: tuple[TransitionRecord, ...] = ()
+    issued: str | None = None
+    issued_reason: str | None = None
+    skill_updated: float | None = None
+    skill_dss: float | None = None
 
     def __post_init__(self) -> None:
+        if self.issued is not None and self.issued not in FORECAST_KINDS:
+            raise ValueError(f"cycle {self.cycle}: issued forecast must be one of {FORECAST_KINDS}, "
+                             f"got {self.issued!r}")
+        for name in ("skill_updated", "skill_dss"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"cycle {self.cycle}: {name} must be finite and >= 0, got {value}")
         for name, value in self.states.items():
             if not name or len(value) != 3 or not isinstance(value[2], bytes | bytearray) or not value[1]:
                 raise ValueError(f"cycle {self.cycle}: state {name!r} must be (time, format, bytes)")
@@ -333,11 +398,18 @@ class IngestResult:
     conflicts
         The duplicates whose value differs from the stored one (beyond 1e-9 relative); the stored value
         was kept, or replaced with ``on_conflict="replace"``.
+    outliers
+        Values of the ingested series (new or stored, around the new ones) flagged as outliers after
+        this ingestion (with a screening rule).
+    gaps
+        Gaps in the ingested series around the new values, as stored after this ingestion.
     """
 
     inserted: int
     duplicates: int
     conflicts: int = 0
+    outliers: int = 0
+    gaps: int = 0
 
     def __iter__(self) -> Iterator[int]:
         return iter((self.inserted, self.duplicates))

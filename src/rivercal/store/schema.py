@@ -38,6 +38,21 @@ Tables (current version)
   Model states a cycle hands to the next one (hot start), by name (e.g. ``updated``, ``dss``), at
   ``time``; ``data`` is opaque to the store (``format`` says how it was written). PRIMARY KEY
   (cycle_id, name).
+- ``observations.flag``:
+  ``ok`` or ``outlier`` (a spike found by the screening at ingestion); flagged values stay stored and
+  are left out of calibrations and scores.
+- ``observation_gaps(series, source, gap_start, gap_end, ingested)``:
+  A gap in an ingested series: no value between the times ``gap_start`` and ``gap_end`` (the values
+  either side), longer than the series' usual step. PRIMARY KEY (series, source, gap_start).
+- ``cycles.issued_forecast, issued_reason, skill_updated, skill_dss``:
+  Which forecast the cycle issued (``updated``: the updated parameters; ``dss``: the fixed DSS's, a
+  fallback), why, and the rolling forecast skill the choice rests on (RMSE of recent level
+  forecasts, m, of each kind; NULL when none were scored).
+- ``transitions(cycle_id → cycles, parameter, time, value_before, value_after [unit], unit, found_cycle,
+  cost_single, cost_transition, p_value)``:
+  A change of a parameter at ``time`` inside the cycle's window (thesis §6-3), as that cycle knows it;
+  ``found_cycle`` is the cycle that found it (one intervention keeps its ``found_cycle`` while the
+  window slides over it). PRIMARY KEY (cycle_id, parameter).
 
 Every child row is deleted with its cycle and every cycle with its run (ON DELETE CASCADE; the store
 turns foreign keys on for each connection).
@@ -50,7 +65,10 @@ A released step is never edited: a change to the schema is a new step appended t
 that opens a file of the version before). Versions 1–3 were laid down together in the first release,
 in the order the service needs them: cycles and estimates, then observation ingestion, then forecasts
 and their scores. Version 4 adds the model states that a cycle hands to the next (hot start), so that a
-restarted service continues from the stored state instead of spinning the model up again.
+restarted service continues from the stored state instead of spinning the model up again. Version 5
+adds what the service needs under realistic data: observation flags and gaps, the transitions it
+estimated, and the forecast it issued with the skill comparison behind that choice. Its statements are
+plain SQL that PostgreSQL runs as well (DOUBLE PRECISION, BIGINT).
 
 The PostgreSQL store (:mod:`rivercal.store.postgres`) applies :data:`PG_MIGRATIONS`: the same versions,
 tables and checks in PostgreSQL's types.
@@ -223,12 +241,47 @@ _V4 = _statements(
     )""",
 )
 
+# --- version 5: observation flags and gaps, transitions, the issued forecast ------------------------------
+_V5_STATEMENTS = (
+    "ALTER TABLE observations ADD COLUMN flag TEXT NOT NULL DEFAULT 'ok' CHECK (flag IN ('ok', 'outlier'))",
+    """
+    CREATE TABLE observation_gaps (
+        series    TEXT NOT NULL CHECK (length(series) > 0),
+        source    TEXT NOT NULL CHECK (length(source) > 0),
+        gap_start BIGINT NOT NULL,
+        gap_end   BIGINT NOT NULL,
+        ingested  TEXT NOT NULL,
+        PRIMARY KEY (series, source, gap_start),
+        CHECK (gap_end > gap_start)
+    )""",
+    "ALTER TABLE cycles ADD COLUMN issued_forecast TEXT CHECK (issued_forecast IN ('updated', 'dss'))",
+    "ALTER TABLE cycles ADD COLUMN issued_reason TEXT",
+    "ALTER TABLE cycles ADD COLUMN skill_updated DOUBLE PRECISION CHECK (skill_updated >= 0)",
+    "ALTER TABLE cycles ADD COLUMN skill_dss DOUBLE PRECISION CHECK (skill_dss >= 0)",
+    """
+    CREATE TABLE transitions (
+        cycle_id        BIGINT NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+        parameter       TEXT NOT NULL CHECK (length(parameter) > 0),
+        time            BIGINT NOT NULL,
+        value_before    DOUBLE PRECISION NOT NULL,
+        value_after     DOUBLE PRECISION NOT NULL,
+        unit            TEXT NOT NULL,
+        found_cycle     INTEGER NOT NULL CHECK (found_cycle >= 0),
+        cost_single     DOUBLE PRECISION,
+        cost_transition DOUBLE PRECISION,
+        p_value         DOUBLE PRECISION,
+        PRIMARY KEY (cycle_id, parameter)
+    )""",
+)
+_V5 = _statements(*_V5_STATEMENTS)
+
 #: The forward steps, in order. Append only; never edit a released step.
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "runs, cycles, estimates, alerts", _V1),
     Migration(2, "ingested observations", _V2),
     Migration(3, "forecasts and forecast scores", _V3),
     Migration(4, "model states for hot starts", _V4),
+    Migration(5, "observation flags and gaps, transitions, the issued forecast and its skill", _V5),
 )
 #: The version this rivercal writes.
 SCHEMA_VERSION = MIGRATIONS[-1].version

@@ -83,10 +83,11 @@ log = logging.getLogger("rivercal.store")
 MIN_SQLITE = (3, 35, 0)
 
 _CYCLE_COLUMNS = ("cycle", "window_start", "window_end", "issue_time", "status", "attempts", "owner", "algorithm",
-                  "model_runs", "wall_time_s", "cost_before", "cost_after", "message", "started", "finished")
+                  "model_runs", "wall_time_s", "cost_before", "cost_after", "message", "started", "finished",
+                  "issued_forecast", "issued_reason", "skill_updated", "skill_dss")
 _UNFINISHED = tuple(s for s in CYCLE_STATUSES if s not in FINAL_STATUSES)
 #: Tables whose rows belong to one cycle's results (replaced together when a cycle is committed or re-opened).
-_CYCLE_CHILDREN = ("estimates", "alerts", "forecasts", "forecast_scores", "model_states")
+_CYCLE_CHILDREN = ("estimates", "alerts", "forecasts", "forecast_scores", "model_states", "transitions")
 
 
 def is_url(location: Any) -> bool:
@@ -367,7 +368,8 @@ class Store(ResultTables, ObservationTables):
         DataFrame
             Columns cycle, window_start, window_end, issue_time (UTC), status, attempts, owner, algorithm,
             model_runs, wall_time_s (s), cost_before, cost_after (dimensionless), message, started, finished
-            (UTC wall clock).
+            (UTC wall clock), issued_forecast (``updated``, ``dss`` or None), issued_reason, skill_updated,
+            skill_dss (RMSE of recent level forecasts, m).
         """
         rows = self._query(f"SELECT {', '.join(_CYCLE_COLUMNS)} FROM cycles WHERE run_id = ? ORDER BY cycle",
                            (self._run_id(run),))
@@ -376,6 +378,8 @@ class Store(ResultTables, ObservationTables):
             out[col] = fr.from_unix(out[col].astype("int64"))
         for col in ("started", "finished"):
             out[col] = fr.stamp_to_time(out[col])
+        for col in ("skill_updated", "skill_dss"):
+            out[col] = out[col].astype(float)
         return out
 
     @staticmethod
@@ -518,9 +522,11 @@ class Store(ResultTables, ObservationTables):
             for table in _CYCLE_CHILDREN:
                 conn.execute(f"DELETE FROM {table} WHERE cycle_id = ?", (cycle_id,))
             conn.execute("UPDATE cycles SET status = ?, algorithm = ?, model_runs = ?, wall_time_s = ?, "
-                         "cost_before = ?, cost_after = ?, message = ?, finished = ? WHERE id = ?",
+                         "cost_before = ?, cost_after = ?, message = ?, finished = ?, issued_forecast = ?, "
+                         "issued_reason = ?, skill_updated = ?, skill_dss = ? WHERE id = ?",
                          (record.status, record.algorithm, record.model_runs, wall, record.cost_before,
-                          record.cost_after, record.message, finished, cycle_id))
+                          record.cost_after, record.message, finished, record.issued, record.issued_reason,
+                          record.skill_updated, record.skill_dss, cycle_id))
             conn.executemany("INSERT INTO estimates (cycle_id, parameter, value, std, unit, accepted, reason) "
                              "VALUES (?, ?, ?, ?, ?, ?, ?)",
                              [(cycle_id, e.parameter, float(e.value), e.std, e.unit, int(e.accepted), e.reason)
@@ -535,6 +541,12 @@ class Store(ResultTables, ObservationTables):
             conn.executemany("INSERT INTO model_states (cycle_id, name, time, format, data) VALUES (?, ?, ?, ?, ?)",
                              [(cycle_id, name, fr.to_unix(t, f"state {name} time"), fmt, bytes(data))
                               for name, (t, fmt, data) in record.states.items()])
+            conn.executemany("INSERT INTO transitions (cycle_id, parameter, time, value_before, value_after, unit, "
+                             "found_cycle, cost_single, cost_transition, p_value) "
+                             "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                             [(cycle_id, t.parameter, fr.to_unix(t.time.floor("s"), "transition time"),
+                               float(t.before), float(t.after), t.unit, int(t.found_cycle), t.cost_single,
+                               t.cost_transition, t.p_value) for t in record.transitions])
             if record.scores is not None:
                 self._write_scores(conn, run_id, record.scores, finished)
         log.info("%s: run %d: cycle %d committed (%s; %d estimates, %d alerts, %d forecast values)", self.path,
@@ -554,7 +566,8 @@ class Store(ResultTables, ObservationTables):
                 conn.execute(f"DELETE FROM {table} WHERE cycle_id = ?", (row[0],))
             conn.execute("UPDATE cycles SET status = 'pending', owner = NULL, algorithm = NULL, model_runs = NULL, "
                          "wall_time_s = NULL, cost_before = NULL, cost_after = NULL, message = NULL, started = NULL, "
-                         "finished = NULL WHERE id = ?", (row[0],))
+                         "finished = NULL, issued_forecast = NULL, issued_reason = NULL, skill_updated = NULL, "
+                         "skill_dss = NULL WHERE id = ?", (row[0],))
         log.info("%s: run %d: cycle %d re-opened", self.path, run_id, cycle)
 
     def run_by_id(self, run_id: int) -> Run:
