@@ -17,6 +17,20 @@ the weighted residuals of thesis Eq. 2-3, r = √W (y − ŷ), so that the cost 
 - simulated series are interpolated linearly to the observation times (observations between output
   times are not rejected); missing observations were dropped when the series were made.
 
+Observations with outliers or a model with structural error make a few residuals much larger than
+the rest; ``loss`` makes the cost robust to them (Huber 1964; a Student-t likelihood, Lange et al. 1989)
+by replacing each weighted residual r with r̃ = sign(r) √(2 ρ(r)), so that Σ r̃² = 2 Σ ρ(r) and every
+least-squares optimiser minimises the robust cost unchanged:
+
+- ``huber``: ρ(r) = r²/2 for |r| ≤ c, c |r| − c²/2 beyond (c = ``loss_scale``, default 1.345: 95 %
+  efficiency under Gaussian errors); r̃ = r inside, √(2c|r| − c²) beyond — like weights 1 inside and
+  c/|r| beyond (iteratively reweighted least squares);
+- ``student-t``: ρ(r) = (ν c²/2) ln(1 + r²/(ν c²)) with ν = 4 degrees of freedom and c = ``loss_scale``
+  (default 1): weights (1 + r²/(ν c²))⁻¹, a large residual barely counts;
+- ``l2`` (default): r̃ = r, thesis Eq. 2-3.
+
+c is in units of the weighted residual, i.e. of σ.
+
 A model run that fails (diverges, raises a :class:`~rivercal.errors.ModelRunError`, or returns
 non-finite values) follows an explicit policy: ``raise`` re-raises it; ``penalty`` logs it and returns
 residuals whose cost is the ``penalty`` value, so that an optimiser steers away from that point.
@@ -51,13 +65,41 @@ from rivercal.observations import ObservationSet
 from rivercal.optimise import OPTIONS, IterationRecord, OptimiseResult, get_optimiser
 from rivercal.parameters import ParameterSet
 
-__all__ = ["Calibration", "CalibrationProblem", "CostBreakdown", "Model", "calibrate"]
+__all__ = ["LOSSES", "Calibration", "CalibrationProblem", "CostBreakdown", "Model", "calibrate", "robust_residuals"]
 
 log = logging.getLogger(__name__)
 
 #: Floor of Δŷ_max in thesis Eq. 2-6 (m or m³/s), so that a series the prior run already fits exactly
 #: does not get an infinite weight.
 MIN_MAX_DEVIATION = 1e-3
+
+#: Robust costs of :class:`CalibrationProblem` (module docstring) and their default scale c (in σ).
+LOSSES = {"l2": None, "huber": 1.345, "student-t": 1.0}
+#: Degrees of freedom of the Student-t cost.
+STUDENT_T_DOF = 4.0
+
+
+def robust_residuals(r: np.ndarray, loss: str, scale: float | None = None) -> np.ndarray:
+    """Weighted residuals r → r̃ = sign(r) √(2 ρ(r)) of a robust cost (module docstring); ``l2`` returns r.
+
+    Examples
+    --------
+    >>> robust_residuals(np.array([0.5, -3.0]), "huber", 1.0).round(4).tolist()
+    [0.5, -2.2361]
+    """
+    if loss not in LOSSES:
+        raise ValueError(f"unknown loss {loss!r}; choose one of {', '.join(LOSSES)}")
+    if loss == "l2":
+        return r
+    c = float(LOSSES[loss] if scale is None else scale)
+    a = np.abs(r)
+    if loss == "huber":
+        out = np.where(a <= c, a, np.sqrt(np.maximum(2.0 * c * a - c * c, 0.0)))
+    else:
+        nc2 = STUDENT_T_DOF * c * c
+        out = np.sqrt(nc2 * np.log1p(a * a / nc2))
+    return np.sign(r) * out
+
 
 #: First guess of the finite-difference step, as a fraction of a parameter's range (the steps are then
 #: checked against the model's noise and enlarged where the difference does not stand 10 times above it).
@@ -124,9 +166,16 @@ class CalibrationProblem:
     def __init__(self, model: Model, parameters: ParameterSet, observations: ObservationSet,
                  window: tuple[Any, Any], *, state: Any = None, warmup: pd.Timedelta | str = "24h",
                  fixed: Mapping[str, float] | None = None, on_failure: Literal["raise", "penalty"] = "raise",
-                 penalty: float = 1e8, noise: float | None = None):
+                 penalty: float = 1e8, noise: float | None = None, loss: str = "l2",
+                 loss_scale: float | None = None):
         if on_failure not in ("raise", "penalty"):
             raise ValueError(f"on_failure must be 'raise' or 'penalty', got {on_failure!r}")
+        if loss not in LOSSES:
+            raise ValueError(f"unknown loss {loss!r}; choose one of {', '.join(LOSSES)}")
+        if loss_scale is not None and not (math.isfinite(loss_scale) and loss_scale > 0):
+            raise ValueError(f"loss_scale must be a positive number (in σ), got {loss_scale!r}")
+        self.loss = loss
+        self.loss_scale = loss_scale
         if not penalty > 0:
             raise ValueError(f"penalty must be positive, got {penalty}")
         if len(parameters) == 0:
@@ -242,13 +291,14 @@ class CalibrationProblem:
                 for s in self.observations}
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Weighted residuals √W (y − ŷ(x)), concatenated in the order of :attr:`observations`."""
+        """Weighted residuals √W (y − ŷ(x)) (robust ones with a ``loss``), in the order of :attr:`observations`."""
         sqrt_w = self.sqrt_weights
         try:
             pred = self.predictions(self.simulate(x))
             r = np.concatenate([s.values - pred[s.id] for s in self.observations]) * sqrt_w
             if not np.all(np.isfinite(r)):
                 raise ModelRunError(f"the model returned non-finite values for {self._describe(x)}")
+            r = robust_residuals(r, self.loss, self.loss_scale)
         except ModelRunError as exc:
             if self.on_failure == "raise":
                 raise
@@ -257,7 +307,7 @@ class CalibrationProblem:
         return r
 
     def cost(self, x: np.ndarray) -> float:
-        """S(x) = Σ r² (thesis Eq. 2-3)."""
+        """S(x) = Σ r² (thesis Eq. 2-3; with a robust ``loss``, 2 Σ ρ(r))."""
         r = self.residuals(x)
         return float(r @ r)
 

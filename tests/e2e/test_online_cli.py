@@ -34,7 +34,9 @@ def test_online_finds_the_new_friction_and_beats_the_dss(pifg) -> None:
     for e in summary["estimates"]:
         assert e["FA"] == pytest.approx(25.0, rel=0.02) and e["Wd"] == pytest.approx(0.0, abs=0.005)
         assert e["held"] == []
-    assert [a["kind"] for a in summary["alerts"]] == ["jump"]  # 16 → 25 in the first window, then steady
+    # the first cycle starts from the DSS's values and has no earlier estimate to jump from; the window
+    # holds no change (it starts after the mowing), so there is nothing to alert
+    assert summary["alerts"] == []
     fe = summary["forecast_errors"]
     assert fe["n"] > 0 and fe["ratio"] > 5 and fe["dss_mae_m"] > 0.02
 

@@ -2,33 +2,27 @@
 
 Every cycle (thesis §6-2: daily, over the last week of hourly observations) the service
 
-1. takes the observations of the calibration window [t₀ − window, t₀] from the store;
+1. takes the observations of the calibration window [t₀ − window, t₀] from the store (values flagged
+   as outliers at ingestion stay stored but are left out);
 2. starts the optimiser from the last *accepted* estimate (warm start) and the model from the state
    the previous cycle handed over at t₀ − window − warm-up (hot start; a cold spin-up only for the
    first cycle or when no usable state is stored);
 3. estimates the parameters inside a box around the warm start (the bound on the change per cycle)
-   with a wall-clock deadline;
-4. applies the guardrails: an aborted or failed calibration keeps the last accepted estimate; a
-   parameter the window cannot see is held (identifiability gate, below); an estimate that moved by
-   more than ``alert_k`` standard deviations *and* more than its alert floor raises a ``jump`` alert
-   (a probable intervention: mowing, a lowered weir); an estimate stopped by the per-cycle bound
-   raises a ``limit`` alert;
+   with a wall-clock deadline, on a robust cost (``loss``, default Huber) — through the transition
+   model when a change found earlier still lies in the run (:mod:`rivercal.online.intervention`);
+4. applies the guardrails (:mod:`rivercal.online.guardrails`): an aborted or failed calibration keeps
+   the last accepted estimate; a parameter the window cannot see is held (identifiability gate); an
+   estimate that *jumps* starts the transition estimator on the window, and a transition it finds is
+   accepted — the value after the change, with the time of the change stored — and raises one
+   ``jump`` alert (without the transition estimator, ``transition=False``, every jump raises one); an
+   estimate stopped by the per-cycle bound raises a ``limit`` alert;
 5. runs the model with the accepted values through the window to t₀ and forecasts ``horizon`` ahead,
    and forecasts with the fixed parameters of the DSS from the DSS's own state at t₀;
-6. scores the earlier cycles' forecasts against the observations that have arrived since, and commits
-   everything — status, estimates (accepted or held, with the reason), alerts, forecasts, the states
-   for the next cycle and those scores — in one transaction.
-
-Identifiability gate
-    The final Jacobian J of the weighted residuals (the DuD secant matrix, or the optimiser's
-    finite-difference Jacobian) is scaled column-wise by each parameter's *resolution* d (the
-    smallest change that matters to the operator: 0.5 m^(1/3)/s of friction, 1 cm of crest). A
-    singular value s_j of J·diag(d) is the square root of the cost increase when the parameters move
-    by their resolutions along singular vector j; directions with s_j < ``gate_sv`` (default 1: less
-    than one σ in the whole window) are unseen. A parameter whose identifiability index (Doherty and
-    Hunt 2009) over the seen directions is below ``gate_index`` is held at its previous value and the
-    estimate is stored as not accepted, with the reason. Holding it does not spoil the others: by
-    construction their cost hardly depends on it.
+6. scores the earlier cycles' forecasts against the observations that have arrived since, chooses
+   the forecast it issues — the updated one while its recent skill is not worse than the DSS's,
+   else the DSS's (:mod:`rivercal.online.skill`, do no harm) — and commits everything (status,
+   estimates accepted or held with the reason, alerts, transitions, forecasts, the issued one and
+   why, the states for the next cycle and the scores) in one transaction.
 
 Forecast forcing: the forecasts use the model's forcing after t₀ as if it were a perfect weather
 forecast, for the updated model and the DSS alike, so their difference is the parameters alone.
@@ -40,143 +34,34 @@ import logging
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field, replace
-from typing import Any, Literal
+from dataclasses import dataclass, field, replace
+from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
 from rivercal.analysis.forecast import score_forecasts
-from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
 from rivercal.errors import ModelRunError
-from rivercal.evaluate import Workers
 from rivercal.observations import DEFAULT_SIGMA
+from rivercal.online import guardrails, intervention
+from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig
+from rivercal.online.skill import ForecastChoice, choose_forecast
+from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
-from rivercal.problem import CalibrationProblem, calibrate
-from rivercal.store import AlertRecord, CycleRecord, CycleSpec, EstimateRecord, Schedule, Store
+from rivercal.problem import Calibration, CalibrationProblem, calibrate
+from rivercal.store import AlertRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
 
-__all__ = ["CycleOutcome", "OnlineConfig", "OnlineService"]
+__all__ = ["DEFAULT_RESOLUTION", "CycleOutcome", "OnlineConfig", "OnlineService"]
 
 log = logging.getLogger(__name__)
-
-#: Resolution d of the identifiability gate and alert floor for the parameters of the packaged cases,
-#: by unit (the smallest change that matters in operation).
-DEFAULT_RESOLUTION = {"m^(1/3)/s": 0.5, "m AD": 0.01, "m": 0.01, "-": 0.01}
-
-
-@dataclass(frozen=True)
-class OnlineConfig:
-    """How the service runs; stored with the run, so a restart with another configuration is refused.
-
-    Attributes
-    ----------
-    parameters
-        Names of the model's parameters to estimate (default global friction and the crest shift).
-    window, period, horizon
-        Calibration window length, time between cycles and forecast horizon (thesis §6-2: 7 d, 1 d;
-        48 h).
-    warmup
-        Simulated time before each window that lets the state adjust to a candidate (its residuals do
-        not count).
-    algorithm, options
-        Optimiser and its options (default: the model's, e.g. the case's ``[calibration]``).
-    deadline_s
-        Wall-clock limit of one calibration, s; on expiry the cycle is ``aborted`` and the last
-        accepted estimate is kept.
-    max_change
-        Per parameter, the largest change per cycle (the optimiser's box around the warm start), in
-        the parameter's unit; missing: its whole range.
-    resolution
-        Per parameter, the smallest change that matters (identifiability gate scale and alert floor);
-        missing: from :data:`DEFAULT_RESOLUTION` by unit, else 1 % of the range.
-    gate_sv, gate_index
-        Identifiability gate thresholds (module docstring); ``gate_sv = 0`` disables the gate.
-    alert_k
-        A change larger than ``alert_k`` standard deviations (and than the resolution) raises an alert.
-    series
-        Observed series to use (default: every series the model simulates).
-    sources
-        Observation sources in priority order (default all).
-    sigma
-        σ per quantity or series id (default :data:`~rivercal.observations.DEFAULT_SIGMA`).
-    min_coverage
-        A window whose observations cover less than this share of the hourly values raises a
-        ``data`` alert; with none at all the cycle fails (and keeps the last estimate).
-    output_interval_s
-        Interval of the stored forecasts, s.
-    dss
-        Model quantities of the DSS (default: the model as it is).
-    on_failure
-        Failed model run inside a calibration: ``penalty`` (logged; the optimiser steers away) or
-        ``raise`` (the cycle fails and keeps the last estimate).
-    workers
-        Worker processes of one calibration (None: all cores), or a :class:`~rivercal.evaluate.DaskCluster`.
-    """
-
-    parameters: tuple[str, ...] = ("FA", "Wd")
-    window: str = "7D"
-    period: str = "1D"
-    horizon: str = "48h"
-    warmup: str = "24h"
-    algorithm: str = "dud"
-    options: dict[str, Any] | None = None
-    deadline_s: float | None = 60.0
-    max_change: dict[str, float] = field(default_factory=dict)
-    resolution: dict[str, float] = field(default_factory=dict)
-    gate_sv: float = 1.0
-    gate_index: float = 0.5
-    alert_k: float = 3.0
-    series: tuple[str, ...] | None = None
-    sources: tuple[str, ...] | None = None
-    sigma: dict[str, float] | None = None
-    min_coverage: float = 0.8
-    output_interval_s: float = 3600.0
-    dss: dict[str, float] = field(default_factory=dict)
-    on_failure: Literal["raise", "penalty"] = "penalty"
-    workers: Workers = None
-
-    def __post_init__(self) -> None:
-        for name in ("window", "period", "horizon"):
-            if not pd.Timedelta(getattr(self, name)) > pd.Timedelta(0):
-                raise ValueError(f"online {name} must be positive, got {getattr(self, name)!r}")
-        if pd.Timedelta(self.warmup) < pd.Timedelta(0):
-            raise ValueError(f"online warmup must not be negative, got {self.warmup!r}")
-        if not self.parameters:
-            raise ValueError("online: give at least one parameter to estimate")
-        if self.deadline_s is not None and not self.deadline_s > 0:
-            raise ValueError(f"online deadline_s must be positive, got {self.deadline_s}")
-        for name, value in {**self.max_change, **self.resolution}.items():
-            if not value > 0:
-                raise ValueError(f"online: the change bound or resolution of {name} must be positive, got {value}")
-        if not self.alert_k > 0 or self.gate_sv < 0 or not 0 < self.gate_index <= 1:
-            raise ValueError("online: alert_k must be > 0, gate_sv >= 0 and gate_index in (0, 1]")
-        if not 0 <= self.min_coverage <= 1:
-            raise ValueError(f"online min_coverage must be in [0, 1], got {self.min_coverage}")
-        if self.on_failure not in ("raise", "penalty"):
-            raise ValueError(f"online on_failure must be 'raise' or 'penalty', got {self.on_failure!r}")
-
-    def schedule(self, first_issue: Any) -> Schedule:
-        """The cycle schedule whose cycle 0 is issued at ``first_issue``."""
-        return Schedule(first_issue=first_issue, period=pd.Timedelta(self.period), window=pd.Timedelta(self.window),
-                        horizon=pd.Timedelta(self.horizon))
-
-    def stored(self) -> dict[str, Any]:
-        """The configuration as stored with the run (JSON types; the worker count is not part of it)."""
-        out = asdict(replace(self, workers=None))  # the workers may be a Dask cluster, which is not copied
-        out.pop("workers")
-        out["parameters"] = list(self.parameters)
-        out["series"] = list(self.series) if self.series is not None else None
-        out["sources"] = list(self.sources) if self.sources is not None else None
-        return out
-
 
 @dataclass(frozen=True)
 class CycleOutcome:
     """What one cycle did (as committed to the store), for progress displays and summaries.
 
     Costs are S(θ) of thesis Eq. 2-3 (dimensionless); ``estimates`` and ``accepted`` in the parameters'
-    units; ``wall_s`` in s.
+    units; ``wall_s`` in s. ``transition`` is the change the cycle found or carried (None: none);
+    ``issued`` the forecast it issued (``updated`` or ``dss``) and ``issued_reason`` why.
     """
 
     cycle: int
@@ -193,6 +78,26 @@ class CycleOutcome:
     cost_after: float | None
     message: str
     hot_start: bool
+    transition: TransitionRecord | None = None
+    issued: str = "updated"
+    issued_reason: str = ""
+
+
+@dataclass
+class _Estimation:
+    """What a cycle's estimation produced (filled by :meth:`OnlineService._estimate`)."""
+
+    estimates: dict[str, float]
+    change: TransitionRecord | None
+    alerts: list[AlertRecord]
+    notes: list[str]
+    status: str = "done"
+    message: str = ""
+    held: dict[str, str] = field(default_factory=dict)
+    std: dict[str, float] = field(default_factory=dict)
+    model_runs: int = 0
+    cost_before: float | None = None
+    cost_after: float | None = None
 
 
 class OnlineService:
@@ -307,7 +212,11 @@ class OnlineService:
         _, state = self.model.simulate(dict(quantities), end=at)
         return state, False
 
-    def _quantities(self, values: Mapping[str, float]) -> dict[str, float]:
+    def _quantities(self, values: Mapping[str, float], change: TransitionRecord | None = None,
+                    at: pd.Timestamp | None = None) -> dict[str, float]:
+        """Model quantities of parameter values (the value before a change that lies after ``at``)."""
+        if change is not None and at is not None and change.time > at:
+            values = {**values, change.parameter: change.before}
         return {**self.config.dss, **self.parameters.quantities(values)}
 
     # -- one cycle ---------------------------------------------------------------------------------
@@ -323,73 +232,182 @@ class OnlineService:
         t0 = spec.issue_time
         run_start = spec.window_start - self.warmup
         warm = self.warm_start()
+        change = intervention.active_transition(self.store, self.run, run_start, spec.window_end)
         obs = self.store.observations(self.series, spec.window_start, spec.window_end,
                                       sources=list(self.config.sources) if self.config.sources else None,
                                       sigma=self.config.sigma if self.config.sigma is not None else DEFAULT_SIGMA)
-        alerts: list[AlertRecord] = []
+        state, hot = self._state("updated", run_start, self._quantities(warm, change, run_start))
+        est = _Estimation(estimates=dict(warm), change=change, alerts=self._data_alerts(obs),
+                          notes=self._flag_note(spec))
+        if obs.n_values == 0:
+            est.status = "failed"
+            est.message = f"no observations in the window {spec.window_start} .. {spec.window_end}"
+            est.held = dict.fromkeys(warm, "no observations in the window; the last accepted estimate is kept")
+        else:
+            self._estimate(est, spec, warm, state, obs, first=not self.store.last_accepted(self.run))
+        held, estimates = est.held, est.estimates
+        accepted = {n: (warm[n] if n in held else estimates[n]) for n in warm}
+        change = est.change
+        if change is not None:
+            after = accepted[change.parameter]
+            change = (replace(change, after=after) if change.found_cycle == spec.cycle
+                      else intervention.carried(change, after))
+        alerts = [*est.alerts, *guardrails.limit_alerts(self.parameters, warm, estimates, self.config.max_change)]
+        forecasts, states = self._forecasts(spec, run_start, state, accepted, change)
+        records = tuple(
+            EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
+                           std=float(est.std[n]) if n in est.std and math.isfinite(est.std[n]) else None,
+                           accepted=n not in held, reason=held.get(n))
+            for n in warm)
+        scores = self._scores(list(range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)))
+        choice = self._choose(spec, scores)
+        wall = time.perf_counter() - t_wall
+        notes = [*est.notes, *([] if hot else ["cold start (no stored state)"])]
+        self.store.commit_cycle(self.run, CycleRecord(
+            spec.cycle, spec.window_start, spec.window_end, t0, status=est.status, algorithm=self.config.algorithm,
+            model_runs=est.model_runs, wall_time_s=wall, cost_before=est.cost_before, cost_after=est.cost_after,
+            message="; ".join([est.message, *notes]) if notes else est.message, estimates=records,
+            alerts=tuple(alerts), forecasts=forecasts, states=states, scores=scores,
+            transitions=(change,) if change is not None else (), issued=choice.issued, issued_reason=choice.reason,
+            skill_updated=choice.rmse_updated, skill_dss=choice.rmse_dss))
+        log.info("cycle %d (%s): %s, %s in %.1f s, %d runs; issued %s", spec.cycle, t0, est.status,
+                 ", ".join(f"{k}={v:.4g}" for k, v in accepted.items()), wall, est.model_runs, choice.issued)
+        return CycleOutcome(cycle=spec.cycle, issue_time=t0, status=est.status, estimates=estimates,
+                            accepted=accepted, held=held, std=est.std, alerts=tuple(alerts), model_runs=est.model_runs,
+                            wall_s=wall, cost_before=est.cost_before, cost_after=est.cost_after, message=est.message,
+                            hot_start=hot, transition=change, issued=choice.issued, issued_reason=choice.reason)
+
+    def _estimate(self, est: _Estimation, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any, *,
+                  first: bool) -> None:
+        """Calibrate, gate, test for jumps and look for a transition; fills ``est``."""
+        try:
+            problem, cal = self._calibrate(spec, warm, state, obs, est.change)
+        except ModelRunError as exc:
+            est.status, est.message = "failed", f"a model run failed and the policy is 'raise': {exc}"
+            est.held = dict.fromkeys(warm, "the calibration failed; the last accepted estimate is kept")
+            return
+        est.model_runs = cal.result.nfev
+        if cal.result.aborted:
+            est.status = "aborted"
+            est.message = (f"{cal.result.message} after {cal.result.nfev} model runs; the last accepted estimate "
+                           "is kept")
+            est.held = dict.fromkeys(warm, est.message)
+            return
+        est.held, extra = self._gate(problem, cal)
+        est.model_runs += extra
+        moved = {} if first else guardrails.jumps(warm, {n: cal.estimates[n] for n in warm}, cal.std, est.held,
+                                                  {n: self.resolution(n) for n in warm}, self.config.alert_k)
+        if est.change is not None:
+            moved.pop(est.change.parameter, None)  # the carried change is being refined, not a new jump
+        if moved and est.change is None and self.config.transition:
+            found, runs, why = self._search(spec, warm, state, obs, moved)
+            est.model_runs += runs
+            est.notes.append(why)
+            if found is not None:
+                est.change = found
+                retried = self._retry(spec, {**warm, found.parameter: found.after}, state, obs, found)
+                if retried is not None:
+                    problem, cal = retried
+                    est.model_runs += cal.result.nfev
+                    est.held, extra = self._gate(problem, cal)
+                    est.model_runs += extra
+                name = found.parameter
+                est.alerts.append(guardrails.jump_alert(
+                    name, self.parameters[name].unit, found.before, cal.estimates.get(name, found.after), moved[name],
+                    spec, f"at about {found.time:%Y-%m-%d %H:%M} (the transition fit lowers the cost by "
+                          f"{1 - found.cost_transition / found.cost_single:.0%})"))
+            moved = {}
+        for n, k in moved.items():  # jumps that the transition estimator did not look at
+            est.alerts.append(guardrails.jump_alert(n, self.parameters[n].unit, warm[n], cal.estimates[n], k, spec,
+                                                    "(a one-value fit over the window)"))
+        est.cost_after = cal.result.cost
+        est.cost_before = cal.history[0]["cost"] if cal.history and cal.history[0]["iteration"] == 0 else None
+        est.estimates = {n: float(cal.estimates.get(n, warm[n])) for n in warm}
+        est.std = dict(cal.std)
+        est.message = cal.result.message
+
+    def _data_alerts(self, obs: Any) -> list[AlertRecord]:
+        """A ``data`` alert when the window's observations are too thin."""
         expected = int(self.window / pd.Timedelta(seconds=self.config.output_interval_s)) + 1
         coverage = {s.id: len(s) / expected for s in obs}
         thin = {k: v for k, v in coverage.items() if v < self.config.min_coverage}
-        if thin:
-            alerts.append(AlertRecord("data", "observations cover less than "
-                                      f"{self.config.min_coverage:.0%} of the window at "
-                                      + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items()))))
-        state, hot = self._state("updated", run_start, self._quantities(warm))
-        status, message, cal = "done", "", None
-        estimates, std, alert_std = dict(warm), {}, {}
-        held: dict[str, str] = {}
-        cost_before = cost_after = None
-        model_runs = 0
-        if obs.n_values == 0:
-            status, message = "failed", f"no observations in the window {spec.window_start} .. {spec.window_end}"
-            held = dict.fromkeys(warm, "no observations in the window; the last accepted estimate is kept")
-        else:
-            box = self._box(warm)
-            estimated = box.quantities(warm)
-            fixed = {k: v for k, v in self.config.dss.items() if k not in estimated}
-            problem = CalibrationProblem(self.model, box, obs, (spec.window_start, spec.window_end), state=state,
-                                         warmup=self.warmup, fixed=fixed, on_failure=self.config.on_failure)
-            try:
-                cal = calibrate(problem, self.config.algorithm, self.options, workers=self.config.workers,
-                                deadline=self.config.deadline_s)
-            except ModelRunError as exc:
-                status, message = "failed", f"a model run failed and the policy is 'raise': {exc}"
-                held = dict.fromkeys(warm, "the calibration failed; the last accepted estimate is kept")
-            if cal is not None:
-                r = cal.result
-                model_runs = r.nfev
-                cost_after = r.cost
-                cost_before = cal.history[0]["cost"] if cal.history and cal.history[0]["iteration"] == 0 else None
-                estimates, std = dict(cal.estimates), dict(cal.std)
-                alert_std = dict(cal.std_scaled)   # σ from the fit's own residual variance, not the weights' σ
-                message = r.message
-                if r.aborted:
-                    status = "aborted"
-                    message = f"{r.message} after {r.nfev} model runs; the last accepted estimate is kept"
-                    held = dict.fromkeys(warm, message)
-                else:
-                    held, extra = self._gate(problem, r)
-                    model_runs += extra
-        accepted = {n: (warm[n] if n in held else estimates[n]) for n in warm}
-        alerts += self._alerts(warm, accepted, estimates, alert_std, held, spec)
-        forecasts, states = self._forecasts(spec, run_start, state, accepted)
-        records = tuple(
-            EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
-                           std=float(std[n]) if n in std and math.isfinite(std[n]) else None,
-                           accepted=n not in held, reason=held.get(n))
-            for n in warm)
-        scored = [c for c in range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)]
-        wall = time.perf_counter() - t_wall
-        self.store.commit_cycle(self.run, CycleRecord(
-            spec.cycle, spec.window_start, spec.window_end, t0, status=status, algorithm=self.config.algorithm,
-            model_runs=model_runs, wall_time_s=wall, cost_before=cost_before, cost_after=cost_after,
-            message=message + ("" if hot else "; cold start (no stored state)"), estimates=records,
-            alerts=tuple(alerts), forecasts=forecasts, states=states, scores=self._scores(scored)))
-        log.info("cycle %d (%s): %s, %s in %.1f s, %d runs", spec.cycle, t0, status,
-                 ", ".join(f"{k}={v:.4g}" for k, v in accepted.items()), wall, model_runs)
-        return CycleOutcome(cycle=spec.cycle, issue_time=t0, status=status, estimates=estimates, accepted=accepted,
-                            held=held, std=std, alerts=tuple(alerts), model_runs=model_runs, wall_s=wall,
-                            cost_before=cost_before, cost_after=cost_after, message=message, hot_start=hot)
+        if not thin:
+            return []
+        return [AlertRecord("data", "observations cover less than "
+                            f"{self.config.min_coverage:.0%} of the window at "
+                            + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items())))]
+
+    def _flag_note(self, spec: CycleSpec) -> list[str]:
+        """A note on the values flagged as outliers in the window (stored, left out)."""
+        counts = self.store.flag_counts(self.series, spec.window_start, spec.window_end)
+        n = int(counts.loc[counts["flag"] != "ok", "n"].sum()) if len(counts) else 0
+        return [f"{n} value{'s' if n != 1 else ''} flagged as outlier{'s' if n != 1 else ''} left out"] if n else []
+
+    def _calibrate(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any,
+                   change: TransitionRecord | None) -> tuple[CalibrationProblem, Calibration]:
+        """The cycle's calibration, on the transition model when a change lies in the run."""
+        run_start = spec.window_start - self.warmup
+        box = self._box(warm)
+        model: Any = self.model
+        fixed = dict(self.config.dss)
+        if change is not None:
+            model = intervention.transition_model(self.model, self.parameters[change.parameter], run_start)
+            fixed.update(intervention.fixed_transition(model, change))
+            box = intervention.after_parameters(box, change.parameter)
+        fixed = {k: v for k, v in fixed.items() if k not in box.quantities(warm)}
+        problem = CalibrationProblem(model, box, obs, (spec.window_start, spec.window_end), state=state,
+                                     warmup=self.warmup, fixed=fixed, on_failure=self.config.on_failure,
+                                     loss=self.config.loss, loss_scale=self.config.loss_scale)
+        cal = calibrate(problem, self.config.algorithm, self.options, workers=self.config.workers,
+                        deadline=self.config.deadline_s)
+        return problem, cal
+
+    def _retry(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any,
+               change: TransitionRecord) -> tuple[CalibrationProblem, Calibration] | None:
+        """The cycle's calibration again, with the change just found (None if it failed or was aborted)."""
+        try:
+            problem, cal = self._calibrate(spec, warm, state, obs, change)
+        except ModelRunError as exc:
+            log.warning("the calibration with the transition failed (%s); the one-value estimates are kept", exc)
+            return None
+        return None if cal.result.aborted else (problem, cal)
+
+    def _search(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any,
+                moved: Mapping[str, float]) -> tuple[TransitionRecord | None, int, str]:
+        """Run the transition estimator on the parameter that jumped most; the change if the window holds one."""
+        name = max(moved, key=lambda n: moved[n])
+        p = self.parameters[name]
+        others = {k: v for k, v in warm.items() if k != name}
+        fixed = {**self.config.dss, **ParameterSet(q for q in self.parameters if q.name != name).quantities(others)}
+        fixed = {k: v for k, v in fixed.items() if k not in p.quantities(warm[name])}
+        try:
+            est = estimate_transition(self.model, p.model_copy(update={"initial": warm[name]}), obs,
+                                      (spec.window_start, spec.window_end), state=state, warmup=self.warmup,
+                                      fixed=fixed, algorithm=self.config.algorithm, options=self.options,
+                                      workers=self.config.workers, alpha=self.config.transition_alpha,
+                                      min_reduction=self.config.transition_min_reduction, loss=self.config.loss,
+                                      loss_scale=self.config.loss_scale)
+        except (ModelRunError, ValueError) as exc:
+            return None, 0, f"{name} jumped ({moved[name]:.0f} σ); the transition estimator failed: {exc}"
+        words = f"{name} jumped ({moved[name]:.0f} σ); transition estimate: {est.test.reason}"
+        if not est.test.transition or abs(est.after - est.before) <= self.resolution(name):
+            if est.test.transition:
+                words += f" but before and after differ by less than the resolution {self.resolution(name):g}"
+            return None, est.model_runs, words
+        found = TransitionRecord(parameter=name, time=est.time.floor("s"), before=est.before, after=est.after,
+                                 unit=p.unit or "-", found_cycle=spec.cycle, cost_single=est.test.cost_single,
+                                 cost_transition=est.test.cost_transition, p_value=est.test.p_value)
+        return found, est.model_runs, words
+
+    def _choose(self, spec: CycleSpec, fresh: pd.DataFrame | None) -> ForecastChoice:
+        """The forecast to issue (:mod:`rivercal.online.skill`) from the stored scores and this cycle's."""
+        if self.config.skill_cycles == 0:
+            return ForecastChoice("updated", "the updated parameters' forecast (no skill comparison)", None, None, ())
+        stored = self.store.scores(self.run)
+        if fresh is not None and len(fresh):
+            stored = pd.concat([stored[~stored["cycle"].isin(fresh["cycle"].unique())], fresh], ignore_index=True)
+        return choose_forecast(stored, spec.cycle, cycles=self.config.skill_cycles, lead_h=self.config.skill_lead_h,
+                               tolerance=self.config.skill_tolerance)
 
     def _scores(self, cycles: list[int]) -> pd.DataFrame | None:
         """Scores of the forecasts of earlier cycles against the observations stored so far (None: none)."""
@@ -404,73 +422,32 @@ class OnlineService:
     def _cycles_per_horizon(self) -> int:
         return math.ceil(self.horizon / self.period) + 1
 
-    def _gate(self, problem: CalibrationProblem, result: Any) -> tuple[dict[str, str], int]:
-        """Parameters the window cannot see, with the reason (module docstring); and the model runs it took.
-
-        The Jacobian is the optimiser's (DuD's secant one); when it has none, a forward-difference one at
-        the estimate (p + 1 runs in one batch).
-        """
-        if self.config.gate_sv <= 0:
-            return {}, 0
-        jac, extra = result.jac, 0
-        if jac is None or not np.all(np.isfinite(jac)):
-            # e.g. DuD's secant set degenerated: a gate that is skipped would accept anything, so measure it
-            log.info("no usable Jacobian from %s; finite differences at the estimate", self.config.algorithm)
-            try:
-                fd = fd_jacobian(problem, np.asarray(result.x, dtype=float), workers=self.config.workers)
-            except ModelRunError as exc:
-                reason = f"the identifiability gate could not run ({exc}); held at its last accepted value"
-                return dict.fromkeys(problem.parameters.names, reason), 0
-            jac, extra = fd.matrix, fd.nfev
+    def _gate(self, problem: CalibrationProblem, cal: Calibration) -> tuple[dict[str, str], int]:
+        """The identifiability gate (:func:`rivercal.online.guardrails.gate`) under the service's settings."""
         names = problem.parameters.names
-        scale = np.array([self.resolution(n) for n in names])
-        seen = int(np.count_nonzero(np.linalg.svd(jac * scale, compute_uv=False) >= self.config.gate_sv))
-        ident = analyse_jacobian(jac, names, scale=scale, options=IdentifiabilityOptions(k=seen))
-        held = {}
-        for i, n in enumerate(names):
-            if ident.index[i] < self.config.gate_index:
-                held[n] = (f"this window cannot see {n}: identifiability index {ident.index[i]:.2f} < "
-                           f"{self.config.gate_index:g} over the {seen} direction(s) whose singular value reaches "
-                           f"{self.config.gate_sv:g} (a change of {self.resolution(n):g} {self.parameters[n].unit} "
-                           f"moves the cost by less than that); held at its last accepted value")
-        return held, extra
+        return guardrails.gate(problem, cal.result, {n: self.resolution(n) for n in names},
+                               {n: self.parameters[n].unit for n in names}, gate_sv=self.config.gate_sv,
+                               gate_index=self.config.gate_index, algorithm=self.config.algorithm,
+                               workers=self.config.workers)
 
-    def _alerts(self, warm: Mapping[str, float], accepted: Mapping[str, float], estimates: Mapping[str, float],
-                std: Mapping[str, float], held: Mapping[str, str], spec: CycleSpec) -> list[AlertRecord]:
-        out = []
-        for p in self.parameters:
-            n = p.name
-            if n not in held:
-                change = accepted[n] - warm[n]
-                sigma = std.get(n, math.nan)
-                k = abs(change) / sigma if sigma and math.isfinite(sigma) and sigma > 0 else math.inf
-                if abs(change) > self.resolution(n) and k > self.config.alert_k:
-                    out.append(AlertRecord(
-                        "jump", f"{n} changed from {warm[n]:.4g} to {accepted[n]:.4g} {p.unit} ({change:+.3g}, "
-                        + (f"{k:.0f} σ" if math.isfinite(k) else "σ unknown")
-                        + f") in the window {spec.window_start:%Y-%m-%d %H:%M} – {spec.window_end:%Y-%m-%d %H:%M}: "
-                        "a probable intervention (mowing, a changed weir setting)",
-                        parameter=n, magnitude=k if math.isfinite(k) else None))
-            if n in self.config.max_change:
-                step = self.config.max_change[n]
-                at_box = abs(abs(estimates[n] - warm[n]) - step) <= 1e-6 * max(1.0, step)
-                inside = p.min < estimates[n] < p.max
-                if at_box and inside:
-                    out.append(AlertRecord(
-                        "limit", f"{n} stopped at the per-cycle change bound ±{step:g} {p.unit}; the true change may "
-                        "be larger and the next cycles will continue", parameter=n))
-        return out
+    def _forecasts(self, spec: CycleSpec, run_start: pd.Timestamp, state: Any, accepted: Mapping[str, float],
+                   change: TransitionRecord | None) -> tuple[dict[str, pd.DataFrame], dict[str, tuple]]:
+        """Run the accepted model to t₀ and on to the horizon, and the DSS from its own state at t₀.
 
-    def _forecasts(self, spec: CycleSpec, run_start: pd.Timestamp, state: Any,
-                   accepted: Mapping[str, float]) -> tuple[dict[str, pd.DataFrame], dict[str, tuple]]:
-        """Run the accepted model to t₀ and on to the horizon, and the DSS from its own state at t₀."""
+        With a change in the run, the run to t₀ switches from the value before to the accepted value after
+        at the estimated time of the change.
+        """
         t0 = spec.issue_time
         interval = self.config.output_interval_s
         q = self._quantities(accepted)
+        model: Any = self.model
+        if change is not None:
+            model = intervention.transition_model(self.model, self.parameters[change.parameter], run_start)
+            q = intervention.transition_quantities(model, q, change, accepted[change.parameter])
         next_start = run_start + self.period
-        _, s_next = self.model.simulate(q, start=run_start, end=next_start, state=state, output_interval=interval)
-        _, s_t0 = self.model.simulate(q, start=next_start, end=t0, state=s_next, output_interval=interval)
-        updated, _ = self.model.simulate(q, start=t0, end=t0 + self.horizon, state=s_t0, output_interval=interval)
+        _, s_next = model.simulate(q, start=run_start, end=next_start, state=state, output_interval=interval)
+        _, s_t0 = model.simulate(q, start=next_start, end=t0, state=s_next, output_interval=interval)
+        updated, _ = model.simulate(q, start=t0, end=t0 + self.horizon, state=s_t0, output_interval=interval)
         dss_q = dict(self.config.dss)
         dss_state, _ = self._state("dss", t0 - self.period, dss_q)
         _, dss_t0 = self.model.simulate(dss_q, start=t0 - self.period, end=t0, state=dss_state,

@@ -92,7 +92,8 @@ def estimate_transition(model: Any, parameter: Parameter, observations: Observat
                         initial: Mapping[str, float] | None = None, algorithm: str = "dud",
                         options: Mapping[str, Any] | None = None, workers: int | None = 1,
                         max_nfev: int | None = None, smoothing: Literal["substep", "none"] = "substep",
-                        alpha: float = 1e-3, min_reduction: float = 0.25, min_gain: float = 1.0) -> TransitionEstimate:
+                        alpha: float = 1e-3, min_reduction: float = 0.25, min_gain: float = 1.0, loss: str = "l2",
+                        loss_scale: float | None = None) -> TransitionEstimate:
     """Fit one value and (before, after, τ) of ``parameter`` over ``window``, and test for a transition.
 
     The on-line service calls this when the per-cycle estimate jumps: one-value fit, a start for the
@@ -120,13 +121,15 @@ def estimate_transition(model: Any, parameter: Parameter, observations: Observat
         See :class:`TransitionModel`.
     alpha, min_reduction, min_gain
         The rule of :func:`transition_test`.
+    loss, loss_scale
+        The cost of both fits (:class:`~rivercal.problem.CalibrationProblem`).
     """
     initial = dict(initial or {})
     unknown = sorted(set(initial) - {"before", "after", "time"})
     if unknown:
         raise ValueError(f"initial: unknown key {unknown[0]!r}; use 'before', 'after' (parameter unit) and 'time' (h)")
     single_problem = CalibrationProblem(model, ParameterSet([parameter]), observations, window, state=state,
-                                        warmup=warmup, fixed=fixed)
+                                        warmup=warmup, fixed=fixed, loss=loss, loss_scale=loss_scale)
     t0 = time.perf_counter()
     single = calibrate(single_problem, algorithm, options, workers=workers, max_nfev=max_nfev)
     s = single.estimates[parameter.name]
@@ -137,7 +140,7 @@ def estimate_transition(model: Any, parameter: Parameter, observations: Observat
     tm = TransitionModel(model, parameter, reference=single_problem.start, smoothing=smoothing)
     params = tm.parameter_set(window, before=initial["before"], after=initial["after"], time=initial["time"])
     problem = CalibrationProblem(tm, params, observations, window, state=single_problem.state, warmup=warmup,
-                                 fixed=fixed)
+                                 fixed=fixed, loss=loss, loss_scale=loss_scale)
     transition = calibrate(problem, algorithm, options, workers=workers, max_nfev=max_nfev)
     runs += transition.result.nfev
     if all(o.sigma is not None for o in problem.observations):  # 1/σ weights: both costs on one scale

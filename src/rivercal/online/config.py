@@ -1,0 +1,156 @@
+"""The configuration of the on-line service (:class:`OnlineConfig`), stored with its run."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any, Literal
+
+import pandas as pd
+
+from rivercal.evaluate import Workers
+from rivercal.problem import LOSSES
+from rivercal.store import Schedule
+
+__all__ = ["DEFAULT_RESOLUTION", "OnlineConfig"]
+
+
+#: Resolution d of the identifiability gate and alert floor for the parameters of the packaged cases,
+#: by unit (the smallest change that matters in operation).
+DEFAULT_RESOLUTION = {"m^(1/3)/s": 0.5, "m AD": 0.01, "m": 0.01, "-": 0.01}
+
+
+@dataclass(frozen=True)
+class OnlineConfig:
+    """How the service runs; stored with the run, so a restart with another configuration is refused.
+
+    Attributes
+    ----------
+    parameters
+        Names of the model's parameters to estimate (default global friction and the crest shift).
+    window, period, horizon
+        Calibration window length, time between cycles and forecast horizon (thesis §6-2: 7 d, 1 d;
+        48 h).
+    warmup
+        Simulated time before each window that lets the state adjust to a candidate (its residuals do
+        not count).
+    algorithm, options
+        Optimiser and its options (default: the model's, e.g. the case's ``[calibration]``).
+    deadline_s
+        Wall-clock limit of one calibration, s; on expiry the cycle is ``aborted`` and the last
+        accepted estimate is kept.
+    max_change
+        Per parameter, the largest change per cycle (the optimiser's box around the warm start), in
+        the parameter's unit; missing: its whole range.
+    resolution
+        Per parameter, the smallest change that matters (identifiability gate scale and alert floor);
+        missing: from :data:`DEFAULT_RESOLUTION` by unit, else 1 % of the range.
+    gate_sv, gate_index
+        Identifiability gate thresholds (module docstring); ``gate_sv = 0`` disables the gate.
+    alert_k
+        A change larger than ``alert_k`` standard deviations (and than the resolution) is a jump
+        (:mod:`rivercal.online.guardrails`).
+    loss, loss_scale
+        Cost of the calibrations (:class:`~rivercal.problem.CalibrationProblem`): ``huber`` (default),
+        ``student-t`` or ``l2`` (thesis Eq. 2-3), and its scale in σ (None: the loss's default).
+    transition
+        Run the transition estimator when an estimate jumps, and carry a transition it finds
+        (:mod:`rivercal.online.intervention`); False: every jump raises an alert and the estimate creeps.
+    transition_alpha, transition_min_reduction
+        The transition test's significance level and smallest relative cost reduction
+        (:func:`~rivercal.online.transition_search.transition_test`).
+    skill_cycles, skill_lead_h, skill_tolerance
+        Do no harm (:mod:`rivercal.online.skill`): the updated forecast is issued while its RMSE over the
+        level forecasts up to ``skill_lead_h`` h of the last ``skill_cycles`` scored cycles is at most the
+        DSS's times (1 + ``skill_tolerance``) (plus 1 mm); else the DSS's. ``skill_cycles = 0``: always the
+        updated forecast.
+    series
+        Observed series to use (default: every series the model simulates).
+    sources
+        Observation sources in priority order (default all).
+    sigma
+        σ per quantity or series id (default :data:`~rivercal.observations.DEFAULT_SIGMA`).
+    min_coverage
+        A window whose observations cover less than this share of the hourly values raises a
+        ``data`` alert; with none at all the cycle fails (and keeps the last estimate).
+    output_interval_s
+        Interval of the stored forecasts, s.
+    dss
+        Model quantities of the DSS (default: the model as it is).
+    on_failure
+        Failed model run inside a calibration: ``penalty`` (logged; the optimiser steers away) or
+        ``raise`` (the cycle fails and keeps the last estimate).
+    workers
+        Worker processes of one calibration (None: all cores), or a :class:`~rivercal.evaluate.DaskCluster`.
+    """
+
+    parameters: tuple[str, ...] = ("FA", "Wd")
+    window: str = "7D"
+    period: str = "1D"
+    horizon: str = "48h"
+    warmup: str = "24h"
+    algorithm: str = "dud"
+    options: dict[str, Any] | None = None
+    deadline_s: float | None = 60.0
+    max_change: dict[str, float] = field(default_factory=dict)
+    resolution: dict[str, float] = field(default_factory=dict)
+    gate_sv: float = 1.0
+    gate_index: float = 0.5
+    alert_k: float = 3.0
+    loss: str = "huber"
+    loss_scale: float | None = None
+    transition: bool = True
+    transition_alpha: float = 1e-3
+    transition_min_reduction: float = 0.25
+    skill_cycles: int = 3
+    skill_lead_h: float = 24.0
+    skill_tolerance: float = 0.0
+    series: tuple[str, ...] | None = None
+    sources: tuple[str, ...] | None = None
+    sigma: dict[str, float] | None = None
+    min_coverage: float = 0.8
+    output_interval_s: float = 3600.0
+    dss: dict[str, float] = field(default_factory=dict)
+    on_failure: Literal["raise", "penalty"] = "penalty"
+    workers: Workers = None
+
+    def __post_init__(self) -> None:
+        for name in ("window", "period", "horizon"):
+            if not pd.Timedelta(getattr(self, name)) > pd.Timedelta(0):
+                raise ValueError(f"online {name} must be positive, got {getattr(self, name)!r}")
+        if pd.Timedelta(self.warmup) < pd.Timedelta(0):
+            raise ValueError(f"online warmup must not be negative, got {self.warmup!r}")
+        if not self.parameters:
+            raise ValueError("online: give at least one parameter to estimate")
+        if self.deadline_s is not None and not self.deadline_s > 0:
+            raise ValueError(f"online deadline_s must be positive, got {self.deadline_s}")
+        for name, value in {**self.max_change, **self.resolution}.items():
+            if not value > 0:
+                raise ValueError(f"online: the change bound or resolution of {name} must be positive, got {value}")
+        if not self.alert_k > 0 or self.gate_sv < 0 or not 0 < self.gate_index <= 1:
+            raise ValueError("online: alert_k must be > 0, gate_sv >= 0 and gate_index in (0, 1]")
+        if not 0 <= self.min_coverage <= 1:
+            raise ValueError(f"online min_coverage must be in [0, 1], got {self.min_coverage}")
+        if self.on_failure not in ("raise", "penalty"):
+            raise ValueError(f"online on_failure must be 'raise' or 'penalty', got {self.on_failure!r}")
+        if self.loss not in LOSSES:
+            raise ValueError(f"online loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
+        if self.loss_scale is not None and not self.loss_scale > 0:
+            raise ValueError(f"online loss_scale must be positive, got {self.loss_scale}")
+        if not 0 < self.transition_alpha < 1 or not 0 <= self.transition_min_reduction < 1:
+            raise ValueError("online: transition_alpha must be in (0, 1) and transition_min_reduction in [0, 1)")
+        if self.skill_cycles < 0 or not self.skill_lead_h > 0 or self.skill_tolerance < 0:
+            raise ValueError("online: skill_cycles must be >= 0, skill_lead_h > 0 and skill_tolerance >= 0")
+
+    def schedule(self, first_issue: Any) -> Schedule:
+        """The cycle schedule whose cycle 0 is issued at ``first_issue``."""
+        return Schedule(first_issue=first_issue, period=pd.Timedelta(self.period), window=pd.Timedelta(self.window),
+                        horizon=pd.Timedelta(self.horizon))
+
+    def stored(self) -> dict[str, Any]:
+        """The configuration as stored with the run (JSON types; the worker count is not part of it)."""
+        out = asdict(replace(self, workers=None))  # the workers may be a Dask cluster, which is not copied
+        out.pop("workers")
+        out["parameters"] = list(self.parameters)
+        out["series"] = list(self.series) if self.series is not None else None
+        out["sources"] = list(self.sources) if self.sources is not None else None
+        return out

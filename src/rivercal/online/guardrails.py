@@ -1,0 +1,115 @@
+"""The on-line service's guardrails: the identifiability gate, the jump test and the alerts.
+
+Identifiability gate
+    The final Jacobian J of the weighted residuals (the DuD secant matrix, or the optimiser's
+    finite-difference Jacobian) is scaled column-wise by each parameter's *resolution* d (the
+    smallest change that matters to the operator: 0.5 m^(1/3)/s of friction, 1 cm of crest). A
+    singular value s_j of J·diag(d) is the square root of the cost increase when the parameters move
+    by their resolutions along singular vector j; directions with s_j < ``gate_sv`` (default 1: less
+    than one σ in the whole window) are unseen. A parameter whose identifiability index (Doherty and
+    Hunt 2009) over the seen directions is below ``gate_index`` is held at its previous value and the
+    estimate is stored as not accepted, with the reason. Holding it does not spoil the others: by
+    construction their cost hardly depends on it.
+
+Jump test
+    An estimate *jumps* when it moves from the last accepted value by more than its resolution and by
+    more than ``alert_k`` standard deviations σ of the fit (thesis Eq. 2-12 with the observations'
+    σ as weights). The test is a trigger, not a verdict: under real data (correlated residuals, a model
+    that differs from the river) it fires on many ordinary windows, and the service then asks the
+    transition estimator (:mod:`rivercal.online.intervention`), whose significance test decides whether
+    the window holds a change and an alert is raised. The first cycle of a run has no previous estimate
+    to jump from.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
+from rivercal.errors import ModelRunError
+from rivercal.problem import CalibrationProblem
+from rivercal.store import AlertRecord, CycleSpec
+
+__all__ = ["gate", "jump_alert", "jumps", "limit_alerts"]
+
+log = logging.getLogger(__name__)
+
+
+def gate(problem: CalibrationProblem, result: Any, resolution: Mapping[str, float], units: Mapping[str, str], *,
+         gate_sv: float, gate_index: float, algorithm: str, workers: int | None) -> tuple[dict[str, str], int]:
+    """Parameters the window cannot see, with the reason (module docstring); and the model runs it took.
+
+    The Jacobian is the optimiser's (DuD's secant one); when it has none, a forward-difference one at
+    the estimate (p + 1 runs in one batch).
+    """
+    if gate_sv <= 0:
+        return {}, 0
+    jac, extra = result.jac, 0
+    if jac is None or not np.all(np.isfinite(jac)):
+        # e.g. DuD's secant set degenerated: a gate that is skipped would accept anything, so measure it
+        log.info("no usable Jacobian from %s; finite differences at the estimate", algorithm)
+        try:
+            fd = fd_jacobian(problem, np.asarray(result.x, dtype=float), workers=workers)
+        except ModelRunError as exc:
+            reason = f"the identifiability gate could not run ({exc}); held at its last accepted value"
+            return dict.fromkeys(problem.parameters.names, reason), 0
+        jac, extra = fd.matrix, fd.nfev
+    names = problem.parameters.names
+    scale = np.array([resolution[n] for n in names])
+    seen = int(np.count_nonzero(np.linalg.svd(jac * scale, compute_uv=False) >= gate_sv))
+    ident = analyse_jacobian(jac, names, scale=scale, options=IdentifiabilityOptions(k=seen))
+    held = {}
+    for i, n in enumerate(names):
+        if ident.index[i] < gate_index:
+            held[n] = (f"this window cannot see {n}: identifiability index {ident.index[i]:.2f} < "
+                       f"{gate_index:g} over the {seen} direction(s) whose singular value reaches "
+                       f"{gate_sv:g} (a change of {resolution[n]:g} {units.get(n, '')} "
+                       f"moves the cost by less than that); held at its last accepted value")
+    return held, extra
+
+
+def jumps(warm: Mapping[str, float], accepted: Mapping[str, float], sigma: Mapping[str, float],
+          held: Mapping[str, str], resolution: Mapping[str, float], alert_k: float) -> dict[str, float]:
+    """The parameters whose accepted value jumped from the warm start: name → |Δθ|/σ (inf when σ is unknown)."""
+    out = {}
+    for n, value in accepted.items():
+        if n in held:
+            continue
+        change = value - warm[n]
+        s = sigma.get(n, math.nan)
+        k = abs(change) / s if s and math.isfinite(s) and s > 0 else math.inf
+        if abs(change) > resolution[n] and k > alert_k:
+            out[n] = k
+    return out
+
+
+def jump_alert(name: str, unit: str, before: float, after: float, k: float, spec: CycleSpec,
+               detail: str) -> AlertRecord:
+    """The ``jump`` alert of a probable intervention."""
+    return AlertRecord(
+        "jump", f"{name} changed from {before:.4g} to {after:.4g} {unit} ({after - before:+.3g}"
+        + (f", {k:.0f} σ" if math.isfinite(k) else "") + f") {detail} in the window "
+        f"{spec.window_start:%Y-%m-%d %H:%M} – {spec.window_end:%Y-%m-%d %H:%M}: a probable intervention (mowing, "
+        "a changed weir setting)", parameter=name, magnitude=k if math.isfinite(k) else None)
+
+
+def limit_alerts(parameters: Any, warm: Mapping[str, float], estimates: Mapping[str, float],
+                 max_change: Mapping[str, float]) -> list[AlertRecord]:
+    """``limit`` alerts of estimates stopped by the per-cycle change bound (inside the parameter's range)."""
+    out = []
+    for p in parameters:
+        n = p.name
+        if n in max_change:
+            step = max_change[n]
+            at_box = abs(abs(estimates[n] - warm[n]) - step) <= 1e-6 * max(1.0, step)
+            inside = p.min < estimates[n] < p.max
+            if at_box and inside:
+                out.append(AlertRecord(
+                    "limit", f"{n} stopped at the per-cycle change bound ±{step:g} {p.unit}; the true change may "
+                    "be larger and the next cycles will continue", parameter=n))
+    return out
