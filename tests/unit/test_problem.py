@@ -150,3 +150,58 @@ def test_ln_transform_reports_std_in_physical_units() -> None:
     k = math.exp(result.result.x[0])
     assert result.std["k"] == pytest.approx(k * result.result.std[0], rel=1e-12)
     assert result.std_scaled["k"] == pytest.approx(k * result.result.extra["std_scaled"][0], rel=1e-12)
+
+
+@pytest.mark.parametrize("loss", ["huber", "student-t"])
+def test_robust_cost_gives_the_m_estimate_and_resists_spikes(loss) -> None:
+    # a level offset (the crest) seen through noisy observations with a few 0.5 m spikes: its estimate is an
+    # M-estimate of location, whose reference is scipy's robust least squares (Huber) or the estimating
+    # equation Σ w(r) r = 0 with the Student-t weights w = (1 + r²/(ν c²))⁻¹, solved by brentq
+    from scipy.optimize import brentq, least_squares
+
+    from rivercal.problem import LOSSES, STUDENT_T_DOF
+
+    model = LinearReservoirModel()
+    clean = _obs(model)["S.h"]
+    rng = np.random.default_rng(7)
+    values = clean.values + rng.normal(0.0, 0.025, clean.values.size)
+    values[[5, 17, 30]] += 0.5
+    obs = ObservationSet((ObservationSeries(id="S.h", times=clean.times, values=values, sigma=0.025),))
+    params = ParameterSet([_params()["crest"]])
+    window = (START, START + pd.Timedelta("48h"))
+    robust = calibrate(CalibrationProblem(model, params, obs, window, state="s", warmup="0h", loss=loss), "dud",
+                       workers=1).estimates["crest"]
+    plain = calibrate(CalibrationProblem(model, params, obs, window, state="s", warmup="0h"), "dud",
+                      workers=1).estimates["crest"]
+    d = (values - (clean.values - 10.0)) / 0.025  # crest + noise, in σ
+    c = LOSSES[loss]
+    if loss == "huber":  # scipy's Huber: ρ(z) = z for z ≤ 1, 2√z − 1 beyond, z = (r/c)², times c²/2
+        ref = least_squares(lambda m: d - m, x0=[np.median(d)], loss="huber", f_scale=c, xtol=1e-15,
+                            ftol=1e-15, gtol=1e-15).x[0] * 0.025
+    else:
+        def score(m: float) -> float:
+            r = d - m
+            return float(np.sum(r / (1.0 + r * r / (STUDENT_T_DOF * c * c))))
+
+        ref = brentq(score, d.min(), d.max(), xtol=1e-14) * 0.025
+    assert robust == pytest.approx(ref, abs=3e-5)  # DuD's stopping rules: 0.001 σ
+    assert plain == pytest.approx(float(np.mean(d)) * 0.025, abs=2e-5)  # l2: the mean, pulled up by the spikes
+    assert abs(robust - 10.0) < 0.5 * abs(plain - 10.0)
+
+
+def test_robust_residuals_square_to_twice_rho() -> None:
+    from rivercal.problem import robust_residuals
+
+    r = np.array([-5.0, -1.0, 0.0, 0.3, 2.0, 40.0])
+    huber = robust_residuals(r, "huber", 1.0)
+    rho = np.where(np.abs(r) <= 1.0, 0.5 * r * r, np.abs(r) - 0.5)
+    np.testing.assert_allclose(huber**2, 2 * rho)
+    np.testing.assert_allclose(np.sign(huber), np.sign(r))
+    t = robust_residuals(r, "student-t", 2.0)
+    np.testing.assert_allclose(t**2, 4.0 * 4.0 * np.log1p(r * r / 16.0))
+    assert robust_residuals(r, "l2") is r
+    with pytest.raises(ValueError, match="unknown loss 'cauchy'"):
+        robust_residuals(r, "cauchy")
+    with pytest.raises(ValueError, match="loss_scale"):
+        CalibrationProblem(LinearReservoirModel(), _params(), _obs(LinearReservoirModel()),
+                           (START, START + pd.Timedelta("2h")), loss="huber", loss_scale=0.0)

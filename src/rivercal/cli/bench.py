@@ -1,7 +1,7 @@
 """``rivercal bench``: the benchmarks.
 
 The engine (alone and beside EPA SWMM), the calibration, the rainfall-runoff model, the on-line service
-and the black box.
+(its speed, and its figures at each realism level) and the black box.
 """
 
 from __future__ import annotations
@@ -187,6 +187,49 @@ def online(
     result = bench_online("dommel", scenario, first_issue=first_issue, cycles=cycles, workers=workers,
                           replay=replay, replay_repeats=replay_repeats).to_dict()
     _print_flat(result, "on-line service benchmark", as_json)
+
+
+@app.command("realism")
+@guard
+def realism(
+    scenarios: Annotated[str | None, typer.Option(help="Comma-separated practical scenarios (default: all).")] = None,
+    levels: Annotated[str | None, typer.Option(help="Comma-separated realism levels (default: all).")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the realism errors (≥ 0).")] = 0,
+    workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
+    keep: Annotated[Path | None, typer.Option(help="Keep the stores in this folder (for reports).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The on-line service's four weeks (2010-10-18 .. 11-15) per practical scenario × realism level on dommel."""
+    from rivercal.bench.realism import bench_realism
+    from rivercal.twin.practical import PRACTICAL_SCENARIOS
+    from rivercal.twin.realism import REALISM_LEVELS
+
+    names = parse_names(scenarios, "--scenarios") if scenarios is not None else None
+    for name in names or []:
+        check_choice(name, "--scenarios", PRACTICAL_SCENARIOS, "practical scenario")
+    kinds = parse_names(levels, "--levels") if levels is not None else None
+    for name in kinds or []:
+        check_choice(name, "--levels", REALISM_LEVELS, "realism level")
+    check_number(seed, "--seed", low=0)
+    check_number(workers, "--workers", low=1)
+    watch_compilation(True)
+    result = bench_realism(scenarios=names, levels=kinds, seed=seed, workers=workers, keep=keep)
+    if as_json:
+        emit_json(result)
+        return
+    table = Table(title=f"on-line service on {result['case']}, {result['from']} .. {result['to']} (seed {seed})")
+    for col in ("scenario", "realism", "MAE ratio", "rivercal cm", "DSS cm", "time to correct", "jump alerts",
+                "fallbacks", "wall s"):
+        table.add_column(col, justify="right")
+    for r in result["rows"]:
+        ratio = r["forecast_mae_ratio"]
+        ttc = r["time_to_correct_cycles"]
+        table.add_row(r["scenario"], r["realism"], "-" if ratio is None else f"{ratio:.2f}",
+                      "-" if r["rivercal_mae_m"] is None else f"{r['rivercal_mae_m'] * 100:.2f}",
+                      "-" if r["dss_mae_m"] is None else f"{r['dss_mae_m'] * 100:.2f}",
+                      "-" if ttc is None else str(ttc), str(r["jump_alerts"]), str(r["fallbacks"]),
+                      f"{r['wall_s']:.0f}")
+    out_console.print(table)
 
 
 @app.command("engines")

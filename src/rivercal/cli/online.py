@@ -56,7 +56,15 @@ def online(
     deadline: Annotated[float, typer.Option(help="Wall-clock limit of one calibration, s.")] = 60.0,
     max_change: Annotated[str | None, typer.Option(
         "--max-change", help="Largest change per cycle, e.g. 'FA=5,Wd=0.1' (default: none).")] = None,
-    alert_k: Annotated[float, typer.Option("--alert-k", help="Alert when an estimate moves more than k σ.")] = 3.0,
+    alert_k: Annotated[float, typer.Option(
+        "--alert-k", help="An estimate that moves more than k σ starts the transition estimator.")] = 3.0,
+    loss: Annotated[str, typer.Option(help="Cost of the calibrations: huber, student-t or l2.")] = "huber",
+    transition: Annotated[bool, typer.Option(
+        help="Date a jump with the transition estimator and carry its after-value (--no-transition: every jump "
+             "alerts and the estimate creeps).")] = True,
+    skill_cycles: Annotated[int, typer.Option(
+        "--skill-cycles", help="Do no harm: issue the DSS's forecast while the updated one scored worse over this "
+                               "many recent cycles (0: always the updated one).")] = 3,
     noise: Annotated[str, typer.Option(help="Twin noise of --scenario: none, white, gaussian or pink.")] = "none",
     seed: Annotated[int, typer.Option(help="Seed of the twin noise and the realism errors (≥ 0).")] = 0,
     realism: Annotated[str | None, typer.Option(
@@ -73,6 +81,7 @@ def online(
     from rivercal.online.service import OnlineConfig
     from rivercal.optimise import OPTIMISERS
     from rivercal.optimise.registry import RENAMED
+    from rivercal.problem import LOSSES
     from rivercal.twin import NOISE_MODELS
     from rivercal.twin.practical import PRACTICAL_SCENARIOS
     from rivercal.workflows.online import run_online
@@ -121,6 +130,8 @@ def online(
             raise OptionError(f"--max-change {name}={value:g}: the largest change must be positive",
                               option="--max-change")
     check_number(alert_k, "--alert-k", low=0, low_open=True)
+    check_choice(loss, "--loss", LOSSES)
+    check_number(skill_cycles, "--skill-cycles", low=0)
     check_number(seed, "--seed", low=0)
     check_number(max_cycles, "--max-cycles", low=1)
     check_number(workers, "--workers", low=1)
@@ -148,7 +159,7 @@ def online(
     with reporter.running("starting"), workers_for(workers, address) as where:
         config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
                               algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
-                              workers=where)
+                              loss=loss, transition=transition, skill_cycles=skill_cycles, workers=where)
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter)
@@ -193,16 +204,38 @@ def print_summary(summary: dict[str, Any]) -> None:
     out_console.print(table)
     for a in summary["alerts"]:
         out_console.print(f"[yellow]alert[/] cycle {a['cycle']} {a['kind']}: {a['message']}", highlight=False)
-    fe = summary["forecast_errors"]
-    if fe.get("n"):
-        out_console.print(f"forecast level error (mean |error| over {fe['n']} values at the stations, lead 0-"
-                          f"{fe['lead_h']:g} h): rivercal {fe['updated_mae_m'] * 100:.2f} cm, fixed DSS "
-                          f"{fe['dss_mae_m'] * 100:.2f} cm" + _ratio_words(fe.get("ratio")), highlight=False)
-    elif fe.get("reason"):
-        out_console.print("forecast level error, rivercal against the fixed DSS: nothing to compare yet — "
-                          + fe["reason"], highlight=False)
+    _print_figures(summary)
     if "files" in summary:
         out_console.print(f"report: {summary['files']['report']}")
+
+
+def _print_figures(summary: dict[str, Any]) -> None:
+    """The headline figures (:func:`rivercal.report.online_figures.run_figures`), with what they are measured on."""
+    if summary.get("scenario"):
+        realism = summary.get("realism") or "ideal"
+        if realism == "ideal":
+            out_console.print(f"twin {summary['scenario']}, identical twin: the truth shares the model's engine, grid "
+                              "and inflow and the observations are exact, so these figures are an upper bound, "
+                              "not what a river would give (try --realism realistic)", highlight=False)
+        else:
+            out_console.print(f"twin {summary['scenario']}, realism {realism}: the truth differs from the model "
+                              "and the observations carry sensor errors (docs/realism.md)", highlight=False)
+    if summary.get("forecast_values"):
+        when = f"after {summary['change_time'][:16].replace('T', ' ')}" if summary.get("change_time") else "all cycles"
+        out_console.print(
+            f"forecast level error ({when}, lead 0-{summary['lead_h']:g} h, mean |error| over "
+            f"{summary['forecast_values']} values against the stored observations): rivercal as issued "
+            f"{summary['rivercal_mae_m'] * 100:.2f} cm, fixed DSS {summary['dss_mae_m'] * 100:.2f} cm"
+            + _ratio_words(summary.get("forecast_mae_ratio")), highlight=False)
+    else:
+        fe = summary["forecast_errors"]
+        out_console.print("forecast level error, rivercal against the fixed DSS: nothing to compare yet"
+                          + (f" — {fe['reason']}" if fe.get("reason") else ""), highlight=False)
+    ttc = summary.get("time_to_correct_cycles")
+    words = (f"{ttc} cycle{'s' if ttc != 1 else ''}" if ttc is not None
+             else f"— ({summary.get('time_to_correct_reason')})")
+    out_console.print(f"time to correct the changed parameters: {words}; jump alerts: {summary.get('jump_alerts', 0)}; "
+                      f"fallbacks to the DSS's forecast: {summary.get('fallbacks', 0)}", highlight=False)
 
 
 def _ratio_words(ratio: float | None) -> str:
@@ -222,7 +255,9 @@ def demo(
 
     The De Dommel-like network's global friction jumps 16 → 25 m^(1/3)/s on 2010-11-01 (vegetation mowed,
     thesis §5-2-1); the service re-estimates friction and crest shift daily from 2010-10-18 to 2010-11-15
-    and forecasts 48 h ahead beside the DSS, whose friction stays 16.
+    and forecasts 48 h ahead beside the DSS, whose friction stays 16. The truth is ``realistic``
+    (docs/realism.md): sensor noise, gaps, spikes and a drifting gauge, rainfall and runoff errors and a
+    finer grid with per-branch friction, so the figures are not those of an identical twin.
     """
     output_dir(out)
     db = out / "run.sqlite"
@@ -231,8 +266,9 @@ def demo(
             Path(f"{db}{suffix}").unlink(missing_ok=True)
     online(case="dommel", date_from="2010-10-18", date_to="2010-11-15", db=db, scenario="PI-Fg", observations=[],
            follow=None, poll=10.0, run="demo-PI-Fg", params="FA,Wd", window="7D", cycle="1D", horizon="48h",
-           warmup="24h", algorithm="dud", deadline=60.0, max_change=None, alert_k=3.0, noise="none", seed=0,
-           realism=None, max_cycles=None, workers=workers, dask=None, out=out / "report", as_json=as_json, quiet=False)
+           warmup="24h", algorithm="dud", deadline=60.0, max_change=None, alert_k=3.0, loss="huber", transition=True,
+           skill_cycles=3, noise="none", seed=0, realism="realistic", max_cycles=None, workers=workers, dask=None,
+           out=out / "report", as_json=as_json, quiet=False)
 
 
 def report(

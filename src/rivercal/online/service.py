@@ -260,7 +260,7 @@ class OnlineService:
                            accepted=n not in held, reason=held.get(n))
             for n in warm)
         scores = self._scores(list(range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)))
-        choice = self._choose(spec, scores)
+        choice = self._choose(spec, scores, change)
         wall = time.perf_counter() - t_wall
         notes = [*est.notes, *([] if hot else ["cold start (no stored state)"])]
         self.store.commit_cycle(self.run, CycleRecord(
@@ -399,15 +399,23 @@ class OnlineService:
                                  cost_transition=est.test.cost_transition, p_value=est.test.p_value)
         return found, est.model_runs, words
 
-    def _choose(self, spec: CycleSpec, fresh: pd.DataFrame | None) -> ForecastChoice:
-        """The forecast to issue (:mod:`rivercal.online.skill`) from the stored scores and this cycle's."""
+    def _choose(self, spec: CycleSpec, fresh: pd.DataFrame | None, change: TransitionRecord | None) -> ForecastChoice:
+        """The forecast to issue (:mod:`rivercal.online.skill`) from the stored scores and this cycle's.
+
+        With a change in the run, only the forecasts from the cycle that found it on count.
+        """
         if self.config.skill_cycles == 0:
             return ForecastChoice("updated", "the updated parameters' forecast (no skill comparison)", None, None, ())
         stored = self.store.scores(self.run)
         if fresh is not None and len(fresh):
             stored = pd.concat([stored[~stored["cycle"].isin(fresh["cycle"].unique())], fresh], ignore_index=True)
+        since = None
+        if change is not None:
+            since = (change.found_cycle, f"cycle {change.found_cycle} found that {change.parameter} changed from "
+                                         f"{change.before:.4g} to {change.after:.4g} {change.unit} at about "
+                                         f"{change.time:%Y-%m-%d %H:%M}")
         return choose_forecast(stored, spec.cycle, cycles=self.config.skill_cycles, lead_h=self.config.skill_lead_h,
-                               tolerance=self.config.skill_tolerance)
+                               tolerance=self.config.skill_tolerance, since=since)
 
     def _scores(self, cycles: list[int]) -> pd.DataFrame | None:
         """Scores of the forecasts of earlier cycles against the observations stored so far (None: none)."""

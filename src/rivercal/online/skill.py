@@ -10,8 +10,12 @@ DSS's times (1 + ``tolerance``) plus ``slack_m`` (equal forecasts, e.g. before a
 otherwise it falls back to the DSS's forecast, and says so. With nothing scored yet (the first
 cycles of a run) it issues the DSS's: the updated parameters have not shown their skill.
 
-The comparison scores forecasts issued with earlier estimates, so after an intervention the fallback
-lags the estimate by a cycle: the first forecast with a new after-value is judged one cycle later.
+The comparison scores forecasts issued with earlier estimates. After an intervention that the
+transition estimator found (:mod:`rivercal.online.intervention`), the forecasts issued before it used the
+values before the change and say nothing about the value after it, so only the cycles from the one that
+found the change on count (``since``); until one of them is scored, the cycle issues the updated
+forecast: the transition test (a significant and relevant drop of the cost) is the evidence that the
+river changed and the DSS's parameters no longer hold.
 """
 
 from __future__ import annotations
@@ -50,7 +54,8 @@ class ForecastChoice:
 
 
 def choose_forecast(scores: pd.DataFrame, cycle: int, *, cycles: int = 3, lead_h: float = 24.0,
-                    tolerance: float = 0.0, slack_m: float = 0.001) -> ForecastChoice:
+                    tolerance: float = 0.0, slack_m: float = 0.001,
+                    since: tuple[int, str] | None = None) -> ForecastChoice:
     """Issue the updated forecast or fall back to the DSS's (module docstring).
 
     Parameters
@@ -66,8 +71,12 @@ def choose_forecast(scores: pd.DataFrame, cycle: int, *, cycles: int = 3, lead_h
         Lead-time buckets up to this many hours count.
     tolerance, slack_m
         The updated forecast is issued while its RMSE ≤ the DSS's · (1 + tolerance) + slack_m (m).
+    since
+        (first cycle, what happened): only cycles from the first on count, e.g. the cycle that found an
+        intervention; with none of them scored the updated forecast is issued (module docstring).
     """
-    s = scores[(scores["cycle"] < cycle) & (scores["lead_to_h"] <= lead_h + 1e-9)]
+    first = since[0] if since is not None else 0
+    s = scores[(scores["cycle"] < cycle) & (scores["cycle"] >= first) & (scores["lead_to_h"] <= lead_h + 1e-9)]
     s = s[s["series"].map(lambda sid: str(sid).rpartition(".")[2] in _LEVELS).astype(bool)] if len(s) else s
     cells = s.pivot_table(index=["cycle", "series", "lead_from_h"], columns="kind", values=["rmse", "n"],
                           aggfunc="first") if len(s) else pd.DataFrame()
@@ -75,6 +84,10 @@ def choose_forecast(scores: pd.DataFrame, cycle: int, *, cycles: int = 3, lead_h
         cells = cells.dropna()
     else:
         cells = pd.DataFrame()
+    if cells.empty and since is not None:
+        return ForecastChoice("updated", f"the updated parameters' forecast: {since[1]}; no forecast made since has "
+                                         "been scored, and those before it used the values before the change",
+                              None, None, ())
     if cells.empty:
         return ForecastChoice("dss", "the DSS's forecast: no forecast of the updated parameters has been scored yet",
                               None, None, ())

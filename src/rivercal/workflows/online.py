@@ -1,7 +1,9 @@
 """The on-line service over a replay or a watched folder, with its summary and report.
 
 Observations reach the store from a twin scenario of thesis chapter 5, from files (CSV or Delft-FEWS
-PI-XML), or from a folder that is watched; the service then runs every cycle that is due. A restart
+PI-XML), or from a folder that is watched; every value is screened for spikes at ingestion
+(:class:`~rivercal.observations.ScreenRule`) and stored with its flag, and gaps are recorded. The service
+then runs every cycle that is due. A restart
 with the same store and run resumes at the first unfinished cycle.
 """
 
@@ -15,6 +17,7 @@ from typing import Any
 
 import pandas as pd
 
+from rivercal.observations import ScreenRule
 from rivercal.workflows.progress import NO_PROGRESS, Progress
 
 __all__ = ["format_value", "online_summary", "read_observation_file", "run_online"]
@@ -103,9 +106,9 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             progress.stage(f"{scenario}: running the truth")
             truth = practical_truth(model, scenario, *service.data_period(last), noise=noise, seed=seed,
                                     series=service.series, realism=level)
-            store.ingest(truth.observations, source=f"twin:{scenario}")
+            store.ingest(truth.observations, source=f"twin:{scenario}", screen=ScreenRule())
         for source, obs in observations:
-            store.ingest(obs, source=source)
+            store.ingest(obs, source=source, screen=ScreenRule())
         finished = int(store.cycles(service.run)["status"].isin(FINAL_STATUSES).sum())
         total = int((last - service.schedule.first_issue) // service.period) + 1
         if max_cycles is not None:
@@ -151,7 +154,7 @@ def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: fl
                 if seen.get(path) == stamp:
                     continue
                 try:
-                    store.ingest(read_observation_file(path), source=path.name)
+                    store.ingest(read_observation_file(path), source=path.name, screen=ScreenRule())
                 except ValueError as exc:  # a bad file (CaseError) is reported and skipped; the service goes on
                     log.warning("skipped %s: %s", path.name, exc)
                     progress.note(f"skipped {path.name}: {exc}")
@@ -176,12 +179,16 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
     """JSON-friendly summary of a run: cycles, estimates, alerts and forecast errors (updated vs DSS).
 
     ``forecast_errors`` is :func:`rivercal.report.online.forecast_errors` (with its ``reason`` when
-    nothing could be compared yet); ``wall_s`` in s; estimates in the parameters' units.
+    nothing could be compared yet); the headline figures (``forecast_mae_ratio``,
+    ``time_to_correct_cycles``, ``jump_alerts``, ``fallbacks`` …) are
+    :func:`rivercal.report.online_figures.run_figures`; ``wall_s`` in s; estimates in the parameters' units.
     """
     from rivercal.report.online import forecast_errors
+    from rivercal.report.online_figures import run_figures
 
     cycles = store.cycles(service.run)
     est = store.estimates(service.run)
+    flags = store.flag_counts(service.series)
     alerts = store.alerts(service.run)
     return {
         "run": service.run.name,
@@ -201,7 +208,9 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
             for c, g in est.groupby("cycle")],
         "alerts": [{"cycle": int(r.cycle), "kind": r.kind, "parameter": r.parameter, "message": r.message}
                    for r in alerts.itertuples()],
+        "observations_flagged": {str(k): int(v) for k, v in flags.groupby("flag")["n"].sum().items()},
         "forecast_errors": forecast_errors(store, service.run),
+        **run_figures(store, service.run),
     }
 
 
