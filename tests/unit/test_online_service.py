@@ -130,10 +130,15 @@ def test_cycles_follow_a_jump_warm_hot_and_alert(tmp_path) -> None:
         assert [o.cycle for o in out] == list(range(17))
         assert out[0].hot_start is False and all(o.hot_start for o in out[1:])
         before = [o for o in out if o.issue_time <= CHANGE]
-        after = [o for o in out if o.issue_time > CHANGE]
+        after = [o for o in out if o.issue_time > CHANGE + pd.Timedelta("1D")]
         assert all(abs(o.accepted["FA"] - 16.0) < 0.05 and abs(o.accepted["Wd"] - 10.0) < 0.005 for o in before)
-        # the first cycle after the mowing runs the transition estimator: it dates the change and accepts the
-        # value after it, and every later cycle continues from there (within 1 % of the truth)
+        # the first cycle after the mowing sees its estimate jump, but one day after the change is too little to
+        # tell it from a passing event (transition_min_after_h, 36 h): it keeps the last accepted estimate; the
+        # second dates the change and accepts the value after it, and every later cycle continues from there
+        # (within 1 % of the truth)
+        first = next(o for o in out if o.issue_time > CHANGE)
+        assert first.transition is None and 16.5 < first.estimates["FA"] < 20.0
+        assert first.accepted == {"FA": 16.0, "Wd": 10.0} and "too recent" in first.held["FA"]
         assert all(abs(o.accepted["FA"] - 25.0) < 0.25 for o in after)
         assert after[0].transition is not None and after[0].transition.found_cycle == after[0].cycle
         assert abs(after[0].transition.time - CHANGE) <= pd.Timedelta("1h")

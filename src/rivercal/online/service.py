@@ -55,6 +55,8 @@ __all__ = ["DEFAULT_RESOLUTION", "CycleOutcome", "OnlineConfig", "OnlineService"
 
 log = logging.getLogger(__name__)
 
+_TOO_RECENT = ": too recent to tell from a passing event"
+
 @dataclass(frozen=True)
 class CycleOutcome:
     """What one cycle did (as committed to the store), for progress displays and summaries.
@@ -303,6 +305,10 @@ class OnlineService:
             found, runs, why = self._search(spec, warm, state, obs, moved)
             est.model_runs += runs
             est.notes.append(why)
+            if found is None and why.endswith(_TOO_RECENT):
+                # a one-value fit over a window that may end in a change is neither value: keep the last
+                # accepted estimate until the next cycle can tell
+                est.held = dict.fromkeys(warm, f"{why}; the last accepted estimate is kept until the next cycle")
             if found is not None:
                 est.change = found
                 retried = self._retry(spec, {**warm, found.parameter: found.after}, state, obs, found)
@@ -390,9 +396,14 @@ class OnlineService:
         except (ModelRunError, ValueError) as exc:
             return None, 0, f"{name} jumped ({moved[name]:.0f} σ); the transition estimator failed: {exc}"
         words = f"{name} jumped ({moved[name]:.0f} σ); transition estimate: {est.test.reason}"
+        after_h = (spec.window_end - est.time) / pd.Timedelta("1h")
         if not est.test.transition or abs(est.after - est.before) <= self.resolution(name):
             if est.test.transition:
                 words += f" but before and after differ by less than the resolution {self.resolution(name):g}"
+            return None, est.model_runs, words
+        if after_h < self.config.transition_min_after_h:
+            words += (f" at {est.time:%Y-%m-%d %H:%M}, but only {after_h:.0f} h of the window follow it (fewer than "
+                      f"{self.config.transition_min_after_h:g} h){_TOO_RECENT}")
             return None, est.model_runs, words
         found = TransitionRecord(parameter=name, time=est.time.floor("s"), before=est.before, after=est.after,
                                  unit=p.unit or "-", found_cycle=spec.cycle, cost_single=est.test.cost_single,
