@@ -281,9 +281,14 @@ def apply_sensor_errors(frame: pd.DataFrame, errors: SensorErrors, seed: int, or
         drifting = {levels[i] for i in np.atleast_1d(pick)}
     days = k * interval_s / 86400.0
     for col in frame.columns:
-        rng = generator(seed, "sensor", str(col))
-        white, ar1 = rng.standard_normal(n)[k], _ar1(rng, n, 1.0, phi)[k]
-        spike, sign, size = rng.random(n)[k], rng.choice([-1.0, 1.0], n)[k], rng.random(n)[k]
+        # one generator per stream: a stream's first values do not depend on how many are drawn, so a
+        # shorter period sees the same errors where it overlaps a longer one
+        def rng(stream: str, col: str = str(col)) -> np.random.Generator:
+            return generator(seed, "sensor", col, stream)
+
+        white, ar1 = rng("white").standard_normal(n)[k], _ar1(rng("ar1"), n, 1.0, phi)[k]
+        spike, size = rng("spike").random(n)[k], rng("size").random(n)[k]
+        sign = np.where(rng("sign").random(n)[k] < 0.5, -1.0, 1.0)
         true = frame[col].to_numpy(float)
         if col in levels:
             values = true + errors.level_white_m * white + errors.level_ar1_m * ar1
@@ -316,7 +321,7 @@ def _outages(rng: np.random.Generator, n: int, fraction: float, mean_steps: floa
         return mask
     p_start = fraction / mean_steps / max(1e-12, 1.0 - fraction)
     starts = rng.random(n) < p_start
-    lengths = rng.geometric(1.0 / mean_steps, n)
+    lengths = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0]).geometric(1.0 / mean_steps, n)
     for i in np.flatnonzero(starts):
         mask[i:i + int(lengths[i])] = True
     return mask
