@@ -287,6 +287,33 @@ def test_availability_shows_counts_and_gaps(store: Store) -> None:
     assert store.availability(["a.h"], "2010-11-03", "2010-11-04").empty
 
 
+def test_spikes_are_flagged_at_ingestion_kept_and_left_out_and_gaps_recorded(store: Store) -> None:
+    from rivercal.observations import ScreenRule
+
+    # a flood wave (1 m in 2 days) with two 80 cm spikes, the second at the end of the first delivery (on the
+    # rising limb the values within 3 h spread by ±10 cm: 5 robust σ of them are 49 cm, the smallest spike seen)
+    t = pd.date_range("2010-11-01", periods=97, freq="h", tz="UTC")
+    level = 10.0 + 0.5 * (1 - np.cos(2 * np.pi * np.arange(97) / 96.0))
+    level[[20, 48]] += 0.8
+    frame = pd.DataFrame({"a.h": level}, index=t)
+    frame.iloc[60:66] = np.nan  # a 7-hour gap
+    first = store.ingest(ObservationSet.from_frame(frame.iloc[:49]), "telemetry", screen=ScreenRule())
+    assert first.outliers == 1  # the last value has no values after it yet: not judged
+    second = store.ingest(ObservationSet.from_frame(frame.iloc[49:]), "telemetry", screen=ScreenRule())
+    assert second.outliers == 1 and second.gaps == 1  # the spike at the seam, judged with the values after it
+    counts = store.flag_counts(["a.h"]).set_index("flag")["n"].to_dict()
+    assert counts == {"ok": 89, "outlier": 2}  # 97 − 6 missing values, every stored value kept
+    got = store.observations(["a.h"], t[0], t[-1])["a.h"]
+    assert len(got) == 89 and pd.Timestamp(t[20]) not in set(got.times) and pd.Timestamp(t[48]) not in set(got.times)
+    # the rise and fall of the wave itself is not a spike
+    assert np.allclose(got.values, pd.Series(level, index=t).loc[got.times].values)
+    gaps = store.gaps(["a.h"])
+    assert gaps[["start", "end", "hours"]].values.tolist() == [[t[59], t[66], 7.0]]
+    # without a screen nothing is flagged
+    store.ingest(ObservationSet.from_frame(frame.rename(columns={"a.h": "b.h"})), "telemetry")
+    assert store.flag_counts(["b.h"])["flag"].tolist() == ["ok"]
+
+
 # -- scores ---------------------------------------------------------------------------------------------------
 
 
