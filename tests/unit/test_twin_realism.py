@@ -111,3 +111,47 @@ def test_levels_and_toml_files(tmp_path) -> None:
         load_realism(path)
     with pytest.raises(CaseError, match="unknown realism 'foggy'"):
         get_realism("foggy")
+
+
+# -- the truth under rainfall, runoff and structural errors (dommel case) -------------------------------------
+
+
+@pytest.fixture(scope="module")
+def dommel():
+    from rivercal.model import load_model
+
+    return load_model("dommel")
+
+
+def test_a_truth_with_errors_of_size_zero_is_the_model(dommel) -> None:
+    from rivercal.twin.realism import Realism, RunoffErrors, StructureErrors
+    from rivercal.twin.truth_model import PerturbedTruth
+
+    zero = Realism(name="zero", rain=RainErrors(sigma_ln=0.0), runoff=RunoffErrors(sigma_ln=0.0),
+                   structure=StructureErrors(grid_factor=1.0, friction_sigma_ln=0.0))
+    truth = PerturbedTruth(dommel, zero, seed=4)
+    end = dommel.start + pd.Timedelta("3D")
+    q = {"friction:global": 25.0}
+    a, _ = dommel.simulate(q, end=end)
+    b, _ = truth.simulate(q, end=end)
+    pd.testing.assert_frame_equal(a.series, b.series, rtol=1e-9, atol=1e-9)
+
+
+def test_the_realistic_truth_runs_finer_with_friction_per_branch_around_the_global_value(dommel) -> None:
+    from rivercal.twin.truth_model import truth_model
+
+    truth = truth_model(dommel, "realistic", seed=4)
+    assert truth_model(dommel, "noisy") is dommel  # sensor errors leave the truth alone
+    lengths = {b.id: b.length for b in dommel.case.spec.branches}
+    f = truth.branch_factors
+    mean = sum(f[b] * lengths[b] for b in f) / sum(lengths.values())
+    assert mean == pytest.approx(1.0, rel=1e-12) and np.std(list(f.values())) > 0.03
+    assert truth.truth.compiled.n_hpoints > 1.5 * dommel.compiled.n_hpoints  # dx halved
+    q = truth.quantities_of({"friction:global": 25.0, "weir:ZL1-5.crest_level": 7.0})
+    inherit = dommel.compiled.branch_inherits
+    assert q["weir:ZL1-5.crest_level"] == 7.0
+    assert all(q[f"friction:branch:{b}"] == pytest.approx(25.0 * f[b]) for b in inherit)
+    # event-wise rain factors with median 1 and the runoff factors of every catchment
+    assert truth.rain_factor is not None and set(truth.runoff_factors) == {c.id for c in dommel.case.spec.catchments}
+    wet = truth.rain_factor[truth.rain_factor != 1.0]
+    assert len(wet) > 0 and 0.5 < float(np.median(wet.unique())) < 2.0
