@@ -195,12 +195,13 @@ def print_summary(summary: dict[str, Any]) -> None:
     table = Table(title=f"run {summary['run']} ({summary['case']}): {summary['cycles']} cycles", title_justify="left")
     names = [k for k in (summary["estimates"][0] if summary["estimates"] else {}) if k not in
              ("cycle", "issue_time", "held")]
-    for col in ("cycle", "issue time", *names):
+    issued = {i["cycle"]: i["issued"] or "-" for i in summary.get("issued", [])}
+    for col in ("cycle", "issue time", *names, "forecast issued"):
         table.add_column(col, justify="right")
     for e in summary["estimates"]:
         table.add_row(str(e["cycle"]), e["issue_time"][:16].replace("T", " "),
                       *[format_value(e[n], summary["units"].get(n, "")) + (" (held)" if n in e["held"] else "")
-                        for n in names])
+                        for n in names], issued.get(e["cycle"], "-"))
     out_console.print(table)
     for a in summary["alerts"]:
         out_console.print(f"[yellow]alert[/] cycle {a['cycle']} {a['kind']}: {a['message']}", highlight=False)

@@ -28,6 +28,7 @@ from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
 from rivercal.report.html import Page, bullets, figure, paragraph, table
+from rivercal.report.online_figures import figure_blocks
 from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_xarray
 
 __all__ = ["continuous_runs", "forecast_errors", "write_online_report"]
@@ -431,8 +432,10 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
              "beside the DSS with its fixed parameters."] if len(cycles) else ["The run has no cycles yet."]
     if scenario is not None:
         intro.append(f"Observations: twin truth of scenario {scenario.name} (thesis §5-2): {scenario.description}; "
-                     f"the change happens at {change:%Y-%m-%d %H:%M} UTC; noise {meta.get('noise', 'none')}.")
+                     f"the change happens at {change:%Y-%m-%d %H:%M} UTC; noise {meta.get('noise', 'none')}, realism "
+                     f"{(meta.get('realism') or {}).get('name', 'ideal')}.")
     page.intro(*intro)
+    page.section("Headline figures", *figure_blocks(store, run))
 
     if len(cycles):
         truth: dict[str, tuple] = {}

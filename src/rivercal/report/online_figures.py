@@ -162,3 +162,41 @@ def _accepted(est: pd.DataFrame) -> pd.DataFrame:
     table = est.pivot_table(index="cycle", columns="parameter", values="value", aggfunc="first")
     ok = est.pivot_table(index="cycle", columns="parameter", values="accepted", aggfunc="first").astype(bool)
     return table.where(ok).ffill()
+
+
+def figure_blocks(store: Any, run: Any) -> list[Any]:
+    """Report blocks: the headline figures in words and the forecast each cycle issued, with why."""
+    from rivercal.report.html import paragraph, table
+
+    f = run_figures(store, run)
+    words = []
+    if f["scenario"]:
+        words.append(f"Twin scenario {f['scenario']}, realism {f['realism']}"
+                     + (": an identical twin, whose truth is the model and whose observations are exact — an upper "
+                        "bound, not what a river gives." if f["realism"] == "ideal" else
+                        ": the truth differs from the model and the observations carry sensor errors "
+                        "(docs/realism.md)."))
+    if f["forecast_values"]:
+        words.append(f"Level forecasts up to {f['lead_h']:g} h"
+                     + (f" of the cycles issued after {f['change_time'][:16].replace('T', ' ')}" if f["change_time"]
+                        else "") + f", against the stored observations not flagged as outliers: rivercal as issued "
+                     f"{f['rivercal_mae_m'] * 100:.2f} cm mean absolute error, the fixed DSS {f['dss_mae_m'] * 100:.2f}"
+                     f" cm (ratio {f['forecast_mae_ratio']:.2f}; the updated forecasts alone "
+                     f"{f['updated_mae_m'] * 100:.2f} cm).")
+    if f["scenario"]:
+        ttc = f["time_to_correct_cycles"]
+        words.append("Time to correct the changed parameters: "
+                     + (f"{ttc} cycle(s)" if ttc is not None else f"— ({f['time_to_correct_reason']})")
+                     + (f"; to settle on the run's last estimate: {f['time_to_settle_cycles']} cycle(s)"
+                        if f["time_to_settle_cycles"] is not None else "") + ".")
+    words.append(f"Jump alerts: {f['jump_alerts']}; fallbacks to the DSS's forecast: {f['fallbacks']} (and "
+                 f"{f['unscored_cycles']} first cycle(s) with nothing scored yet).")
+    cycles = store.cycles(run)
+    blocks: list[Any] = [paragraph(" ".join(words))]
+    if len(cycles) and "issued_forecast" in cycles:
+        shown = cycles[["cycle", "issue_time", "issued_forecast", "skill_updated", "skill_dss", "issued_reason"]]
+        shown = shown.assign(skill_updated=shown["skill_updated"] * 100, skill_dss=shown["skill_dss"] * 100)
+        blocks.append(table(shown.set_index("cycle"), "The forecast each cycle issued (do no harm): the recent RMSE "
+                                                      "(cm) of the updated and the DSS's level forecasts, and why",
+                            float_format=".3g"))
+    return blocks
