@@ -88,3 +88,21 @@ def test_bad_input_exits_2_and_names_the_problem(tmp_path: Path, args: list[str]
     run = rivercal("online", "dommel", *argv, "--db", str(tmp_path / "x.sqlite"))
     assert run.returncode == 2, run.stderr
     assert message in run.stderr and "Traceback" not in run.stderr
+
+
+def test_realistic_crest_lowering_is_dated_once_and_its_value_taken(tmp_path: Path) -> None:
+    """PI-Wg under realistic errors: the cycle two days after the change dates it and takes −0.15 m, one alert."""
+    run = rivercal("online", "dommel", "--scenario", "PI-Wg", "--realism", "realistic", "--from", "2010-11-01",
+                   "--to", "2010-11-03", "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["realism"] == "realistic" and summary["status"] == {"done": 3}
+    jumps = [a for a in summary["alerts"] if a["kind"] == "jump"]
+    assert [a["parameter"] for a in jumps] == ["Wd"]
+    assert "at about 2010-10-31 2" in jumps[0]["message"] or "at about 2010-11-01 0" in jumps[0]["message"]
+    last = summary["estimates"][-1]
+    assert last["Wd"] == pytest.approx(-0.15, abs=0.01) and summary["time_to_correct_cycles"] == 2
+    # the twin's spikes were flagged at ingestion and kept
+    assert summary["observations_flagged"].get("outlier", 0) > 0 and summary["observations_flagged"]["ok"] > 1000
+    # the first cycle had nothing scored and issued the DSS's forecast; none fell back since
+    assert summary["unscored_cycles"] == 1 and summary["fallbacks"] == 0
