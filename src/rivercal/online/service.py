@@ -323,7 +323,13 @@ class OnlineService:
                     spec, f"at about {found.time:%Y-%m-%d %H:%M} (the transition fit lowers the cost by "
                           f"{1 - found.cost_transition / found.cost_single:.0%})"))
             moved = {}
-        for n, k in moved.items():  # jumps that the transition estimator did not look at
+        elif moved and self.config.transition:
+            # one change is followed at a time; another parameter's jump meanwhile is noted, not alerted: only
+            # the transition test may call a jump an intervention
+            est.notes.append(", ".join(f"{n} jumped ({k:.0f} σ)" for n, k in moved.items())
+                             + f" while the change of {est.change.parameter} is followed: no transition search")
+            moved = {}
+        for n, k in moved.items():  # without the transition estimator every jump alerts
             est.alerts.append(guardrails.jump_alert(n, self.parameters[n].unit, warm[n], cal.estimates[n], k, spec,
                                                     "(a one-value fit over the window)"))
         est.cost_after = cal.result.cost
