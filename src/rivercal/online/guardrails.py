@@ -35,7 +35,7 @@ from rivercal.errors import ModelRunError
 from rivercal.problem import CalibrationProblem
 from rivercal.store import AlertRecord, CycleSpec
 
-__all__ = ["gate", "jump_alert", "jumps", "limit_alerts"]
+__all__ = ["data_alerts", "gate", "jump_alert", "jumps", "limit_alerts"]
 
 log = logging.getLogger(__name__)
 
@@ -113,3 +113,16 @@ def limit_alerts(parameters: Any, warm: Mapping[str, float], estimates: Mapping[
                     "limit", f"{n} stopped at the per-cycle change bound ±{step:g} {p.unit}; the true change may "
                     "be larger and the next cycles will continue", parameter=n))
     return out
+
+
+def data_alerts(observations: Any, window: Any, interval_s: float, min_coverage: float) -> list[AlertRecord]:
+    """A ``data`` alert when a series covers less than ``min_coverage`` of the window's values (interval in s)."""
+    import pandas as pd
+
+    expected = int(pd.Timedelta(window) / pd.Timedelta(seconds=interval_s)) + 1
+    coverage = {s.id: len(s) / expected for s in observations}
+    thin = {k: v for k, v in coverage.items() if v < min_coverage}
+    if not thin:
+        return []
+    return [AlertRecord("data", f"observations cover less than {min_coverage:.0%} of the window at "
+                        + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items())))]

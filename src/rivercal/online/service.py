@@ -239,8 +239,8 @@ class OnlineService:
                                       sources=list(self.config.sources) if self.config.sources else None,
                                       sigma=self.config.sigma if self.config.sigma is not None else DEFAULT_SIGMA)
         state, hot = self._state("updated", run_start, self._quantities(warm, change, run_start))
-        est = _Estimation(estimates=dict(warm), change=change, alerts=self._data_alerts(obs),
-                          notes=self._flag_note(spec))
+        thin = guardrails.data_alerts(obs, self.window, self.config.output_interval_s, self.config.min_coverage)
+        est = _Estimation(estimates=dict(warm), change=change, alerts=thin, notes=self._flag_note(spec))
         if obs.n_values == 0:
             est.status = "failed"
             est.message = f"no observations in the window {spec.window_start} .. {spec.window_end}"
@@ -337,17 +337,6 @@ class OnlineService:
         est.estimates = {n: float(cal.estimates.get(n, warm[n])) for n in warm}
         est.std = dict(cal.std)
         est.message = cal.result.message
-
-    def _data_alerts(self, obs: Any) -> list[AlertRecord]:
-        """A ``data`` alert when the window's observations are too thin."""
-        expected = int(self.window / pd.Timedelta(seconds=self.config.output_interval_s)) + 1
-        coverage = {s.id: len(s) / expected for s in obs}
-        thin = {k: v for k, v in coverage.items() if v < self.config.min_coverage}
-        if not thin:
-            return []
-        return [AlertRecord("data", "observations cover less than "
-                            f"{self.config.min_coverage:.0%} of the window at "
-                            + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items())))]
 
     def _flag_note(self, spec: CycleSpec) -> list[str]:
         """A note on the values flagged as outliers in the window (stored, left out)."""
