@@ -31,6 +31,7 @@ __all__ = ["FIGURES", "bench_realism", "realism_run"]
 
 #: The figures of each run that the table shows.
 FIGURES = ("forecast_mae_ratio", "rivercal_mae_m", "dss_mae_m", "updated_mae_ratio", "time_to_correct_cycles",
+           "time_to_settle_cycles",
            "time_to_correct_reason", "jump_alerts", "fallbacks", "unscored_cycles")
 
 
