@@ -1,7 +1,8 @@
 """Edge periods on the dommel case (2010-09-01 … 2010-12-01): short replays, single cycles, case start and end.
 
 - the replay of 2010-10-28 … 2010-11-06 (ten cycles, none of whose windows has left the change of
-  2010-11-01) ends with exit 0, a summary that says why no forecast could be compared yet, and a report;
+  2010-11-01) ends with exit 0, a summary that says why no forecast of a window past the change could
+  be compared yet (and gives the errors of the cycles issued after the change), and a report;
 - a single cycle on observations that end at its issue time: its forecasts cannot be scored, and the
   summary says that the observations end before the forecasts' first lead time;
 - the earliest first cycle (its window and warm-up start exactly at the case start) runs; an hour
@@ -45,7 +46,9 @@ def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:
     assert "nothing to compare yet" in page and "'rivercal after' is empty" in page
     again = rivercal(*args)  # the same command resumes: nothing left to run, the summary is printed
     assert again.returncode == 0, again.stderr
-    assert "nothing to compare yet" in again.stdout and "report:" in again.stdout
+    # the headline counts the cycles issued after the change, whose windows still hold it
+    assert "forecast level error (after 2010-11-01 00:00" in " ".join(again.stdout.split())
+    assert summary["forecast_values"] > 0 and summary["forecast_mae_ratio"] > 1 and "report:" in again.stdout
 
 
 def test_a_single_cycle_on_observations_that_end_at_its_issue_time(tmp_path: Path) -> None:

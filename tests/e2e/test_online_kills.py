@@ -38,12 +38,15 @@ KILLS = 10
 CONTENT = {
     "runs": "SELECT name, case_name, config, status FROM runs",
     "cycles": "SELECT cycle, window_start, window_end, issue_time, status, algorithm, model_runs, cost_before, "
-              "cost_after, message FROM cycles",
+              "cost_after, message, issued_forecast, issued_reason, skill_updated, skill_dss FROM cycles",
     "estimates": "SELECT c.cycle, e.parameter, e.value, e.std, e.unit, e.accepted, e.reason FROM estimates e "
                  "JOIN cycles c ON c.id = e.cycle_id",
     "alerts": "SELECT c.cycle, a.parameter, a.kind, a.message, a.magnitude FROM alerts a JOIN cycles c "
               "ON c.id = a.cycle_id",
-    "observations": "SELECT series, time, source, value FROM observations",
+    "observations": "SELECT series, time, source, value, flag FROM observations",
+    "observation_gaps": "SELECT series, source, gap_start, gap_end FROM observation_gaps",
+    "transitions": "SELECT c.cycle, t.parameter, t.time, t.value_before, t.value_after, t.unit, t.found_cycle, "
+                   "t.cost_single, t.cost_transition, t.p_value FROM transitions t JOIN cycles c ON c.id = t.cycle_id",
     "forecasts": "SELECT c.cycle, f.kind, f.series, f.time, f.lead_h, f.value FROM forecasts f JOIN cycles c "
                  "ON c.id = f.cycle_id",
     "forecast_scores": "SELECT c.cycle, s.kind, s.series, s.lead_from_h, s.lead_to_h, s.rmse, s.bias, s.n "

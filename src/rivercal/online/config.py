@@ -59,7 +59,8 @@ class OnlineConfig:
         The transition test's significance level and smallest relative cost reduction
         (:func:`~rivercal.online.transition_search.transition_test`).
     transition_min_after_h
-        A change is taken only when the window holds at least this many hours after it, h: a rain event
+        A change is taken only when the window holds at least this many hours after it (at most half
+        the window), h: a rain event
         whose inflow the model gets wrong makes the friction look changed while the flood passes, and
         an intervention stays (:mod:`rivercal.online.intervention`).
     skill_cycles, skill_lead_h, skill_tolerance
@@ -143,8 +144,8 @@ class OnlineConfig:
             raise ValueError(f"online loss_scale must be positive, got {self.loss_scale}")
         if not 0 < self.transition_alpha < 1 or not 0 <= self.transition_min_reduction < 1:
             raise ValueError("online: transition_alpha must be in (0, 1) and transition_min_reduction in [0, 1)")
-        if not 0 <= self.transition_min_after_h < pd.Timedelta(self.window) / pd.Timedelta("1h"):
-            raise ValueError("online: transition_min_after_h must be >= 0 and shorter than the window")
+        if not self.transition_min_after_h >= 0:
+            raise ValueError(f"online: transition_min_after_h must be >= 0, got {self.transition_min_after_h}")
         if self.skill_cycles < 0 or not self.skill_lead_h > 0 or self.skill_tolerance < 0:
             raise ValueError("online: skill_cycles must be >= 0, skill_lead_h > 0 and skill_tolerance >= 0")
 

@@ -396,9 +396,10 @@ class OnlineService:
             if est.test.transition:
                 words += f" but before and after differ by less than the resolution {self.resolution(name):g}"
             return None, est.model_runs, words
-        if after_h < self.config.transition_min_after_h:
+        need_h = min(self.config.transition_min_after_h, 0.5 * self.window / pd.Timedelta("1h"))
+        if after_h < need_h:
             words += (f" at {est.time:%Y-%m-%d %H:%M}, but only {after_h:.0f} h of the window follow it (fewer than "
-                      f"{self.config.transition_min_after_h:g} h){_TOO_RECENT}")
+                      f"{need_h:g} h){_TOO_RECENT}")
             return None, est.model_runs, words
         found = TransitionRecord(parameter=name, time=est.time.floor("s"), before=est.before, after=est.after,
                                  unit=p.unit or "-", found_cycle=spec.cycle, cost_single=est.test.cost_single,
