@@ -117,7 +117,7 @@ def test_a_symmetric_bifurcation_splits_evenly(tmp_path: Path) -> None:
     assert_balance_closes(result, sim)
     _mirrored(sim, result, "B", "C")
     inflow = result.discharges.iloc[-1][[c for c in result.discharges.columns if c.startswith("A@")][-1]]
-    outflow = result.discharges.iloc[-1][[c for c in result.discharges.columns if c.startswith("B@")][0]]
+    outflow = result.discharges.iloc[-1][next(c for c in result.discharges.columns if c.startswith("B@"))]
     assert abs(2.0 * outflow - inflow) < 1e-3 * inflow
 
 
