@@ -6,7 +6,12 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres
+.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels
+
+# numba's cache notices a change of a kernel's own file but not of a kernel it inlines from another file;
+# after a change anywhere in the engine the cached machine code is dropped (a fresh clone has none).
+KERNEL_SOURCES := $(shell find src/rivercal/engine -name '*.py' | sort)
+KERNEL_STAMP := $(VENV)/.kernels
 
 # The dashboard tests drive Debian's chromium through chromedriver (never a downloaded browser).
 CHROMIUM := /usr/bin/chromium
@@ -21,7 +26,13 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
-demo: $(STAMP)
+$(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
+	@find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+	@touch $(KERNEL_STAMP)
+
+kernels: $(KERNEL_STAMP)
+
+demo: $(STAMP) kernels
 	$(VENV)/bin/rivercal demo --out $(OUT)
 
 $(CHROMIUM) $(CHROMEDRIVER):
@@ -38,18 +49,18 @@ postgres:
 		command -v apt-get >/dev/null || { echo "make test needs Debian's postgresql package (apt-get)"; exit 1; }; \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
 
-test: $(STAMP) browser postgres
+test: $(STAMP) kernels browser postgres
 	$(PY) -m pytest -n auto -q
 
-test-fast: $(STAMP) browser postgres
+test-fast: $(STAMP) kernels browser postgres
 	$(PY) -m pytest -n auto -q -m "not slow"
 
-bench: $(STAMP) browser
+bench: $(STAMP) kernels browser
 	@mkdir -p out/bench
 	$(PY) benchmarks/run_all.py --out out/bench
 
 # The documentation site: docs/ -> docs/_build/html (warnings are errors; the tutorial is executed).
-docs: $(STAMP)
+docs: $(STAMP) kernels
 	$(VENV)/bin/sphinx-build -b html -E -W --keep-going -q docs docs/_build/html
 	@echo "the documentation: docs/_build/html/index.html"
 
