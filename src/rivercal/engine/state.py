@@ -36,6 +36,10 @@ class EngineState:
         Pump switches (0 off, 1 on).
     signature
         Grid signature (h-points, links) of the network that produced the state.
+    ctl
+        The controllers' state, one row per controller (:mod:`rivercal.engine.kernels.control`: integral in
+        m·s, last error in m, crest in m AD, time since the last action in s, target crest in m AD, started);
+        no rows for a network without controllers.
     """
 
     time: pd.Timestamp
@@ -46,6 +50,7 @@ class EngineState:
     q: np.ndarray
     pump_on: np.ndarray
     signature: tuple[int, int]
+    ctl: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
 
     def copy(self) -> EngineState:
         """A deep copy (the engine updates states in place)."""
@@ -58,6 +63,7 @@ class EngineState:
             q=self.q.copy(),
             pump_on=self.pump_on.copy(),
             signature=self.signature,
+            ctl=self.ctl.copy(),
         )
 
     #: Format tag of :meth:`to_bytes` (stored with the bytes so a later rivercal can tell what it reads).
@@ -67,7 +73,7 @@ class EngineState:
         """The state as bytes (an ``.npz`` archive of plain arrays; no pickle), for the on-line store."""
         buffer = io.BytesIO()
         np.savez(buffer, time_ns=np.int64(self.time.value), z=self.z, dz=self.dz, vol=self.vol, u=self.u, q=self.q,
-                 pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64))
+                 pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64), ctl=self.ctl)
         return buffer.getvalue()
 
     @classmethod
@@ -85,7 +91,8 @@ class EngineState:
             with np.load(io.BytesIO(data), allow_pickle=False) as f:
                 return cls(time=pd.Timestamp(int(f["time_ns"]), tz="UTC"), z=f["z"], dz=f["dz"], vol=f["vol"],
                            u=f["u"], q=f["q"], pump_on=f["pump_on"],
-                           signature=tuple(int(v) for v in f["signature"]))  # type: ignore[arg-type]
+                           signature=tuple(int(v) for v in f["signature"]),  # type: ignore[arg-type]
+                           ctl=f["ctl"] if "ctl" in f.files else np.zeros((0, 6)))
         except (OSError, KeyError, ValueError) as exc:
             raise ValueError(f"not an engine state archive ({exc})") from None
 

@@ -124,7 +124,8 @@ class EmbeddedModel(Simulator):
         if hours > 0:
             n = max(1, round(hours * 3600.0 / self.dt))
             spin = self.forcing_matrix(start, n, constant=True)
-            self._run(state, crest, fric, spin, n, False, start - pd.Timedelta(seconds=n * self.dt), phase="spin-up")
+            self._run(state, crest, fric, spin, n, False, start - pd.Timedelta(seconds=n * self.dt), phase="spin-up",
+                      control=self.control_values(parameters))
         state.time = start
         return state
 
