@@ -14,6 +14,9 @@ from rivercal.case.load import resolve_case_path
 from rivercal.engine import Simulator
 from rivercal.engine.kernels.control import N_STATE, S_INTEGRAL, S_STARTED, S_TIMER
 from rivercal.engine.state import EngineState
+from rivercal.models import build_model
+from rivercal.models.contract import check_parameters
+from rivercal.parameters import ClusterTarget, Parameter, ParameterSet
 
 
 def controlled_synthetic() -> Simulator:
@@ -85,3 +88,25 @@ def test_a_calibrated_setpoint_moves_the_controlled_level(sim: Simulator) -> Non
     late = base.series.index > sim.start + pd.Timedelta(days=1)
     diff = (up.series["S1.h_up"] - base.series["S1.h_up"])[held & late]
     assert diff.size > 10 and np.allclose(diff, 0.10, atol=0.01)
+
+
+def test_the_embedded_model_declares_controller_quantities_and_simulates_the_crests() -> None:
+    model = build_model(controlled_synthetic().case)
+    q = model.quantities
+    assert q["control:P2.setpoint"].unit == "m AD" and q["control:P2.ki"].unit == "1/s"
+    assert q["control:T7.value:2"].unit == "m AD" and q["control:R10.value:3"].unit == "m AD"
+    assert "weir:W2.crest_level" not in q and "weir:W3.crest_level" in q  # a controlled crest is no target
+    assert {"W2.crest", "W5.crest", "W7.crest", "W10.crest"} <= set(model.observables)
+    # a shift cluster moves two setpoints together, as it moves weir crests
+    shift = Parameter(name="S", cluster=[
+        ClusterTarget(target="control:P2.setpoint", min=12.9, max=13.4, base=13.15),
+        ClusterTarget(target="control:I5.setpoint", min=8.4, max=8.9, base=8.65)],
+        cluster_mode="shift", min=-0.2, max=0.2, initial=0.0, perturbation=0.05)
+    check_parameters(model, ParameterSet([shift]), {})
+    assert shift.quantities(0.1) == pytest.approx({"control:P2.setpoint": 13.25, "control:I5.setpoint": 8.75})
+    end = model.start + pd.Timedelta(days=2)
+    moved, _ = model.simulate(shift.quantities(0.1), end=end)
+    same, _ = model.simulate({"control:P2.setpoint": 13.25, "control:I5.setpoint": 8.75}, end=end)
+    assert np.array_equal(moved.series.to_numpy(), same.series.to_numpy())
+    with pytest.raises(KeyError, match="no controller 'X'"):
+        model.simulate({"control:X.setpoint": 1.0}, end=end)

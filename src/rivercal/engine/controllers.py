@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from rivercal.case.controllers import control_target_problem, table_values
+from rivercal.case.controllers import MAX_GAIN, control_target_problem, table_values
 from rivercal.engine.kernels.codes import OBS_FLUX, OBS_LEVEL
 from rivercal.engine.kernels.control import (
     CTL_INTERVAL,
@@ -150,6 +150,27 @@ class Controls:
                     out[f"control:{c.id}.{name}"] = float(self._values.par[i, col])
             for k, v in enumerate(table_values(c) or [], start=1):
                 out[f"control:{c.id}.value:{k}"] = float(v)
+        return out
+
+    def describe(self) -> dict[str, tuple[str, float, float, str]]:
+        """Every settable controller quantity: its unit, bounds and a line for users."""
+        out: dict[str, tuple[str, float, float, str]] = {}
+        units = {"kp": ("m/m", "proportional gain"), "ki": ("1/s", "integral gain"), "kd": ("s", "derivative gain")}
+        for target in self.default_parameters():
+            ident, _, quantity = target[len("control:"):].rpartition(".")
+            spec = self._by_id[ident][1]
+            if quantity in units:
+                unit, what = units[quantity]
+                out[target] = (unit, -MAX_GAIN, MAX_GAIN, f"{what} of PID controller {ident} (weir {spec.weir})")
+            elif quantity == "setpoint":
+                unit = "m³/s" if spec.measure.endswith(".Q") else "m AD"
+                out[target] = (unit, -MAX_LEVEL, MAX_LEVEL, f"setpoint of controller {ident} ({spec.measure})")
+            else:
+                unit = "m³/s" if spec.type != "time" and spec.type != "relation" and spec.measure.endswith(".Q") \
+                    else "m AD"
+                table = {"time": "crest table", "relation": "relation table crest"}.get(spec.type, "setpoint table")
+                out[target] = (unit, -MAX_LEVEL, MAX_LEVEL,
+                               f"value {quantity[6:]} of the {table} of controller {ident} (weir {spec.weir})")
         return out
 
     def values(self, parameters: Mapping[str, float] | None) -> ControlValues:
