@@ -110,3 +110,14 @@ def test_the_embedded_model_declares_controller_quantities_and_simulates_the_cre
     assert np.array_equal(moved.series.to_numpy(), same.series.to_numpy())
     with pytest.raises(KeyError, match="no controller 'X'"):
         model.simulate({"control:X.setpoint": 1.0}, end=end)
+
+
+def test_the_crests_reach_the_netcdf_output(sim: Simulator, tmp_path) -> None:
+    import xarray as xr
+
+    result, _ = sim.simulate(None, end=sim.start + pd.Timedelta(hours=6))
+    result.to_netcdf(tmp_path / "series.nc")
+    with xr.open_dataset(tmp_path / "series.nc") as ds:
+        assert list(ds["crest_series"].values) == ["W2.crest", "W5.crest", "W7.crest", "W10.crest"]
+        assert ds["crest_level"].attrs["units"] == "m"
+        assert np.array_equal(ds["crest_level"].values.T, result.series[list(ds["crest_series"].values)].to_numpy())

@@ -172,7 +172,8 @@ class SimulationResult:
         """The station series as a CF-1.8 ``xarray.Dataset`` (discrete sampling geometry: timeSeries).
 
         Levels (``h``, ``h_up``, ``h_down``) go into ``water_level(level_series, time)`` in m,
-        discharges into ``discharge(discharge_series, time)`` in m³/s; the series names are
+        discharges into ``discharge(discharge_series, time)`` in m³/s, the crests of controlled weirs
+        (``<weir>.crest``) into ``crest_level(crest_series, time)`` in m; the series names are
         ``timeseries_id`` coordinates.
         """
         import xarray as xr
@@ -188,6 +189,12 @@ class SimulationResult:
                                          {"cf_role": "timeseries_id", "long_name": "station.quantity"})
                 data_vars[var.name] = ((var.dimension, "time"), self.series[columns].to_numpy().T,
                                        var.attrs(text))
+        crests = [c for c in cols if c.endswith(".crest")]
+        if crests:  # controlled weirs: no CF standard name for a crest level, so a long name only
+            coords["crest_series"] = ("crest_series", np.array(crests, dtype=object),
+                                      {"cf_role": "timeseries_id", "long_name": "weir.crest"})
+            data_vars["crest_level"] = (("crest_series", "time"), self.series[crests].to_numpy().T,
+                                        {"units": "m", "long_name": "simulated crest level of a controlled weir"})
         ds = xr.Dataset(data_vars=data_vars, coords=coords)
         ds.attrs.update(
             Conventions="CF-1.8",

@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
+from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import NOISE_MODELS, add_noise
 from rivercal.twin.realism import REALISM_LEVELS, Realism, apply_sensor_errors, get_realism
 from rivercal.twin.truth_model import truth_model
@@ -263,7 +263,7 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         σ per quantity or series id for the observation weights (default
         :data:`~rivercal.observations.DEFAULT_SIGMA`: 0.025 m for levels, 0.1 m³/s for discharges).
     series
-        Series ids to observe (default: every observable of the model).
+        Series ids to observe (default: every series of the model that a station measures).
     output_interval
         Interval of the truth and the observations, s (default hourly).
     levels
@@ -316,7 +316,7 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     for what, t in (("start", start), ("end", end), ("change time", change)):
         if what != "change time" or model_start < t < end:
             _on_grid(what, t, model_start, interval)
-    ids = list(series) if series is not None else list(model.observables)
+    ids = list(series) if series is not None else measurable(model.observables)
     unknown = [s for s in ids if s not in model.observables]
     if unknown:
         raise KeyError(f"series {unknown[0]!r} is not simulated by the model (have: {', '.join(model.observables)})")
