@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from rivercal.engine.kernels.control import S_INTEGRAL
 from tests.verification._support import START, case_dict, simulator
 
 G = 9.81
@@ -135,3 +136,44 @@ def test_interval_controller_steps_at_its_interval_outside_the_dead_band(tmp_pat
     assert np.all(np.abs(z[~(lowered | raised)] - SET0) <= 0.02)  # within the dead band: no action
     assert abs(level[-1] - SET0) <= 0.03  # and it ends near its setpoint
     assert abs(result.balance.residual) <= 1e-6 * result.balance.throughput
+
+
+def test_relation_controller_sets_the_tabulated_crest_of_the_measured_discharge(tmp_path: Path) -> None:
+    # the crest follows a table of the weir's own discharge (m³/s): each step's crest is the table's value at the
+    # discharge at the start of that step, linear between its points and constant beyond them
+    hours = (0.0, 3.0, 9.0, 12.0)
+    flows = (0.2, 0.2, 3.0, 0.5)
+    (tmp_path / "q.csv").write_text("time,q\n" + "".join(
+        f"{(START + np.timedelta64(int(h * 3600), 's')).strftime('%Y-%m-%dT%H:%M:%SZ')},{v}\n"
+        for h, v in zip(hours, flows, strict=True)))
+    x, crest_table = [0.5, 1.0, 2.5], [1.8, 1.7, 1.3]
+    data = _case({"type": "relation", "measure": "W.Q", "table": {"x": x, "crest": crest_table},
+                  "min": 1.0, "max": 2.5}, hours=12.0, dt=60.0, out=60.0,
+                 q_in={"series": {"file": "q.csv", "column": "q"}})
+    sim = simulator(data, tmp_path)
+    result, _ = sim.simulate(snapshots=True)
+    q = result.discharges.iloc[:, sim.compiled.structure_link["W"]].to_numpy()
+    crest = result.series["W.crest"].to_numpy()
+    expected = np.interp(q[:-1], x, crest_table)  # the step starting at row n sets the crest of row n + 1
+    assert np.max(np.abs(crest[1:] - expected)) < 1e-12
+    assert q.min() < x[0] and q.max() > x[-1]  # both flat ends and the slopes were used
+    assert abs(result.balance.residual) <= 1e-6 * result.balance.throughput
+
+
+def test_the_integral_is_held_while_the_crest_sits_at_its_limit(tmp_path: Path) -> None:
+    # a setpoint the weir cannot hold (the level stays above it even with the crest at its minimum): the crest
+    # sits at min, and with conditional integration the integral stops growing there instead of winding up
+    data = _case({"type": "pid", "measure": "W.h_up", "setpoint": 1.6, "kp": 1.0, "ki": 1e-3,
+                  "min": 1.5, "max": 2.5}, hours=48.0, dt=60.0, out=3600.0)
+    data["initial"]["spinup"] = 0.0
+    sim = simulator(data, tmp_path)
+    end = sim.start + np.timedelta64(12, "h")
+    first, state = sim.simulate(end=end)
+    assert np.all(first.series["W.crest"].to_numpy()[-3:] == 1.5)  # at its limit
+    held = state.ctl[0, S_INTEGRAL]
+    later, after = sim.simulate(start=end, state=state)
+    assert np.all(later.series["W.crest"].to_numpy() == 1.5)
+    assert after.ctl[0, S_INTEGRAL] == held  # not one more step of error added in 36 h
+    # now the manager raises the setpoint above the level: the crest leaves its limit at once
+    again, _ = sim.simulate({"control:C.setpoint": 2.2}, start=end, state=state)
+    assert again.series["W.crest"].iloc[1] > 1.5
