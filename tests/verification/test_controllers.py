@@ -58,11 +58,13 @@ def _basin_area(sim) -> float:
     return AREA + 0.5 * sim.settings.structure_length * WIDTH + sim.settings.min_storage_area
 
 
-def test_pid_step_response_matches_the_ode_within_one_percent(tmp_path: Path) -> None:
+def _pid_step_errors(tmp_path: Path, dt: float) -> tuple[float, float, float, np.ndarray, float]:
+    """Largest level and crest differences (m) between engine and ODE, the crest excursion (m), the levels, and
+    the balance residual relative to the throughput."""
     table = {"times": [START.isoformat(), (START + np.timedelta64(int(STEP_AT * 3600), "s")).isoformat()],
              "values": [SET0, SET1], "interpolation": "block"}
     data = _case({"type": "pid", "measure": "W.h_up", "setpoint_table": table, "kp": KP, "ki": KI,
-                  "min": 0.5, "max": 3.0}, hours=36.0, dt=30.0, out=600.0)
+                  "min": 0.5, "max": 3.0}, hours=36.0, dt=dt, out=600.0)
     sim = simulator(data, tmp_path)
     result, _ = sim.simulate(snapshots=True)
     h = result.levels["node:basin"].to_numpy()
@@ -85,11 +87,20 @@ def test_pid_step_response_matches_the_ode_within_one_percent(tmp_path: Path) ->
     assert ode.success
     c_ode = bias + KP * (np.where(t >= STEP_AT * 3600.0, SET1, SET0) - ode.y[0]) + KI * ode.y[1]
     assert abs(h[0] - SET0) < 1e-3 and abs(crest[0] - c_eq) < 1e-3  # the spin-up settled the loop
-    assert (h.max() - SET0) > 0.9 * (SET1 - SET0)  # the step did happen: the response is not trivial
+    return (float(np.max(np.abs(h - ode.y[0]))), float(np.max(np.abs(crest[1:] - c_ode[1:]))), float(np.ptp(c_ode)),
+            h, abs(result.balance.residual) / result.balance.throughput)
+
+
+def test_pid_step_response_matches_the_ode_within_one_percent(tmp_path: Path) -> None:
+    level_err, crest_err, excursion, h, balance = _pid_step_errors(tmp_path, 30.0)
     step = SET1 - SET0
-    assert np.max(np.abs(h - ode.y[0])) <= 0.01 * step, np.max(np.abs(h - ode.y[0]))
-    assert np.max(np.abs(crest[1:] - c_ode[1:])) <= 0.01 * np.ptp(c_ode), np.max(np.abs(crest - c_ode))
-    assert abs(result.balance.residual) <= 1e-6 * result.balance.throughput
+    assert (h.max() - SET0) > 0.9 * step  # the step did happen: the response is not trivial
+    assert level_err <= 0.01 * step, level_err  # measured: 0.48 % (0.96 mm of the 0.2 m step)
+    assert crest_err <= 0.01 * excursion, (crest_err, excursion)  # measured: 0.66 %
+    assert balance <= 1e-6
+    # the difference is the controller's one action per step: it halves with the step (first order)
+    level_err60, _, _, _, _ = _pid_step_errors(tmp_path, 60.0)
+    assert 1.7 <= level_err60 / level_err <= 2.3, (level_err60, level_err)
 
 
 @pytest.mark.parametrize("speed", [0.05, 0.01])  # m/min
