@@ -6,16 +6,21 @@ of every station series (levels and discharge; the crests are not observed), DuD
 - The controllers act (crests lowered through the November flood) and the friction has not changed: a
   calibration of the friction alone reports no change (within 2 %), while the same calibration on the
   fixed-crest model reads the controllers' action as a friction change.
+- On line (scenario PI-SF): the same two changes at one moment are followed from window to window, the
+  controllers' state carried in the hot-started engine state.
 """
 
 from __future__ import annotations
 
+import pandas as pd
 import pytest
 
 from rivercal.model import load_model
+from rivercal.online.service import OnlineConfig
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin import twin_truth
+from rivercal.workflows.online import run_online
 
 FA0, S20 = 16.0, 10.56  # the case's friction (m^(1/3)/s) and W2's setpoint (m AD)
 
@@ -74,3 +79,19 @@ def test_the_controlled_case_holds_its_targets_and_its_water(model) -> None:
     for spec in model.controls.specs:  # every crest within its Table 4-2 range
         values = series[f"{spec.weir}.crest"]
         assert spec.min <= values.min() and values.max() <= spec.max, spec.id
+
+
+def test_the_online_service_follows_a_setpoint_change_during_a_friction_change(model, tmp_path) -> None:
+    # PI-SF: on 1 November the water manager raises W2's target level by 0.10 m and the friction rises by 20 %;
+    # the service (2-day windows, a cycle every 2 days) estimates FA and S2 and carries the controllers from one
+    # window to the next in its hot-started engine state
+    config = OnlineConfig(parameters=("FA", "S2"), window="2D", period="2D", horizon="12h", warmup="12h",
+                          workers=1, deadline_s=None)
+    summary = run_online(model, tmp_path / "store.db", "pi-sf", config, pd.Timestamp("2010-11-01T00:00Z"),
+                         pd.Timestamp("2010-11-03T00:00Z"), scenario="PI-SF")
+    assert len(summary["estimates"]) == 2
+    last = summary["estimates"][-1]
+    assert abs(last["S2"] - (S20 + 0.10)) <= 0.01
+    assert abs(last["FA"] / (FA0 * 1.2) - 1.0) <= 0.02
+    first = summary["estimates"][0]  # the window before the change: nothing to estimate yet
+    assert abs(first["S2"] - S20) <= 0.01 and abs(first["FA"] / FA0 - 1.0) <= 0.02

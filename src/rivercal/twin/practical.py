@@ -12,6 +12,8 @@ PI-Fg    global Strickler k_s 16 → 25 m^(1/3)/s (mowing everywhere)   FA = 25
 PI-Wg    the nine adjustable crests all 0.15 m lower                   Wd = −0.15 m
 PI-Fl    k_s of branch Nriv_ZL_1_9820 → 25 m^(1/3)/s, the rest 16      FL = 25 (not FA or Wd)
 PI-Wl    crest of weir ZL1-5930 0.15 m lower                           W4 = 6.995 m AD
+PI-SF    (dommel-controlled) W2's target level 0.10 m higher and       FA = 19.2 and S2 = 10.66
+         global k_s 16 → 19.2 m^(1/3)/s, both at once
 =======  ===========================================================  ==========================
 
 The changes are written relative to the model's defaults (the DSS): a friction is set to a value, a crest
@@ -65,6 +67,9 @@ ADJUSTABLE_WEIRS = ("ZL1-5", "ZL1-3014", "ZL1-5126", "ZL1-5930", "ZL12-45", "ZL1
 #: The section whose friction changes in PI-Fl, and the weir whose crest changes in PI-Wl (thesis Fig. 5-1).
 LOCAL_BRANCH = "Nriv_ZL_1_9820"
 LOCAL_WEIR = "ZL1-5930"
+#: The weir whose target level changes in PI-SF, and its controller in the case dommel-controlled.
+SETPOINT_WEIR = "ZL1-3014"
+SETPOINT_CONTROLLER = "W2"
 
 
 @dataclass(frozen=True)
@@ -113,7 +118,7 @@ class PracticalScenario:
     Attributes
     ----------
     name
-        ``PI-0``, ``PI-Fg``, ``PI-Wg``, ``PI-Fl`` or ``PI-Wl``.
+        ``PI-0``, ``PI-Fg``, ``PI-Wg``, ``PI-Fl``, ``PI-Wl`` or ``PI-SF``.
     description
         One line for reports.
     change_time
@@ -167,6 +172,11 @@ def _scenarios() -> dict[str, PracticalScenario]:
         PracticalScenario("PI-Wl", f"crest of weir {LOCAL_WEIR} lowered by 0.15 m", CHANGE_TIME, (),
                           (QuantityChange(f"weir:{LOCAL_WEIR}.crest_level", shift=-0.15),), ("W4",),
                           _dss(), {"FA": 16.0, "Wd": None}),
+        PracticalScenario("PI-SF", f"controlled case: the target level of weir {SETPOINT_WEIR} raised by 0.10 m while "
+                          "the global friction k_s rises 16 → 19.2 m^(1/3)/s (20 %)", CHANGE_TIME, (),
+                          (QuantityChange(f"control:{SETPOINT_CONTROLLER}.setpoint", shift=0.10),
+                           QuantityChange("friction:global", value=19.2)), ("FA", "S2"),
+                          {"FA": 16.0, "S2": 10.56}, {"FA": 19.2, "S2": 10.66}),
     ]
     return {s.name: s for s in items}
 
