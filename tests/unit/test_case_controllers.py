@@ -63,6 +63,12 @@ def test_bad_controller_names_the_field(tmp_path: Path, change: dict, field: str
     expect(load_error(tmp_path, _with(pid)), "case.toml", field, *phrases)
 
 
+def test_misspelt_controller_field_gets_a_suggestion(tmp_path: Path) -> None:
+    pid = _pid(setpoint=None)
+    pid["setpont"] = 4.6
+    expect(load_error(tmp_path, _with(pid)), "case.toml", "controllers[0].setpont", "did you mean 'setpoint'?")
+
+
 def test_unknown_controller_type(tmp_path: Path) -> None:
     expect(load_error(tmp_path, _with(_pid(type="fuzzy"))), "case.toml", "controllers[0].type",
            "unknown controller type 'fuzzy'", "'pid', 'interval', 'time' or 'relation'")

@@ -354,7 +354,7 @@ def _step(annotation: Any, part: Any) -> Any:
             return typing.get_args(t)[0]
         if isinstance(part, str) and isinstance(t, type) and issubclass(t, BaseModel):
             tag = t.model_fields.get("type")
-            if part in _TAGS and tag is not None and typing.get_args(tag.annotation) == (part,):
+            if part in _TAGS | _CONTROLLER_TAGS and tag is not None and typing.get_args(tag.annotation) == (part,):
                 return t
             if part in t.model_fields:
                 return t.model_fields[part].annotation
