@@ -48,9 +48,11 @@ from rivercal.twin.truth_model import truth_model
 __all__ = [
     "ADJUSTABLE_WEIRS",
     "CHANGE_TIME",
+    "CONTROLLED_SCENARIOS",
     "LOCAL_BRANCH",
     "LOCAL_WEIR",
     "PRACTICAL_SCENARIOS",
+    "SCENARIOS",
     "PracticalScenario",
     "PracticalTruth",
     "QuantityChange",
@@ -172,6 +174,16 @@ def _scenarios() -> dict[str, PracticalScenario]:
         PracticalScenario("PI-Wl", f"crest of weir {LOCAL_WEIR} lowered by 0.15 m", CHANGE_TIME, (),
                           (QuantityChange(f"weir:{LOCAL_WEIR}.crest_level", shift=-0.15),), ("W4",),
                           _dss(), {"FA": 16.0, "Wd": None}),
+    ]
+    return {s.name: s for s in items}
+
+
+#: The scenarios of thesis chapter 5 by name.
+PRACTICAL_SCENARIOS: dict[str, PracticalScenario] = _scenarios()
+
+
+def _controlled() -> dict[str, PracticalScenario]:
+    items = [
         PracticalScenario("PI-SF", f"controlled case: the target level of weir {SETPOINT_WEIR} raised by 0.10 m while "
                           "the global friction k_s rises 16 → 19.2 m^(1/3)/s (20 %)", CHANGE_TIME, (),
                           (QuantityChange(f"control:{SETPOINT_CONTROLLER}.setpoint", shift=0.10),
@@ -181,8 +193,10 @@ def _scenarios() -> dict[str, PracticalScenario]:
     return {s.name: s for s in items}
 
 
-#: The scenarios of thesis chapter 5 by name.
-PRACTICAL_SCENARIOS: dict[str, PracticalScenario] = _scenarios()
+#: Scenarios of the controlled case (dommel-controlled) by name.
+CONTROLLED_SCENARIOS: dict[str, PracticalScenario] = _controlled()
+#: Every scenario by name: those of thesis chapter 5 and those of the controlled case.
+SCENARIOS: dict[str, PracticalScenario] = {**PRACTICAL_SCENARIOS, **CONTROLLED_SCENARIOS}
 
 
 @dataclass(frozen=True)
@@ -262,7 +276,7 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         A model following the model protocol with ``start``, ``end``, ``observables`` and
         ``default_parameters()`` (the embedded :class:`~rivercal.engine.Simulator`).
     scenario
-        A name of :data:`PRACTICAL_SCENARIOS` or a scenario (e.g. one with another ``change_time``).
+        A name of :data:`SCENARIOS` or a scenario (e.g. one with another ``change_time``).
     start, end
         The period of the observations (UTC; naive times are taken as UTC). It must lie inside the
         model's period and on its output grid; it may lie entirely before or after the change.
@@ -306,9 +320,9 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     ObservationSet(11 series, 803 values 2010-10-30 00:00 … 2010-11-02 00:00 UTC, 0 missing)
     """
     if isinstance(scenario, str):
-        if scenario not in PRACTICAL_SCENARIOS:
-            raise KeyError(f"unknown practical scenario {scenario!r}; choose one of {', '.join(PRACTICAL_SCENARIOS)}")
-        scenario = PRACTICAL_SCENARIOS[scenario]
+        if scenario not in SCENARIOS:
+            raise KeyError(f"unknown practical scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}")
+        scenario = SCENARIOS[scenario]
     if noise not in NOISE_MODELS:
         raise ValueError(f"unknown noise model {noise!r}; choose one of {', '.join(NOISE_MODELS)}")
     level = get_realism(realism) if realism is not None else REALISM_LEVELS["ideal"]
