@@ -20,12 +20,21 @@ import pandas as pd
 from rivercal._time import utc_index
 
 __all__ = ["CF_VARIABLES", "DEFAULT_SIGMA", "CFVariable", "ObservationSeries", "ObservationSet", "ScreenRule",
-           "screen_outliers"]
+           "measurable", "screen_outliers"]
 
 #: Default standard deviations by quantity: ±2.5 cm for levels and ±0.1 m³/s for discharges, the noise
 #: amplitudes of the reference study's twin experiments (thesis §4-2-3).
 DEFAULT_SIGMA = {"h": 0.025, "h_up": 0.025, "h_down": 0.025, "Q": 0.1}
 QUANTITIES = ("h", "h_up", "h_down", "Q")
+
+
+def measurable(series_ids: Iterable[str]) -> list[str]:
+    """The series among ``series_ids`` that stations measure (``h``, ``h_up``, ``h_down``, ``Q``), in their order.
+
+    A model may simulate more (e.g. the crests of controlled weirs, ``<weir>.crest``); twin experiments and the
+    on-line service observe these by default.
+    """
+    return [s for s in series_ids if str(s).rpartition(".")[2] in QUANTITIES]
 
 
 @dataclass(frozen=True)

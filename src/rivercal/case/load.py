@@ -171,6 +171,9 @@ def case_from_dict(data: dict[str, Any], root: Path) -> Case:
 
 _TAGS = {"rectangular", "trapezoidal", "circular", "zw", "yz"}
 _TAG_NAMES = "'rectangular', 'trapezoidal', 'circular', 'zw' or 'yz'"
+#: The ``type`` tags of ``[[controllers]]`` (dropped from a field path right after the entry's index).
+_CONTROLLER_TAGS = {"pid", "interval", "time", "relation"}
+_CONTROLLER_TAG_NAMES = "'pid', 'interval', 'time' or 'relation'"
 
 
 def _case_error(exc: ValidationError, label: str) -> CaseError:
@@ -249,9 +252,9 @@ def _describe(err: dict) -> tuple[str, str]:
     if kind == "literal_error":
         return path, f"{_show(value)} is not allowed; expected {ctx.get('expected', '?')}"
     if kind == "union_tag_invalid":
-        return _join(path, "type"), f"unknown {_what(loc)} type {ctx.get('tag')!r}; expected {_TAG_NAMES}"
+        return _join(path, "type"), f"unknown {_what(loc)} type {ctx.get('tag')!r}; expected {_tag_names(loc)}"
     if kind == "union_tag_not_found":
-        return _join(path, "type"), f"the {_what(loc)} type is missing; expected {_TAG_NAMES}"
+        return _join(path, "type"), f"the {_what(loc)} type is missing; expected {_tag_names(loc)}"
     if kind in ("model_type", "model_attributes_type", "dict_type"):
         return path, f"expected a table ({{ key = value, ... }}), got {_show(value)}"
     if kind in ("list_type", "tuple_type"):
@@ -266,7 +269,9 @@ def _describe(err: dict) -> tuple[str, str]:
 
 def _format_loc(loc: tuple) -> str:
     out = ""
-    for part in loc:
+    for i, part in enumerate(loc):
+        if loc[0] == "controllers" and i == 2 and part in _CONTROLLER_TAGS:
+            continue
         if isinstance(part, int):
             out += f"[{part}]"
         elif not isinstance(part, str) or part in _TAGS or "[" in part or "(" in part:
@@ -285,7 +290,11 @@ def _join(base: str, rel: str) -> str:
 
 
 def _what(loc: tuple) -> str:
-    return "profile" if loc and loc[0] == "profiles" else "table"
+    return {"profiles": "profile", "controllers": "controller"}.get(loc[0] if loc else "", "table")
+
+
+def _tag_names(loc: tuple) -> str:
+    return _CONTROLLER_TAG_NAMES if loc and loc[0] == "controllers" else _TAG_NAMES
 
 
 def _show(value: Any) -> str:
@@ -345,7 +354,7 @@ def _step(annotation: Any, part: Any) -> Any:
             return typing.get_args(t)[0]
         if isinstance(part, str) and isinstance(t, type) and issubclass(t, BaseModel):
             tag = t.model_fields.get("type")
-            if part in _TAGS and tag is not None and typing.get_args(tag.annotation) == (part,):
+            if part in _TAGS | _CONTROLLER_TAGS and tag is not None and typing.get_args(tag.annotation) == (part,):
                 return t
             if part in t.model_fields:
                 return t.model_fields[part].annotation

@@ -20,6 +20,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from rivercal.case.controllers import Controller, check_controllers
 from rivercal.errors import StructureOverlap
 from rivercal.network import STRUCTURE_TABLES, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
 from rivercal.network.grid import Segment, branch_layout, chainages
@@ -44,7 +45,8 @@ EARLIEST = datetime(1700, 1, 1, tzinfo=UTC)
 LATEST = datetime(2200, 1, 1, tzinfo=UTC)
 #: The model quantities of the embedded engine that case parameters may target.
 _ENGINE_TARGET = re.compile(r"^(weir:[A-Za-z0-9_.\-]+\.crest_level|friction:global|friction:branch:[A-Za-z0-9_.\-]+"
-                            r"|friction:group:[A-Za-z0-9_.\-]+|friction:scale)$")
+                            r"|friction:group:[A-Za-z0-9_.\-]+|friction:scale"
+                            r"|control:[A-Za-z0-9_.\-]+\.(setpoint|kp|ki|kd|value:[0-9]+))$")
 #: Longest spin-up, h (one leap year).
 MAX_SPINUP_HOURS = 8784.0
 
@@ -322,6 +324,8 @@ class CaseFile(Network):
     parameters: list[Parameter] = Field(default_factory=list, description="calibration parameters of this case")
     calibration: CalibrationSettings = Field(default=CalibrationSettings(), description="calibration defaults")
     windows: list[Window] = Field(default_factory=list, description="named calibration windows")
+    controllers: list[Controller] = Field(default_factory=list, description="controllers that set weir crests "
+                                          "while the model runs (pid, interval, time, relation)")
 
     @model_validator(mode="after")
     def _calibration_refers_to_the_network(self) -> CaseFile:
@@ -338,7 +342,7 @@ class CaseFile(Network):
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r}: {target!r} is not a quantity of the embedded engine; "
                                        "expected 'weir:<id>.crest_level', 'friction:global', 'friction:branch:<id>', "
-                                       "'friction:group:<id>' or 'friction:scale'")
+                                       "'friction:group:<id>', 'friction:scale' or 'control:<id>.<quantity>'")
                 if target.startswith("weir:") and target[5:-12] not in weirs:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown weir {target[5:-12]!r}")
@@ -363,6 +367,13 @@ class CaseFile(Network):
                     f"window {w.name!r} ({_iso(w.start)} .. {_iso(w.end)}) must be a non-empty part of the case "
                     f"period {_iso(self.case.start)} .. {_iso(self.case.end)}",
                 )
+        return self
+
+    @model_validator(mode="after")
+    def _controllers_refer_to_the_network(self) -> CaseFile:
+        targets = [(f"parameters[{i}].targets[{j}]", t) for i, p in enumerate(self.parameters)
+                   for j, t in enumerate([*p.targets, *(c.target for c in p.cluster)])]
+        check_controllers(self.controllers, self, targets)
         return self
 
     @model_validator(mode="after")

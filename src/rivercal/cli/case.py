@@ -93,7 +93,8 @@ def check(case: CaseArg, as_json: JsonOpt = False) -> None:
         "laterals": len(net.laterals),
         "catchments": len(c.spec.catchments),
         "catchment_area_km2": round(sum(x.area for x in c.spec.catchments) / 100.0, 1),
-        "observables": compiled.observables,
+        "controllers": len(c.spec.controllers),
+        "observables": model.observables,
     }
     if as_json:
         emit_json(summary)

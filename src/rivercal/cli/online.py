@@ -39,7 +39,8 @@ def online(
         help="The store: an SQLite file (created if missing) or a postgresql://USER@HOST/DB URL (SQLite is the "
              "embedded default).")] = "out/online/run.sqlite",
     scenario: Annotated[str | None, typer.Option(
-        help="Twin observations of a scenario of thesis ch. 5: PI-0, PI-Fg, PI-Wg, PI-Fl, PI-Wl.")] = None,
+        help="Twin observations of a scenario of thesis ch. 5: PI-0, PI-Fg, PI-Wg, PI-Fl, PI-Wl; of the "
+        "controlled case: PI-SF.")] = None,
     observations: Annotated[list[Path], typer.Option(
         "--observations", help="Observation file to ingest (CSV or PI-XML); repeatable.")] = [],  # noqa: B006
     follow: Annotated[Path | None, typer.Option(
@@ -83,7 +84,7 @@ def online(
     from rivercal.optimise.registry import RENAMED
     from rivercal.problem import LOSSES
     from rivercal.twin import NOISE_MODELS
-    from rivercal.twin.practical import PRACTICAL_SCENARIOS
+    from rivercal.twin.practical import SCENARIOS
     from rivercal.workflows.online import run_online
 
     # -- everything is checked before the first model run: first what needs no case
@@ -91,7 +92,7 @@ def online(
     if not last >= first:
         raise OptionError(f"--to {date_to}: before --from {date_from}", option="--to")
     if scenario is not None:
-        check_choice(scenario, "--scenario", PRACTICAL_SCENARIOS, "practical scenario")
+        check_choice(scenario, "--scenario", SCENARIOS, "practical scenario")
         if observations or follow is not None:
             raise OptionError("--scenario makes twin observations; it does not combine with --observations or "
                               "--follow", option="--scenario")

@@ -14,7 +14,11 @@ changing them never recompiles anything:
 - ``friction:group:<id>`` — the value of a friction group (``[[friction_groups]]``; its values on particular
   branches stay);
 - ``friction:scale`` — a factor on the conveyance of every channel friction coefficient (k_s and C times the
-  factor, n divided by it; 1 leaves the case as it is). Culverts and bridges keep their own friction.
+  factor, n divided by it; 1 leaves the case as it is). Culverts and bridges keep their own friction;
+- ``control:<id>.<quantity>`` — a controller's setpoint, gains or table values (:mod:`.controllers`).
+
+A case with controllers (``[[controllers]]``) also simulates each controlled crest, ``"<weir>.crest"`` (m AD),
+and carries the controllers' state in :class:`EngineState` (``ctl``).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ import pandas as pd
 from rivercal._time import utc
 from rivercal.case.load import Case
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
+from rivercal.engine.controllers import Controls, ControlValues
 from rivercal.engine.kernels.codes import BOUNDARY_LEVEL, STAT_DRYING, STAT_SOLVES, STAT_STEPS, STATUS_LEVEL, STATUS_OK
 from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import make_work, run, run_ext
@@ -64,7 +69,7 @@ def parse_target(target: str) -> tuple[str, str]:
         return "scale", "all"
     raise KeyError(
         f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global', "
-        "'friction:branch:<id>', 'friction:group:<id>' or 'friction:scale'"
+        "'friction:branch:<id>', 'friction:group:<id>', 'friction:scale' or 'control:<id>.<quantity>'"
     )
 
 
@@ -102,6 +107,9 @@ class Simulator:
             self.forcing.update(forcing)
         self._forcing_cache: dict[tuple, np.ndarray] = {}
         self._work = make_work(self.compiled.arrays, self.compiled.structures)
+        #: The case's controllers (``None`` without ``[[controllers]]``).
+        self.controls: Controls | None = Controls(case.spec.controllers, self.compiled) if case.spec.controllers \
+            else None
         #: Counters of the last compiled run: steps, level solves, drying re-solves.
         self.last_run_stats: dict[str, int] = {}
 
@@ -124,8 +132,8 @@ class Simulator:
 
     @property
     def observables(self) -> list[str]:
-        """Names of the simulated series."""
-        return list(self.compiled.observables)
+        """Names of the simulated series (the stations', then the controlled crests ``"<weir>.crest"``)."""
+        return list(self.compiled.observables) + (self.controls.series if self.controls else [])
 
     def default_parameters(self) -> dict[str, float]:
         """The model quantities of the case as targets → values."""
@@ -139,7 +147,18 @@ class Simulator:
         for key, v in zip(c.friction_slots, c.friction_values, strict=True):
             if key[0] == "group" and len(key) == 2:
                 out[f"friction:group:{key[1]}"] = float(v)
+        if self.controls:
+            out.update(self.controls.default_parameters())
         return out
+
+    def control_values(self, parameters: Mapping[str, float] | None) -> ControlValues | None:
+        """The controllers' quantities for a set of targets (``None`` without controllers; see :mod:`.controllers`)."""
+        if self.controls is None:
+            unknown = [t for t in (parameters or {}) if t.startswith("control:")]
+            if unknown:
+                raise KeyError(f"{unknown[0]}: case {self.case.name!r} has no controllers")
+            return None
+        return self.controls.values(parameters)
 
     def parameter_arrays(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray]:
         """Crest levels (m AD, per weir) and friction values (per friction slot) for a set of targets."""
@@ -154,6 +173,8 @@ class Simulator:
                        key=lambda kv: (kv[0] == "friction:scale", kv[0] != "friction:global"))
         slots = {key: i for i, key in enumerate(c.friction_slots)}
         for target, value in items:
+            if target.startswith("control:"):
+                continue  # control_values
             kind, ident = parse_target(target)
             value = float(value)
             if not np.isfinite(value):
@@ -232,6 +253,7 @@ class Simulator:
             q=np.zeros(self.compiled.n_links),
             pump_on=np.zeros(a.p_cap.size),
             signature=(self.compiled.n_hpoints, self.compiled.n_links),
+            ctl=self.controls.initial_state() if self.controls else np.zeros((0, 6)),
         )
 
     # -- forcing -------------------------------------------------------------------------------
@@ -312,25 +334,30 @@ class Simulator:
         if n_steps < 0:  # end == start is a run of no steps: the (hot or cold-start) state at start
             raise ValueError(f"end {end} is before start {start}")
         crest, fric = self.parameter_arrays(parameters)
+        control = self.control_values(parameters)
         if state is None:
             state = self.initial_state(start)
             if self.case.spec.initial.spinup > 0:
                 n_spin = max(1, round(self.case.spec.initial.spinup * 3600.0 / self.dt))
                 spin = self.forcing_matrix(start, n_spin, constant=True)
                 self._run(state, crest, fric, spin, n_spin, False, start - pd.Timedelta(seconds=n_spin * self.dt),
-                          phase="spin-up")
+                          phase="spin-up", control=control)
         else:
             if state.signature != (self.compiled.n_hpoints, self.compiled.n_links):
                 raise ValueError("the state belongs to another network")
+            if state.ctl.shape[0] != len(self.controls or ()):
+                raise ValueError(f"the state holds {state.ctl.shape[0]} controllers, the case has "
+                                 f"{len(self.controls or ())}")
             if state.time != start:
                 raise ValueError(f"the state is at {state.time}, the run starts at {start}")
             state = state.copy()
         forcing = self.forcing_matrix(start, n_steps)
         t0 = _time.perf_counter()
-        obs, zs, qs, balance, initial_volume = self._run(state, crest, fric, forcing, out_every, snapshots, start)
+        obs, zs, qs, balance, initial_volume = self._run(state, crest, fric, forcing, out_every, snapshots, start,
+                                                         control=control)
         wall = _time.perf_counter() - t0
         times = pd.date_range(start, end, periods=n_steps // out_every + 1)
-        series = pd.DataFrame(obs, index=times, columns=self.compiled.observables)
+        series = pd.DataFrame(obs, index=times, columns=self.observables)
         series.index.name = "time"
         levels = discharges = None
         if snapshots:
@@ -353,11 +380,16 @@ class Simulator:
         mask[a.b_hp[a.b_type == BOUNDARY_LEVEL]] = False
         return float(state.vol[mask].sum())
 
-    def _run(self, state, crest, fric, forcing, out_every, snapshots, start, phase=""):
+    def _run(self, state, crest, fric, forcing, out_every, snapshots, start, phase="", control=None):
         a = self.compiled.arrays
         n_steps = forcing.shape[0]
         n_out = n_steps // out_every + 1
-        obs = np.full((n_out, len(self.compiled.observables)), np.nan)
+        n_obs = len(self.compiled.observables)
+        obs = np.full((n_out, n_obs + len(self.controls or ())), np.nan)
+        cx = None
+        if self.controls is not None:  # a spin-up (phase) holds the time tables at their start value, as the forcing
+            cx = self.controls.arrays(control if control is not None else self.controls.values(None), start, n_steps,
+                                      self.dt, n_out, state.ctl, held=bool(phase))
         zs = np.empty((n_out if snapshots else 0, self.compiled.n_hpoints))
         qs = np.empty((n_out if snapshots else 0, self.compiled.n_links))
         balance = np.zeros(a.b_hp.size + 1)
@@ -365,9 +397,10 @@ class Simulator:
         s = self.settings
         self._work.stats[:] = 0
         sx = self.compiled.structures
-        if sx.links.size or (sx.set_col >= 0).any():
+        if sx.links.size or (sx.set_col >= 0).any() or cx is not None:
             status, step, index = run_ext(
-                a, sx, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
+                a, sx, cx, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on,
+                forcing,
                 float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
                 float(s.max_velocity), int(out_every), obs, zs, qs, balance,
             )
@@ -377,6 +410,8 @@ class Simulator:
                 float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
                 float(s.max_velocity), int(out_every), obs, zs, qs, balance,
             )
+        if cx is not None:
+            obs[:, n_obs:] = cx.out
         stats = self._work.stats
         steps, solves, drying = int(stats[STAT_STEPS]), int(stats[STAT_SOLVES]), int(stats[STAT_DRYING])
         log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)

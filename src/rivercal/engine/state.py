@@ -36,6 +36,10 @@ class EngineState:
         Pump switches (0 off, 1 on).
     signature
         Grid signature (h-points, links) of the network that produced the state.
+    ctl
+        The controllers' state, one row per controller (:mod:`rivercal.engine.kernels.control`: integral in
+        m·s, last error in m, crest in m AD, time since the last action in s, target crest in m AD, started);
+        no rows for a network without controllers.
     """
 
     time: pd.Timestamp
@@ -46,6 +50,7 @@ class EngineState:
     q: np.ndarray
     pump_on: np.ndarray
     signature: tuple[int, int]
+    ctl: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
 
     def copy(self) -> EngineState:
         """A deep copy (the engine updates states in place)."""
@@ -58,6 +63,7 @@ class EngineState:
             q=self.q.copy(),
             pump_on=self.pump_on.copy(),
             signature=self.signature,
+            ctl=self.ctl.copy(),
         )
 
     #: Format tag of :meth:`to_bytes` (stored with the bytes so a later rivercal can tell what it reads).
@@ -67,7 +73,7 @@ class EngineState:
         """The state as bytes (an ``.npz`` archive of plain arrays; no pickle), for the on-line store."""
         buffer = io.BytesIO()
         np.savez(buffer, time_ns=np.int64(self.time.value), z=self.z, dz=self.dz, vol=self.vol, u=self.u, q=self.q,
-                 pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64))
+                 pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64), ctl=self.ctl)
         return buffer.getvalue()
 
     @classmethod
@@ -85,7 +91,8 @@ class EngineState:
             with np.load(io.BytesIO(data), allow_pickle=False) as f:
                 return cls(time=pd.Timestamp(int(f["time_ns"]), tz="UTC"), z=f["z"], dz=f["dz"], vol=f["vol"],
                            u=f["u"], q=f["q"], pump_on=f["pump_on"],
-                           signature=tuple(int(v) for v in f["signature"]))  # type: ignore[arg-type]
+                           signature=tuple(int(v) for v in f["signature"]),  # type: ignore[arg-type]
+                           ctl=f["ctl"] if "ctl" in f.files else np.zeros((0, 6)))
         except (OSError, KeyError, ValueError) as exc:
             raise ValueError(f"not an engine state archive ({exc})") from None
 
@@ -165,7 +172,8 @@ class SimulationResult:
         """The station series as a CF-1.8 ``xarray.Dataset`` (discrete sampling geometry: timeSeries).
 
         Levels (``h``, ``h_up``, ``h_down``) go into ``water_level(level_series, time)`` in m,
-        discharges into ``discharge(discharge_series, time)`` in m³/s; the series names are
+        discharges into ``discharge(discharge_series, time)`` in m³/s, the crests of controlled weirs
+        (``<weir>.crest``) into ``crest_level(crest_series, time)`` in m; the series names are
         ``timeseries_id`` coordinates.
         """
         import xarray as xr
@@ -181,6 +189,12 @@ class SimulationResult:
                                          {"cf_role": "timeseries_id", "long_name": "station.quantity"})
                 data_vars[var.name] = ((var.dimension, "time"), self.series[columns].to_numpy().T,
                                        var.attrs(text))
+        crests = [c for c in cols if c.endswith(".crest")]
+        if crests:  # controlled weirs: no CF standard name for a crest level, so a long name only
+            coords["crest_series"] = ("crest_series", np.array(crests, dtype=object),
+                                      {"cf_role": "timeseries_id", "long_name": "weir.crest"})
+            data_vars["crest_level"] = (("crest_series", "time"), self.series[crests].to_numpy().T,
+                                        {"units": "m", "long_name": "simulated crest level of a controlled weir"})
         ds = xr.Dataset(data_vars=data_vars, coords=coords)
         ds.attrs.update(
             Conventions="CF-1.8",

@@ -13,7 +13,10 @@ Quantities:
 - ``friction:branch:<id>`` — the friction value of one branch (unit of its friction type);
 - ``friction:group:<id>`` — the value of a friction group (``[[friction_groups]]``, unit of its law);
 - ``friction:scale`` — a factor (-) on the conveyance of every channel friction coefficient, present when
-  no link uses White-Colebrook friction (a factor on its coefficient does not scale its conveyance).
+  no link uses White-Colebrook friction (a factor on its coefficient does not scale its conveyance);
+- ``control:<id>.setpoint`` (m AD, m³/s for a discharge), ``.kp`` (m/m), ``.ki`` (1/s), ``.kd`` (s),
+  ``.value:<k>`` (m AD) — the quantities of the case's controllers (:mod:`rivercal.engine.controllers`); a
+  weir driven by a controller declares no ``crest_level``.
 
 Friction bounds are the plausible ranges of :data:`rivercal.network.FRICTION_RANGES`.
 """
@@ -74,9 +77,10 @@ class EmbeddedModel(Simulator):
     def quantities(self) -> dict[str, Quantity]:
         """The settable quantities (module docstring)."""
         c = self.compiled
+        controlled = {spec.weir for spec in self.controls.specs} if self.controls else set()
         out = {f"weir:{w}.crest_level": Quantity(f"weir:{w}.crest_level", "m AD", -MAX_LEVEL, MAX_LEVEL,
                                                   f"crest level of weir {w}")
-               for w in c.weir_ids}
+               for w in c.weir_ids if w not in controlled}
         names = {code: name for name, code in FRICTION_CODES.items()}
         if c.branch_inherits:
             low, high, unit = FRICTION_RANGES[self.case.spec.friction.type]
@@ -98,6 +102,8 @@ class EmbeddedModel(Simulator):
         if all(names[int(code)] != "white-colebrook" for i, code in enumerate(c.arrays.fr_type) if i in used):
             out["friction:scale"] = Quantity("friction:scale", "-", 0.05, 20.0,
                                              "factor on the conveyance of every channel friction coefficient")
+        for name, (unit, low, high, text) in (self.controls.describe() if self.controls else {}).items():
+            out[name] = Quantity(name, unit, low, high, text)
         return out
 
     @functools.cached_property
@@ -124,7 +130,8 @@ class EmbeddedModel(Simulator):
         if hours > 0:
             n = max(1, round(hours * 3600.0 / self.dt))
             spin = self.forcing_matrix(start, n, constant=True)
-            self._run(state, crest, fric, spin, n, False, start - pd.Timedelta(seconds=n * self.dt), phase="spin-up")
+            self._run(state, crest, fric, spin, n, False, start - pd.Timedelta(seconds=n * self.dt), phase="spin-up",
+                      control=self.control_values(parameters))
         state.time = start
         return state
 

@@ -69,7 +69,7 @@ class OnlineConfig:
         DSS's times (1 + ``skill_tolerance``) (plus 1 mm); else the DSS's. ``skill_cycles = 0``: always the
         updated forecast.
     series
-        Observed series to use (default: every series the model simulates).
+        Observed series to use (default: every series the model simulates that a station measures).
     sources
         Observation sources in priority order (default all).
     sigma

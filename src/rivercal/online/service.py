@@ -42,7 +42,7 @@ import pandas as pd
 from rivercal._time import utc
 from rivercal.analysis.forecast import score_forecasts
 from rivercal.errors import ModelRunError
-from rivercal.observations import DEFAULT_SIGMA
+from rivercal.observations import DEFAULT_SIGMA, measurable
 from rivercal.online import guardrails, intervention
 from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig
 from rivercal.online.skill import ForecastChoice, choose_forecast
@@ -146,7 +146,7 @@ class OnlineService:
         for name in [*config.max_change, *config.resolution]:
             if name not in self.parameters.names:
                 raise ValueError(f"online: {name!r} has a change bound or resolution but is not estimated")
-        self.series = list(config.series) if config.series is not None else list(model.observables)
+        self.series = list(config.series) if config.series is not None else measurable(model.observables)
         missing = [s for s in self.series if s not in model.observables]
         if missing:
             raise ValueError(f"online: series {missing[0]!r} is not simulated by the model")

@@ -49,9 +49,9 @@ def _change_time(run: Any) -> pd.Timestamp | None:
     scenario = _meta(run).get("scenario")
     if not scenario:
         return None
-    from rivercal.twin.practical import PRACTICAL_SCENARIOS
+    from rivercal.twin.practical import SCENARIOS
 
-    return utc(PRACTICAL_SCENARIOS[scenario].change_time)
+    return utc(SCENARIOS[scenario].change_time)
 
 
 # -- forecast errors -------------------------------------------------------------------------------------
@@ -282,11 +282,11 @@ def _parameter_table(model: Any, run: Any, est: pd.DataFrame, change: pd.Timesta
     estimate takes its global friction.
     """
     from rivercal.parameters import ParameterSet
-    from rivercal.twin.practical import PRACTICAL_SCENARIOS
+    from rivercal.twin.practical import SCENARIOS
 
     known = {p.name: p for p in model.calibration.parameters}
     defaults = model.default_parameters()
-    scenario = PRACTICAL_SCENARIOS.get(_meta(run).get("scenario") or "")
+    scenario = SCENARIOS.get(_meta(run).get("scenario") or "")
     changed_before = scenario.quantities(defaults, after=False) if scenario else {}
     changed_after = scenario.quantities(defaults, after=True) if scenario else {}
     rows_for: dict[str, str] = {}
@@ -421,9 +421,9 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     page = Page(f"rivercal on-line run {run.name} ({run.case})")
     scenario = None
     if meta.get("scenario"):
-        from rivercal.twin.practical import PRACTICAL_SCENARIOS
+        from rivercal.twin.practical import SCENARIOS
 
-        scenario = PRACTICAL_SCENARIOS[meta["scenario"]]
+        scenario = SCENARIOS[meta["scenario"]]
     config = run.config
     intro = [f"{_count(len(cycles), 'cycle')} from {cycles['issue_time'].min():%Y-%m-%d %H:%M} to "
              f"{cycles['issue_time'].max():%Y-%m-%d %H:%M} UTC; every {_span(config['period'])} the parameters "

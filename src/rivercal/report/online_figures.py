@@ -54,9 +54,9 @@ def run_figures(store: Any, run: Any, *, lead_h: float = 24.0) -> dict[str, Any]
     meta = dict(run.config.get("meta") or {})
     scenario = None
     if meta.get("scenario"):
-        from rivercal.twin.practical import PRACTICAL_SCENARIOS
+        from rivercal.twin.practical import SCENARIOS
 
-        scenario = PRACTICAL_SCENARIOS[meta["scenario"]]
+        scenario = SCENARIOS[meta["scenario"]]
     cycles = store.cycles(run)
     change = utc(scenario.change_time) if scenario is not None else None
     out: dict[str, Any] = {"scenario": scenario.name if scenario else None,

@@ -12,6 +12,8 @@ PI-Fg    global Strickler k_s 16 → 25 m^(1/3)/s (mowing everywhere)   FA = 25
 PI-Wg    the nine adjustable crests all 0.15 m lower                   Wd = −0.15 m
 PI-Fl    k_s of branch Nriv_ZL_1_9820 → 25 m^(1/3)/s, the rest 16      FL = 25 (not FA or Wd)
 PI-Wl    crest of weir ZL1-5930 0.15 m lower                           W4 = 6.995 m AD
+PI-SF    (dommel-controlled) W2's target level 0.10 m higher and       FA = 19.2 and S2 = 10.66
+         global k_s 16 → 19.2 m^(1/3)/s, both at once
 =======  ===========================================================  ==========================
 
 The changes are written relative to the model's defaults (the DSS): a friction is set to a value, a crest
@@ -38,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
+from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import NOISE_MODELS, add_noise
 from rivercal.twin.realism import REALISM_LEVELS, Realism, apply_sensor_errors, get_realism
 from rivercal.twin.truth_model import truth_model
@@ -46,9 +48,11 @@ from rivercal.twin.truth_model import truth_model
 __all__ = [
     "ADJUSTABLE_WEIRS",
     "CHANGE_TIME",
+    "CONTROLLED_SCENARIOS",
     "LOCAL_BRANCH",
     "LOCAL_WEIR",
     "PRACTICAL_SCENARIOS",
+    "SCENARIOS",
     "PracticalScenario",
     "PracticalTruth",
     "QuantityChange",
@@ -65,6 +69,9 @@ ADJUSTABLE_WEIRS = ("ZL1-5", "ZL1-3014", "ZL1-5126", "ZL1-5930", "ZL12-45", "ZL1
 #: The section whose friction changes in PI-Fl, and the weir whose crest changes in PI-Wl (thesis Fig. 5-1).
 LOCAL_BRANCH = "Nriv_ZL_1_9820"
 LOCAL_WEIR = "ZL1-5930"
+#: The weir whose target level changes in PI-SF, and its controller in the case dommel-controlled.
+SETPOINT_WEIR = "ZL1-3014"
+SETPOINT_CONTROLLER = "W2"
 
 
 @dataclass(frozen=True)
@@ -113,7 +120,7 @@ class PracticalScenario:
     Attributes
     ----------
     name
-        ``PI-0``, ``PI-Fg``, ``PI-Wg``, ``PI-Fl`` or ``PI-Wl``.
+        ``PI-0``, ``PI-Fg``, ``PI-Wg``, ``PI-Fl``, ``PI-Wl`` or ``PI-SF``.
     description
         One line for reports.
     change_time
@@ -173,6 +180,23 @@ def _scenarios() -> dict[str, PracticalScenario]:
 
 #: The scenarios of thesis chapter 5 by name.
 PRACTICAL_SCENARIOS: dict[str, PracticalScenario] = _scenarios()
+
+
+def _controlled() -> dict[str, PracticalScenario]:
+    items = [
+        PracticalScenario("PI-SF", f"controlled case: the target level of weir {SETPOINT_WEIR} raised by 0.10 m while "
+                          "the global friction k_s rises 16 → 19.2 m^(1/3)/s (20 %)", CHANGE_TIME, (),
+                          (QuantityChange(f"control:{SETPOINT_CONTROLLER}.setpoint", shift=0.10),
+                           QuantityChange("friction:global", value=19.2)), ("FA", "S2"),
+                          {"FA": 16.0, "S2": 10.56}, {"FA": 19.2, "S2": 10.66}),
+    ]
+    return {s.name: s for s in items}
+
+
+#: Scenarios of the controlled case (dommel-controlled) by name.
+CONTROLLED_SCENARIOS: dict[str, PracticalScenario] = _controlled()
+#: Every scenario by name: those of thesis chapter 5 and those of the controlled case.
+SCENARIOS: dict[str, PracticalScenario] = {**PRACTICAL_SCENARIOS, **CONTROLLED_SCENARIOS}
 
 
 @dataclass(frozen=True)
@@ -252,7 +276,7 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         A model following the model protocol with ``start``, ``end``, ``observables`` and
         ``default_parameters()`` (the embedded :class:`~rivercal.engine.Simulator`).
     scenario
-        A name of :data:`PRACTICAL_SCENARIOS` or a scenario (e.g. one with another ``change_time``).
+        A name of :data:`SCENARIOS` or a scenario (e.g. one with another ``change_time``).
     start, end
         The period of the observations (UTC; naive times are taken as UTC). It must lie inside the
         model's period and on its output grid; it may lie entirely before or after the change.
@@ -263,7 +287,7 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
         σ per quantity or series id for the observation weights (default
         :data:`~rivercal.observations.DEFAULT_SIGMA`: 0.025 m for levels, 0.1 m³/s for discharges).
     series
-        Series ids to observe (default: every observable of the model).
+        Series ids to observe (default: every series of the model that a station measures).
     output_interval
         Interval of the truth and the observations, s (default hourly).
     levels
@@ -296,9 +320,9 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     ObservationSet(11 series, 803 values 2010-10-30 00:00 … 2010-11-02 00:00 UTC, 0 missing)
     """
     if isinstance(scenario, str):
-        if scenario not in PRACTICAL_SCENARIOS:
-            raise KeyError(f"unknown practical scenario {scenario!r}; choose one of {', '.join(PRACTICAL_SCENARIOS)}")
-        scenario = PRACTICAL_SCENARIOS[scenario]
+        if scenario not in SCENARIOS:
+            raise KeyError(f"unknown practical scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}")
+        scenario = SCENARIOS[scenario]
     if noise not in NOISE_MODELS:
         raise ValueError(f"unknown noise model {noise!r}; choose one of {', '.join(NOISE_MODELS)}")
     level = get_realism(realism) if realism is not None else REALISM_LEVELS["ideal"]
@@ -316,7 +340,7 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     for what, t in (("start", start), ("end", end), ("change time", change)):
         if what != "change time" or model_start < t < end:
             _on_grid(what, t, model_start, interval)
-    ids = list(series) if series is not None else list(model.observables)
+    ids = list(series) if series is not None else measurable(model.observables)
     unknown = [s for s in ids if s not in model.observables]
     if unknown:
         raise KeyError(f"series {unknown[0]!r} is not simulated by the model (have: {', '.join(model.observables)})")

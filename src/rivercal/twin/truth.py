@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet
+from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import add_noise
 
 __all__ = ["TwinTruth", "twin_truth"]
@@ -63,7 +63,7 @@ def twin_truth(model: Any, truth: Mapping[str, float], window: tuple[Any, Any], 
     warmup
         Time before the window at which calibration runs start (the state handed over).
     series
-        Series ids to observe (default: all the model simulates).
+        Series ids to observe (default: all the model's stations measure).
     noise, seed
         Noise model of :mod:`rivercal.twin.noise` and its seed.
     sigma
@@ -76,7 +76,7 @@ def twin_truth(model: Any, truth: Mapping[str, float], window: tuple[Any, Any], 
     result, _ = model.simulate(truth, start=run_start, end=end, state=state)
     frame = result.series
     inside = frame.loc[start:end]
-    ids = list(series) if series is not None else list(frame.columns)
+    ids = list(series) if series is not None else measurable(frame.columns)
     sigma = dict(sigma if sigma is not None else DEFAULT_SIGMA)
     rng = np.random.default_rng(seed)
     out = []

@@ -34,6 +34,7 @@ from rivercal.engine.kernels.codes import (
     STAT_STEPS,
     STATUS_OK,
 )
+from rivercal.engine.kernels.control import control_step, record_controls, start_controls
 from rivercal.engine.kernels.fluxes import finish_step, fluxes_within_volume
 from rivercal.engine.kernels.forcing import apply_forcing
 from rivercal.engine.kernels.momentum import channel_coefficients
@@ -146,8 +147,8 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
 
 
 @kernel
-def run_ext(net, sx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth, vmax,
-        out_every, obs_out, z_out, q_out, balance):
+def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth,
+            vmax, out_every, obs_out, z_out, q_out, balance):
     """:func:`run` for a network with structures of D-HYDRO's kinds or structure settings that follow a series.
 
     A separate kernel, so that the time loop of a network without them stays as lean as before (its phases
@@ -161,11 +162,15 @@ def run_ext(net, sx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, 
     sx
         :class:`~rivercal.engine.compile.StructureArrays` (orifices, universal weirs, culvert extras, settings
         series).
+    cx
+        :class:`~rivercal.engine.controllers.ControlArrays` (controllers, their run's quantities, output and
+        state, updated in place), or ``None`` without controllers. A controller sets its weir's crest once per
+        step, before the hydraulics (:func:`.control.control_step`).
     work
         :class:`Work` arrays (scratch, allocated once by the caller).
     crest, fric
-        Run-time parameters: weir crest levels (m AD; a weir whose crest follows a series takes its value
-        each step) and friction values per friction slot (branches, then friction groups).
+        Run-time parameters: weir crest levels (m AD; a weir whose crest follows a series or a controller takes
+        its value each step) and friction values per friction slot (branches, then friction groups).
     z, dz, vol, u, q, pump_on
         State, updated in place: levels (m AD), their change over the last step (m) and volumes
         (m³) at h-points, velocities (m/s) and fluxes (m³/s) at links, pump switches (0/1).
@@ -190,6 +195,9 @@ def run_ext(net, sx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, 
     """
     n_b = net.b_hp.size
     record(net, 0, z, q, obs_out, z_out, q_out)
+    if cx is not None:
+        start_controls(cx, crest)
+        record_controls(cx, 0)
     # velocities and fluxes at time n (u0, q0) and n+1 (u1, q1): the arrays swap roles after each step
     u0, q0, u1, q1 = u, q, work.un, work.qn
     work.src[:] = 0.0
@@ -206,6 +214,8 @@ def run_ext(net, sx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, 
         balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
         if scheduled:
             apply_settings(net, sx, n, forcing, crest)
+        if cx is not None:
+            control_step(cx, n, dt, z, q0, crest)
         channel_coefficients(net, work, z, u0, q0, dt, min_depth)
         switch_pumps(net, work, z, pump_on)
         work.stats[STAT_STEPS] += 1
@@ -221,6 +231,8 @@ def run_ext(net, sx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, 
             return status, n, index
         if (n + 1) % out_every == 0:
             record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
+            if cx is not None:
+                record_controls(cx, (n + 1) // out_every)
     _keep(u0, q0, u, q)
     return STATUS_OK, forcing.shape[0], -1
 

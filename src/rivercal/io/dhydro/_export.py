@@ -174,6 +174,9 @@ def export_dhydro(case: Case, out: Path | str, *, forcing: dict[str, pd.Series] 
     _write_engine_settings(spec.engine, out / SETTINGS_FILE)
     result.notes.append(f"the engine settings that D-Flow FM files cannot express are in {SETTINGS_FILE} (D-HYDRO "
                         "ignores it; rivercal's import reads it)")
+    if spec.controllers:
+        result.notes.append(f"the {len(spec.controllers)} controllers ([[controllers]]) are not exported (no D-HYDRO "
+                            "RTC files are written): their weirs keep their crest_level")
     result.files = sorted(p for p in out.iterdir() if p.is_file())
     (out / "export.md").write_text(_report(case, result), encoding="utf-8")
     result.files.append(out / "export.md")

@@ -151,10 +151,14 @@ def case_to_inp(case, forcing: Mapping[str, pd.Series], *, dx: float = 500.0, mi
     Raises
     ------
     ValueError
-        For pumps, Chézy friction or a profile type that is not converted.
+        For pumps, Chézy friction, a profile type that is not converted, or controllers (``[[controllers]]``;
+        no SWMM control rules are written, and fixed crests would not be the same model).
     """
     net = case.network
     spec = case.spec
+    if spec.controllers:
+        raise ValueError(f"case {case.name!r} has {len(spec.controllers)} controllers ([[controllers]]), which the "
+                         "SWMM conversion does not write as control rules; convert a case without them")
     start = case.start if start is None else start
     end = case.end if end is None else end
     spinup = spec.initial.spinup if spinup is None else spinup

@@ -1,0 +1,113 @@
+"""Write the packaged case ``dommel-controlled``: the default case with its nine adjustable weirs under control.
+
+The network, forcing, weather and windows are those of ``dommel`` (its ``case.toml`` is read and kept, the
+weather file is read from the ``dommel`` folder). What changes:
+
+- each adjustable weir W1…W9 (thesis Table 4-2) is driven by a controller whose crest stays inside its
+  Table 4-2 range and moves by at most 1 cm/min;
+- the target levels come from the table crests: the level upstream of each weir that the uncontrolled case
+  holds with its Table 4-4 crest, i.e. crest + its median head over Sep–Nov 2010 (``HEAD`` below, m, from
+  ``rivercal simulate dommel`` to the cm);
+- W4 and W8 follow a summer/winter setpoint (10 cm lower from 15 October to 15 April), W9's crest a
+  summer/winter time table (15 cm lower in winter), W6 is an interval controller, the other five are PIDs;
+- the calibration parameters are the frictions of ``dommel`` (FA, F1, FL), the constant setpoints (S1, S2,
+  S3, S5, S7) and Sd, a shift of all of them together.
+
+Run ``python scripts/make_dommel_controlled_case.py`` after changing ``dommel``.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+CASES = Path(__file__).resolve().parents[1] / "src" / "rivercal" / "cases"
+
+#: weir, its name in the thesis, Table 4-2 range (m AD), Table 4-4 crest (m AD), median head (m), station series
+WEIRS = [
+    ("ZL1-5", "W1", 9.9, 11.74, 10.82, 0.10, None),
+    ("ZL1-3014", "W2", 9.8, 11.1, 10.45, 0.11, "0028.h_up"),
+    ("ZL1-5126", "W3", 7.39, 8.8, 8.4, 0.09, None),
+    ("ZL1-5930", "W4", 6.84, 7.45, 7.145, 0.09, None),
+    ("ZL12-45", "W5", 8.66, 9.8, 9.15, 0.14, None),
+    ("ZL12-1880", "W6", 6.73, 8.0, 7.2, 0.15, None),
+    ("ZL12-4711", "W7", 5.87, 7.3, 6.75, 0.15, None),
+    ("ZL25-6292", "W8", 5.16, 6.53, 5.78, 0.14, None),
+    ("ZL25-8463", "W9", 4.13, 5.4, 4.6, 0.14, None),
+]
+PID = {"W1", "W2", "W3", "W5", "W7"}
+SEASONAL_SETPOINT = {"W4", "W8"}  # 10 cm lower in winter
+WINTER_DROP = 0.10  # m
+CREST_TABLE = {"W9": 0.15}  # m lower crest in winter
+INTERVAL = {"W6"}
+KP, KI = 0.5, 1.0e-4  # m/m, 1/s
+SPEED = 0.01  # m/min
+SEASONS = "times = [2010-04-15T00:00:00Z, 2010-10-15T00:00:00Z]"
+
+
+def _num(v: float) -> str:
+    return f"{round(v, 3):g}"
+
+
+def controllers() -> str:
+    out = ["# Controllers of the nine adjustable weirs (targets: Table 4-4 crest + median head, see README.md)"]
+    for weir, name, lo, hi, crest, head, station in WEIRS:
+        setpoint = crest + head
+        measure = station or f"{weir}.h_up"
+        common = f'id = "{name}"\nweir = "{weir}"\nmin = {_num(lo)}\nmax = {_num(hi)}\nmax_speed = {SPEED}\n'
+        if name in CREST_TABLE:
+            winter = crest - CREST_TABLE[name]
+            out.append(f'[[controllers]]  # {name}: summer and winter crest\n{common}type = "time"\n'
+                       f'table = {{ {SEASONS}, values = [{_num(crest)}, {_num(winter)}], interpolation = "block", '
+                       'repeat = "yearly" }\n')
+            continue
+        head_line = f'measure = "{measure}"\n'
+        if name in SEASONAL_SETPOINT:
+            target = (f'setpoint_table = {{ {SEASONS}, values = [{_num(setpoint)}, {_num(setpoint - WINTER_DROP)}], '
+                      'interpolation = "block", repeat = "yearly" }\n')
+        else:
+            target = f"setpoint = {_num(setpoint)}\n"
+        if name in INTERVAL:
+            out.append(f'[[controllers]]  # {name}: interval controller\n{common}type = "interval"\n{head_line}'
+                       f"{target}dead_band = 0.04\nstep = 0.02\ninterval = 1800.0\n")
+        else:
+            out.append(f'[[controllers]]  # {name}: PID on its upstream level\n{common}type = "pid"\n{head_line}'
+                       f"{target}kp = {KP}\nki = {KI}\n")
+    return "\n".join(out)
+
+
+def setpoint_parameters() -> str:
+    out = []
+    constant = [(w, n, c + h) for w, n, _, _, c, h, _ in WEIRS if n in PID]
+    for _weir, name, setpoint in constant:
+        out.append(f'[[parameters]]\nname = "S{name[1:]}"\ntargets = ["control:{name}.setpoint"]\n'
+                   f"min = {_num(setpoint - 0.5)}\nmax = {_num(setpoint + 0.5)}\ninitial = {_num(setpoint)}\n"
+                   'transform = "offset"\nperturbation = 0.05\nunit = "m AD"\n')
+    cluster = ",\n".join(f'  {{ target = "control:{n}.setpoint", min = {_num(s - 0.5)}, max = {_num(s + 0.5)}, '
+                         f"base = {_num(s)} }}" for _w, n, s in constant)
+    out.append("# Sd: the constant setpoints moved alike (m)\n[[parameters]]\nname = \"Sd\"\nmin = -0.3\nmax = 0.3\n"
+               'initial = 0.0\ntransform = "offset"\nperturbation = 0.05\nunit = "m"\ncluster_mode = "shift"\n'
+               f"cluster = [\n{cluster},\n]\n")
+    return "\n".join(out)
+
+
+def main() -> None:
+    text = (CASES / "dommel" / "case.toml").read_text(encoding="utf-8")
+    text = text.replace("# De Dommel-like weir network (generated by scripts/make_dommel_case.py; see README.md).",
+                        "# De Dommel-like weir network with controlled weirs (generated by "
+                        "scripts/make_dommel_controlled_case.py from the dommel case; see README.md).")
+    text = re.sub(r'^name = "dommel"$', 'name = "dommel-controlled"', text, count=1, flags=re.M)
+    text = re.sub(r'^description = ".*"$', 'description = "dommel with its nine adjustable weirs under control '
+                  '(PID, interval, summer/winter tables), KNMI 2010 weather"', text, count=1, flags=re.M)
+    text = re.sub(r'^file = "meteo/', 'file = "../dommel/meteo/', text, count=1, flags=re.M)
+    # the crest parameters (W1…W9, Wc, Wd) give way to the controllers' setpoints
+    first = text.index('[[parameters]]\nname = "W1"')
+    last = text.index("# DuD stopping criteria")
+    text = text[:first] + setpoint_parameters() + "\n" + controllers() + "\n\n" + text[last:]
+    folder = CASES / "dommel-controlled"
+    folder.mkdir(exist_ok=True)
+    (folder / "case.toml").write_text(text, encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
