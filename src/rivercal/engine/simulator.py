@@ -15,7 +15,7 @@ changing them never recompiles anything:
   branches stay);
 - ``friction:scale`` — a factor on the conveyance of every channel friction coefficient (k_s and C times the
   factor, n divided by it; 1 leaves the case as it is). Culverts and bridges keep their own friction;
-- ``control:<id>.<quantity>`` — a controller's setpoint, gains or table values (:mod:`.controllers`).
+- ``control:<id>.<quantity>`` — a controller's setpoint, gains or table values (:mod:`rivercal.engine.controllers`).
 
 A case with controllers (``[[controllers]]``) also simulates each controlled crest, ``"<weir>.crest"`` (m AD),
 and carries the controllers' state in :class:`EngineState` (``ctl``).
@@ -152,7 +152,10 @@ class Simulator:
         return out
 
     def control_values(self, parameters: Mapping[str, float] | None) -> ControlValues | None:
-        """The controllers' quantities for a set of targets (``None`` without controllers; see :mod:`.controllers`)."""
+        """The controllers' quantities for a set of targets.
+
+        ``None`` without controllers; see :mod:`rivercal.engine.controllers`.
+        """
         if self.controls is None:
             unknown = [t for t in (parameters or {}) if t.startswith("control:")]
             if unknown:
