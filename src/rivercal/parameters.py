@@ -1,7 +1,7 @@
 """Calibration parameters: names at the edges, model quantities and flat vectors inside.
 
 A :class:`Parameter` is one number the calibration estimates. It has physical bounds (thesis Eq. 2-7;
-always in physical units, so a restart from new initial values keeps its range — OpenDA issue 337),
+always in physical units, so a restart from new initial values keeps its range — a known OpenDA defect otherwise),
 an initial value, a transform that sets how the optimiser perturbs it, an optional prior standard
 deviation (a weak constraint), and targets:
 

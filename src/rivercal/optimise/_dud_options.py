@@ -103,7 +103,7 @@ class DudOptions:
         When T1, T2 or T3 fires on an interpolation set that has aged (points from earlier iterations),
         re-initialise it around the best point (p runs, one batch) and stop only if the rule fires again
         on the fresh set. Secant models degrade as DuD converges; the fresh set removes premature stops
-        (the "magic" restarts of OpenDA issue 449). False stops on the aged set at once (this is not
+        (the unexplained restarts reported against OpenDA's DuD). False stops on the aged set at once (this is not
         OpenDA's behaviour: use ``stopping="openda"`` for that).
     stopping
         ``"rivercal"`` (default): the rules above, and T1 and T2 never fire right after a line search that

@@ -14,7 +14,7 @@ without OpenDA's quirks:
   point with smaller perturbations (one parallel batch), and a second failure on the fresh set ends the
   run (status 5);
 - the set is also re-initialised when it degenerates (ill-conditioned secant matrix), the remedy the
-  OpenDA maintainers recommend by hand (issue 449);
+  OpenDA maintainers recommend by hand;
 - every stopping rule is invariant to a common scale of the weights (T1 measures the drop of the cost
   in units of the residual variance s² = S/(m − p), the near-zero-cost rule against the cost change of
   one initial perturbation), and T1/T2 never fire right after a line search that shortened its step;

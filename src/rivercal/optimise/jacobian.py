@@ -44,7 +44,7 @@ def inward_steps(x: np.ndarray, h: np.ndarray, lb: np.ndarray, ub: np.ndarray) -
 
     Prefer +h; if that leaves the box use −h; if neither fits (the range is narrower than h) step
     towards the farther bound by the room available there. A point at or near a bound is therefore
-    always perturbed inwards and the perturbed points never collapse onto x (OpenDA issue 338).
+    always perturbed inwards and the perturbed points never collapse onto x (OpenDA's DuD can collapse them otherwise).
     """
     up, down = ub - x, x - lb
     step = np.where(h <= up, h, np.where(h <= down, -h, 0.0))
