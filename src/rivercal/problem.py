@@ -151,9 +151,9 @@ class CalibrationProblem:
         Cost of a failed run under the ``penalty`` policy.
     noise
         The model's numerical noise in the simulated series (m for levels, m³/s for discharges): the
-        size of the jitter a tiny parameter change causes. Default: the model's ``numerical_noise`` if it
-        has one, else its engine settings' ``tolerance`` (the embedded engine's Picard level tolerance,
-        an upper bound of its jitter), else unknown (None).
+        size of the jitter a tiny parameter change causes. Default: the ``numerical_noise`` the model
+        declares (the embedded engine's Picard level tolerance, SWMM's head tolerance), else unknown
+        (None).
 
     Raises
     ------
@@ -565,9 +565,8 @@ def _physical_std(problem: CalibrationProblem, x: np.ndarray, std: np.ndarray | 
 
 
 def _model_noise(model: Any) -> float | None:
-    """The model's numerical noise: ``model.numerical_noise``, else ``model.settings.tolerance``, else None."""
-    settings = getattr(model, "settings", None)
-    for value in (getattr(model, "numerical_noise", None), getattr(settings, "tolerance", None)):
-        if isinstance(value, int | float) and math.isfinite(value) and value > 0:
-            return float(value)
+    """The numerical noise the model declares (:mod:`rivercal.models.contract`), None where it declares none."""
+    value = getattr(model, "numerical_noise", None)
+    if isinstance(value, int | float) and math.isfinite(value) and value > 0:
+        return float(value)
     return None

@@ -73,6 +73,22 @@ def test_twin_recovers_the_truth_and_counts_runs() -> None:
     assert result.result.nfev <= 20
 
 
+def test_the_numerical_noise_is_what_the_model_declares_also_through_the_transition_wrapper() -> None:
+    from rivercal.case import load_case
+    from rivercal.models import build_model
+    from rivercal.models.transition import TransitionModel
+
+    window = (START + pd.Timedelta("6h"), START + pd.Timedelta("48h"))
+    model = LinearReservoirModel()
+    assert CalibrationProblem(model, _params(), _obs(model), window).noise is None  # declares none
+    model.numerical_noise = 0.002
+    assert CalibrationProblem(model, _params(), _obs(model), window).noise == 0.002
+    assert CalibrationProblem(model, _params(), _obs(model), window, noise=0.01).noise == 0.01
+    embedded = build_model(load_case("synthetic"))
+    assert embedded.numerical_noise == embedded.settings.tolerance == 1e-4  # the Picard level tolerance, m
+    assert TransitionModel(embedded, "friction:global", reference=embedded.start).numerical_noise == 1e-4
+
+
 def test_observations_between_output_times_are_interpolated() -> None:
     model = LinearReservoirModel()
     obs = _obs(model, half_hours=True)

@@ -26,6 +26,7 @@ def test_the_swmm_case_declares_its_quantities_stations_and_calibration(swmm) ->
     assert defaults["weir:ZL1-3014.crest_level"] == pytest.approx(10.45)  # the dommel crest
     assert defaults["conduit:ZL12_c38.roughness"] == pytest.approx(1 / 16)
     assert swmm.dt == 30.0 and swmm.output_interval == 3600.0 and swmm.spinup == 96.0
+    assert swmm.numerical_noise == 0.0005  # the file's HEAD_TOLERANCE, m
     assert swmm.observables == ["0028.h_up", "0028.h_down", "0040.h_up", "0040.h_down", "0029.h_up", "0029.h_down",
                                 "0029.Q", "0030.h_up", "0030.h_down", "0031.h_up", "0031.h_down"]
     assert {"FR", "FA", "F1", "Wc", "Wd"} <= set(swmm.calibration.names) and "moderate" in swmm.calibration.windows

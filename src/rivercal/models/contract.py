@@ -11,6 +11,9 @@ the transition wrapper — declares:
   in m; ``Q`` in m³/s);
 - ``calibration``: the calibration setup it ships with (:class:`CalibrationSetup`: named parameters,
   windows, the default optimiser and its options), possibly empty;
+- optionally ``numerical_noise``: the jitter of its series under a tiny parameter change, in their units
+  (m, m³/s) — a solver's convergence tolerance — so that difference steps stand above it; a model
+  without it is taken to have none known;
 - how its state is saved and restored: ``state_format`` (a tag stored beside the bytes),
   ``save_state(state) -> bytes`` and ``load_state(data, fmt) -> state``. A state carries its simulated
   ``time``. Models whose state lives in files (a SWMM hotstart file, restart files of an external

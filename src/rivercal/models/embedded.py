@@ -73,6 +73,14 @@ class EmbeddedModel(Simulator):
         """Default interval of the station series, s."""
         return float(self.settings.output_interval)
 
+    @property
+    def numerical_noise(self) -> float:
+        """The Picard level tolerance of a time step, m.
+
+        An upper bound of the jitter a tiny parameter change causes in the simulated levels.
+        """
+        return float(self.settings.tolerance)
+
     @functools.cached_property
     def quantities(self) -> dict[str, Quantity]:
         """The settable quantities (module docstring)."""

@@ -153,6 +153,11 @@ class TransitionModel:
         return float(self.model.output_interval)
 
     @property
+    def numerical_noise(self) -> float | None:
+        """The wrapped model's numerical noise (units of its series: m, m³/s), None where it declares none."""
+        return getattr(self.model, "numerical_noise", None)
+
+    @property
     def name(self) -> str:
         """The wrapped model's name."""
         return self.model.name

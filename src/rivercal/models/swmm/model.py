@@ -106,6 +106,8 @@ class SwmmModel:
         if units != "CMS":
             raise ValueError(f"{label}: [OPTIONS] FLOW_UNITS is {units}; rivercal needs SI units (CMS, m³/s)")
         self._dt = seconds(self._inp.option("ROUTING_STEP"), 20.0)
+        tolerance = self._inp.option("HEAD_TOLERANCE")
+        self._head_tolerance = float(tolerance) if tolerance else 0.0015
         self._elevation_offsets = (self._inp.option("LINK_OFFSETS") or "DEPTH").upper() == "ELEVATION"
         self._inverts = self._inp.node_inverts()
         self._conduits = {r.tokens[0]: float(r.tokens[4]) for r in self._inp.rows("CONDUITS")}
@@ -145,6 +147,15 @@ class SwmmModel:
     def output_interval(self) -> float:
         """Default interval of the series, s."""
         return self._interval
+
+    @property
+    def numerical_noise(self) -> float:
+        """SWMM's convergence tolerance of node heads, m (``HEAD_TOLERANCE``).
+
+        The jitter of its levels under a tiny parameter change. SWMM's default is 0.005 ft, 0.0015 m
+        (SWMM 5 user's manual, the [OPTIONS] section).
+        """
+        return self._head_tolerance
 
     @property
     def calibration(self) -> CalibrationSetup:
