@@ -50,3 +50,18 @@ class KillOnce:
             self.marker.write_text(str(os.getpid()))
             os._exit(1)  # the worker dies mid-task, as on a crash or a lost machine
         return 2.0 * np.asarray(x, dtype=float)
+
+
+
+def hold_interpreter(additions: float) -> float:
+    """Add ``additions`` times in one compiled call that holds the interpreter lock, as a model run does."""
+    import numba
+
+    @numba.njit
+    def spin(n: int) -> float:
+        x = 0.0
+        for _ in range(n):
+            x += 1e-9
+        return x
+
+    return spin(int(additions))

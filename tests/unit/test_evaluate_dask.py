@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 from rivercal.errors import EngineDivergedError
-from rivercal.evaluate import ClusterError, DaskCluster, Evaluator
+from rivercal.evaluate import ClusterError, DaskCluster, Evaluator, Tasks
 from rivercal.optimise.result import STATUS_DEADLINE, STATUS_MAX_NFEV
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
@@ -188,8 +188,30 @@ def parent() -> None:
         time.sleep(600)
 
 
-def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed() -> None:
-    proc = subprocess.Popen([sys.executable, "-m", "tests.unit.test_evaluate_dask"], cwd=ROOT,
+def busy_parent() -> None:
+    """A parent whose two workers are each in a long compiled call (holding their interpreter lock)."""
+    with DaskCluster("local:2") as c, Tasks(None, c) as pool:
+        pool.map(_square, [1.0, 2.0])
+        futures = [pool.submit(_hold, 1e12) for _ in range(2)]
+        time.sleep(3.0)  # the calls have started
+        print("ready", flush=True)
+        for f in futures:
+            f.result()
+
+
+def _square(obj: object, x: float) -> float:
+    return x * x
+
+
+def _hold(obj: object, additions: float) -> float:
+    return dask_helpers.hold_interpreter(additions)
+
+
+@pytest.mark.parametrize(("role", "how"), [("parent", signal.SIGKILL), ("parent", signal.SIGTERM),
+                                           ("busy_parent", signal.SIGTERM)])
+def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed(role: str, how: signal.Signals) -> None:
+    """Idle or in the middle of a model run (which holds a worker's interpreter lock), the workers go at once."""
+    proc = subprocess.Popen([sys.executable, "-m", "tests.unit.test_evaluate_dask", role], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
@@ -197,7 +219,7 @@ def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed() -> None:
         workers = sorted(descendants(proc.pid))
         assert len(workers) >= 2, workers
     finally:
-        os.kill(proc.pid, signal.SIGKILL)
+        os.kill(proc.pid, how)
         proc.wait(timeout=30)
         proc.stdout.close()
         proc.stderr.close()
@@ -228,5 +250,20 @@ def test_the_command_line_runs_on_a_dask_cluster_and_checks_the_address(tmp_path
         assert bad.exit_code == 2 and "--dask" in bad.output and text in bad.output, bad.output
 
 
+def test_the_command_line_shows_no_dask_chatter_unless_verbose(tmp_path: Path) -> None:
+    """Dask logs its cluster's start at INFO; the command line shows warnings only, as for rivercal's own log."""
+    base = [sys.executable, "-m", "rivercal.cli"]
+    args = ["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-09-28", "--twin", "FA=20",
+            "--dask", "local:2", "--json", "--out"]
+    quiet = subprocess.run([*base, *args, str(tmp_path / "a")], cwd=ROOT, capture_output=True, text=True,
+                           timeout=600, check=False)
+    assert quiet.returncode == 0, quiet.stderr[-2000:]
+    assert not [line for line in quiet.stderr.splitlines() if line.startswith(("INFO", "DEBUG"))], quiet.stderr[-2000:]
+    verbose = subprocess.run([*base, "--verbose", *args, str(tmp_path / "b")], cwd=ROOT, capture_output=True,
+                             text=True, timeout=600, check=False)
+    assert verbose.returncode == 0, verbose.stderr[-2000:]
+    assert "INFO distributed.scheduler" in verbose.stderr
+
+
 if __name__ == "__main__":
-    parent()
+    {"parent": parent, "busy_parent": busy_parent}[sys.argv[1]]()

@@ -54,11 +54,10 @@ def _main(
         out_console.print(ctx.get_help())
         raise typer.Exit(0)
     os.environ.setdefault("MPLBACKEND", "Agg")  # files only; the library never chooses a backend
-    logging.basicConfig(
-        level=logging.DEBUG if verbose else getattr(logging, options.log_level.upper(), logging.WARNING),
-        format="%(levelname)s %(name)s: %(message)s",
-        stream=sys.stderr,
-    )
+    level = logging.DEBUG if verbose else getattr(logging, options.log_level.upper(), logging.WARNING)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setLevel(level)  # also for the records of libraries that set their own loggers' level (Dask: INFO)
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", handlers=[handler])
 
 
 def version_text(verbose: bool = False) -> str:

@@ -11,12 +11,14 @@ numba kernels do not release it), so more threads in one worker would not run fa
 copy of the model. A cluster whose workers run several threads is refused.
 
 The worker processes of a ``local:N`` cluster are Dask's own; each ends when this process ends, however it
-ends (Dask's process wrapper watches a pipe to its parent and exits when it closes).
+ends, also in the middle of a model run: the kernel's parent-death signal (armed by a worker plugin) does not
+wait for the worker's interpreter lock as Dask's own watch of the parent (a thread) does.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import pickle
 import re
 import uuid
@@ -90,6 +92,9 @@ class DaskCluster:
                     dashboard_address="127.0.0.1:0",  # its HTTP server on a free port of this machine only
                     silence_logs=logging.WARNING)
                 self.client = distributed.Client(self._cluster, timeout=timeout_s)
+                from rivercal.evaluate._plugin import EndWithParent
+
+                self.client.register_plugin(EndWithParent(os.getpid()), name="rivercal-end-with-parent")
             else:
                 self.client = distributed.Client(self.address, timeout=timeout_s)
         except (OSError, TimeoutError) as exc:

@@ -8,7 +8,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from rivercal.evaluate import _shipping
 
-__all__ = ["Install"]
+__all__ = ["EndWithParent", "Install"]
 
 
 class Install(WorkerPlugin):
@@ -27,3 +27,28 @@ class Install(WorkerPlugin):
     def teardown(self, worker: Any) -> None:
         """Called when the plugin is removed (or the worker closes)."""
         _shipping.drop(self.token)
+
+
+class EndWithParent(WorkerPlugin):
+    """Make each worker process of a ``local:N`` cluster end as soon as the process that started it ends.
+
+    Dask's own watch of the parent is a thread of the worker, which waits for the interpreter lock: a worker
+    in the middle of a model run (compiled code that holds the lock) would outlive a killed parent until the
+    run ends, minutes on a large network. The kernel's parent-death signal does not wait
+    (:func:`rivercal.evaluate.end_with_parent`). A worker that another process started (a remote cluster's
+    worker, or one whose parent is not ``parent_pid``) is left alone.
+    """
+
+    idempotent = True
+
+    def __init__(self, parent_pid: int):
+        self.parent_pid = parent_pid
+
+    def setup(self, worker: Any) -> None:
+        """Arm the signal in a worker whose parent is ``parent_pid``."""
+        import os
+
+        from rivercal.evaluate._pool import end_with_parent
+
+        if os.getppid() == self.parent_pid:
+            end_with_parent()
