@@ -25,3 +25,9 @@ def test_longest_first_is_within_grahams_bound_of_the_best_schedule() -> None:
         best = min(max(sum(j for j, w in zip(jobs, assign, strict=True) if w == k) for k in range(workers))
                    for assign in itertools.product(range(workers), repeat=len(jobs)))
         assert best <= list_schedule(jobs, workers) <= (4 / 3 - 1 / (3 * workers)) * best + 1e-12
+
+
+def test_the_makespan_in_the_order_given_can_leave_a_tail() -> None:
+    # Two workers, jobs 3, 3, 6 in that order: 3 | 3 → 3+6=9 | 3: makespan 9; longest first: 6 | 3+3: 6.
+    assert list_schedule([3.0, 3.0, 6.0], 2, longest_first=False) == pytest.approx(9.0)
+    assert list_schedule([3.0, 3.0, 6.0], 2) == pytest.approx(6.0)

@@ -11,12 +11,16 @@ thesis §4-4 in their moderate window: 12 two-parameter DuD calibrations, each a
   (target ≤ 5 ms), the processor time they cost (this process, which holds the scheduler of a local
   cluster, and the worker), and the median round trip of one no-op task submitted alone;
 - the expected wall time on 64 workers, from the measured durations of the scenarios on one worker:
-  the scenarios are started longest first (as :func:`rivercal.twin.suites.run_scenarios` does), so the
-  time is the makespan of that list schedule on 64 workers, after the truths (one model run each, all
-  at once: the 1-worker time not spent in calibrations, per truth), plus the scheduling overhead of every
-  task spread over the workers.
+  :func:`rivercal.twin.suites.run_scenarios` submits them in the order of its cost rank (the likely longest
+  first; for FaWc all rank equal, so in the suite's order), and the time is the makespan of that list
+  schedule on 64 workers, after the truths (one model run each, all at once: the 1-worker time not spent in
+  calibrations, per truth), plus the scheduling overhead of every task spread over the workers;
+- what the schedule allows: ``order_bound_speedup``, the speed-up of the calibrations on two free workers
+  in their submission order, and ``longest_first_bound_speedup``, had their durations been known and the
+  longest started first (the difference is the tail that the unknown durations cost).
 
-The machine's load average is reported with the numbers: on a shared machine, other processes take cores
+The machine's load average (at the start and the end) and its number of processors are reported with the
+numbers: on a shared machine, other processes take cores
 from the two workers. So that the speed-up can be read on such a machine, the processor time of the worker
 processes is measured over each timed run: ``cores_used_*`` is that time over the wall time (2 workers on
 two free cores use nearly 2), and ``expected_s_2_workers`` is the time two free cores would take by the same
@@ -59,6 +63,10 @@ class DaskBenchmark:
     cores_used_1_worker: float
     cores_used_2_workers: float
     load_average: float
+    load_average_start: float
+    cores: int
+    order_bound_speedup: float
+    longest_first_bound_speedup: float
     runs_1_worker: list[float]
     runs_2_workers: list[float]
     note: str
@@ -68,10 +76,10 @@ class DaskBenchmark:
         return asdict(self)
 
 
-def list_schedule(durations: list[float], workers: int) -> float:
-    """Makespan of starting the jobs longest first, each on the first worker free, s."""
+def list_schedule(durations: list[float], workers: int, *, longest_first: bool = True) -> float:
+    """Makespan of starting the jobs (longest first, or in the order given), each on the first worker free, s."""
     free = [0.0] * workers
-    for d in sorted(durations, reverse=True):
+    for d in (sorted(durations, reverse=True) if longest_first else durations):
         heapq.heappush(free, heapq.heappop(free) + d)
     return max(free)
 
@@ -118,8 +126,9 @@ def bench_dask(every: int = 3, repeats: int = 3, tasks: int = 400) -> DaskBenchm
     """
     from rivercal.evaluate import DaskCluster
     from rivercal.model import load_model
-    from rivercal.twin.suites import run_scenarios, suite_scenarios
+    from rivercal.twin.suites import _expected_work, run_scenarios, suite_scenarios
 
+    load_start = os.getloadavg()[0]
     model = load_model("dommel")
     scenarios = suite_scenarios("FaWc")[::every]
     clusters = {n: DaskCluster(f"local:{n}") for n in (1, 2)}
@@ -147,8 +156,11 @@ def bench_dask(every: int = 3, repeats: int = 3, tasks: int = 400) -> DaskBenchm
     truths = len({s.truth_key for s in scenarios})
     per_truth = max(0.0, w1 - sum(durations)) / truths  # one worker: the rest of its wall time is the truths
 
+    # the calibrations in the order run_scenarios submits them (its cost rank, ties in the suite's order)
+    submitted = [durations[i] for i in sorted(range(len(scenarios)), key=lambda i: -_expected_work(scenarios[i]))]
+
     def expected(workers: int) -> float:
-        return (list_schedule([per_truth] * truths, workers) + list_schedule(durations, workers)
+        return (list_schedule([per_truth] * truths, workers) + list_schedule(submitted, workers, longest_first=False)
                 + per_task * (len(scenarios) + truths) / workers)
 
     c1, c2 = statistics.median(cpus[1]), statistics.median(cpus[2])
@@ -159,11 +171,18 @@ def bench_dask(every: int = 3, repeats: int = 3, tasks: int = 400) -> DaskBenchm
         scenario_s_mean=statistics.mean(durations), scenario_s_max=max(durations),
         expected_s_2_workers=expected(2), expected_s_64_workers=expected(64), worker_cpu_s_1_worker=c1,
         worker_cpu_s_2_workers=c2, cores_used_1_worker=c1 / w1, cores_used_2_workers=c2 / w2,
-        load_average=os.getloadavg()[0], runs_1_worker=walls[1], runs_2_workers=walls[2],
+        load_average=os.getloadavg()[0], load_average_start=load_start, cores=os.cpu_count() or 0,
+        order_bound_speedup=sum(durations) / list_schedule(submitted, 2, longest_first=False),
+        longest_first_bound_speedup=sum(durations) / list_schedule(durations, 2),
+        runs_1_worker=walls[1], runs_2_workers=walls[2],
         note=(f"one FaWc scenario in {every} (moderate window), each calibration one task; 2 and 64 workers "
               "expected: the truths (the 1-worker time not spent in calibrations, per truth, scheduled on the "
-              "workers), then the longest-first list schedule of the calibrations as measured on 1 worker, plus "
+              "workers), then the list schedule of the calibrations as measured on 1 worker in the order they are "
+              "submitted, plus "
               "the per-task overhead spread over the workers; with more workers than scenarios the longest one "
               "bounds the time. cores_used: the workers' processor time over the wall time (less than the "
-              "workers when other processes share the cores)"),
+              "workers when other processes share the cores); order_bound_speedup: the most 2 free workers can "
+              "give the calibrations in their submission order (their durations are not known in advance), "
+              "longest_first_bound_speedup: the same had they been started longest first; load_average_start and "
+              "load_average: the machine's 1-minute load at the start and the end, on cores processors"),
     )
