@@ -264,8 +264,9 @@ class ObservationTables(StoreBase):
         rows = self.observation_table(ids, start, end, sources=sources)
         sigma = dict(DEFAULT_SIGMA if sigma is None else sigma)
         out = []
+        parts = dict(tuple(rows.groupby("series", sort=False)))  # one pass, not one scan of all rows per series
         for series_id in ids:
-            part = rows[rows["series"] == series_id]
+            part = parts.get(series_id, rows.iloc[:0])
             values = pd.Series(part["value"].to_numpy(float), index=pd.DatetimeIndex(part["time"]))
             s = sigma.get(series_id, sigma.get(series_id.rpartition(".")[2]))
             out.append(ObservationSeries.from_series(values, id=series_id, sigma=s, source=f"store:{self.path}"))
