@@ -269,7 +269,7 @@ def elimination_order(n: int, pairs: Sequence[tuple[int, int]]) -> SymbolicLDL:
     )
 
 
-def solver_schedule(sym: SymbolicLDL, chains: int = 8) -> np.ndarray:
+def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
     """The symbolic factorisation as a two-lane schedule for :func:`~rivercal.engine.kernels.solver.ldl_solve_packed`.
 
     Along a branch every elimination depends on the previous one, so the solve is bound by the latency of
@@ -282,33 +282,20 @@ def solver_schedule(sym: SymbolicLDL, chains: int = 8) -> np.ndarray:
 
     Two eliminations are paired only when neither touches an entry (pivot, later point, edge, fill
     target) that the other touches, and every entry is updated by the same eliminations in the same
-    order as in ``sym.order``: the result is bit-identical to the one-lane solve.
-
-    The steps take turns among ``chains`` chains of eliminations. Each chain goes on with the point its
-    last elimination updated (the next point along the branch: its entries sit next to the last ones in
-    memory, so a chain reads its arrays in order and the memory traffic stays sequential on a network far
-    larger than the cache); a chain that cannot go on starts the waiting elimination with the longest
-    chain of eliminations after it (a list schedule by longest remaining chain, which keeps two lanes
-    busy to the end). Several chains in turn keep enough independent work in flight for the processor
-    to overlap their latencies (with two, each chain's divide-multiply-subtract latency bounds the solve;
-    the lane "carry" of the kernel, which keeps a pivot in a register when the same lane eliminates that
-    point in the very next step, then rarely applies, and the stores it saves are cheap next to that
-    latency).
+    order as in ``sym.order``: the result is bit-identical to the one-lane solve. The steps follow a
+    list schedule by longest remaining chain, keeping each chain in its lane so that the value it
+    updates stays in a register (the "carry").
 
     Parameters
     ----------
     sym
         The symbolic factorisation of :func:`elimination_order`.
-    chains
-        Chains of eliminations taken in turn (at least 2).
 
     Returns
     -------
     numpy.ndarray
         ``uint64`` array of ``2 * SCHED_WIDTH`` entries per step.
     """
-    if chains < 2:
-        raise ValueError(f"solver_schedule: chains must be at least 2 (two lanes), got {chains}")
     n = sym.order.size
     touches: list[set[tuple[str, int]]] = []
     for p in range(n):
@@ -337,36 +324,26 @@ def solver_schedule(sym: SymbolicLDL, chains: int = 8) -> np.ndarray:
     position[sym.order] = np.arange(n)
     ready = [(-int(chain[p]), p) for p in range(n) if waits[p] == 0]
     heapq.heapify(ready)
-    is_ready = waits == 0
-    follows = [n] * chains  # per chain: the point it eliminates next if it can (n: none)
-    turn = 0  # the chain whose turn it is
     steps: list[list[np.ndarray]] = []
-    while True:
-        take: list[tuple[int, int]] = []  # (chain, elimination position)
-        for v in [(turn + j) % chains for j in range(chains)]:
-            if len(take) == 2 or (take and width[take[0][1]] > 2):
-                break
-            p = int(position[follows[v]]) if follows[v] < n else -1
-            if p < 0 or not is_ready[p] or width[p] > 2:  # the chain ends here: start the longest waiting one
-                p = _pop_ready(ready, is_ready, {int(position[f]) for f in follows if f < n} | {q for _, q in take})
-                if p >= 0 and width[p] > 2 and take:
-                    heapq.heappush(ready, (-int(chain[p]), p))  # a step of its own, later
-                    p = -1
-            if p >= 0:
-                take.append((v, p))
-                is_ready[p] = False
-            else:
-                follows[v] = n
-        if not take:
-            break
-        turn = (take[-1][0] + 1) % chains
+    carried = [n, n]  # the point each lane carries into its next step
+    while ready:
+        first = heapq.heappop(ready)[1]
+        take = [first]
+        if width[first] <= 2 and ready and width[ready[0][1]] <= 2:
+            take.append(heapq.heappop(ready)[1])
+        lanes: list[int | None] = [None, None]
+        for p in take:  # an elimination of a carried point goes to the lane that carries it
+            if int(sym.order[p]) in carried:
+                lanes[carried.index(int(sym.order[p]))] = p
+        for p in take:
+            if p not in lanes:
+                lanes[lanes.index(None)] = p
         step = []
-        for lane in (0, 1):
+        for lane, p in enumerate(lanes):
             rec = np.zeros(SCHED_WIDTH, dtype=np.uint64)
             rec[0], rec[7] = n, 2
-            if lane < len(take):
-                v, p = take[lane]
-                follows[v] = n
+            carried[lane] = n
+            if p is not None:
                 c0, m = sym.cptr[p], int(width[p])
                 rec[0], rec[1] = sym.order[p], m
                 if m in (1, 2):
@@ -376,36 +353,17 @@ def solver_schedule(sym: SymbolicLDL, chains: int = 8) -> np.ndarray:
                     rec[6] = sym.utgt[sym.uptr[p] + 1]
                 elif m > 2:
                     rec[6] = p
-                if m in (1, 2):  # go on with (carry) the later point that is eliminated first
+                if m in (1, 2):  # carry the later point that is eliminated first
                     rec[7] = 0 if m == 1 or position[sym.cother[c0]] < position[sym.cother[c0 + 1]] else 1
-                    follows[v] = int(rec[3 + 2 * rec[7]])
+                    carried[lane] = int(rec[3 + 2 * rec[7]])
             step.append(rec)
         steps.append(step)
-        for _, p in take:
-            for q in after[p]:
-                waits[q] -= 1
-                if waits[q] == 0:
-                    is_ready[q] = True
-                    heapq.heappush(ready, (-int(chain[q]), q))
+        for p in take:
+            for s in after[p]:
+                waits[s] -= 1
+                if waits[s] == 0:
+                    heapq.heappush(ready, (-int(chain[s]), s))
     return np.array(steps, dtype=np.uint64).ravel()
-
-
-def _pop_ready(ready: list[tuple[int, int]], is_ready: np.ndarray, reserved: set[int]) -> int:
-    """Pop the ready elimination with the longest chain that no chain goes on with; -1 if there is none."""
-    kept = []
-    found = -1
-    while ready:
-        _, p = heapq.heappop(ready)
-        if not is_ready[p]:
-            continue  # taken already (as a chain's next point)
-        if p in reserved:
-            kept.append((_, p))
-            continue
-        found = p
-        break
-    for item in kept:
-        heapq.heappush(ready, item)
-    return found
 
 
 def link_runs(lk_k1: np.ndarray, lk_k2: np.ndarray, lk_edge: np.ndarray, general: np.ndarray) -> np.ndarray:
