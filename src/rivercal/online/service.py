@@ -297,8 +297,11 @@ class OnlineService:
             return
         est.held, extra = self._gate(problem, cal)
         est.model_runs += extra
-        moved = {} if first else guardrails.jumps(warm, {n: cal.estimates[n] for n in warm}, cal.std, est.held,
-                                                  {n: self.resolution(n) for n in warm}, self.config.alert_k)
+        earlier = guardrails.accepted_at(self.store, self.run, spec.window_start)
+        moved = {} if first else guardrails.jumps(warm, {n: cal.estimates[n] for n in warm}, cal.std_scaled or cal.std,
+                                                  est.held,
+                                                  {n: self.resolution(n) for n in warm}, self.config.alert_k,
+                                                  earlier=earlier)
         if est.change is not None:
             moved.pop(est.change.parameter, None)  # the carried change is being refined, not a new jump
         if moved and est.change is None and self.config.transition:
@@ -378,12 +381,19 @@ class OnlineService:
         """Run the transition estimator on the parameter that jumped most; the change if the window holds one."""
         name = max(moved, key=lambda n: moved[n])
         p = self.parameters[name]
+        # the search looks at the warm-up's observations too (the state at its start comes from the values
+        # before): a change just before a short window's start has no value before it inside the window
+        run_start = spec.window_start - self.warmup
+        if self.warmup > pd.Timedelta(0):
+            obs = self.store.observations(self.series, run_start, spec.window_end,
+                                          sources=list(self.config.sources) if self.config.sources else None,
+                                          sigma=self.config.sigma if self.config.sigma is not None else DEFAULT_SIGMA)
         others = {k: v for k, v in warm.items() if k != name}
         fixed = {**self.config.dss, **ParameterSet(q for q in self.parameters if q.name != name).quantities(others)}
         fixed = {k: v for k, v in fixed.items() if k not in p.quantities(warm[name])}
         try:
             est = estimate_transition(self.model, p.model_copy(update={"initial": warm[name]}), obs,
-                                      (spec.window_start, spec.window_end), state=state, warmup=self.warmup,
+                                      (run_start, spec.window_end), state=state, warmup="0h",
                                       fixed=fixed, algorithm=self.config.algorithm, options=self.options,
                                       workers=self.config.workers, alpha=self.config.transition_alpha,
                                       min_reduction=self.config.transition_min_reduction, loss=self.config.loss,
