@@ -21,7 +21,6 @@ from rivercal.case import case_from_dict
 from rivercal.model import load_model
 from rivercal.models import EmbeddedModel, Quantity
 from rivercal.observations import ObservationSet
-from rivercal.online.transition_search import effective_size
 from rivercal.online import (
     AFTER,
     BEFORE,
@@ -31,6 +30,7 @@ from rivercal.online import (
     transition_start,
     transition_test,
 )
+from rivercal.online.transition_search import effective_size
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin.noise import add_noise

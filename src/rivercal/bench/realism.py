@@ -42,8 +42,9 @@ DEFINITIONS = {
     "updated_mae_ratio": "the same for the updated parameters' forecasts, issued or not",
     "time_to_correct_cycles": "cycles issued after the change up to the first in which every changed parameter's "
                               "estimated change (its accepted value minus the value accepted by the last cycle before "
-                              "the change) is within 5 % of the true change (1 cm for a crest shift); null when nothing "
-                              "changes, the run does not estimate the changed parameter, or it never gets there",
+                              "the change) is within 5 % of the true change (1 cm for a crest shift); null when "
+                              "nothing changes, the run does not estimate the changed parameter, or it never gets "
+                              "there",
     "time_to_settle_cycles": "cycles issued after the change up to the first from which on every changed parameter "
                              "stays within the same tolerance of the run's last estimate",
     "value_before_change": "per changed parameter, the value accepted by the last cycle before the change",

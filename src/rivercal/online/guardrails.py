@@ -13,12 +13,15 @@ Identifiability gate
 
 Jump test
     An estimate *jumps* when it moves from the last accepted value, or from the value accepted one window
-    earlier, by more than its resolution and by more than ``alert_k`` standard deviations σ of the fit (thesis Eq. 2-12 with the observations'
-    σ as weights). The test is a trigger, not a verdict: under real data (correlated residuals, a model
-    that differs from the river) it fires on many ordinary windows, and the service then asks the
-    transition estimator (:mod:`rivercal.online.intervention`), whose significance test decides whether
-    the window holds a change and an alert is raised. The first cycle of a run has no previous estimate
-    to jump from.
+    earlier, by more than its resolution and by more than ``alert_k`` standard deviations σ of the fit.
+    The service passes the σ scaled by the residual variance (thesis Eq. 2-12 times √(S/(n − p))): with
+    the observations' σ as weights alone, a model that differs from the river gets a σ so small that
+    every move is tens of σ. The second reference catches a change that a week-long window averages in:
+    the daily estimate then creeps by a share of the change per cycle, each share below the resolution.
+    The test is a trigger, not a verdict: under real data (correlated residuals, a model that differs
+    from the river) it fires on many ordinary windows, and the service then asks the transition
+    estimator (:mod:`rivercal.online.intervention`), whose significance test decides whether the window
+    holds a change and an alert is raised. The first cycle of a run has no previous estimate to jump from.
 """
 
 from __future__ import annotations
