@@ -276,3 +276,29 @@ def test_data_period_spans_the_first_window_to_the_last_forecast_within_the_case
         assert end == pd.Timestamp("2010-11-12", tz="UTC")
         # a last issue a day before the case ends: the forecast horizon is cut at the case's end
         assert svc.data_period(END - pd.Timedelta("1D"))[1] == END
+
+
+def test_a_one_day_window_dates_a_change_at_its_start(tmp_path) -> None:
+    """The change at 2010-11-01 00:00 is the start of the window of the cycle issued on 11-02: the search
+    reads the warm-up's observations too, so the value before the change is seen and the change dated."""
+    config = OnlineConfig(parameters=("FA",), workers=1, deadline_s=None, window="1D", loss="l2")
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED), first="2010-10-30")
+    with store:
+        out = svc.replay("2010-11-03")
+        found = [o for o in out if o.transition is not None and o.transition.found_cycle == o.cycle]
+        assert len(found) == 1 and found[0].issue_time == CHANGE + pd.Timedelta("1D")
+        assert abs(found[0].transition.time - CHANGE) <= pd.Timedelta("10min")
+        assert found[0].transition.before == pytest.approx(16.0, abs=0.05)
+        assert found[0].accepted["FA"] == pytest.approx(25.0, abs=0.25)
+        assert (store.alerts(svc.run)["kind"] == "jump").sum() == 1
+
+
+def test_a_creep_below_the_resolution_per_cycle_jumps_against_the_value_one_window_earlier() -> None:
+    from rivercal.online.guardrails import jumps
+
+    res, sigma = {"FA": 0.5}, {"FA": 0.01}
+    # 0.43 since the last cycle: not a jump; 0.84 since the window's start: a jump
+    assert jumps({"FA": 16.43}, {"FA": 16.84}, sigma, {}, res, 3.0) == {}
+    moved = jumps({"FA": 16.43}, {"FA": 16.84}, sigma, {}, res, 3.0, earlier={"FA": 16.0})
+    assert moved == {"FA": pytest.approx(84.0)}
+    assert jumps({"FA": 16.43}, {"FA": 16.84}, sigma, {"FA": "held"}, res, 3.0, earlier={"FA": 16.0}) == {}

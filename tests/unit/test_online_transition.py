@@ -30,6 +30,7 @@ from rivercal.online import (
     transition_start,
     transition_test,
 )
+from rivercal.online.transition_search import effective_size
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin.noise import add_noise
@@ -190,6 +191,35 @@ def test_transition_test_is_an_f_test_with_a_relevance_floor() -> None:
         transition_test(1.0, 0.5, 3)
     with pytest.raises(ValueError, match="cost_transition must be a finite cost >= 0, got nan"):
         transition_test(1.0, math.nan, 30)
+
+
+def test_correlated_residuals_count_as_fewer_in_the_f_test() -> None:
+    # the same costs, worth 40 independent residuals instead of 503: F scaled by 40/503, 37 degrees of freedom
+    verdict = transition_test(200.0, 150.0, 503, n_effective=40.0)
+    assert verdict.f_statistic == pytest.approx((50.0 / 2) / (150.0 / 500) * 40.0 / 503)
+    assert verdict.p_value == pytest.approx(stats.f.sf(verdict.f_statistic, 2, 37))
+    assert transition_test(200.0, 150.0, 503).transition and not verdict.transition
+    assert "40 independent of 503 residuals" in verdict.reason
+    with pytest.raises(ValueError, match="n_effective must lie in"):
+        transition_test(200.0, 150.0, 503, n_effective=600.0)
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.5, 0.9])
+def test_effective_size_gives_the_variance_of_the_mean_of_an_ar1_sequence(phi) -> None:
+    """Monte Carlo reference: Var(mean of n AR(1) values) = Var(x)/n_eff, to the sampling error."""
+    rng = np.random.default_rng(7)
+    n, runs = 400, 3000
+    e = rng.standard_normal((runs, n + 200))
+    x = np.zeros_like(e)
+    for t in range(1, e.shape[1]):
+        x[:, t] = phi * x[:, t - 1] + e[:, t]
+    x = x[:, 200:]  # stationary
+    measured = x.var() / x.mean(axis=1).var()
+    # pooled over two series of the 400 values: the pairs across the seam are not counted
+    sizes = [effective_size(np.concatenate([x[i, :150], x[i, 150:]]), [150, 250]) for i in range(200)]
+    assert np.median(sizes) == pytest.approx(measured, rel=0.15), (np.median(sizes), measured)
+    with pytest.raises(ValueError, match="do not add up"):
+        effective_size(x[0], [100, 100])
 
 
 def test_cusum_of_the_one_value_residuals_starts_the_fit_near_the_jump(channel) -> None:

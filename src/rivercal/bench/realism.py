@@ -27,12 +27,33 @@ from rivercal.store import Store
 from rivercal.twin.practical import PRACTICAL_SCENARIOS, practical_truth
 from rivercal.twin.realism import REALISM_LEVELS, get_realism
 
-__all__ = ["FIGURES", "bench_realism", "realism_run"]
+__all__ = ["DEFINITIONS", "FIGURES", "bench_realism", "realism_run"]
 
 #: The figures of each run that the table shows.
 FIGURES = ("forecast_mae_ratio", "rivercal_mae_m", "dss_mae_m", "updated_mae_ratio", "time_to_correct_cycles",
-           "time_to_settle_cycles",
-           "time_to_correct_reason", "jump_alerts", "fallbacks", "unscored_cycles")
+           "time_to_settle_cycles", "time_to_correct_reason", "value_before_change", "estimated_change", "true_change",
+           "jump_alerts", "fallbacks", "unscored_cycles")
+
+#: What each figure of a row means (the JSON's ``definitions``).
+DEFINITIONS = {
+    "forecast_mae_ratio": "the DSS's mean absolute level error over rivercal's, level forecasts with lead times up to "
+                          "24 h of the cycles issued after the change, rivercal being the forecast each cycle issued, "
+                          "against the stored observations that were not flagged",
+    "updated_mae_ratio": "the same for the updated parameters' forecasts, issued or not",
+    "time_to_correct_cycles": "cycles issued after the change up to the first in which every changed parameter's "
+                              "estimated change (its accepted value minus the value accepted by the last cycle before "
+                              "the change) is within 5 % of the true change (1 cm for a crest shift); null when "
+                              "nothing changes, the run does not estimate the changed parameter, or it never gets "
+                              "there",
+    "time_to_settle_cycles": "cycles issued after the change up to the first from which on every changed parameter "
+                             "stays within the same tolerance of the run's last estimate",
+    "value_before_change": "per changed parameter, the value accepted by the last cycle before the change",
+    "estimated_change": "per changed parameter, the run's last accepted value minus value_before_change",
+    "true_change": "per changed parameter, the truth's value after the change minus the value before",
+    "jump_alerts": "number of jump alerts (probable interventions)",
+    "fallbacks": "cycles that issued the DSS's forecast although updated forecasts had been scored",
+    "unscored_cycles": "first cycles, with no updated forecast scored yet (they issue the DSS's)",
+}
 
 
 def realism_run(model: Any, scenario: str, level: str, db: Path, *, first: str = "2010-10-18",
@@ -54,7 +75,7 @@ def realism_run(model: Any, scenario: str, level: str, db: Path, *, first: str =
         figures = run_figures(store, service.run)
     wall = time.perf_counter() - t0
     return {"scenario": scenario, "realism": level, "seed": seed, "cycles": len(outcomes),
-            **{k: figures[k] for k in FIGURES}, "wall_s": round(wall, 1),
+            **{k: figures.get(k) for k in FIGURES}, "wall_s": round(wall, 1),
             "final_estimates": {k: round(v, 4) + 0.0 for k, v in outcomes[-1].accepted.items()} if outcomes else {}}
 
 
@@ -80,4 +101,4 @@ def bench_realism(case: str = "dommel", *, scenarios: Sequence[str] | None = Non
                     Path(f"{db}{suffix}").unlink(missing_ok=True)
                 rows.append(realism_run(model, scenario, level, db, seed=seed, config=config))
     return {"case": model.name, "from": "2010-10-18", "to": "2010-11-15", "seed": seed, "workers": workers,
-            "parameters": list(config.parameters), "loss": config.loss, "rows": rows}
+            "parameters": list(config.parameters), "loss": config.loss, "definitions": DEFINITIONS, "rows": rows}

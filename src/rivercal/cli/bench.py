@@ -13,7 +13,7 @@ import typer
 from rich.table import Table
 
 from rivercal.cli.common import JsonOpt, emit_json, guard, out_console, watch_compilation
-from rivercal.cli.options import check_choice, check_number, parse_names, parse_time
+from rivercal.cli.options import OptionError, check_choice, check_number, parse_names, parse_time
 
 __all__ = ["app"]
 
@@ -230,6 +230,40 @@ def realism(
                       "-" if ttc is None else str(ttc), str(r["jump_alerts"]), str(r["fallbacks"]),
                       f"{r['wall_s']:.0f}")
     out_console.print(table)
+
+
+@app.command("realism-bound")
+@guard
+def realism_bound_cmd(
+    scenario: Annotated[str, typer.Option(help="The practical scenario.")] = "PI-Fg",
+    level: Annotated[str, typer.Option(help="The realism level.")] = "realistic",
+    seed: Annotated[int, typer.Option(help="Seed of the realism errors (≥ 0).")] = 0,
+    values: Annotated[str | None, typer.Option(help="Comma-separated values after the change of the parameter "
+                                                    "the scenario changes (FA, Wd, FL) to try.")] = None,
+    flood: Annotated[str | None, typer.Option(help="START/END (UTC) of hours also left out in a second set of "
+                                                   "figures, e.g. 2010-11-12/2010-11-16.")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The best any parameter estimator can do: MAE ratio of forecasts with the truth's own parameters."""
+    from rivercal.bench.realism_bound import realism_bound
+    from rivercal.twin.practical import PRACTICAL_SCENARIOS
+    from rivercal.twin.realism import REALISM_LEVELS
+
+    check_choice(scenario, "--scenario", PRACTICAL_SCENARIOS, "practical scenario")
+    check_choice(level, "--level", REALISM_LEVELS, "realism level")
+    check_number(seed, "--seed", low=0)
+    try:
+        tried = [float(v) for v in parse_names(values, "--values")] if values else None
+    except ValueError as exc:
+        raise OptionError(f"--values {values!r}: give numbers separated by commas ({exc})", option="--values") from exc
+    period = None
+    if flood is not None:
+        parts = flood.split("/")
+        if len(parts) != 2:
+            raise OptionError(f"--flood {flood!r}: give START/END, e.g. 2010-11-12/2010-11-16", option="--flood")
+        period = (parse_time(parts[0], "--flood").isoformat(), parse_time(parts[1], "--flood").isoformat())
+    result = realism_bound(scenario, level, seed=seed, values=tried, flood=period)
+    _print_flat(result, "the best a parameter estimator can do", as_json)
 
 
 @app.command("engines")

@@ -12,13 +12,16 @@ Identifiability gate
     construction their cost hardly depends on it.
 
 Jump test
-    An estimate *jumps* when it moves from the last accepted value by more than its resolution and by
-    more than ``alert_k`` standard deviations σ of the fit (thesis Eq. 2-12 with the observations'
-    σ as weights). The test is a trigger, not a verdict: under real data (correlated residuals, a model
-    that differs from the river) it fires on many ordinary windows, and the service then asks the
-    transition estimator (:mod:`rivercal.online.intervention`), whose significance test decides whether
-    the window holds a change and an alert is raised. The first cycle of a run has no previous estimate
-    to jump from.
+    An estimate *jumps* when it moves from the last accepted value, or from the value accepted one window
+    earlier, by more than its resolution and by more than ``alert_k`` standard deviations σ of the fit.
+    The service passes the σ scaled by the residual variance (thesis Eq. 2-12 times √(S/(n − p))): with
+    the observations' σ as weights alone, a model that differs from the river gets a σ so small that
+    every move is tens of σ. The second reference catches a change that a week-long window averages in:
+    the daily estimate then creeps by a share of the change per cycle, each share below the resolution.
+    The test is a trigger, not a verdict: under real data (correlated residuals, a model that differs
+    from the river) it fires on many ordinary windows, and the service then asks the transition
+    estimator (:mod:`rivercal.online.intervention`), whose significance test decides whether the window
+    holds a change and an alert is raised. The first cycle of a run has no previous estimate to jump from.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from rivercal.errors import ModelRunError
 from rivercal.problem import CalibrationProblem
 from rivercal.store import AlertRecord, CycleSpec
 
-__all__ = ["data_alerts", "gate", "jump_alert", "jumps", "limit_alerts"]
+__all__ = ["accepted_at", "data_alerts", "gate", "jump_alert", "jumps", "limit_alerts"]
 
 log = logging.getLogger(__name__)
 
@@ -74,18 +77,44 @@ def gate(problem: CalibrationProblem, result: Any, resolution: Mapping[str, floa
 
 
 def jumps(warm: Mapping[str, float], accepted: Mapping[str, float], sigma: Mapping[str, float],
-          held: Mapping[str, str], resolution: Mapping[str, float], alert_k: float) -> dict[str, float]:
-    """The parameters whose accepted value jumped from the warm start: name → |Δθ|/σ (inf when σ is unknown)."""
+          held: Mapping[str, str], resolution: Mapping[str, float], alert_k: float,
+          earlier: Mapping[str, float] | None = None) -> dict[str, float]:
+    """The parameters whose estimate jumped: name → |Δθ|/σ (inf when σ is unknown).
+
+    Δθ is the move from the warm start (the last accepted value) or, when ``earlier`` is given, from the
+    value accepted one window earlier, whichever is larger. A change inside a week-long window moves the
+    daily estimate by only a share of the change per cycle (thesis §6-3); each share can stay below the
+    resolution while their sum since the window's start does not.
+    """
     out = {}
     for n, value in accepted.items():
         if n in held:
             continue
-        change = value - warm[n]
+        change = max((value - ref[n] for ref in (warm, earlier or {}) if n in ref), key=abs)
         s = sigma.get(n, math.nan)
         k = abs(change) / s if s and math.isfinite(s) and s > 0 else math.inf
         if abs(change) > resolution[n] and k > alert_k:
             out[n] = k
     return out
+
+
+def accepted_at(store: Any, run: Any, at: Any) -> dict[str, float]:
+    """Per parameter, the value accepted one window earlier: by the last cycle issued at or before ``at``.
+
+    A cycle that carried a transition (:mod:`rivercal.online.intervention`) after ``at`` takes its place:
+    the moves of the value after a change while the service followed it are refinements, not a new jump.
+    Empty when no such cycle accepted anything.
+    """
+    est = store.estimates(run, accepted_only=True)
+    if est.empty:
+        return {}
+    old = est["cycle"][est["issue_time"] <= at]
+    moves = store.transitions(run)
+    last = max([*old.iloc[-1:].tolist(), *moves["cycle"].iloc[-1:].tolist()], default=None)
+    if last is None:
+        return {}
+    rows = est[est["cycle"] <= last]
+    return {str(n): float(g["value"].iloc[-1]) for n, g in rows.groupby("parameter")}
 
 
 def jump_alert(name: str, unit: str, before: float, after: float, k: float, spec: CycleSpec,

@@ -6,13 +6,16 @@ of cycles. The service therefore, when a cycle's estimate jumps (the jump test o
 :mod:`rivercal.online.guardrails`),
 
 1. runs the transition estimator (:func:`~rivercal.online.transition.estimate_transition`) on the
-   parameter that jumped most, over the cycle's window, with the other parameters at their last
-   accepted values;
+   parameter that jumped most, over the cycle's run (its warm-up and window: the state at the run's
+   start comes from the values before, and a change just before a short window's start has no
+   observation before it inside the window), with the other parameters at their last accepted values;
 2. if the window holds a transition (:func:`~rivercal.online.transition_search.transition_test`: a
-   significant and relevant cost reduction) whose values differ by more than the parameter's
-   resolution and that at least ``transition_min_after_h`` hours of the window follow (default 36 h:
-   in a realistic twin, a flood whose rain the model underestimated made the friction look changed for
-   the day it passed, 42 % cost reduction, and an intervention lasts), it *carries* the transition: a
+   cost reduction that is significant — counting the residuals as the independent values they are
+   worth, :func:`~rivercal.online.transition_search.effective_size` — and relevant) whose values
+   differ by more than the parameter's resolution and that at least ``transition_min_after_h`` hours
+   of the window follow (default 36 h: in a realistic twin, a flood whose rain the model
+   underestimated made the friction look changed for the day it passed, 42 % cost reduction, and an
+   intervention lasts), it *carries* the transition: a
    :class:`~rivercal.store.TransitionRecord` (the value before, the value after and the estimated time
    of the change) stored with the cycle, and the cycle's calibration is run again on the
    :class:`~rivercal.models.transition.TransitionModel`, with the value before and the time fixed and

@@ -297,18 +297,28 @@ class OnlineService:
             return
         est.held, extra = self._gate(problem, cal)
         est.model_runs += extra
-        moved = {} if first else guardrails.jumps(warm, {n: cal.estimates[n] for n in warm}, cal.std, est.held,
-                                                  {n: self.resolution(n) for n in warm}, self.config.alert_k)
+        earlier = guardrails.accepted_at(self.store, self.run, spec.window_start)
+        moved = {} if first else guardrails.jumps(warm, {n: cal.estimates[n] for n in warm}, cal.std_scaled or cal.std,
+                                                  est.held,
+                                                  {n: self.resolution(n) for n in warm}, self.config.alert_k,
+                                                  earlier=earlier)
         if est.change is not None:
             moved.pop(est.change.parameter, None)  # the carried change is being refined, not a new jump
         if moved and est.change is None and self.config.transition:
-            found, runs, why = self._search(spec, warm, state, obs, moved)
-            est.model_runs += runs
-            est.notes.append(why)
-            if found is None and why.endswith(_TOO_RECENT):
+            # every parameter that jumped, the largest jump first, until one holds a transition: under model
+            # error one parameter's estimate wanders (an effective value) while another's made the change
+            found, recent = None, None
+            for name in sorted(moved, key=lambda n: -moved[n]):
+                found, runs, why = self._search(spec, warm, state, obs, name, moved[name])
+                est.model_runs += runs
+                est.notes.append(why)
+                recent = why if recent is None and why.endswith(_TOO_RECENT) else recent
+                if found is not None:
+                    break
+            if found is None and recent is not None:
                 # a one-value fit over a window that may end in a change is neither value: keep the last
                 # accepted estimate until the next cycle can tell
-                est.held = dict.fromkeys(warm, f"{why}; the last accepted estimate is kept until the next cycle")
+                est.held = dict.fromkeys(warm, f"{recent}; the last accepted estimate is kept until the next cycle")
             if found is not None:
                 est.change = found
                 retried = self._retry(spec, {**warm, found.parameter: found.after}, state, obs, found)
@@ -373,24 +383,30 @@ class OnlineService:
             return None
         return None if cal.result.aborted else (problem, cal)
 
-    def _search(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any,
-                moved: Mapping[str, float]) -> tuple[TransitionRecord | None, int, str]:
-        """Run the transition estimator on the parameter that jumped most; the change if the window holds one."""
-        name = max(moved, key=lambda n: moved[n])
+    def _search(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any, name: str,
+                k: float) -> tuple[TransitionRecord | None, int, str]:
+        """Run the transition estimator on ``name`` (it jumped by ``k`` σ); the change if the window holds one."""
         p = self.parameters[name]
+        # the search looks at the warm-up's observations too (the state at its start comes from the values
+        # before): a change just before a short window's start has no value before it inside the window
+        run_start = spec.window_start - self.warmup
+        if self.warmup > pd.Timedelta(0):
+            obs = self.store.observations(self.series, run_start, spec.window_end,
+                                          sources=list(self.config.sources) if self.config.sources else None,
+                                          sigma=self.config.sigma if self.config.sigma is not None else DEFAULT_SIGMA)
         others = {k: v for k, v in warm.items() if k != name}
         fixed = {**self.config.dss, **ParameterSet(q for q in self.parameters if q.name != name).quantities(others)}
         fixed = {k: v for k, v in fixed.items() if k not in p.quantities(warm[name])}
         try:
             est = estimate_transition(self.model, p.model_copy(update={"initial": warm[name]}), obs,
-                                      (spec.window_start, spec.window_end), state=state, warmup=self.warmup,
+                                      (run_start, spec.window_end), state=state, warmup="0h",
                                       fixed=fixed, algorithm=self.config.algorithm, options=self.options,
                                       workers=self.config.workers, alpha=self.config.transition_alpha,
                                       min_reduction=self.config.transition_min_reduction, loss=self.config.loss,
                                       loss_scale=self.config.loss_scale)
         except (ModelRunError, ValueError) as exc:
-            return None, 0, f"{name} jumped ({moved[name]:.0f} σ); the transition estimator failed: {exc}"
-        words = f"{name} jumped ({moved[name]:.0f} σ); transition estimate: {est.test.reason}"
+            return None, 0, f"{name} jumped ({k:.0f} σ); the transition estimator failed: {exc}"
+        words = f"{name} jumped ({k:.0f} σ); transition estimate: {est.test.reason}"
         after_h = (spec.window_end - est.time) / pd.Timedelta("1h")
         if not est.test.transition or abs(est.after - est.before) <= self.resolution(name):
             if est.test.transition:

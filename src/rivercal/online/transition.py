@@ -21,11 +21,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import numpy as np
 import pandas as pd
 
 from rivercal.models.transition import AFTER, BEFORE, TIME, TransitionModel
 from rivercal.observations import ObservationSet
-from rivercal.online.transition_search import TransitionTest, transition_start, transition_test
+from rivercal.online.transition_search import TransitionTest, effective_size, transition_start, transition_test
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import Calibration, CalibrationProblem, calibrate
 
@@ -84,6 +85,7 @@ class TransitionEstimate:
                 "after": self.after, "time": self.time.isoformat(), "tau_h": self.tau,
                 "single": next(iter(self.single.estimates.values())), "cost_single": self.test.cost_single,
                 "cost_transition": self.test.cost_transition, "p_value": self.test.p_value,
+                "n_effective": self.test.n_effective,
                 "model_runs": self.model_runs, "wall_s": round(self.wall_time, 3)}
 
 
@@ -93,7 +95,7 @@ def estimate_transition(model: Any, parameter: Parameter, observations: Observat
                         options: Mapping[str, Any] | None = None, workers: int | None = 1,
                         max_nfev: int | None = None, smoothing: Literal["substep", "none"] = "substep",
                         alpha: float = 1e-3, min_reduction: float = 0.25, min_gain: float = 1.0, loss: str = "l2",
-                        loss_scale: float | None = None) -> TransitionEstimate:
+                        loss_scale: float | None = None, correlated: bool = True) -> TransitionEstimate:
     """Fit one value and (before, after, τ) of ``parameter`` over ``window``, and test for a transition.
 
     The on-line service calls this when the per-cycle estimate jumps: one-value fit, a start for the
@@ -123,6 +125,9 @@ def estimate_transition(model: Any, parameter: Parameter, observations: Observat
         The rule of :func:`transition_test`.
     loss, loss_scale
         The cost of both fits (:class:`~rivercal.problem.CalibrationProblem`).
+    correlated
+        Weigh the F-test by the number of independent residuals that the three-value fit's residuals are
+        worth (:func:`~rivercal.online.transition_search.effective_size`); False: take them as independent.
     """
     initial = dict(initial or {})
     unknown = sorted(set(initial) - {"before", "after", "time"})
@@ -151,8 +156,14 @@ def estimate_transition(model: Any, parameter: Parameter, observations: Observat
     wall = time.perf_counter() - t0
     est = transition.estimates
     before, after, tau = (est[p.name] for p in params)
-    test = transition_test(cost_single, transition.result.cost, problem.observations.n_values, alpha=alpha,
-                           min_reduction=min_reduction, min_gain=min_gain)
+    n = problem.observations.n_values
+    n_eff = None
+    if correlated:
+        r3 = transition.result.extra.get("residuals")
+        r3 = np.asarray(r3 if r3 is not None else problem.residuals(transition.result.x))[:n]
+        n_eff = effective_size(r3, [len(o) for o in problem.observations])
+    test = transition_test(cost_single, transition.result.cost, n, alpha=alpha,
+                           min_reduction=min_reduction, min_gain=min_gain, n_effective=n_eff)
     log.info("transition of %s in %s .. %s: %s", parameter.name, problem.start, problem.end, test.reason)
     return TransitionEstimate(single=single, transition=transition, before=before, after=after,
                               time=tm.time_of(tau), tau=tau, test=test, model_runs=runs, wall_time=wall)

@@ -18,7 +18,7 @@ import numpy as np
 
 from rivercal.problem import Calibration, CalibrationProblem
 
-__all__ = ["TransitionTest", "transition_start", "transition_test"]
+__all__ = ["TransitionTest", "effective_size", "transition_start", "transition_test"]
 
 
 @dataclass(frozen=True)
@@ -33,8 +33,11 @@ class TransitionTest:
         Cost S (thesis Eq. 2-3, dimensionless) of the one-value and of the three-value fit.
     n_residuals
         Number of observations in the window.
+    n_effective
+        The number of independent residuals they are worth (:func:`effective_size`; ``n_residuals`` when
+        the residuals are taken as independent).
     f_statistic, p_value
-        F = ((S₁ − S₃)/2) / (S₃/(n − 3)) and its upper-tail probability under F(2, n − 3).
+        F = ((S₁ − S₃)/2) / (S₃/(n − 3)) · n_eff/n and its upper-tail probability under F(2, n_eff − 3).
     reduction
         Relative cost reduction (S₁ − S₃)/S₁.
     reason
@@ -45,25 +48,72 @@ class TransitionTest:
     cost_single: float
     cost_transition: float
     n_residuals: int
+    n_effective: float
     f_statistic: float
     p_value: float
     reduction: float
     reason: str
 
 
+def effective_size(residuals: np.ndarray, lengths: list[int] | tuple[int, ...]) -> float:
+    """How many independent residuals a window's residuals are worth, from their lag-1 autocorrelation.
+
+    Hourly residuals of a model that differs from the river are strongly autocorrelated: an inflow that
+    the model underestimates for a day leaves a day of residuals of one sign. For a stationary AR(1)
+    sequence with lag-1 autocorrelation ρ the variance of a mean is that of n_eff = n (1 − ρ)/(1 + ρ)
+    independent values (Bretherton et al. 1999, *J. Climate* 12, 1990–2009, Eq. 31). ρ is pooled over
+    the series, ρ = Σ r_t r_{t+1} / Σ r_t² over the consecutive pairs of each series, and clipped to
+    [0, 0.999].
+
+    Parameters
+    ----------
+    residuals
+        The residuals (any scale), series after series.
+    lengths
+        The number of values of each series, in the same order; they sum to the size of ``residuals``.
+
+    Returns
+    -------
+    float
+        n_eff, between 4 and n.
+
+    Examples
+    --------
+    >>> round(effective_size(np.array([1.0, -1.0] * 50), [100]))
+    100
+    """
+    r = np.asarray(residuals, dtype=float)
+    if sum(lengths) != r.size:
+        raise ValueError(f"the series lengths {list(lengths)} do not add up to the {r.size} residuals")
+    lag, total, start = 0.0, 0.0, 0
+    for n in lengths:
+        x = r[start:start + n]
+        start += n
+        total += float(x @ x)
+        if n > 1:
+            lag += float(x[:-1] @ x[1:])
+    if not total > 0:
+        return float(r.size)
+    rho = min(max(lag / total, 0.0), 0.999)
+    return float(max(min(r.size * (1.0 - rho) / (1.0 + rho), r.size), 4.0))
+
+
 def transition_test(cost_single: float, cost_transition: float, n_residuals: int, *, alpha: float = 1e-3,
-                    min_reduction: float = 0.25, min_gain: float = 1.0) -> TransitionTest:
+                    min_reduction: float = 0.25, min_gain: float = 1.0,
+                    n_effective: float | None = None) -> TransitionTest:
     """Does a window hold a transition? Compare the one-value fit (S₁) with the three-value fit (S₃).
 
     The three-value model nests the one-value model (before = after), so S₃ ≤ S₁ up to the optimiser's
     tolerance. The rule accepts a transition when both hold:
 
-    - the F-test of nested least-squares models, F = ((S₁ − S₃)/2) / (S₃/(n − 3)) with 2 and n − 3
-      degrees of freedom, rejects "no transition" at level ``alpha`` (p < alpha). It is free of the
-      scale of the weights (σ need not be right), but only approximate here: it assumes independent
-      residuals (hourly residuals of a real model are correlated), and τ means nothing when there is
-      no change, so the optimiser picks the τ that fits the noise best and p comes out too small (a
-      week without change on the default case gave p = 0.006). Hence the small default ``alpha``;
+    - the F-test of nested least-squares models rejects "no transition" at level ``alpha`` (p < alpha).
+      With n independent residuals F = ((S₁ − S₃)/2) / (S₃/(n − 3)) follows F(2, n − 3); it is free of
+      the scale of the weights (σ need not be right). Correlated residuals carry less information than
+      their number: with ``n_effective`` (:func:`effective_size`) F is scaled by n_eff/n and compared
+      with F(2, n_eff − 3). Without it, hourly residuals of a model that differs from the river make
+      any event that the model misses "significant" (p = 1e-133 for a flood whose rain the model
+      underestimated). τ means nothing when there is no change, so the optimiser picks the τ that
+      fits the noise best and p still comes out somewhat small: hence the small default ``alpha``;
     - the relative cost reduction (S₁ − S₃)/S₁ is at least ``min_reduction``: a change that explains
       less than this share of the misfit is not worth three parameters in an operational cycle, however
       significant (with thousands of residuals the F-test alone flags tiny, irrelevant drifts); and
@@ -84,6 +134,8 @@ def transition_test(cost_single: float, cost_transition: float, n_residuals: int
     min_gain
         Smallest absolute cost reduction S₁ − S₃ (dimensionless; with 1/σ² weights, 1 is the variance of
         one observation), >= 0.
+    n_effective
+        The number of independent residuals they are worth, in (3, n_residuals]; None: n_residuals.
 
     Raises
     ------
@@ -96,12 +148,17 @@ def transition_test(cost_single: float, cost_transition: float, n_residuals: int
     True
     >>> transition_test(10.0, 9.9, 500).transition
     False
+    >>> transition_test(10.0, 6.0, 500).transition, transition_test(10.0, 6.0, 500, n_effective=10).transition
+    (True, False)
     """
     for label, value in (("cost_single", cost_single), ("cost_transition", cost_transition)):
         if not (math.isfinite(value) and value >= 0.0):
             raise ValueError(f"{label} must be a finite cost >= 0, got {value!r}")
     if n_residuals <= 3:
         raise ValueError(f"n_residuals must exceed the 3 parameters of the transition fit, got {n_residuals}")
+    n_eff = float(n_residuals if n_effective is None else n_effective)
+    if not 3.0 < n_eff <= n_residuals:
+        raise ValueError(f"n_effective must lie in (3, n_residuals = {n_residuals}], got {n_effective!r}")
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"alpha must lie in (0, 1), got {alpha!r}")
     if not 0.0 <= min_reduction < 1.0:
@@ -117,22 +174,25 @@ def transition_test(cost_single: float, cost_transition: float, n_residuals: int
     else:
         from scipy import stats  # imported here: scipy.stats takes a noticeable time to import
 
-        f_stat = (gain / 2.0) / (cost_transition / (n_residuals - 3))
-        p = float(stats.f.sf(f_stat, 2, n_residuals - 3))
+        f_stat = (gain / 2.0) / (cost_transition / (n_residuals - 3)) * (n_eff / n_residuals)
+        p = float(stats.f.sf(f_stat, 2, n_eff - 3.0))
     significant, relevant = p < alpha, reduction >= min_reduction and gain >= min_gain
+    worth = "" if n_effective is None else f", {n_eff:.0f} independent of {n_residuals} residuals"
     if significant and relevant:
         reason = (f"transition: the three-value fit lowers the cost by {reduction:.0%} ({gain:.4g}; "
-                  f"F = {f_stat:.3g}, p = {p:.2g})")
+                  f"F = {f_stat:.3g}, p = {p:.2g}{worth})")
     elif gain < min_gain:
         reason = f"no transition: the cost drops by only {gain:.3g} < min_gain = {min_gain:g}"
     elif not significant:
-        reason = f"no transition: the cost reduction of {reduction:.1%} is not significant (p = {p:.2g} >= {alpha:g})"
+        reason = (f"no transition: the cost reduction of {reduction:.1%} is not significant (p = {p:.2g} >= "
+                  f"{alpha:g}{worth})")
     else:
         reason = (f"no transition worth estimating: significant (p = {p:.2g}) but the cost drops by only "
                   f"{reduction:.1%} < {min_reduction:.0%}")
     return TransitionTest(transition=significant and relevant, cost_single=float(cost_single),
                           cost_transition=float(cost_transition), n_residuals=int(n_residuals),
-                          f_statistic=float(f_stat), p_value=p, reduction=float(reduction), reason=reason)
+                          n_effective=n_eff, f_statistic=float(f_stat), p_value=p, reduction=float(reduction),
+                          reason=reason)
 
 
 # -- a start for the three-value fit -------------------------------------------------------------------
