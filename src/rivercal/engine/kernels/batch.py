@@ -16,9 +16,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import run, run_ext
 
-__all__ = ["run_members"]
+__all__ = ["run_members", "volumes"]
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -61,3 +63,12 @@ def run_members(nets, sxs, works, extended, crest, fric, z, dz, vol, u, q, pump_
         status[m, 0] = s
         status[m, 1] = step
         status[m, 2] = index
+
+
+@kernel
+def volumes(net, z, vol):
+    """The volume (m³) at every h-point for levels ``z`` (m AD), into ``vol`` (e.g. after a state analysis)."""
+    for i in range(z.size):
+        vol[i] = hp_volume_width(net.sc_ptr, net.sc_prof, net.sc_bed, net.sc_len, net.hp_bed, net.hp_amin,
+                                 net.tab_off, net.tab_n, net.tab_dd, net.tab_idd, net.tab_top, net.tab_wt_top,
+                                 net.tab_at, net.tab_wt, i, z[i])[0]
