@@ -75,7 +75,7 @@ def online(
     assimilate: Annotated[str, typer.Option(
         help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both.")]
     = "parameters",
-    members: Annotated[int, typer.Option(help="With --assimilate states|both: ensemble members.")] = 32,
+    members: Annotated[int, typer.Option(help="With --assimilate states|both: ensemble members.")] = 64,
     rain_error: Annotated[float, typer.Option(
         "--rain-error", help="Twin of --scenario: error of the inflows and laterals, e.g. 0.3 for about 30 %.")] = 0.0,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,

@@ -79,11 +79,11 @@ class AssimilationConfig:
     """
 
     mode: Literal["parameters", "states", "both"] = "parameters"
-    members: int = 32
+    members: int = 64
     method: Literal["etkf", "enkf"] = "etkf"
     interval: str = "1h"
     inflation: float = 1.0
-    localisation_m: float = 8000.0
+    localisation_m: float = 20_000.0
     forcing_error: float = 0.3
     forcing_tau: str = "24h"
     seed: int = 0
