@@ -76,6 +76,9 @@ def online(
         help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both.")]
     = "parameters",
     members: Annotated[int, typer.Option(help="With --assimilate states|both: ensemble members.")] = 64,
+    ensemble_filter: Annotated[str, typer.Option(
+        "--filter", help="With --assimilate states|both: etkf (square root) or enkf (perturbed observations).")]
+    = "etkf",
     rain_error: Annotated[float, typer.Option(
         "--rain-error", help="Twin of --scenario: error of the inflows and laterals, e.g. 0.3 for about 30 %.")] = 0.0,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
@@ -144,6 +147,7 @@ def online(
     check_number(max_cycles, "--max-cycles", low=1)
     check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
     check_number(members, "--members", low=2, high=10_000)
+    check_choice(ensemble_filter, "--filter", ("etkf", "enkf"))
     check_number(rain_error, "--rain-error", low=0, high=2)
     if rain_error and scenario is None:
         raise OptionError("--rain-error applies to the twin observations of --scenario only", option="--rain-error")
@@ -176,7 +180,8 @@ def online(
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter,
-                             assimilation=AssimilationConfig(mode=assimilate, members=members, seed=seed),
+                             assimilation=AssimilationConfig(mode=assimilate, members=members, method=ensemble_filter,
+                                                             seed=seed),
                              rain_error=rain_error)
     if as_json:
         emit_json(summary)
