@@ -13,9 +13,10 @@ import pandas as pd
 import pytest
 
 from rivercal.model import load_model
-from rivercal.online.assimilation import AssimilationConfig, mae_by_lead, rain_error_model
+from rivercal.online.assimilation import AssimilationConfig, mae_by_lead
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.store import Store
+from rivercal.twin.forcing_error import rain_error_model
 from rivercal.twin.practical import practical_truth
 
 

@@ -83,7 +83,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         State updating (:class:`~rivercal.online.assimilation.AssimilationConfig`; None: parameters only).
     rain_error
         Twin only: σ of the multiplicative error of the truth's inflows and laterals against the model's
-        (:func:`rivercal.online.assimilation.rain_error_model`; 0.3: about 30 %).
+        (:func:`rivercal.twin.forcing_error.rain_error_model`; 0.3: about 30 %).
     """
     from rivercal.online.service import OnlineService
     from rivercal.store import FINAL_STATUSES, Store, is_url
@@ -114,7 +114,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             progress.stage(f"{scenario}: running the truth")
             truth_model = model
             if rain_error:
-                from rivercal.online.assimilation import rain_error_model
+                from rivercal.twin.forcing_error import rain_error_model
 
                 truth_model = rain_error_model(model, rain_error, seed)
             truth = practical_truth(truth_model, scenario, *service.data_period(last), noise=noise, seed=seed,
