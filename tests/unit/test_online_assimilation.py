@@ -75,7 +75,9 @@ def test_the_90_percent_band_brackets_the_mean(twin):
     _, _, _, outcomes = twin
     b = outcomes[-1].bands
     assert (b.low.to_numpy() <= b.mean.to_numpy()).all() and (b.mean.to_numpy() <= b.high.to_numpy()).all()
-    assert (b.high - b.low).to_numpy().min() > 2 * 1.64 * 0.025 * 0.9   # at least the observation error
+    levels = [c for c in b.mean.columns if c.rpartition(".")[2] in ("h", "h_up", "h_down")]
+    # at least the observation error's 90 % interval, 2 × 1.645 × 2.5 cm (sampled: 2048 draws, 5 % slack)
+    assert (b.high[levels] - b.low[levels]).to_numpy().min() > 0.95 * 2 * 1.645 * 0.025
 
 
 def test_state_updating_refuses_a_bad_configuration():

@@ -267,7 +267,7 @@ class EnsembleFilter:
         result = run_ensemble(self.model, [parameters] * len(members), t0, t0 + horizon, members, forcing=forcing,
                               output_interval=output_interval, n_threads=self.config.threads, on_failure="raise")
         values = result.values[:, :, self.columns]                       # (N, T, m)
-        noisy = values[None] + self.sigma * rng.standard_normal((16, *values.shape))
+        noisy = values[None] + self.sigma * rng.standard_normal((max(1, 2048 // len(members)), *values.shape))
         flat = noisy.reshape(-1, *values.shape[1:])
         frame = lambda v: pd.DataFrame(v, index=result.times, columns=self.series)  # noqa: E731
         return EnsembleForecast(mean=frame(values.mean(axis=0)), low=frame(np.quantile(flat, 0.05, axis=0)),
