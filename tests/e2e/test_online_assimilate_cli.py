@@ -22,7 +22,7 @@ def test_online_assimilate_states_prints_the_error_by_lead_and_the_band_coverage
     assert set(mae["updated"]) == {"0-6h", "6-12h", "12-24h", "24-48h"}
     assert mae["updated"]["24-48h"] is None and mae["updated"]["0-6h"] > 0   # a 12 h horizon
     cover = summary["band_coverage_90"]
-    assert cover["n"] == 12 * 10 and 0 < cover["fraction"] <= 1   # 12 hourly leads at 10 level series
+    assert 0 < cover["n"] <= 12 * 10 and 0 < cover["fraction"] <= 1   # 12 leads x 10 levels, less screened
 
 
 def test_online_assimilate_option_errors_name_the_option(tmp_path) -> None:
