@@ -99,3 +99,35 @@ def test_bad_ensemble_input_is_named(dommel):
         run_ensemble(sim, [None], start, end, [state], n_threads=0)
     with pytest.raises(ValueError, match="member 0: the state is at"):
         run_ensemble(sim, [None], start + pd.Timedelta("1h"), end + pd.Timedelta("1h"), [state])
+
+
+@pytest.mark.parametrize("n_threads", [1, 2])
+def test_controlled_members_carry_their_own_controllers_like_single_runs(n_threads):
+    """dommel-controlled: members with their own setpoints and controller states, cold and hot start."""
+    sim = load_model("dommel-controlled")
+    start = sim.start + pd.Timedelta("2D")
+    end = start + pd.Timedelta("12h")
+    params = [None, {"control:W2.setpoint": 12.5}, {"control:W1.kp": 0.5, "friction:global": 20.0}]
+    cold = run_ensemble(sim, params, sim.start, start, n_threads=n_threads)
+    assert not cold.failures
+    states = []
+    for m, p in enumerate(params):
+        single, after = sim.simulate(p, sim.start, start)
+        _assert_same(single, after, cold, m)
+        assert np.array_equal(after.ctl, cold.states[m].ctl)
+        states.append(after)
+    # the controllers really act and differ between members (W2's crest follows its own setpoint)
+    assert not np.array_equal(cold.values[0][:, -8:], cold.values[1][:, -8:])
+    assert states[0].ctl.shape[0] == len(sim.controls) and np.any(states[0].ctl != states[1].ctl)
+    hot = run_ensemble(sim, params, start, end, cold.states, n_threads=n_threads)
+    for m, p in enumerate(params):
+        single, after = sim.simulate(p, start, end, states[m])
+        _assert_same(single, after, hot, m)
+        assert np.array_equal(after.ctl, hot.states[m].ctl)
+    # a hot start continues the controllers exactly: the two halves equal the whole
+    whole, _ = sim.simulate(params[1], sim.start, end)
+    assert np.array_equal(whole.series.to_numpy()[-hot.values.shape[1]:], hot.values[1])
+    assert hot.observables == tuple(sim.observables)
+    with pytest.raises(ValueError, match="member 0: the state holds 0 controllers"):
+        plain = load_model("dommel").simulate(end=sim.start + pd.Timedelta("1h"))[1]
+        run_ensemble(sim, [None], plain.time, plain.time + pd.Timedelta("1h"), [plain])

@@ -1,7 +1,7 @@
 """Ensembles of the embedded engine: N members in one compiled call, in parallel over members.
 
-A member is a parameter set (model quantities, as for :meth:`Simulator.simulate`), a hot-start state
-and, optionally, its own forcing (e.g. perturbed inflows and laterals of an ensemble Kalman filter).
+A member is a parameter set (model quantities, as for :meth:`Simulator.simulate`, controller
+quantities included), a hot-start state (with its controllers' state) and, optionally, its own forcing (e.g. perturbed inflows and laterals of an ensemble Kalman filter).
 :func:`run_ensemble` advances all members through :func:`.kernels.batch.run_members`, which runs the
 single-run time loop per member on numba's threads; each member's series and final state are
 bit-identical to its :meth:`Simulator.simulate` from the same state.
@@ -158,6 +158,7 @@ def run_ensemble(
     arrays = [sim.parameter_arrays(p) for p in parameters]
     crest = np.array([a[0] for a in arrays]).reshape(n_mem, -1)
     fric = np.array([a[1] for a in arrays]).reshape(n_mem, -1)
+    control = [sim.control_values(p) for p in parameters]
     n_cols = len(sim.compiled.forcing_keys)
     if forcing is None:
         forcing = sim.forcing_matrix(start, n_steps)[None]
@@ -172,7 +173,8 @@ def run_ensemble(
             if sim.case.spec.initial.spinup > 0:
                 n_spin = max(1, round(sim.case.spec.initial.spinup * 3600.0 / sim.dt))
                 spin = sim.forcing_matrix(start, n_spin, constant=True)[None]
-                spun = _call(sim, stack, crest, fric, spin, n_spin, False)
+                spun = _call(sim, stack, crest, fric, control, spin, n_spin, False,
+                             start - pd.Timedelta(seconds=n_spin * sim.dt), held=True)
                 _check(sim, spun[4], start - pd.Timedelta(seconds=n_spin * sim.dt), stack, on_failure, "spin-up")
         else:
             if len(states) != n_mem:
@@ -180,11 +182,14 @@ def run_ensemble(
             for m, s in enumerate(states):
                 if s.signature != (sim.compiled.n_hpoints, sim.compiled.n_links):
                     raise ValueError(f"member {m}: the state belongs to another network")
+                if s.ctl.shape[0] != len(sim.controls or ()):
+                    raise ValueError(f"member {m}: the state holds {s.ctl.shape[0]} controllers, the case has "
+                                     f"{len(sim.controls or ())}")
                 if s.time != start:
                     raise ValueError(f"member {m}: the state is at {s.time}, the run starts at {start}")
             stack = _Stack.of(states)
         t0 = _time.perf_counter()
-        obs, zs, qs, _, status = _call(sim, stack, crest, fric, forcing, out_every, snapshots)
+        obs, zs, qs, _, status = _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start)
         wall = _time.perf_counter() - t0
     failures = _check(sim, status, start, stack, on_failure, "")
     for m in failures:
@@ -192,7 +197,7 @@ def run_ensemble(
     times = pd.date_range(start, end, periods=n_steps // out_every + 1)
     out_states = tuple(None if m in failures else stack.state(m, end) for m in range(n_mem))
     log.debug("%d members %s .. %s in %.3f s", n_mem, start, end, wall)
-    return EnsembleResult(times=times, observables=tuple(sim.compiled.observables), values=obs, states=out_states,
+    return EnsembleResult(times=times, observables=tuple(sim.observables), values=obs, states=out_states,
                           failures=failures, levels=zs if snapshots else None, discharges=qs if snapshots else None,
                           wall_time=wall)
 
@@ -207,41 +212,55 @@ class _Stack:
     u: np.ndarray
     q: np.ndarray
     pump_on: np.ndarray
+    ctl: np.ndarray
     signature: tuple[int, int]
 
     @classmethod
     def of(cls, states: Sequence[EngineState]) -> _Stack:
         return cls(*(np.array([getattr(s, k) for s in states], dtype=float)
-                     for k in ("z", "dz", "vol", "u", "q", "pump_on")), signature=states[0].signature)
+                     for k in ("z", "dz", "vol", "u", "q", "pump_on", "ctl")), signature=states[0].signature)
 
     def state(self, m: int, time: pd.Timestamp) -> EngineState:
         return EngineState(time=time, z=self.z[m].copy(), dz=self.dz[m].copy(), vol=self.vol[m].copy(),
                            u=self.u[m].copy(), q=self.q[m].copy(), pump_on=self.pump_on[m].copy(),
-                           signature=self.signature)
+                           signature=self.signature, ctl=self.ctl[m].copy())
 
 
-def _call(sim, stack, crest, fric, forcing, out_every, snapshots):
-    """One call of the batched kernel; returns (series, levels, discharges, balance, status)."""
+def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False):
+    """One call of the batched kernel from ``start``; returns (series, levels, discharges, balance, status).
+
+    ``control`` holds each member's controller quantities (None entries without controllers); ``held`` holds
+    the controllers' time tables at their value at the end of the call (a spin-up, as the single run does).
+    """
     c = sim.compiled
     a, sx = c.arrays, c.structures
     n_mem = stack.z.shape[0]
-    n_out = forcing.shape[1] // out_every + 1
-    extended = bool(sx.links.size or (sx.set_col >= 0).any())
-    nets, sxs, works = TypedList(), TypedList(), TypedList()
-    for _ in range(n_mem):
-        # the extended loop writes scheduled settings into these two arrays: each member its own
-        nets.append(a._replace(p_cap=a.p_cap.copy()) if extended else a)
-        sxs.append(sx._replace(ogate=sx.ogate.copy()) if extended else sx)
-        works.append(make_work(a, sx))
-    obs = np.full((n_mem, n_out, len(c.observables)), np.nan)
+    n_steps = forcing.shape[1]
+    n_out = n_steps // out_every + 1
+    n_obs = len(c.observables)
+    cxs = [None] * n_mem
+    if sim.controls is not None:  # each member its own controller arrays, its state rows used in place
+        cxs = [sim.controls.arrays(control[m], start, n_steps, sim.dt, n_out, stack.ctl[m], held=held)
+               for m in range(n_mem)]
+    extended = bool(sx.links.size or (sx.set_col >= 0).any() or sim.controls is not None)
+    kits = TypedList()
+    for m in range(n_mem):
+        # the loop writes scheduled settings into these two arrays: each member its own
+        net = a._replace(p_cap=a.p_cap.copy()) if extended else a
+        kits.append((net, sx._replace(ogate=sx.ogate.copy()) if extended else sx, cxs[m], make_work(a, sx)))
+    obs = np.full((n_mem, n_out, n_obs + len(sim.controls or ())), np.nan)
     zs = np.empty((n_mem, n_out if snapshots else 0, c.n_hpoints))
     qs = np.empty((n_mem, n_out if snapshots else 0, c.n_links))
     balance = np.zeros((n_mem, a.b_hp.size + 1))
     status = np.zeros((n_mem, 3), dtype=np.int64)
     s = sim.settings
-    run_members(nets, sxs, works, extended, crest, fric, stack.z, stack.dz, stack.vol, stack.u, stack.q,
-                stack.pump_on, forcing, float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance),
-                float(s.min_depth), float(s.max_velocity), int(out_every), obs, zs, qs, balance, status)
+    settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+                float(s.max_velocity))
+    run_members(kits, extended, crest, fric, stack.z, stack.dz, stack.vol, stack.u, stack.q, stack.pump_on, forcing,
+                settings, int(out_every), obs, zs, qs, balance, status)
+    for m, cx in enumerate(cxs):
+        if cx is not None:
+            obs[m, :, n_obs:] = cx.out
     return obs, zs, qs, balance, status
 
 
