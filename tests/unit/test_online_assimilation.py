@@ -62,13 +62,17 @@ def test_members_are_stored_and_the_next_cycle_continues_from_them(twin):
     second_analyses = int(outcomes[1].message.split(" state analyses")[0].rsplit("; ", 1)[1])
     assert first_analyses == 60          # cold: from the window's warm-up start (t0 - 2.5 d), hourly
     assert second_analyses == 24         # hot: from the previous issue time
-    for k in range(16):
-        when, _, data = store.model_state(service.run, f"ensemble:{k}")
-        assert when == outcomes[1].issue_time and len(data) > 0
+    when, cycle, n, _, data = store.ensemble(service.run)   # one ensemble per run: the last cycle's
+    assert (when, cycle, n) == (outcomes[1].issue_time, 1, 16) and len(data) > 0
+    assert store.model_state(service.run, "ensemble:0") is None   # no longer one model state per member
     members, errors = service.filter.from_store(store, service.run, outcomes[1].issue_time)
     assert len(members) == 16 and errors.shape == (16, int(service.filter.perturbed.sum()))
     spread = np.std([m.z for m in members], axis=0)
     assert spread.max() > 0.0            # the members differ
+    # the bands stored with each cycle are the ensemble forecast's
+    stored = store.forecast_bands(service.run, cycle=1).pivot(index="time", columns="series", values="low")
+    b = outcomes[1].bands
+    assert np.allclose(stored.to_numpy(), b.low.loc[stored.index, stored.columns].to_numpy())
 
 
 def test_the_90_percent_band_brackets_the_mean(twin):

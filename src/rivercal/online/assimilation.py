@@ -46,8 +46,11 @@ log = logging.getLogger(__name__)
 
 #: The modes of the on-line service (module docstring).
 ASSIMILATE_MODES = ("parameters", "states", "both")
-#: Format tag of the stored AR(1) errors of the members.
-ERRORS_FORMAT = "rivercal-ar1-errors-npy-1"
+#: Format tag of a stored ensemble: an ``.npz`` archive (no pickle) of the members' state arrays stacked on a
+#: first axis (``z``, ``dz``, ``vol``, ``u``, ``q``, ``pump_on``, ``ctl``), their ``signature`` and time (``time_ns``),
+#: and the members' AR(1) forcing errors (``errors``).
+ENSEMBLE_FORMAT = "rivercal-ensemble-npz-1"
+_STATE_ARRAYS = ("z", "dz", "vol", "u", "q", "pump_on", "ctl")
 
 
 @dataclass(frozen=True)
@@ -169,33 +172,39 @@ class EnsembleFilter:
         errors = self.config.forcing_error * rng.standard_normal((self.config.members, int(self.perturbed.sum())))
         return [state.copy() for _ in range(self.config.members)], errors
 
-    def to_states(self, members: list[EngineState], errors: np.ndarray) -> dict[str, tuple]:
-        """Named states for the store: ``ensemble:<k>`` per member and ``ensemble:errors``."""
-        fmt = EngineState.BYTES_FORMAT
-        out = {f"ensemble:{k}": (m.time, fmt, m.to_bytes()) for k, m in enumerate(members)}
+    def to_record(self, members: list[EngineState], errors: np.ndarray) -> tuple[pd.Timestamp, int, str, bytes]:
+        """The ensemble for the store (:attr:`CycleRecord.ensemble <rivercal.store.CycleRecord>`): one archive."""
         buffer = io.BytesIO()
-        np.save(buffer, errors, allow_pickle=False)
-        out["ensemble:errors"] = (members[0].time, ERRORS_FORMAT, buffer.getvalue())
-        return out
+        np.savez(buffer, time_ns=np.int64(members[0].time.value), signature=np.asarray(members[0].signature),
+                 errors=errors, **{k: np.stack([getattr(m, k) for m in members]) for k in _STATE_ARRAYS})
+        return members[0].time, len(members), ENSEMBLE_FORMAT, buffer.getvalue()
 
     def from_store(self, store: Any, run: Any, at: pd.Timestamp) -> tuple[list[EngineState], np.ndarray] | None:
-        """The ensemble a cycle stored at ``at`` (None when there is none, it is elsewhere in time or unusable)."""
-        members = []
-        for k in range(self.config.members):
-            stored = store.model_state(run, f"ensemble:{k}")
-            if stored is None or stored[0] != at:
-                return None
+        """The ensemble the last cycle stored, if it is at ``at`` and fits (else None: a new ensemble starts)."""
+        stored = store.ensemble(run)
+        if stored is None:
+            return None
+        time, cycle, n, fmt, data = stored
+        why = (f"it is at {time}, not {at}" if time != at else f"its format is {fmt!r}" if fmt != ENSEMBLE_FORMAT
+               else f"it has {n} members, not {self.config.members}" if n != self.config.members else "")
+        if not why:
             try:
-                members.append(EngineState.from_bytes(stored[2], stored[1]))
-            except ValueError as exc:
-                log.warning("stored ensemble member %d unusable (%s); starting a new ensemble", k, exc)
-                return None
-        stored = store.model_state(run, "ensemble:errors")
-        if stored is None or stored[1] != ERRORS_FORMAT:
+                with np.load(io.BytesIO(data), allow_pickle=False) as f:
+                    arrays = {k: f[k] for k in (*_STATE_ARRAYS, "errors", "signature")}
+            except (OSError, KeyError, ValueError) as exc:
+                why = f"it cannot be read ({exc})"
+        if not why:
+            signature = tuple(int(v) for v in arrays["signature"])
+            errors = arrays["errors"]
+            if signature != (self.n_h, self.n_l):
+                why = "it belongs to another network"
+            elif errors.shape != (self.config.members, int(self.perturbed.sum())):
+                why = f"its forcing errors have shape {errors.shape}"
+        if why:
+            log.warning("the stored ensemble of cycle %d is not used (%s); starting a new ensemble", cycle, why)
             return None
-        errors = np.load(io.BytesIO(stored[2]), allow_pickle=False)
-        if errors.shape != (self.config.members, int(self.perturbed.sum())):
-            return None
+        members = [EngineState(time=time, signature=signature, **{k: arrays[k][m].copy() for k in _STATE_ARRAYS})
+                   for m in range(n)]
         return members, errors
 
     # -- filtering and forecasting --------------------------------------------------------------------
@@ -275,11 +284,11 @@ class EnsembleFilter:
 
 
 def assimilation_cycle(service: Any, spec: Any, run_start: pd.Timestamp, state: Any,
-                       accepted: dict[str, float]) -> tuple[EnsembleForecast, dict[str, tuple], int]:
+                       accepted: dict[str, float]) -> tuple[EnsembleForecast, tuple, int]:
     """The state updating of one cycle of the on-line service (module docstring).
 
-    Returns the forecast of the analysed ensemble, the named states to store (the members at t₀ and
-    their forcing errors) and the number of analyses.
+    Returns the forecast of the analysed ensemble, the ensemble to store (the members at t₀ and their
+    forcing errors, :meth:`EnsembleFilter.to_record`) and the number of analyses.
     """
     filt: EnsembleFilter = service.filter
     t0 = spec.issue_time
@@ -296,7 +305,7 @@ def assimilation_cycle(service: Any, spec: Any, run_start: pd.Timestamp, state: 
     wide = observed.pivot_table(index="time", columns="series", values="value").reindex(columns=filt.series)
     members, errors, analyses = filt.assimilate(members, errors, parameters, t0, wide, rng)
     fc = filt.forecast(members, errors, parameters, service.horizon, service.config.output_interval_s, rng)
-    return fc, filt.to_states(members, errors), analyses
+    return fc, filt.to_record(members, errors), analyses
 
 
 #: Lead-time buckets of :func:`mae_by_lead`, h: (0, 6] with lead 0 included, (6, 12], (12, 24], (24, 48].
@@ -331,17 +340,15 @@ def mae_by_lead(store: Any, run: Any, series: list[str], truth: pd.DataFrame | N
     return out
 
 
-def band_coverage(store: Any, service: Any, bands: list[EnsembleForecast]) -> dict[str, Any]:
-    """Share of the level observations inside the 90 % band of the ensemble forecasts (lead > 0)."""
+def band_coverage(store: Any, service: Any) -> dict[str, Any]:
+    """Share of the level observations inside the stored forecast bands of the run (lead > 0)."""
     levels = [s for s in service.series if s.rpartition(".")[2] in ("h", "h_up", "h_down")]
-    inside = total = 0
-    for b in bands:
-        obs = store.observation_table(levels, b.mean.index[1], b.mean.index[-1], sources=service.config.sources)
-        wide = obs.pivot_table(index="time", columns="series", values="value").reindex(
-            index=b.mean.index[1:], columns=levels)
-        y = wide.to_numpy(float)
-        ok = np.isfinite(y)
-        low, high = b.low.loc[wide.index, levels].to_numpy(), b.high.loc[wide.index, levels].to_numpy()
-        inside += int(((y >= low) & (y <= high) & ok).sum())
-        total += int(ok.sum())
-    return {"n": total, "fraction": inside / total if total else None}
+    bands = store.forecast_bands(service.run)
+    bands = bands[bands["series"].isin(levels) & (bands["lead_h"] > 0)]
+    if bands.empty:
+        return {"n": 0, "fraction": None}
+    obs = store.observation_table(levels, bands["time"].min(), bands["time"].max(), sources=service.config.sources)
+    pairs = bands.merge(obs[["series", "time", "value"]], on=["series", "time"])
+    inside = (pairs["value"] >= pairs["low"]) & (pairs["value"] <= pairs["high"])
+    return {"n": len(pairs), "fraction": float(inside.mean()) if len(pairs) else None,
+            "probability": float(bands["probability"].iloc[0])}

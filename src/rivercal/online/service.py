@@ -49,7 +49,7 @@ from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
 from rivercal.problem import Calibration, CalibrationProblem, calibrate
-from rivercal.store import AlertRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
+from rivercal.store import AlertRecord, BandRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
 
 __all__ = ["DEFAULT_RESOLUTION", "CycleOutcome", "OnlineConfig", "OnlineService"]
 
@@ -265,12 +265,12 @@ class OnlineService:
                       else intervention.carried(change, after))
         alerts = [*est.alerts, *guardrails.limit_alerts(self.parameters, warm, estimates, self.config.max_change)]
         forecasts, states = self._forecasts(spec, run_start, state, accepted, change)
-        bands = None
+        bands = ensemble = None
         if self.filter is not None:
             from rivercal.online.assimilation import assimilation_cycle
 
             bands, ensemble, analyses = assimilation_cycle(self, spec, run_start, state, accepted)
-            forecasts["updated"], states = bands.mean, {**states, **ensemble}
+            forecasts["updated"] = bands.mean
             est.message += f"; {analyses} state analyses of {self.filter.config.members} members"
         records = tuple(
             EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
@@ -287,7 +287,8 @@ class OnlineService:
             message="; ".join([est.message, *notes]) if notes else est.message, estimates=records,
             alerts=tuple(alerts), forecasts=forecasts, states=states, scores=scores,
             transitions=(change,) if change is not None else (), issued=choice.issued, issued_reason=choice.reason,
-            skill_updated=choice.rmse_updated, skill_dss=choice.rmse_dss))
+            skill_updated=choice.rmse_updated, skill_dss=choice.rmse_dss, ensemble=ensemble,
+            bands=None if bands is None else BandRecord(bands.low, bands.high, probability=0.9)))
         log.info("cycle %d (%s): %s, %s in %.1f s, %d runs; issued %s", spec.cycle, t0, est.status,
                  ", ".join(f"{k}={v:.4g}" for k, v in accepted.items()), wall, est.model_runs, choice.issued)
         return CycleOutcome(cycle=spec.cycle, issue_time=t0, status=est.status, estimates=estimates,

@@ -230,7 +230,7 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
         **run_figures(store, service.run),
         "forecast_mae_by_lead": _mae_by_lead(store, service, truth),
         **({} if service.filter is None else
-           {"band_coverage_90": _band_coverage(store, service, [o.bands for o in outcomes if o.bands is not None])}),
+           {"band_coverage_90": _band_coverage(store, service)}),
     }
 
 
@@ -241,11 +241,11 @@ def _mae_by_lead(store: Any, service: Any, truth: pd.DataFrame | None) -> dict[s
     return mae_by_lead(store, service.run, service.series, truth)
 
 
-def _band_coverage(store: Any, service: Any, bands: list[Any]) -> dict[str, Any]:
-    """The share of observations inside the ensemble's 90 % band (the cycles of this process hold the bands)."""
+def _band_coverage(store: Any, service: Any) -> dict[str, Any]:
+    """The share of observations inside the stored 90 % bands of the ensemble forecasts."""
     from rivercal.online.assimilation import band_coverage
 
-    return band_coverage(store, service, bands)
+    return band_coverage(store, service)
 
 
 def format_value(value: float, unit: str) -> str:
