@@ -340,14 +340,18 @@ def mae_by_lead(store: Any, run: Any, series: list[str], truth: pd.DataFrame | N
     return out
 
 
-def band_coverage(store: Any, service: Any) -> dict[str, Any]:
-    """Share of the level observations inside the stored forecast bands of the run (lead > 0)."""
-    levels = [s for s in service.series if s.rpartition(".")[2] in ("h", "h_up", "h_down")]
-    bands = store.forecast_bands(service.run)
-    bands = bands[bands["series"].isin(levels) & (bands["lead_h"] > 0)]
+def band_coverage(store: Any, run: Any, *, sources: list[str] | None = None) -> dict[str, Any]:
+    """Share of the stored level observations inside the run's stored forecast bands, lead > 0.
+
+    ``n`` is the number of (band, observation) pairs; ``sources`` as for the store's observation table.
+    """
+    bands = store.forecast_bands(run)
+    if len(bands):
+        bands = bands[bands["series"].str.rpartition(".")[2].isin(("h", "h_up", "h_down")) & (bands["lead_h"] > 0)]
     if bands.empty:
         return {"n": 0, "fraction": None}
-    obs = store.observation_table(levels, bands["time"].min(), bands["time"].max(), sources=service.config.sources)
+    obs = store.observation_table(sorted(bands["series"].unique()), bands["time"].min(), bands["time"].max(),
+                                  sources=sources)
     pairs = bands.merge(obs[["series", "time", "value"]], on=["series", "time"])
     inside = (pairs["value"] >= pairs["low"]) & (pairs["value"] <= pairs["high"])
     return {"n": len(pairs), "fraction": float(inside.mean()) if len(pairs) else None,

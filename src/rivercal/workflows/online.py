@@ -245,7 +245,7 @@ def _band_coverage(store: Any, service: Any) -> dict[str, Any]:
     """The share of observations inside the stored 90 % bands of the ensemble forecasts."""
     from rivercal.online.assimilation import band_coverage
 
-    return band_coverage(store, service)
+    return band_coverage(store, service.run, sources=service.config.sources)
 
 
 def format_value(value: float, unit: str) -> str:
