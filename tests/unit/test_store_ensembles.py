@@ -84,7 +84,7 @@ def test_a_bad_band_is_refused_before_anything_is_written_and_the_forecast_kinds
         run = store.ensure_run("r", "dommel", {})
         spec = store.begin_cycle(run.id, store.next_cycle(run.id, SCHEDULE))
         good = _record(0)
-        with pytest.raises(ValueError, match="high .* is below low"):
+        with pytest.raises(ValueError, match=r"high .* is below low"):
             store.commit_cycle(run.id, CycleRecord(0, spec.window_start, spec.window_end, spec.issue_time,
                                                    ensemble=good.ensemble,
                                                    bands=BandRecord(good.bands.high, good.bands.low)))

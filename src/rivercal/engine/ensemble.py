@@ -1,7 +1,8 @@
 """Ensembles of the embedded engine: N members in one compiled call, in parallel over members.
 
 A member is a parameter set (model quantities, as for :meth:`Simulator.simulate`, controller
-quantities included), a hot-start state (with its controllers' state) and, optionally, its own forcing (e.g. perturbed inflows and laterals of an ensemble Kalman filter).
+quantities included), a hot-start state (with its controllers' state) and, optionally, its own forcing
+(e.g. perturbed inflows and laterals of an ensemble Kalman filter).
 :func:`run_ensemble` advances all members through :func:`.kernels.batch.run_members`, which runs the
 single-run time loop per member on numba's threads; each member's series and final state are
 bit-identical to its :meth:`Simulator.simulate` from the same state.
