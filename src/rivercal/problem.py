@@ -391,13 +391,15 @@ class _EnsembleMember:
     series: pd.DataFrame
 
 
-def problem_evaluator(problem: CalibrationProblem, workers: Any = None) -> Evaluator:
+def problem_evaluator(problem: CalibrationProblem, workers: Any = None, *, batched: bool = True) -> Evaluator:
     """The :class:`~rivercal.evaluate.Evaluator` of a problem's residuals on ``workers``.
 
-    On the embedded engine and local workers, its batches are batched engine calls on as many threads
-    (:meth:`CalibrationProblem.residuals_batch`); else local processes or a Dask cluster run the points.
+    On the embedded engine and two or more local workers, its batches are batched engine calls on as many
+    threads (:meth:`CalibrationProblem.residuals_batch`), unless ``batched`` is False; else local processes,
+    this process one by one, or a Dask cluster run the points.
     """
-    return Evaluator(problem.residuals, workers=workers, batch=problem.residuals_batch if problem.batched else None)
+    use = batched and problem.batched
+    return Evaluator(problem.residuals, workers=workers, batch=problem.residuals_batch if use else None)
 
 
 @dataclass(frozen=True)
@@ -542,7 +544,8 @@ class Calibration:
 
 def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapping[str, Any] | None = None, *,
               workers: int | None = None, max_nfev: int | None = None, deadline: float | None = None,
-              callback: Callable[[IterationRecord], bool | None] | None = None, **extra: Any) -> Calibration:
+              callback: Callable[[IterationRecord], bool | None] | None = None, batched: bool = True,
+              **extra: Any) -> Calibration:
     """Run optimiser ``algorithm`` on ``problem``.
 
     Parameters
@@ -558,6 +561,9 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
         weak constraint from the parameters' ``prior_std`` around the initial values.
     workers
         Worker processes for batches (None: all cores; 1: serial).
+    batched
+        On the embedded engine, run each batch as one batched engine call on ``workers`` threads instead of
+        worker processes (:func:`problem_evaluator`).
     max_nfev, deadline, callback
         Budget of model runs, wall-clock seconds, abort callback (see :mod:`rivercal.optimise`).
     extra
@@ -570,7 +576,7 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
     problem.state  # noqa: B018 - compute the start state and the weights here, before workers fork
     problem.sqrt_weights  # noqa: B018
     t0 = time.perf_counter()
-    with problem_evaluator(problem, workers) as batch:
+    with problem_evaluator(problem, workers, batched=batched) as batch:
         result = optimiser(problem.residuals, x0, lb, ub, options=opts, callback=callback, batch=batch,
                            max_nfev=max_nfev, deadline=deadline, **extra)
     wall = time.perf_counter() - t0

@@ -15,8 +15,11 @@ difference Jacobians, SCE-UA complexes, grid and GLUE samples) to a ``batch`` ca
 
 A function that can evaluate several points at once in this process (``batch``: for a calibration on the
 embedded engine, :meth:`rivercal.problem.CalibrationProblem.residuals_batch`, one compiled call that runs
-the points' models on numba threads) replaces the local processes: every batch of two or more points is one
-such call with as many threads as there would be workers. A Dask cluster keeps its tasks.
+the points' models on numba threads) replaces the local processes: with two or more workers, every batch of
+two or more points is one such call with as many threads as there would be workers. With one worker the
+points run one by one as before: a process that a pool forked (a twin suite's calibrations each run in one,
+with one worker) must not start numba's OpenMP threads when its parent has used them, which GNU OpenMP
+refuses. A Dask cluster keeps its tasks.
 
 Either way the results come back in the order of the points, and an exception raised by a run (a diverged
 run under the ``raise`` failure policy) reaches the caller unchanged; budgets and deadlines are the
@@ -150,8 +153,8 @@ class Evaluator:
         :class:`DaskCluster` its workers.
     batch
         ``batch(points, threads=n) -> results``: ``fun`` of several points at once, in this process on ``n``
-        threads (module docstring); used for every batch of two or more points unless the workers are a
-        Dask cluster. Its results and its failures must be those of ``fun`` point by point.
+        threads (module docstring); used for every batch of two or more points when there are two or more
+        local workers. Its results and its failures must be those of ``fun`` point by point.
 
     Examples
     --------
@@ -167,8 +170,8 @@ class Evaluator:
         self._tasks = Tasks(fun, workers)
         self.workers = self._tasks.workers
         self.cluster = self._tasks.cluster
-        #: ``fun`` of several points in this process (None: none, or the points go to a Dask cluster).
-        self.batch = batch if self.cluster is None else None
+        #: ``fun`` of several points in this process (None: none, one worker, or a Dask cluster).
+        self.batch = batch if self.cluster is None and self.workers > 1 else None
 
     def _batched(self, points: list[np.ndarray]) -> list[np.ndarray]:
         results = list(self.batch(points, threads=self.workers))  # type: ignore[misc]
