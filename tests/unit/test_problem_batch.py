@@ -100,7 +100,8 @@ def test_only_the_embedded_engine_gets_batches(synthetic) -> None:
     xs = [other.x0, other.x0 + 0.1]
     assert all(np.array_equal(a, b) for a, b in zip(other.residuals_batch(xs), map(other.residuals, xs), strict=True))
     calls = []
-    with Evaluator(np.square, workers=2, batch=lambda xs, threads: calls.append(threads) or [x**2 for x in xs]) as batch:
+    squares = lambda xs, threads: calls.append(threads) or [x**2 for x in xs]  # noqa: E731
+    with Evaluator(np.square, workers=2, batch=squares) as batch:
         assert [float(v[0]) for v in batch([np.array([2.0]), np.array([3.0])])] == [4.0, 9.0]
     assert calls == [2]
     # one worker: point by point (a process a pool forked must not start OpenMP threads its parent used)
