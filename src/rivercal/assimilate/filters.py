@@ -9,14 +9,14 @@ applied by the caller, so it may be nonlinear (a level interpolated between poin
 
 Stochastic EnKF (Burgers, van Leeuwen & Evensen 1998, Mon. Wea. Rev. 126:1719–1724; Evensen 2003,
 Ocean Dyn. 53:343–367): every member is updated with its own perturbed observations y + εⱼ, εⱼ ~ N(0, R),
-    Xᵃ = X + K (Y − H(X)),  K = (ρ_xy ∘ P_xy)(ρ_yy ∘ P_yy + R)⁻¹,
+``Xᵃ = X + K (Y − H(X))``, ``K = (ρ_xy ∘ P_xy)(ρ_yy ∘ P_yy + R)⁻¹``,
 with P_xy = A Bᵀ/(N − 1), P_yy = B Bᵀ/(N − 1), A and B the anomalies of X and H(X); ρ the localisation
 tapers (Houtekamer & Mitchell 2001). Without the perturbations the analysis spread would be too small.
 
 ETKF (Bishop, Etherton & Majumdar 2001, Mon. Wea. Rev. 129:420–436) in the form of Hunt, Kostelich &
 Szunyogh (2007, Physica D 230:112–126, Eqs. 20–24): the analysis is a combination of the forecast
 members, x̄ᵃ = x̄ + A w̄ and Aᵃ = A Wᵃ, with
-    P̃ᵃ = [(N − 1) I + Bᵀ R⁻¹ B]⁻¹,  w̄ = P̃ᵃ Bᵀ R⁻¹ (y − ȳ),  Wᵃ = [(N − 1) P̃ᵃ]^½ (symmetric root),
+``P̃ᵃ = [(N − 1) I + Bᵀ R⁻¹ B]⁻¹``, ``w̄ = P̃ᵃ Bᵀ R⁻¹ (y − ȳ)``, ``Wᵃ = [(N − 1) P̃ᵃ]^½`` (symmetric root),
 so no observation is perturbed and the analysis covariance is exactly the Kalman one of the sample
 covariance. Localisation is the local ETKF's (Hunt et al. 2007, §2.3): each state row gets its own
 analysis in which observation k's inverse variance is weighted by ρ(row, k).

@@ -20,7 +20,7 @@ __all__ = ["ar1_series", "multiplicative_factors"]
 
 def ar1_series(rng: np.random.Generator, n_steps: int, shape: tuple[int, ...], sigma: float, tau_steps: float,
                initial: np.ndarray | None = None) -> np.ndarray:
-    """AR(1) series in time: an array (n_steps, *shape), stationary with standard deviation ``sigma``.
+    """AR(1) series in time: an array of shape ``(n_steps, *shape)``, stationary with standard deviation ``sigma``.
 
     Parameters
     ----------
