@@ -16,6 +16,7 @@ from pathlib import Path
 BENCHMARKS = {
     "engine": ["bench", "engine", "--json"],
     "engine-dommel": ["bench", "engine", "--case", "dommel", "--json"],
+    "ensemble": ["bench", "ensemble", "--members", "64", "--json"],
     "calibrate-dud": ["bench", "calibrate", "--algorithms", "dud", "--json"],
     "calibrate-all": ["bench", "calibrate", "--json"],
     "hupsel": ["bench", "hupsel", "--json"],

@@ -54,6 +54,7 @@ PAGES = {
     "rivercal.evaluate": "Evaluation (parallel runs)",
     "rivercal.optimise": "Optimisers",
     "rivercal.analysis": "Analysis",
+    "rivercal.assimilate": "Data assimilation (ensemble filters)",
     "rivercal.twin": "Twin experiments",
     "rivercal.online": "The on-line service",
     "rivercal.store": "The store",

@@ -65,7 +65,8 @@ from rivercal.observations import ObservationSet
 from rivercal.optimise import OPTIONS, IterationRecord, OptimiseResult, get_optimiser
 from rivercal.parameters import ParameterSet
 
-__all__ = ["LOSSES", "Calibration", "CalibrationProblem", "CostBreakdown", "Model", "calibrate", "robust_residuals"]
+__all__ = ["LOSSES", "Calibration", "CalibrationProblem", "CostBreakdown", "Model", "calibrate", "problem_evaluator",
+           "robust_residuals"]
 
 log = logging.getLogger(__name__)
 
@@ -292,19 +293,67 @@ class CalibrationProblem:
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Weighted residuals √W (y − ŷ(x)) (robust ones with a ``loss``), in the order of :attr:`observations`."""
-        sqrt_w = self.sqrt_weights
+        self.sqrt_weights  # noqa: B018 - the weights' own run comes first
         try:
-            pred = self.predictions(self.simulate(x))
-            r = np.concatenate([s.values - pred[s.id] for s in self.observations]) * sqrt_w
-            if not np.all(np.isfinite(r)):
-                raise ModelRunError(f"the model returned non-finite values for {self._describe(x)}")
-            r = robust_residuals(r, self.loss, self.loss_scale)
+            return self._weighted(x, self.simulate(x))
         except ModelRunError as exc:
-            if self.on_failure == "raise":
-                raise
-            log.warning("model run failed for %s (%s); penalty policy: cost %g", self._describe(x), exc, self.penalty)
-            return np.full(sqrt_w.size, math.sqrt(self.penalty / sqrt_w.size))
-        return r
+            return self._failed(x, exc)
+
+    def _weighted(self, x: np.ndarray, result: Any) -> np.ndarray:
+        pred = self.predictions(result)
+        r = np.concatenate([s.values - pred[s.id] for s in self.observations]) * self.sqrt_weights
+        if not np.all(np.isfinite(r)):
+            raise ModelRunError(f"the model returned non-finite values for {self._describe(x)}")
+        return robust_residuals(r, self.loss, self.loss_scale)
+
+    def _failed(self, x: np.ndarray, exc: ModelRunError) -> np.ndarray:
+        """The failure policy: re-raise, or residuals whose cost is the penalty."""
+        if self.on_failure == "raise":
+            raise exc
+        log.warning("model run failed for %s (%s); penalty policy: cost %g", self._describe(x), exc, self.penalty)
+        size = self.sqrt_weights.size
+        return np.full(size, math.sqrt(self.penalty / size))
+
+    @property
+    def batched(self) -> bool:
+        """Whether :meth:`residuals_batch` runs several points in one call: the model is the embedded engine."""
+        from rivercal.engine.simulator import Simulator
+
+        return isinstance(self.model, Simulator) and type(self.model).simulate is Simulator.simulate
+
+    def residuals_batch(self, xs: list[np.ndarray], *, threads: int | None = None) -> list[np.ndarray]:
+        """:meth:`residuals` of several points, their model runs in one batched engine call.
+
+        The runs go through :func:`rivercal.engine.ensemble.run_ensemble` on ``threads`` numba threads (None:
+        all; more than numba has: all it has); each is bit-identical to its single run, so the results equal
+        ``[self.residuals(x) for x in xs]``. A point whose run fails is run again alone, so that it follows
+        the failure policy with the single run's error, in the order of the points. A model that is not the
+        embedded engine runs the points one by one.
+        """
+        points = [np.asarray(x, dtype=float) for x in xs]
+        if not self.batched or len(points) < 2:
+            return [self.residuals(x) for x in points]
+        import numba
+
+        from rivercal.engine.ensemble import run_ensemble
+
+        self.sqrt_weights  # noqa: B018
+        state = self.state
+        n = numba.config.NUMBA_NUM_THREADS if threads is None else max(1, min(int(threads),
+                                                                              numba.config.NUMBA_NUM_THREADS))
+        ens = run_ensemble(self.model, [self.quantities(x) for x in points], self.run_start, self.end,
+                           None if state is None else [state] * len(points), n_threads=n, on_failure="report")
+        self.n_runs += len(points) - len(ens.failures)
+        out = []
+        for m, x in enumerate(points):
+            if m in ens.failures:
+                out.append(self.residuals(x))  # alone: the single run's error and the failure policy
+                continue
+            try:
+                out.append(self._weighted(x, _EnsembleMember(ens.series(m))))
+            except ModelRunError as exc:
+                out.append(self._failed(x, exc))
+        return out
 
     def cost(self, x: np.ndarray) -> float:
         """S(x) = Σ r² (thesis Eq. 2-3; with a robust ``loss``, 2 Σ ρ(r))."""
@@ -333,6 +382,24 @@ class CalibrationProblem:
                 f"window {self.start:%Y-%m-%d %H:%M} … {self.end:%Y-%m-%d %H:%M} UTC, "
                 f"warmup {self.warmup / pd.Timedelta('1h'):g} h, "
                 f"on_failure={self.on_failure!r})")
+
+
+@dataclass(frozen=True)
+class _EnsembleMember:
+    """One member's series of a batched run, where :meth:`CalibrationProblem.predictions` reads them."""
+
+    series: pd.DataFrame
+
+
+def problem_evaluator(problem: CalibrationProblem, workers: Any = None, *, batched: bool = True) -> Evaluator:
+    """The :class:`~rivercal.evaluate.Evaluator` of a problem's residuals on ``workers``.
+
+    On the embedded engine and two or more local workers, its batches are batched engine calls on as many
+    threads (:meth:`CalibrationProblem.residuals_batch`), unless ``batched`` is False; else local processes,
+    this process one by one, or a Dask cluster run the points.
+    """
+    use = batched and problem.batched
+    return Evaluator(problem.residuals, workers=workers, batch=problem.residuals_batch if use else None)
 
 
 @dataclass(frozen=True)
@@ -477,7 +544,8 @@ class Calibration:
 
 def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapping[str, Any] | None = None, *,
               workers: int | None = None, max_nfev: int | None = None, deadline: float | None = None,
-              callback: Callable[[IterationRecord], bool | None] | None = None, **extra: Any) -> Calibration:
+              callback: Callable[[IterationRecord], bool | None] | None = None, batched: bool = True,
+              **extra: Any) -> Calibration:
     """Run optimiser ``algorithm`` on ``problem``.
 
     Parameters
@@ -493,6 +561,9 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
         weak constraint from the parameters' ``prior_std`` around the initial values.
     workers
         Worker processes for batches (None: all cores; 1: serial).
+    batched
+        On the embedded engine, run each batch as one batched engine call on ``workers`` threads instead of
+        worker processes (:func:`problem_evaluator`).
     max_nfev, deadline, callback
         Budget of model runs, wall-clock seconds, abort callback (see :mod:`rivercal.optimise`).
     extra
@@ -505,7 +576,7 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
     problem.state  # noqa: B018 - compute the start state and the weights here, before workers fork
     problem.sqrt_weights  # noqa: B018
     t0 = time.perf_counter()
-    with Evaluator(problem.residuals, workers=workers) as batch:
+    with problem_evaluator(problem, workers, batched=batched) as batch:
         result = optimiser(problem.residuals, x0, lb, ub, options=opts, callback=callback, batch=batch,
                            max_nfev=max_nfev, deadline=deadline, **extra)
     wall = time.perf_counter() - t0

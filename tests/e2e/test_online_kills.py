@@ -53,6 +53,10 @@ CONTENT = {
                        "FROM forecast_scores s JOIN cycles c ON c.id = s.cycle_id",
     "model_states": "SELECT c.cycle, m.name, m.time, m.format, m.data FROM model_states m JOIN cycles c "
                     "ON c.id = m.cycle_id",
+    "forecast_bands": "SELECT c.cycle, b.series, b.time, b.lead_h, b.probability, b.low, b.high FROM forecast_bands b "
+                      "JOIN cycles c ON c.id = b.cycle_id",
+    "ensembles": "SELECT c.cycle, e.time, e.members, e.format, e.data FROM ensembles e JOIN cycles c "
+                 "ON c.id = e.cycle_id",
     "schema_version": "SELECT version, description, rivercal_version FROM schema_version",
 }
 

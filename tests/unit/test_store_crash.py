@@ -25,7 +25,7 @@ import pandas as pd
 import pytest
 
 from rivercal.observations import ObservationSet
-from rivercal.store import AlertRecord, CycleRecord, CycleStateError, EstimateRecord, Schedule, Store
+from rivercal.store import AlertRecord, BandRecord, CycleRecord, CycleStateError, EstimateRecord, Schedule, Store
 
 HERE = Path(__file__).resolve()
 SCHEDULE = Schedule("2010-11-01T06:00:00Z", period=pd.Timedelta(days=1), window=pd.Timedelta(days=2))
@@ -34,6 +34,7 @@ PARAMETERS = ("friction:global", "weirs", "weir:ZL1-5930.crest_level")
 N_CYCLES = 10
 COMPUTE_S = 0.03
 LEADS = 49  # hourly forecast values, 0..48 h
+ENSEMBLE_BYTES = 256 * 1024  # the ensemble a cycle hands to the next (the store keeps the latest per run)
 
 
 def expected_estimates(k: int) -> dict[str, tuple[float, bool]]:
@@ -46,6 +47,11 @@ def observed(series: str, times: pd.DatetimeIndex) -> np.ndarray:
     offset = {"ZL1-5930.h_up": 7.3, "ZL1-5930.h_down": 6.9, "ZL1-3014.Q": 1.2}[series]
     hours = (times - pd.Timestamp("2010-10-01", tz="UTC")) / pd.Timedelta(hours=1)
     return offset + 0.1 * np.sin(np.asarray(hours, dtype=float) / 12.0)
+
+
+def ensemble_data(k: int) -> bytes:
+    """The fake ensemble of cycle k (its bytes differ from cycle to cycle)."""
+    return np.random.default_rng(1000 + k).bytes(ENSEMBLE_BYTES)
 
 
 def window_observations(spec) -> ObservationSet:
@@ -62,9 +68,11 @@ def cycle_record(spec) -> CycleRecord:
     times = pd.date_range(spec.issue_time, periods=LEADS, freq="h")
     forecasts = {kind: pd.DataFrame({s: observed(s, times) + shift for s in SERIES}, index=times)
                  for kind, shift in (("updated", 0.01), ("dss", 0.05))}
+    bands = BandRecord(forecasts["updated"] - 0.05, forecasts["updated"] + 0.05)
     return CycleRecord(k, spec.window_start, spec.window_end, spec.issue_time, status="done", algorithm="dud",
                        model_runs=7 + k, cost_before=2.0, cost_after=1.0, message="converged", estimates=estimates,
-                       alerts=alerts, forecasts=forecasts)
+                       alerts=alerts, forecasts=forecasts, bands=bands,
+                       ensemble=(spec.issue_time, 64, "fake-ensemble", ensemble_data(k)))
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -187,6 +195,8 @@ def assert_complete(db: str) -> None:
         fc = store.forecasts(run.id)
         assert fc.groupby("cycle").size().tolist() == [2 * len(SERIES) * LEADS] * N_CYCLES
         assert not fc.duplicated(["cycle", "kind", "series", "time"]).any()
+        assert store.forecast_bands(run.id).groupby("cycle").size().tolist() == [len(SERIES) * LEADS] * N_CYCLES
+        assert store.ensemble(run.id)[1:] == (N_CYCLES - 1, 64, "fake-ensemble", ensemble_data(N_CYCLES - 1))
         avail = store.availability()
         assert avail["n"].sum() == _n_observations(N_CYCLES - 1)
         assert (avail["max_gap_h"] == 1.0).all()
@@ -215,6 +225,13 @@ def _state_after_kill(db: str, phase: str, k: int) -> list[int]:
         assert sorted(est["cycle"].unique()) == done == sorted(fc["cycle"].unique())
         assert est.groupby("cycle").size().eq(len(PARAMETERS)).all()
         assert fc.groupby("cycle").size().eq(2 * len(SERIES) * LEADS).all()
+        # the ensemble is the last done cycle's, whole (never a killed commit's, never half of one)
+        assert sorted(store.forecast_bands(run.id)["cycle"].unique()) == done
+        ensemble = store.ensemble(run.id)
+        if done:
+            assert ensemble[1:] == (done[-1], 64, "fake-ensemble", ensemble_data(done[-1]))
+        else:
+            assert ensemble is None
         if phase in ("compute", "commit"):
             assert done == list(range(k))
             assert cycles.loc[k, "status"] == "running"

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from rivercal.evaluate import Evaluator
+from rivercal.problem import problem_evaluator
 
 Batch = Callable[[list[np.ndarray]], Sequence[np.ndarray]]
 
@@ -26,7 +26,7 @@ def batch_for(problem: Any, batch: Batch | None, workers: int | None) -> Iterato
         return
     problem.state  # noqa: B018 - computed before the workers fork
     problem.sqrt_weights  # noqa: B018
-    with Evaluator(problem.residuals, workers=workers) as evaluator:
+    with problem_evaluator(problem, workers) as evaluator:
         yield evaluator
 
 

@@ -1,7 +1,7 @@
 """``rivercal bench``: the benchmarks.
 
-The engine (alone and beside EPA SWMM), the calibration, the rainfall-runoff model, the on-line service
-(its speed, and its figures at each realism level) and the black box.
+The engine (alone, as a batched ensemble and beside EPA SWMM), the calibration, the rainfall-runoff model,
+the on-line service (its speed, and its figures at each realism level) and the black box.
 """
 
 from __future__ import annotations
@@ -54,6 +54,33 @@ def engine(
     check_number(days, "--days", high=span)
     result = bench_engine(case, days=days, repeats=repeats).to_dict()
     _print_flat(result, "engine benchmark", as_json)
+
+
+@app.command("ensemble")
+@guard
+def ensemble(
+    members: Annotated[int, typer.Option(help="Ensemble members.")] = 64,
+    case: Annotated[str, typer.Option(help="Case to time.")] = "dommel",
+    days: Annotated[float, typer.Option(help="Simulated days.")] = 7.0,
+    repeats: Annotated[int, typer.Option(help="Timed calls, interleaved with single runs (medians reported).")] = 3,
+    threads: Annotated[int | None, typer.Option(help="Threads over the members (default: all).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Time N members (own friction, own perturbed laterals) through one simulated week in one batched call."""
+    import numba
+
+    from rivercal.bench.ensemble import bench_ensemble
+    from rivercal.cli.options import open_model
+
+    check_number(members, "--members", low=1, high=10_000)
+    check_number(days, "--days", low=0, high=366, low_open=True)
+    check_number(repeats, "--repeats", low=1, high=1000)
+    check_number(threads, "--threads", low=1, high=numba.config.NUMBA_NUM_THREADS)
+    model = open_model(case)
+    check_number(days, "--days", high=(model.end - model.start).total_seconds() / 86400)
+    watch_compilation(True)
+    result = bench_ensemble(case, members=members, days=days, repeats=repeats, threads=threads).to_dict()
+    _print_flat(result, "ensemble benchmark", as_json)
 
 
 @app.command("calibrate")

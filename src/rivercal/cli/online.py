@@ -72,6 +72,15 @@ def online(
         help="Errors of the twin of --scenario: ideal, noisy, realistic, or a TOML file of error models "
              "(docs/realism.md).")] = None,
     max_cycles: Annotated[int | None, typer.Option("--max-cycles", help="Stop after this many cycles.")] = None,
+    assimilate: Annotated[str, typer.Option(
+        help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both.")]
+    = "parameters",
+    members: Annotated[int, typer.Option(help="With --assimilate states|both: ensemble members.")] = 64,
+    ensemble_filter: Annotated[str, typer.Option(
+        "--filter", help="With --assimilate states|both: etkf (square root) or enkf (perturbed observations).")]
+    = "etkf",
+    rain_error: Annotated[float, typer.Option(
+        "--rain-error", help="Twin of --scenario: error of the inflows and laterals, e.g. 0.3 for about 30 %.")] = 0.0,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
     dask: DaskOpt = None,
     out: Annotated[Path | None, typer.Option(help="Write the report and exports into this folder.")] = None,
@@ -79,6 +88,7 @@ def online(
     quiet: QuietOpt = False,
 ) -> None:
     """Run the on-line service: every cycle re-estimates the parameters and forecasts against the DSS."""
+    from rivercal.online.assimilation import ASSIMILATE_MODES, AssimilationConfig
     from rivercal.online.service import OnlineConfig
     from rivercal.optimise import OPTIMISERS
     from rivercal.optimise.registry import RENAMED
@@ -135,6 +145,12 @@ def online(
     check_number(skill_cycles, "--skill-cycles", low=0)
     check_number(seed, "--seed", low=0)
     check_number(max_cycles, "--max-cycles", low=1)
+    check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
+    check_number(members, "--members", low=2, high=10_000)
+    check_choice(ensemble_filter, "--filter", ("etkf", "enkf"))
+    check_number(rain_error, "--rain-error", low=0, high=2)
+    if rain_error and scenario is None:
+        raise OptionError("--rain-error applies to the twin observations of --scenario only", option="--rain-error")
     check_number(workers, "--workers", low=1)
     address = dask_address(dask, workers)
     files = [(p.name, read_observations(p)) for p in observations]
@@ -163,7 +179,10 @@ def online(
                               loss=loss, transition=transition, skill_cycles=skill_cycles, workers=where)
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
-                             max_cycles=max_cycles, report=out, progress=reporter)
+                             max_cycles=max_cycles, report=out, progress=reporter,
+                             assimilation=AssimilationConfig(mode=assimilate, members=members, method=ensemble_filter,
+                                                             seed=seed),
+                             rain_error=rain_error)
     if as_json:
         emit_json(summary)
     elif not quiet:

@@ -13,6 +13,14 @@ difference Jacobians, SCE-UA complexes, grid and GLUE samples) to a ``batch`` ca
   function goes to each Dask worker once (not once per evaluation) and the points run as Dask tasks;
   the scheduler re-runs the points of a worker that is lost.
 
+A function that can evaluate several points at once in this process (``batch``: for a calibration on the
+embedded engine, :meth:`rivercal.problem.CalibrationProblem.residuals_batch`, one compiled call that runs
+the points' models on numba threads) replaces the local processes: with two or more workers, every batch of
+two or more points is one such call with as many threads as there would be workers. With one worker the
+points run one by one as before: a process that a pool forked (a twin suite's calibrations each run in one,
+with one worker) must not start numba's OpenMP threads when its parent has used them, which GNU OpenMP
+refuses. A Dask cluster keeps its tasks.
+
 Either way the results come back in the order of the points, and an exception raised by a run (a diverged
 run under the ``raise`` failure policy) reaches the caller unchanged; budgets and deadlines are the
 optimiser's (:mod:`rivercal.optimise`), checked between batches, whatever runs the batches.
@@ -143,6 +151,10 @@ class Evaluator:
     workers
         See :data:`Workers`: None uses :func:`default_workers`, 1 evaluates in this process, a
         :class:`DaskCluster` its workers.
+    batch
+        ``batch(points, threads=n) -> results``: ``fun`` of several points at once, in this process on ``n``
+        threads (module docstring); used for every batch of two or more points when there are two or more
+        local workers. Its results and its failures must be those of ``fun`` point by point.
 
     Examples
     --------
@@ -152,15 +164,27 @@ class Evaluator:
     [array([4.]), array([9.])]
     """
 
-    def __init__(self, fun: Callable[[np.ndarray], np.ndarray], workers: Workers = None):
+    def __init__(self, fun: Callable[[np.ndarray], np.ndarray], workers: Workers = None, *,
+                 batch: Callable[..., Sequence[np.ndarray]] | None = None):
         self.fun = fun
         self._tasks = Tasks(fun, workers)
         self.workers = self._tasks.workers
         self.cluster = self._tasks.cluster
+        #: ``fun`` of several points in this process (None: none, one worker, or a Dask cluster).
+        self.batch = batch if self.cluster is None and self.workers > 1 else None
+
+    def _batched(self, points: list[np.ndarray]) -> list[np.ndarray]:
+        results = list(self.batch(points, threads=self.workers))  # type: ignore[misc]
+        if len(results) != len(points):
+            raise RuntimeError(f"the batch function returned {len(results)} results for {len(points)} points")
+        return results
 
     def as_completed(self, xs: Sequence[np.ndarray]) -> Iterator[tuple[int, np.ndarray]]:
         """``(index, fun(xs[index]))`` as each evaluation finishes; the first failure is raised."""
         points = [np.asarray(x, dtype=float) for x in xs]
+        if self.batch is not None and len(points) > 1:
+            yield from enumerate(self._batched(points))
+            return
         if self.cluster is None and (self.workers == 1 or len(points) <= 1):
             for i, x in enumerate(points):
                 yield i, self.fun(x)
@@ -181,6 +205,8 @@ class Evaluator:
         the batch ran.
         """
         points = [np.asarray(x, dtype=float) for x in xs]
+        if self.batch is not None and len(points) > 1:
+            return self._batched(points)
         if self.cluster is None and (self.workers == 1 or len(points) <= 1):
             return [self.fun(x) for x in points]
         futures = [self._tasks.submit(_call, x) for x in points]

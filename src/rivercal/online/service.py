@@ -49,7 +49,7 @@ from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
 from rivercal.problem import Calibration, CalibrationProblem, calibrate
-from rivercal.store import AlertRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
+from rivercal.store import AlertRecord, BandRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
 
 __all__ = ["DEFAULT_RESOLUTION", "CycleOutcome", "OnlineConfig", "OnlineService"]
 
@@ -83,6 +83,7 @@ class CycleOutcome:
     transition: TransitionRecord | None = None
     issued: str = "updated"
     issued_reason: str = ""
+    bands: Any = None  # with state updating: the ensemble forecast (mean and 90 % band)
 
 
 @dataclass
@@ -132,7 +133,7 @@ class OnlineService:
     """
 
     def __init__(self, model: Any, store: Store, run_name: str, config: OnlineConfig, first_issue: Any,
-                 meta: Mapping[str, Any] | None = None):
+                 meta: Mapping[str, Any] | None = None, assimilation: Any = None):
         self.model = model
         self.store = store
         self.config = config
@@ -162,6 +163,12 @@ class OnlineService:
         case_options = setup.options if config.algorithm == setup.algorithm else {}
         self.options = dict(config.options if config.options is not None else case_options)
         stored = {**config.stored(), "first_issue": self.schedule.first_issue.isoformat(), "meta": dict(meta or {})}
+        self.filter = None  # state updating (rivercal.online.assimilation), for modes 'states' and 'both'
+        if assimilation is not None and assimilation.mode != "parameters":
+            from rivercal.online.assimilation import EnsembleFilter
+
+            self.filter = EnsembleFilter(model, assimilation, self.series, config.sigma)
+            stored["assimilation"] = assimilation.stored()
         self.run = store.ensure_run(run_name, model.name, stored)
 
     # -- helpers -----------------------------------------------------------------------------------
@@ -245,6 +252,8 @@ class OnlineService:
             est.status = "failed"
             est.message = f"no observations in the window {spec.window_start} .. {spec.window_end}"
             est.held = dict.fromkeys(warm, "no observations in the window; the last accepted estimate is kept")
+        elif self.filter is not None and self.filter.config.mode == "states":
+            est.message = "state updating only: the parameters stay as they are"
         else:
             self._estimate(est, spec, warm, state, obs, first=not self.store.last_accepted(self.run))
         held, estimates = est.held, est.estimates
@@ -256,6 +265,13 @@ class OnlineService:
                       else intervention.carried(change, after))
         alerts = [*est.alerts, *guardrails.limit_alerts(self.parameters, warm, estimates, self.config.max_change)]
         forecasts, states = self._forecasts(spec, run_start, state, accepted, change)
+        bands = ensemble = None
+        if self.filter is not None:
+            from rivercal.online.assimilation import assimilation_cycle
+
+            bands, ensemble, analyses = assimilation_cycle(self, spec, run_start, state, accepted)
+            forecasts["updated"] = bands.mean
+            est.message += f"; {analyses} state analyses of {self.filter.config.members} members"
         records = tuple(
             EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
                            std=float(est.std[n]) if n in est.std and math.isfinite(est.std[n]) else None,
@@ -271,13 +287,15 @@ class OnlineService:
             message="; ".join([est.message, *notes]) if notes else est.message, estimates=records,
             alerts=tuple(alerts), forecasts=forecasts, states=states, scores=scores,
             transitions=(change,) if change is not None else (), issued=choice.issued, issued_reason=choice.reason,
-            skill_updated=choice.rmse_updated, skill_dss=choice.rmse_dss))
+            skill_updated=choice.rmse_updated, skill_dss=choice.rmse_dss, ensemble=ensemble,
+            bands=None if bands is None else BandRecord(bands.low, bands.high, probability=0.9)))
         log.info("cycle %d (%s): %s, %s in %.1f s, %d runs; issued %s", spec.cycle, t0, est.status,
                  ", ".join(f"{k}={v:.4g}" for k, v in accepted.items()), wall, est.model_runs, choice.issued)
         return CycleOutcome(cycle=spec.cycle, issue_time=t0, status=est.status, estimates=estimates,
                             accepted=accepted, held=held, std=est.std, alerts=tuple(alerts), model_runs=est.model_runs,
                             wall_s=wall, cost_before=est.cost_before, cost_after=est.cost_after, message=est.message,
-                            hot_start=hot, transition=change, issued=choice.issued, issued_reason=choice.reason)
+                            hot_start=hot, transition=change, issued=choice.issued, issued_reason=choice.reason,
+                            bands=bands)
 
     def _estimate(self, est: _Estimation, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any, *,
                   first: bool) -> None:

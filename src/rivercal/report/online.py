@@ -28,6 +28,7 @@ from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
 from rivercal.report.html import Page, bullets, figure, paragraph, table
+from rivercal.report.online_bands import band_blocks
 from rivercal.report.online_figures import figure_blocks
 from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_xarray
 
@@ -489,6 +490,9 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
                      figure(fig_scores, "RMSE of the level forecasts by lead time, all stations and cycles."),
                      table(stations, "RMSE per station and lead time (levels in cm, discharges in 0.01 m³/s)",
                            float_format=".3g"))
+    bands = band_blocks(store, run, out, files)
+    if bands:
+        page.section("Ensemble forecast and its 90 % band", *bands)
     if scenario is not None and len(cycles) and hasattr(model, "compiled"):  # the maps need every point's level
         _twin_sections(page, model, store, run, cycles, change, out, files)
     page.write(out / "index.html")

@@ -166,6 +166,29 @@ def forecast_rows(forecasts: Mapping[str, pd.DataFrame], cycle: int,
     return rows
 
 
+def band_rows(bands: Any, cycle: int, issue_time: pd.Timestamp) -> list[tuple[str, int, float, float, float, float]]:
+    """Rows ``(series, time [s], lead_h [h], probability, low, high)`` of a cycle's forecast band (None: none).
+
+    Checked as the forecasts are (:func:`forecast_rows`); a time where either side is NaN is not stored.
+
+    Raises
+    ------
+    ValueError
+        As :func:`forecast_rows`, and for a high side below the low side.
+    """
+    if bands is None:
+        return []
+    high = {(r[1], r[2]): r[4] for r in forecast_rows({"updated": bands.high}, cycle, issue_time)}
+    rows = []
+    for _, series, time, lead, low in forecast_rows({"updated": bands.low}, cycle, issue_time):
+        if (series, time) in high:
+            if high[series, time] < low:
+                raise ValueError(f"cycle {cycle} forecast band: {series} at {from_unix(time).isoformat()}: high "
+                                 f"{high[series, time]} is below low {low}")
+            rows.append((series, time, lead, float(bands.probability), low, high[series, time]))
+    return rows
+
+
 def resolve_sources(rows: pd.DataFrame, sources: Sequence[str] | None, keep: Sequence[str] = ()) -> pd.DataFrame:
     """One value per (series, time) from stored rows with columns series, time, source, value, ingested.
 

@@ -24,7 +24,7 @@ log = logging.getLogger("rivercal.store")
 
 
 class ResultTables(StoreBase):
-    """Queries over the estimates, alerts, forecasts and forecast_scores tables."""
+    """Queries over the estimates, alerts, forecasts, forecast_scores, forecast_bands and ensembles tables."""
 
     def estimates(self, run: int | Run, *, accepted_only: bool = False) -> pd.DataFrame:
         """Every stored estimate of a run (long format), in cycle and parameter order.
@@ -70,6 +70,38 @@ class ResultTables(StoreBase):
             params.append(int(cycle))
         row = self._conn.execute(sql + " ORDER BY c.cycle DESC LIMIT 1", params).fetchone()
         return None if row is None else (fr.from_unix(int(row[0])), str(row[1]), bytes(row[2]))
+
+    def ensemble(self, run: int | Run) -> tuple[pd.Timestamp, int, int, str, bytes] | None:
+        """The run's stored ensemble (the latest cycle's): (time (UTC), cycle, members, format, data), or None."""
+        rows = self._query("SELECT e.time, c.cycle, e.members, e.format, e.data FROM ensembles e JOIN cycles c ON "
+                           "c.id = e.cycle_id WHERE e.run_id = ?", (self._run_id(run),))
+        if not rows:
+            return None
+        time, cycle, members, fmt, data = rows[0]
+        return fr.from_unix(int(time)), int(cycle), int(members), str(fmt), bytes(data)
+
+    def forecast_bands(self, run: int | Run, *, cycle: int | None = None) -> pd.DataFrame:
+        """Stored forecast bands (long format), optionally of one cycle.
+
+        Returns
+        -------
+        DataFrame
+            Columns cycle, issue_time (UTC), series, lead_h (h), time (UTC), probability, low, high (m AD or
+            m³/s).
+        """
+        sql = ("SELECT c.cycle, c.issue_time, b.series, b.lead_h, b.time, b.probability, b.low, b.high FROM "
+               "forecast_bands b JOIN cycles c ON c.id = b.cycle_id WHERE c.run_id = ?")
+        params: list[Any] = [self._run_id(run)]
+        if cycle is not None:
+            sql += " AND c.cycle = ?"
+            params.append(int(cycle))
+        rows = self._query(sql + " ORDER BY c.cycle, b.series, b.time", params)
+        out = fr.frame(rows, ["cycle", "issue_time", "series", "lead_h", "time", "probability", "low", "high"])
+        out["issue_time"] = fr.from_unix(out["issue_time"].astype("int64"))
+        out["time"] = fr.from_unix(out["time"].astype("int64"))
+        for col in ("lead_h", "probability", "low", "high"):
+            out[col] = out[col].astype(float)
+        return out
 
     def alerts(self, run: int | Run) -> pd.DataFrame:
         """The run's alerts: cycle, issue_time (UTC), parameter, kind, message, magnitude (|Δθ|/σ)."""

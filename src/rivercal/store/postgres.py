@@ -43,7 +43,8 @@ _MARK = "rivercal store"
 #: Child tables and their parent, for the integrity check.
 _PARENTS = {"cycles": ("run_id", "runs"), "estimates": ("cycle_id", "cycles"), "alerts": ("cycle_id", "cycles"),
             "forecasts": ("cycle_id", "cycles"), "forecast_scores": ("cycle_id", "cycles"),
-            "model_states": ("cycle_id", "cycles")}
+            "model_states": ("cycle_id", "cycles"), "forecast_bands": ("cycle_id", "cycles"),
+            "ensembles": ("cycle_id", "cycles")}
 
 
 def _masked(url: str) -> str:

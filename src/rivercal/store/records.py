@@ -24,6 +24,7 @@ __all__ = [
     "OBSERVATION_FLAGS",
     "RUN_STATUSES",
     "AlertRecord",
+    "BandRecord",
     "CycleRecord",
     "CycleSpec",
     "CycleStateError",
@@ -279,6 +280,30 @@ class TransitionRecord:
 
 
 @dataclass(frozen=True)
+class BandRecord:
+    """The uncertainty band of a cycle's ``updated`` forecast (e.g. an ensemble's spread).
+
+    Attributes
+    ----------
+    low, high
+        Frames like the forecast's (time index at or after the issue time, UTC; one column per series), m AD
+        or m³/s: the observation is expected between them with ``probability``. NaN values are not stored.
+    probability
+        The band's probability (0.9: the 5 % and 95 % quantiles).
+    """
+
+    low: pd.DataFrame
+    high: pd.DataFrame
+    probability: float = 0.9
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.probability < 1.0:
+            raise ValueError(f"a band's probability must be between 0 and 1, got {self.probability}")
+        if not (self.low.index.equals(self.high.index) and list(self.low.columns) == list(self.high.columns)):
+            raise ValueError("a band's low and high frames must have the same times and series")
+
+
+@dataclass(frozen=True)
 class CycleRecord:
     """Everything one cycle produced; :meth:`Store.commit_cycle` stores it in one transaction.
 
@@ -324,6 +349,12 @@ class CycleRecord:
     skill_updated, skill_dss
         The rolling forecast skill behind that choice: RMSE (m) of recent level forecasts of each kind
         (None when nothing was scored).
+    ensemble
+        The ensemble of state updating handed to the next cycle: (time (UTC), members, format, data bytes),
+        opaque to the store. The store keeps the latest per run: it replaces the run's ensemble in this
+        cycle's transaction (unless a later cycle's is stored).
+    bands
+        The uncertainty band of the ``updated`` forecast.
     """
 
     cycle: int
@@ -347,6 +378,8 @@ class CycleRecord:
     issued_reason: str | None = None
     skill_updated: float | None = None
     skill_dss: float | None = None
+    ensemble: tuple[Any, int, str, bytes] | None = None
+    bands: BandRecord | None = None
 
     def __post_init__(self) -> None:
         if self.issued is not None and self.issued not in FORECAST_KINDS:
@@ -359,6 +392,9 @@ class CycleRecord:
         for name, value in self.states.items():
             if not name or len(value) != 3 or not isinstance(value[2], bytes | bytearray) or not value[1]:
                 raise ValueError(f"cycle {self.cycle}: state {name!r} must be (time, format, bytes)")
+        if self.ensemble is not None and (len(self.ensemble) != 4 or not isinstance(self.ensemble[3], bytes | bytearray)
+                                          or not self.ensemble[2] or not int(self.ensemble[1]) > 0):
+            raise ValueError(f"cycle {self.cycle}: the ensemble must be (time, members > 0, format, bytes)")
         spec = CycleSpec(self.cycle, self.window_start, self.window_end, self.issue_time)
         for name in ("window_start", "window_end", "issue_time"):
             object.__setattr__(self, name, getattr(spec, name))

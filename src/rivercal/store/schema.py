@@ -53,6 +53,14 @@ Tables (current version)
   A change of a parameter at ``time`` inside the cycle's window (thesis §6-3), as that cycle knows it;
   ``found_cycle`` is the cycle that found it (one intervention keeps its ``found_cycle`` while the
   window slides over it). PRIMARY KEY (cycle_id, parameter).
+- ``ensembles(run_id → runs, cycle_id → cycles, time, members, format, data BLOB)``:
+  The ensemble of state updating that the latest cycle of a run handed to the next (hot start of every
+  member), at ``time``; one row per run (PRIMARY KEY run_id), replaced by the cycle's commit, so the store
+  does not grow with the cycles. ``data`` is opaque to the store (``format`` says how it was written).
+- ``forecast_bands(cycle_id → cycles, series, time, lead_h [h], probability, low, high [m AD or m³/s])``:
+  The uncertainty band of the cycle's ``updated`` forecast (an ensemble's): the observation at ``time`` is
+  expected between ``low`` and ``high`` with the given ``probability`` (0.9: the 5 % and 95 % quantiles).
+  PRIMARY KEY (cycle_id, series, time).
 
 Every child row is deleted with its cycle and every cycle with its run (ON DELETE CASCADE; the store
 turns foreign keys on for each connection).
@@ -68,7 +76,10 @@ and their scores. Version 4 adds the model states that a cycle hands to the next
 restarted service continues from the stored state instead of spinning the model up again. Version 5
 adds what the service needs under realistic data: observation flags and gaps, the transitions it
 estimated, and the forecast it issued with the skill comparison behind that choice. Its statements are
-plain SQL that PostgreSQL runs as well (DOUBLE PRECISION, BIGINT).
+plain SQL that PostgreSQL runs as well (DOUBLE PRECISION, BIGINT). Version 6 adds state updating: the latest
+ensemble per run (one row, replaced in each cycle's commit; before it the members would have been stored per
+cycle, about 1 MB a cycle at 64 members) and the forecasts' uncertainty bands (the ``forecasts`` table keeps
+its kinds).
 
 The PostgreSQL store (:mod:`rivercal.store.postgres`) applies :data:`PG_MIGRATIONS`: the same versions,
 tables and checks in PostgreSQL's types.
@@ -275,6 +286,38 @@ _V5_STATEMENTS = (
 )
 _V5 = _statements(*_V5_STATEMENTS)
 
+
+# --- version 6: state updating: the latest ensemble per run, forecast bands ----------------------------------
+def _v6_statements(blob: str) -> tuple[str, ...]:
+    """The statements of version 6 with the dialect's binary type (the only word that differs)."""
+    return (
+        f"""
+        CREATE TABLE ensembles (
+            run_id   BIGINT NOT NULL PRIMARY KEY REFERENCES runs(id) ON DELETE CASCADE,
+            cycle_id BIGINT NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+            time     BIGINT NOT NULL,
+            members  INTEGER NOT NULL CHECK (members > 0),
+            format   TEXT NOT NULL CHECK (length(format) > 0),
+            data     {blob} NOT NULL
+        )""",
+        "CREATE INDEX ensembles_cycle ON ensembles(cycle_id)",
+        """
+        CREATE TABLE forecast_bands (
+            cycle_id    BIGINT NOT NULL REFERENCES cycles(id) ON DELETE CASCADE,
+            series      TEXT NOT NULL CHECK (length(series) > 0),
+            time        BIGINT NOT NULL,
+            lead_h      DOUBLE PRECISION NOT NULL CHECK (lead_h >= 0),
+            probability DOUBLE PRECISION NOT NULL CHECK (probability > 0 AND probability < 1),
+            low         DOUBLE PRECISION NOT NULL,
+            high        DOUBLE PRECISION NOT NULL,
+            PRIMARY KEY (cycle_id, series, time),
+            CHECK (high >= low)
+        )""",
+    )
+
+
+_V6 = _statements(*_v6_statements("BLOB"))
+
 #: The forward steps, in order. Append only; never edit a released step.
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "runs, cycles, estimates, alerts", _V1),
@@ -282,6 +325,7 @@ MIGRATIONS: tuple[Migration, ...] = (
     Migration(3, "forecasts and forecast scores", _V3),
     Migration(4, "model states for hot starts", _V4),
     Migration(5, "observation flags and gaps, transitions, the issued forecast and its skill", _V5),
+    Migration(6, "the latest ensemble per run, forecast uncertainty bands", _V6),
 )
 #: The version this rivercal writes.
 SCHEMA_VERSION = MIGRATIONS[-1].version
@@ -291,7 +335,7 @@ SCHEMA_VERSION = MIGRATIONS[-1].version
 # (Unix seconds) and ids (an identity column where SQLite has INTEGER PRIMARY KEY), DOUBLE PRECISION for REAL
 # (PostgreSQL's REAL is 4 bytes), BYTEA for BLOB, the JSON check through PostgreSQL's json type. A step here
 # always matches the step of the same version above. Steps after version 4 are written once, in plain SQL that
-# both servers run, and need nothing here.
+# both servers run; version 6 differs only in its binary type and is written once with that as a parameter.
 
 PG_SCHEMA_VERSION_DDL = """
 CREATE TABLE IF NOT EXISTS schema_version (
@@ -413,7 +457,8 @@ _PG_V4 = _statements(
 #: PostgreSQL's own form of the steps written in SQLite's dialect (INTEGER PRIMARY KEY, REAL, BLOB, WITHOUT
 #: ROWID, json_valid). Every later step is plain SQL both servers run (BIGINT, DOUBLE PRECISION, TEXT, CHECK,
 #: ALTER TABLE … ADD COLUMN) and is used as it stands; a step that cannot be written so adds its form here.
-_PG_STEPS: dict[int, Callable[[_Connection], None]] = {1: _PG_V1, 2: _PG_V2, 3: _PG_V3, 4: _PG_V4}
+_PG_STEPS: dict[int, Callable[[_Connection], None]] = {1: _PG_V1, 2: _PG_V2, 3: _PG_V3, 4: _PG_V4,
+                                                       6: _statements(*_v6_statements("BYTEA"))}
 
 
 

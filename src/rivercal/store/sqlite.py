@@ -87,7 +87,8 @@ _CYCLE_COLUMNS = ("cycle", "window_start", "window_end", "issue_time", "status",
                   "issued_forecast", "issued_reason", "skill_updated", "skill_dss")
 _UNFINISHED = tuple(s for s in CYCLE_STATUSES if s not in FINAL_STATUSES)
 #: Tables whose rows belong to one cycle's results (replaced together when a cycle is committed or re-opened).
-_CYCLE_CHILDREN = ("estimates", "alerts", "forecasts", "forecast_scores", "model_states", "transitions")
+_CYCLE_CHILDREN = ("estimates", "alerts", "forecasts", "forecast_scores", "model_states", "transitions",
+                   "forecast_bands", "ensembles")
 
 
 def is_url(location: Any) -> bool:
@@ -502,6 +503,7 @@ class Store(ResultTables, ObservationTables):
         """
         run_id = self._run_id(run)
         rows = fr.forecast_rows(record.forecasts, record.cycle, record.issue_time)  # checked before writing
+        bands = fr.band_rows(record.bands, record.cycle, record.issue_time)
         started = None
         with self._transaction() as conn:
             row = self._cycle_row(conn, run_id, record.cycle)
@@ -547,10 +549,27 @@ class Store(ResultTables, ObservationTables):
                              [(cycle_id, t.parameter, fr.to_unix(t.time.floor("s"), "transition time"),
                                float(t.before), float(t.after), t.unit, int(t.found_cycle), t.cost_single,
                                t.cost_transition, t.p_value) for t in record.transitions])
+            conn.executemany("INSERT INTO forecast_bands (cycle_id, series, time, lead_h, probability, low, high) "
+                             "VALUES (?, ?, ?, ?, ?, ?, ?)", [(cycle_id, *r) for r in bands])
+            if record.ensemble is not None:
+                self._replace_ensemble(conn, run_id, cycle_id, record)
             if record.scores is not None:
                 self._write_scores(conn, run_id, record.scores, finished)
         log.info("%s: run %d: cycle %d committed (%s; %d estimates, %d alerts, %d forecast values)", self.path,
                  run_id, record.cycle, record.status, len(record.estimates), len(record.alerts), len(rows))
+
+    @staticmethod
+    def _replace_ensemble(conn: Any, run_id: int, cycle_id: int, record: CycleRecord) -> None:
+        """The run's one stored ensemble becomes this cycle's, unless a later cycle's is stored (a re-run cycle)."""
+        time, members, fmt, data = record.ensemble
+        row = conn.execute("SELECT c.cycle FROM ensembles e JOIN cycles c ON c.id = e.cycle_id WHERE e.run_id = ?",
+                           (run_id,)).fetchone()
+        if row is not None and int(row[0]) > record.cycle:
+            log.info("run %d: cycle %d's ensemble not stored, cycle %d's is later", run_id, record.cycle, row[0])
+            return
+        conn.execute("DELETE FROM ensembles WHERE run_id = ?", (run_id,))
+        conn.execute("INSERT INTO ensembles (run_id, cycle_id, time, members, format, data) VALUES (?, ?, ?, ?, ?, ?)",
+                     (run_id, cycle_id, fr.to_unix(time, "ensemble time"), int(members), fmt, bytes(data)))
 
     def retry_cycle(self, run: int | Run, cycle: int) -> None:
         """Re-open a final cycle: delete its results and set it pending, in one transaction.

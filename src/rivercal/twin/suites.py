@@ -42,9 +42,9 @@ from rivercal.analysis import (
     summary_statistics,
     thesis_scenarios,
 )
-from rivercal.evaluate import Evaluator, Tasks, Workers, as_completed
+from rivercal.evaluate import Tasks, Workers, as_completed
 from rivercal.parameters import ParameterSet
-from rivercal.problem import CalibrationProblem, calibrate
+from rivercal.problem import CalibrationProblem, calibrate, problem_evaluator
 from rivercal.twin.truth import TwinTruth, twin_truth
 
 __all__ = ["SENSITIVITY_PARAMETERS", "SUITES", "InitialAnalysis", "Scenario", "ScenarioResult", "SuiteDefinition",
@@ -393,7 +393,7 @@ def initial_analysis(model: Any, names: Sequence[str] = SENSITIVITY_PARAMETERS, 
     truth = twin_truth(model, params.quantities({n: _PARAMS[n].initial for n in names}), win)
     problem = CalibrationProblem(model, params, truth.observations, win, state=truth.state)
     problem.sqrt_weights  # noqa: B018 - computed before the workers fork
-    with Evaluator(problem.residuals, workers=workers) as batch, ThreadPoolExecutor(1) as side:
+    with problem_evaluator(problem, workers) as batch, ThreadPoolExecutor(1) as side:
         # On a cluster the Jacobian's runs go out beside the sensitivity scenarios' (one batch each).
         ident_job = side.submit(identifiability, problem, batch=batch, options=options) \
             if identifiability_too and batch.cluster is not None else None

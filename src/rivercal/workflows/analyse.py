@@ -72,8 +72,7 @@ def analyse_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.T
     dict
         The summary (also written to ``analysis.json``).
     """
-    from rivercal.evaluate import Evaluator
-    from rivercal.problem import CalibrationProblem
+    from rivercal.problem import CalibrationProblem, problem_evaluator
     from rivercal.twin import twin_truth
 
     unknown = [a for a in analyses if a not in ANALYSES]
@@ -107,7 +106,7 @@ def analyse_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.T
     problem.state  # noqa: B018 - before the workers fork
     problem.sqrt_weights  # noqa: B018
     nfev = 0
-    with Evaluator(problem.residuals, workers=workers) as batch:
+    with problem_evaluator(problem, workers) as batch:
         if "sensitivity" in analyses:
             progress.stage("sensitivity: one-at-a-time scenarios (thesis Table 4-4)")
             summary["sensitivity"], n = _sensitivity(problem, batch, out, files, model.name)

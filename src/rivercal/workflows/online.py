@@ -48,7 +48,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
                scenario: str | None = None, noise: str = "none", seed: int = 0, realism: Any = None,
                observations: Sequence[tuple[str, Any]] = (), follow: str | Path | None = None, poll: float = 10.0,
                max_cycles: int | None = None, report: str | Path | None = None,
-               progress: Progress = NO_PROGRESS) -> dict[str, Any]:
+               progress: Progress = NO_PROGRESS, assimilation: Any = None, rain_error: float = 0.0) -> dict[str, Any]:
     """Run the cycles issued from ``first`` to ``last`` and return the summary (:func:`online_summary`).
 
     Parameters
@@ -79,11 +79,17 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         Folder for the HTML report and the exports (None: no report).
     progress
         Where to say what happens: one step per cycle, a note per finished cycle.
+    assimilation
+        State updating (:class:`~rivercal.online.assimilation.AssimilationConfig`; None: parameters only).
+    rain_error
+        Twin only: σ of the multiplicative error of the truth's inflows and laterals against the model's
+        (:func:`rivercal.twin.forcing_error.rain_error_model`; 0.3: about 30 %).
     """
     from rivercal.online.service import OnlineService
     from rivercal.store import FINAL_STATUSES, Store, is_url
 
     t_start = time.perf_counter()
+    truth_series = None
     meta: dict[str, Any] = {"scenario": scenario, "noise": noise, "seed": seed} if scenario else {}
     level = None
     if scenario and realism is not None:
@@ -92,6 +98,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         level = get_realism(realism)
         if not level.ideal:  # an ideal level is the identical twin: its runs keep the meta of before
             meta["realism"] = level.summary()
+    if scenario and rain_error:
+        meta["rain_error"] = rain_error
     if not is_url(db):
         Path(db).parent.mkdir(parents=True, exist_ok=True)
     from rivercal.evaluate import DaskCluster
@@ -99,14 +107,20 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     if isinstance(config.workers, DaskCluster):  # every cycle's problem then refers to the model on the workers
         config.workers.share(model)
     with Store(db) as store:
-        service = OnlineService(model, store, run, config, first, meta=meta)
+        service = OnlineService(model, store, run, config, first, meta=meta, assimilation=assimilation)
         if scenario is not None:
             from rivercal.twin.practical import practical_truth
 
             progress.stage(f"{scenario}: running the truth")
-            truth = practical_truth(model, scenario, *service.data_period(last), noise=noise, seed=seed,
+            truth_model = model
+            if rain_error:
+                from rivercal.twin.forcing_error import rain_error_model
+
+                truth_model = rain_error_model(model, rain_error, seed)
+            truth = practical_truth(truth_model, scenario, *service.data_period(last), noise=noise, seed=seed,
                                     series=service.series, realism=level)
             store.ingest(truth.observations, source=f"twin:{scenario}", screen=ScreenRule())
+            truth_series = truth.series
         for source, obs in observations:
             store.ingest(obs, source=source, screen=ScreenRule())
         finished = int(store.cycles(service.run)["status"].isin(FINAL_STATUSES).sum())
@@ -131,7 +145,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             service.replay(last, progress=on_cycle, max_cycles=max_cycles)
         else:
             _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress)
-        summary = online_summary(store, service, outcomes, time.perf_counter() - t_start)
+        summary = online_summary(store, service, outcomes, time.perf_counter() - t_start, truth=truth_series)
         if report is not None:
             from rivercal.report.online import write_online_report
 
@@ -175,13 +189,16 @@ def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: fl
         progress.note("stopped; the store holds every finished cycle, a restart resumes after the last one")
 
 
-def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: float) -> dict[str, Any]:
+def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: float,
+                   truth: pd.DataFrame | None = None) -> dict[str, Any]:
     """JSON-friendly summary of a run: cycles, estimates, alerts and forecast errors (updated vs DSS).
 
     ``forecast_errors`` is :func:`rivercal.report.online.forecast_errors` (with its ``reason`` when
     nothing could be compared yet); the headline figures (``forecast_mae_ratio``,
     ``time_to_correct_cycles``, ``jump_alerts``, ``fallbacks`` …) are
     :func:`rivercal.report.online_figures.run_figures`; ``wall_s`` in s; estimates in the parameters' units.
+    ``forecast_mae_by_lead`` is :func:`rivercal.online.assimilation.mae_by_lead` (against a twin's noise-free
+    ``truth`` when given); with state updating also ``band_coverage_90``.
     """
     from rivercal.report.online import forecast_errors
     from rivercal.report.online_figures import run_figures
@@ -211,7 +228,24 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
         "observations_flagged": {str(k): int(v) for k, v in flags.groupby("flag")["n"].sum().items()},
         "forecast_errors": forecast_errors(store, service.run),
         **run_figures(store, service.run),
+        "forecast_mae_by_lead": _mae_by_lead(store, service, truth),
+        **({} if service.filter is None else
+           {"band_coverage_90": _band_coverage(store, service)}),
     }
+
+
+def _mae_by_lead(store: Any, service: Any, truth: pd.DataFrame | None) -> dict[str, Any]:
+    """Level forecast error by lead (:func:`rivercal.online.assimilation.mae_by_lead`)."""
+    from rivercal.online.assimilation import mae_by_lead
+
+    return mae_by_lead(store, service.run, service.series, truth)
+
+
+def _band_coverage(store: Any, service: Any) -> dict[str, Any]:
+    """The share of observations inside the stored 90 % bands of the ensemble forecasts."""
+    from rivercal.online.assimilation import band_coverage
+
+    return band_coverage(store, service.run, sources=service.config.sources)
 
 
 def format_value(value: float, unit: str) -> str:

@@ -1,0 +1,285 @@
+"""Ensembles of the embedded engine: N members in one compiled call, in parallel over members.
+
+A member is a parameter set (model quantities, as for :meth:`Simulator.simulate`, controller
+quantities included), a hot-start state (with its controllers' state) and, optionally, its own forcing
+(e.g. perturbed inflows and laterals of an ensemble Kalman filter).
+:func:`run_ensemble` advances all members through :func:`.kernels.batch.run_members`, which runs the
+single-run time loop per member on numba's threads; each member's series and final state are
+bit-identical to its :meth:`Simulator.simulate` from the same state.
+
+A member that diverges follows an explicit policy: ``raise`` (an :class:`~rivercal.errors.EngineDivergedError`
+naming the member) or ``report`` (its series are NaN, its state is None, and ``failures`` says where and
+why); the other members are unaffected either way.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import time as _time
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numba
+import numpy as np
+import pandas as pd
+from numba.typed import List as TypedList
+
+from rivercal._time import utc
+from rivercal.engine.kernels.batch import run_members
+from rivercal.engine.kernels.codes import STATUS_LEVEL, STATUS_OK
+from rivercal.engine.kernels.timeloop import make_work
+from rivercal.engine.simulator import Simulator, _ratio
+from rivercal.engine.state import EngineState
+from rivercal.errors import EngineDivergedError
+
+__all__ = ["EnsembleResult", "run_ensemble", "threads"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class EnsembleResult:
+    """Output of :func:`run_ensemble`.
+
+    Attributes
+    ----------
+    times
+        Output times (UTC), first = start.
+    observables
+        Names of the simulated series (``"<station>.<quantity>"``).
+    values
+        Series of every member, shape (members, times, observables); m and m³/s; NaN for a failed member.
+    states
+        Each member's state at the end (None for a failed member).
+    failures
+        Failed members → what happened (empty when all ran).
+    levels, discharges
+        With snapshots: levels (m AD) and discharges (m³/s) at every point, shape (members, times, points).
+    wall_time
+        Wall-clock time of the compiled call, s.
+    """
+
+    times: pd.DatetimeIndex
+    observables: tuple[str, ...]
+    values: np.ndarray
+    states: tuple[EngineState | None, ...]
+    failures: dict[int, str] = field(default_factory=dict)
+    levels: np.ndarray | None = None
+    discharges: np.ndarray | None = None
+    wall_time: float = 0.0
+
+    @property
+    def members(self) -> int:
+        """Number of members."""
+        return self.values.shape[0]
+
+    def series(self, member: int) -> pd.DataFrame:
+        """The series of one member as :attr:`SimulationResult.series` has them."""
+        frame = pd.DataFrame(self.values[member], index=self.times, columns=list(self.observables))
+        frame.index.name = "time"
+        return frame
+
+
+@contextlib.contextmanager
+def threads(n: int | None) -> Iterator[int]:
+    """Run the block with ``n`` numba threads (None: all numba has); restores the previous number."""
+    previous = numba.get_num_threads()
+    wanted = numba.config.NUMBA_NUM_THREADS if n is None else int(n)
+    if not 1 <= wanted <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"threads must be between 1 and {numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS), "
+                         f"got {n}")
+    numba.set_num_threads(wanted)
+    try:
+        yield wanted
+    finally:
+        numba.set_num_threads(previous)
+
+
+def run_ensemble(
+    sim: Simulator,
+    parameters: Sequence[Mapping[str, float] | None],
+    start: pd.Timestamp | str | None = None,
+    end: pd.Timestamp | str | None = None,
+    states: Sequence[EngineState] | None = None,
+    *,
+    forcing: np.ndarray | None = None,
+    output_interval: float | None = None,
+    snapshots: bool = False,
+    n_threads: int | None = None,
+    on_failure: Literal["raise", "report"] = "raise",
+) -> EnsembleResult:
+    """Run every member from ``start`` to ``end`` in one compiled call.
+
+    Parameters
+    ----------
+    sim
+        The compiled case (an embedded model).
+    parameters
+        One mapping of model quantities per member (None: the case's values); their number is the
+        number of members.
+    start, end
+        Period (UTC; default the case period).
+    states
+        One hot-start state per member at ``start`` (not modified); None: every member cold-starts after
+        the case's spin-up (with its own parameters, like :meth:`Simulator.simulate`).
+    forcing
+        Per member forcing, shape (members, steps, columns) in the columns of
+        :attr:`CompiledNetwork.forcing_keys` (m³/s or m AD per step, as :meth:`Simulator.forcing_matrix`
+        gives them); None: the case's forcing for all.
+    output_interval
+        Interval of the output series, s (default from the case).
+    snapshots
+        Also return levels and discharges at every point at the output times.
+    n_threads
+        numba threads (None: all).
+    on_failure
+        A diverging member: ``raise`` or ``report`` (module docstring).
+
+    Raises
+    ------
+    EngineDivergedError
+        When a member diverges and the policy is ``raise``.
+    ValueError
+        For a period that does not fit the time step, states or forcing of the wrong number or shape.
+    """
+    if on_failure not in ("raise", "report"):
+        raise ValueError(f"on_failure must be 'raise' or 'report', got {on_failure!r}")
+    start = sim.start if start is None else utc(start)
+    end = sim.end if end is None else utc(end)
+    n_mem = len(parameters)
+    if n_mem < 1:
+        raise ValueError("an ensemble needs at least one member")
+    interval = float(output_interval or sim.settings.output_interval)
+    out_every = _ratio(interval, sim.dt, "output_interval", "dt")
+    n_steps = _ratio((end - start).total_seconds(), interval, "the period", "the output interval") * out_every
+    if n_steps < 0:
+        raise ValueError(f"end {end} is before start {start}")
+    arrays = [sim.parameter_arrays(p) for p in parameters]
+    crest = np.array([a[0] for a in arrays]).reshape(n_mem, -1)
+    fric = np.array([a[1] for a in arrays]).reshape(n_mem, -1)
+    control = [sim.control_values(p) for p in parameters]
+    n_cols = len(sim.compiled.forcing_keys)
+    if forcing is None:
+        forcing = sim.forcing_matrix(start, n_steps)[None]
+    else:
+        forcing = np.ascontiguousarray(forcing, dtype=float)
+        if forcing.shape != (n_mem, n_steps, n_cols):
+            raise ValueError(f"forcing must have shape (members, steps, columns) = {(n_mem, n_steps, n_cols)}, "
+                             f"got {forcing.shape}")
+    with threads(n_threads):
+        if states is None:
+            stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)])
+            if sim.case.spec.initial.spinup > 0:
+                n_spin = max(1, round(sim.case.spec.initial.spinup * 3600.0 / sim.dt))
+                spin = sim.forcing_matrix(start, n_spin, constant=True)[None]
+                spun = _call(sim, stack, crest, fric, control, spin, n_spin, False,
+                             start - pd.Timedelta(seconds=n_spin * sim.dt), held=True)
+                _check(sim, spun[4], start - pd.Timedelta(seconds=n_spin * sim.dt), stack, on_failure, "spin-up")
+        else:
+            if len(states) != n_mem:
+                raise ValueError(f"{len(states)} states for {n_mem} members")
+            for m, s in enumerate(states):
+                if s.signature != (sim.compiled.n_hpoints, sim.compiled.n_links):
+                    raise ValueError(f"member {m}: the state belongs to another network")
+                if s.ctl.shape[0] != len(sim.controls or ()):
+                    raise ValueError(f"member {m}: the state holds {s.ctl.shape[0]} controllers, the case has "
+                                     f"{len(sim.controls or ())}")
+                if s.time != start:
+                    raise ValueError(f"member {m}: the state is at {s.time}, the run starts at {start}")
+            stack = _Stack.of(states)
+        t0 = _time.perf_counter()
+        obs, zs, qs, _, status = _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start)
+        wall = _time.perf_counter() - t0
+    failures = _check(sim, status, start, stack, on_failure, "")
+    for m in failures:
+        obs[m] = np.nan
+    times = pd.date_range(start, end, periods=n_steps // out_every + 1)
+    out_states = tuple(None if m in failures else stack.state(m, end) for m in range(n_mem))
+    log.debug("%d members %s .. %s in %.3f s", n_mem, start, end, wall)
+    return EnsembleResult(times=times, observables=tuple(sim.observables), values=obs, states=out_states,
+                          failures=failures, levels=zs if snapshots else None, discharges=qs if snapshots else None,
+                          wall_time=wall)
+
+
+@dataclass
+class _Stack:
+    """The members' states as arrays with a leading member axis (updated in place by the kernel)."""
+
+    z: np.ndarray
+    dz: np.ndarray
+    vol: np.ndarray
+    u: np.ndarray
+    q: np.ndarray
+    pump_on: np.ndarray
+    ctl: np.ndarray
+    signature: tuple[int, int]
+
+    @classmethod
+    def of(cls, states: Sequence[EngineState]) -> _Stack:
+        return cls(*(np.array([getattr(s, k) for s in states], dtype=float)
+                     for k in ("z", "dz", "vol", "u", "q", "pump_on", "ctl")), signature=states[0].signature)
+
+    def state(self, m: int, time: pd.Timestamp) -> EngineState:
+        return EngineState(time=time, z=self.z[m].copy(), dz=self.dz[m].copy(), vol=self.vol[m].copy(),
+                           u=self.u[m].copy(), q=self.q[m].copy(), pump_on=self.pump_on[m].copy(),
+                           signature=self.signature, ctl=self.ctl[m].copy())
+
+
+def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False):
+    """One call of the batched kernel from ``start``; returns (series, levels, discharges, balance, status).
+
+    ``control`` holds each member's controller quantities (None entries without controllers); ``held`` holds
+    the controllers' time tables at their value at the end of the call (a spin-up, as the single run does).
+    """
+    c = sim.compiled
+    a, sx = c.arrays, c.structures
+    n_mem = stack.z.shape[0]
+    n_steps = forcing.shape[1]
+    n_out = n_steps // out_every + 1
+    n_obs = len(c.observables)
+    cxs = [None] * n_mem
+    if sim.controls is not None:  # each member its own controller arrays, its state rows used in place
+        cxs = [sim.controls.arrays(control[m], start, n_steps, sim.dt, n_out, stack.ctl[m], held=held)
+               for m in range(n_mem)]
+    extended = bool(sx.links.size or (sx.set_col >= 0).any() or sim.controls is not None)
+    kits = TypedList()
+    for m in range(n_mem):
+        # the loop writes scheduled settings into these two arrays: each member its own
+        net = a._replace(p_cap=a.p_cap.copy()) if extended else a
+        kits.append((net, sx._replace(ogate=sx.ogate.copy()) if extended else sx, cxs[m], make_work(a, sx)))
+    obs = np.full((n_mem, n_out, n_obs + len(sim.controls or ())), np.nan)
+    zs = np.empty((n_mem, n_out if snapshots else 0, c.n_hpoints))
+    qs = np.empty((n_mem, n_out if snapshots else 0, c.n_links))
+    balance = np.zeros((n_mem, a.b_hp.size + 1))
+    status = np.zeros((n_mem, 3), dtype=np.int64)
+    s = sim.settings
+    settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+                float(s.max_velocity))
+    run_members(kits, extended, crest, fric, stack.z, stack.dz, stack.vol, stack.u, stack.q, stack.pump_on, forcing,
+                settings, int(out_every), obs, zs, qs, balance, status)
+    for m, cx in enumerate(cxs):
+        if cx is not None:
+            obs[m, :, n_obs:] = cx.out
+    return obs, zs, qs, balance, status
+
+
+def _check(sim, status, start, stack, on_failure, phase) -> dict[int, str]:
+    """Failed members → message; raises for the first under the ``raise`` policy."""
+    failures = {}
+    for m in np.flatnonzero(status[:, 0] != STATUS_OK):
+        code, step, index = (int(v) for v in status[m])
+        when = (start + pd.Timedelta(seconds=(step + 1) * sim.dt)).isoformat()
+        if phase:
+            when += f" ({phase}, forcing held at its start value)"
+        if code == STATUS_LEVEL:
+            where, what = sim.compiled.hp_label[index], f"level {float(stack.z[m, index]):.6g} m AD"
+        else:
+            where, what = sim.compiled.link_label[index], (
+                f"velocity {float(stack.u[m, index]):.6g} m/s exceeds engine.max_velocity "
+                f"({sim.settings.max_velocity} m/s)")
+        if on_failure == "raise":
+            raise EngineDivergedError(when, where, f"member {m}: {what}")
+        failures[int(m)] = str(EngineDivergedError(when, where, what))
+    return failures
