@@ -107,3 +107,13 @@ def test_headline_figures_of_the_mowed_river(tmp_path) -> None:
         assert f["rivercal_mae_m"] == pytest.approx(mine, rel=1e-9)
         assert f["forecast_mae_ratio"] == pytest.approx(f["dss_mae_m"] / mine, rel=1e-9) and f["forecast_mae_ratio"] > 5
         assert set(IDS) <= set(fc["series"])
+
+
+def test_the_report_says_what_errors_an_ideal_twin_carried() -> None:
+    from rivercal.report.online_figures import _twin_words
+
+    exact = _twin_words({"realism": "ideal", "noise": "none", "rain_error": 0.0})
+    assert "observations are exact" in exact
+    words = _twin_words({"realism": "ideal", "noise": "gaussian", "rain_error": 0.3})
+    assert "exact" not in words and "rain error of about 30%" in words and "gaussian noise" in words
+    assert "sensor errors" in _twin_words({"realism": "realistic", "noise": "none", "rain_error": 0.0})

@@ -65,6 +65,8 @@ def run_figures(store: Any, run: Any, *, lead_h: float = 24.0) -> dict[str, Any]
     change = utc(scenario.change_time) if scenario is not None else None
     out: dict[str, Any] = {"scenario": scenario.name if scenario else None,
                            "realism": (meta.get("realism") or {}).get("name", "ideal") if scenario else None,
+                           "noise": meta.get("noise", "none") if scenario else None,
+                           "rain_error": float(meta.get("rain_error") or 0.0) if scenario else None,
                            "change_time": change.isoformat() if change is not None else None, "lead_h": lead_h}
     out.update(_forecast_figures(store, run, cycles, change, lead_h))
     out.update(_time_to_correct(store, run, cycles, scenario))
@@ -193,11 +195,7 @@ def figure_blocks(store: Any, run: Any) -> list[Any]:
     f = run_figures(store, run)
     words = []
     if f["scenario"]:
-        words.append(f"Twin scenario {f['scenario']}, realism {f['realism']}"
-                     + (": an identical twin, whose truth is the model and whose observations are exact — an upper "
-                        "bound, not what a river gives." if f["realism"] == "ideal" else
-                        ": the truth differs from the model and the observations carry sensor errors "
-                        "(docs/realism.md)."))
+        words.append(f"Twin scenario {f['scenario']}, realism {f['realism']}: " + _twin_words(f))
     if f["forecast_values"]:
         words.append(f"Level forecasts up to {f['lead_h']:g} h"
                      + (f" of the cycles issued after {f['change_time'][:16].replace('T', ' ')}" if f["change_time"]
@@ -222,3 +220,18 @@ def figure_blocks(store: Any, run: Any) -> list[Any]:
                                                       "(cm) of the updated and the DSS's level forecasts, and why",
                             float_format=".3g"))
     return blocks
+
+
+def _twin_words(f: dict[str, Any]) -> str:
+    """What the twin's truth and observations were, in words."""
+    if f["realism"] != "ideal":
+        return "the truth differs from the model and the observations carry sensor errors (docs/realism.md)."
+    errors = []
+    if f.get("rain_error"):
+        errors.append(f"the truth's inflows and laterals carry a rain error of about {f['rain_error']:.0%}")
+    if f.get("noise") not in (None, "none"):
+        errors.append(f"the observations carry {f['noise']} noise")
+    if not errors:
+        return ("an identical twin, whose truth is the model and whose observations are exact — an upper bound, "
+                "not what a river gives.")
+    return "the model's structure is the truth's, but " + " and ".join(errors) + "."
