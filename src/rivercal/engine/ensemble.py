@@ -28,7 +28,7 @@ from numba.typed import List as TypedList
 
 from rivercal._time import utc
 from rivercal.engine.kernels.batch import run_members
-from rivercal.engine.kernels.codes import STATUS_LEVEL, STATUS_OK
+from rivercal.engine.kernels.codes import STATUS_OK
 from rivercal.engine.kernels.timeloop import make_work
 from rivercal.engine.simulator import Simulator, _ratio
 from rivercal.engine.state import EngineState
@@ -270,15 +270,7 @@ def _check(sim, status, start, stack, on_failure, phase) -> dict[int, str]:
     failures = {}
     for m in np.flatnonzero(status[:, 0] != STATUS_OK):
         code, step, index = (int(v) for v in status[m])
-        when = (start + pd.Timedelta(seconds=(step + 1) * sim.dt)).isoformat()
-        if phase:
-            when += f" ({phase}, forcing held at its start value)"
-        if code == STATUS_LEVEL:
-            where, what = sim.compiled.hp_label[index], f"level {float(stack.z[m, index]):.6g} m AD"
-        else:
-            where, what = sim.compiled.link_label[index], (
-                f"velocity {float(stack.u[m, index]):.6g} m/s exceeds engine.max_velocity "
-                f"({sim.settings.max_velocity} m/s)")
+        when, where, what = sim.divergence(code, step, index, stack.z[m], stack.u[m], start, phase)
         if on_failure == "raise":
             raise EngineDivergedError(when, where, f"member {m}: {what}")
         failures[int(m)] = str(EngineDivergedError(when, where, what))

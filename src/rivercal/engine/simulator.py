@@ -420,17 +420,23 @@ class Simulator:
         log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)
         self.last_run_stats = {"steps": steps, "solves": solves, "drying_resolves": drying}
         if status != STATUS_OK:
-            when = (start + pd.Timedelta(seconds=(step + 1) * self.dt)).isoformat()
-            if phase:
-                when += f" ({phase}, forcing held at its start value)"
-            if status == STATUS_LEVEL:
-                where, what = self.compiled.hp_label[index], f"level {float(state.z[index]):.6g} m AD"
-            else:
-                where, what = self.compiled.link_label[index], (
-                    f"velocity {float(state.u[index]):.6g} m/s exceeds engine.max_velocity ({s.max_velocity} m/s)"
-                )
-            raise EngineDivergedError(when, where, what)
+            raise EngineDivergedError(*self.divergence(status, step, index, state.z, state.u, start, phase))
         return obs, zs, qs, balance, initial_volume
+
+    def divergence(self, status: int, step: int, index: int, z: np.ndarray, u: np.ndarray, start: pd.Timestamp,
+                   phase: str | None) -> tuple[str, str, str]:
+        """When, where and what of a run the time loop stopped with ``status`` (for :class:`EngineDivergedError`).
+
+        ``step`` and ``index`` are the time loop's step and point (or link) at fault, ``z`` (m AD) and ``u``
+        (m/s) the run's levels and velocities as the loop left them.
+        """
+        when = (start + pd.Timedelta(seconds=(step + 1) * self.dt)).isoformat()
+        if phase:
+            when += f" ({phase}, forcing held at its start value)"
+        if status == STATUS_LEVEL:
+            return when, self.compiled.hp_label[index], f"level {float(z[index]):.6g} m AD"
+        return when, self.compiled.link_label[index], (
+            f"velocity {float(u[index]):.6g} m/s exceeds engine.max_velocity ({self.settings.max_velocity} m/s)")
 
     # -- views ---------------------------------------------------------------------------------------
 
