@@ -55,4 +55,7 @@ def simulate(
         out_console.print(f"simulated [bold]{summary['case']}[/] {summary['start']} .. {summary['end']} in "
                           f"{summary['wall_s']:.2f} s"
                           + (f" (volume balance error {balance:.1e})" if balance is not None else ""))
+        for key, short in summary["shortfalls"].items():
+            out_console.print(f"[yellow]warning:[/] {key} ran short of water: {short['requested_m3']:.6g} m³ asked, "
+                              f"{short['delivered_m3']:.6g} m³ delivered")
         out_console.print("wrote " + ", ".join(summary["files"].values()))

@@ -37,7 +37,7 @@ from rivercal.engine.controllers import Controls, ControlValues
 from rivercal.engine.kernels.codes import BOUNDARY_LEVEL, STAT_DRYING, STAT_SOLVES, STAT_STEPS, STATUS_LEVEL, STATUS_OK
 from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import make_work, run, run_ext
-from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
+from rivercal.engine.state import EngineState, Shortfall, SimulationResult, VolumeBalance
 from rivercal.errors import EngineDivergedError
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
 
@@ -112,6 +112,8 @@ class Simulator:
             else None
         #: Counters of the last compiled run: steps, level solves, drying re-solves.
         self.last_run_stats: dict[str, int] = {}
+        #: What the withdrawals of the last compiled run asked and delivered (see :class:`Shortfall`).
+        self.last_run_shortfalls: dict[str, Shortfall] = {}
 
     # -- facts -------------------------------------------------------------------------------
 
@@ -358,6 +360,7 @@ class Simulator:
         t0 = _time.perf_counter()
         obs, zs, qs, balance, initial_volume = self._run(state, crest, fric, forcing, out_every, snapshots, start,
                                                          control=control)
+        shortfalls = self.last_run_shortfalls
         wall = _time.perf_counter() - t0
         times = pd.date_range(start, end, periods=n_steps // out_every + 1)
         series = pd.DataFrame(obs, index=times, columns=self.observables)
@@ -375,7 +378,8 @@ class Simulator:
             laterals=float(balance[-1]),
         )
         log.debug("simulated %s .. %s in %.3f s", start, end, wall)
-        return SimulationResult(series=series, balance=bal, levels=levels, discharges=discharges, wall_time=wall), state
+        return SimulationResult(series=series, balance=bal, levels=levels, discharges=discharges, wall_time=wall,
+                                shortfalls=shortfalls), state
 
     def _domain_volume(self, state: EngineState) -> float:
         a = self.compiled.arrays
@@ -399,6 +403,8 @@ class Simulator:
         initial_volume = self._domain_volume(state)
         s = self.settings
         self._work.stats[:] = 0
+        self._work.wreq_sum[:] = 0.0
+        self._work.wshort_sum[:] = 0.0
         sx = self.compiled.structures
         if sx.links.size or (sx.set_col >= 0).any() or cx is not None:
             status, step, index = run_ext(
@@ -419,9 +425,29 @@ class Simulator:
         steps, solves, drying = int(stats[STAT_STEPS]), int(stats[STAT_SOLVES]), int(stats[STAT_DRYING])
         log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)
         self.last_run_stats = {"steps": steps, "solves": solves, "drying_resolves": drying}
+        self.last_run_shortfalls = self.shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
         if status != STATUS_OK:
             raise EngineDivergedError(*self.divergence(status, step, index, state.z, state.u, start, phase))
         return obs, zs, qs, balance, initial_volume
+
+    def shortfalls(self, asked: np.ndarray, lacking: np.ndarray, start: pd.Timestamp,
+                   phase: str | None = None) -> dict[str, Shortfall]:
+        """The withdrawals that took less than they asked, from a run's totals per boundary, then lateral (m³).
+
+        Logs a warning for each (the run goes on: a withdrawal takes at most half of the water at its point
+        per step, see :mod:`rivercal.engine.kernels.forcing`).
+        """
+        keys = [f"boundary:{b}" for b in self.compiled.boundary_ids] + \
+               [f"lateral:{lat}" for lat in self.compiled.lateral_ids]
+        out = {}
+        for key, want, short in zip(keys, asked, lacking, strict=True):
+            if short > 1e-9 * max(want, 1.0):
+                out[key] = Shortfall(requested=float(want), delivered=float(want - short))
+                log.warning("%s%s: the withdrawal ran short of water in the run from %s: %.6g m³ asked, %.6g m³ "
+                            "delivered (%.1f %%); it takes at most half of the water at its point per time step",
+                            f"{phase}: " if phase else "", key, start.isoformat(), want, want - short,
+                            100.0 * (want - short) / want)
+        return out
 
     def divergence(self, status: int, step: int, index: int, z: np.ndarray, u: np.ndarray, start: pd.Timestamp,
                    phase: str | None) -> tuple[str, str, str]:

@@ -11,7 +11,7 @@ import pandas as pd
 
 from rivercal.observations import CF_VARIABLES
 
-__all__ = ["EngineState", "SimulationResult", "VolumeBalance"]
+__all__ = ["EngineState", "Shortfall", "SimulationResult", "VolumeBalance"]
 
 
 @dataclass
@@ -138,6 +138,30 @@ class VolumeBalance:
 
 
 @dataclass(frozen=True)
+class Shortfall:
+    """A withdrawal (a boundary or lateral with a negative discharge) that ran short of water in a run.
+
+    A withdrawal takes at most half of the water at its point per time step; what it asks beyond that is
+    not delivered (the run goes on, and warns).
+
+    Attributes
+    ----------
+    requested
+        Volume the withdrawal asked for over the run, m³.
+    delivered
+        Volume it took, m³.
+    """
+
+    requested: float
+    delivered: float
+
+    @property
+    def missing(self) -> float:
+        """Volume asked for and not delivered, m³."""
+        return self.requested - self.delivered
+
+
+@dataclass(frozen=True)
 class SimulationResult:
     """Output of one run.
 
@@ -153,6 +177,9 @@ class SimulationResult:
         requested, else ``None``.
     wall_time
         Wall-clock time of the compiled run, s.
+    shortfalls
+        The withdrawals that ran short of water, by forcing key (``"boundary:<id>"``, ``"lateral:<id>"``);
+        empty when every withdrawal was delivered in full.
     """
 
     series: pd.DataFrame
@@ -160,6 +187,7 @@ class SimulationResult:
     levels: pd.DataFrame | None = None
     discharges: pd.DataFrame | None = None
     wall_time: float = field(default=0.0, compare=False)
+    shortfalls: dict[str, Shortfall] = field(default_factory=dict)
 
     def to_csv(self, path: str | Path) -> None:
         """Write the station series as CSV (ISO 8601 UTC times)."""

@@ -62,6 +62,9 @@ def simulate_case(model: Any, quantities: Mapping[str, float], out: str | Path, 
         "wall_s": round(result.wall_time, 4),
         # an external model reports its own balance (SWMM: its .rpt file), or none
         "volume_balance_relative_error": result.balance.relative_error if result.balance is not None else None,
+        # withdrawals that ran short of water: volume asked and delivered, m³ (empty when all were delivered)
+        "shortfalls": {key: {"requested_m3": round(s.requested, 3), "delivered_m3": round(s.delivered, 3)}
+                       for key, s in getattr(result, "shortfalls", {}).items()},
         "files": files,
         "final": {k: round(float(v), 4) for k, v in result.series.iloc[-1].items()},
     }

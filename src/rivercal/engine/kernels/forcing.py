@@ -1,8 +1,8 @@
 """The forcing of a time step: boundary discharges and levels, laterals, and the rating-boundary law.
 
-Per step :func:`apply_forcing` writes the sources (m³/s) of discharge boundaries and laterals, the
-imposed levels (m AD) of level boundaries, and the lateral inflow per unit length (m²/s) that the
-momentum equation of the channel links sees. :func:`rating_flow` is the Q(h) law of a rating
+Per step :func:`apply_forcing` writes the sources (m³/s) of discharge boundaries and laterals (withdrawals
+limited to the water present), the imposed levels (m AD) of level boundaries, and the lateral inflow per unit
+length (m²/s) that the momentum equation of the channel links sees. :func:`rating_flow` is the Q(h) law of a rating
 boundary, which the assembly linearises at each iterate.
 """
 
@@ -18,34 +18,57 @@ __all__ = ["apply_forcing", "rating_flow"]
 def apply_forcing(net, work, n, forcing, dt, vol):
     """Sources (m³/s), Dirichlet levels (m AD) and lateral inflow per unit length (m²/s) of step ``n``.
 
-    Only the entries of forced points are written: the others stay as :func:`run` set them at its start
-    (no source, no lateral inflow, not fixed). Returns the total of the laterals (m³/s).
+    ``dt`` (s) is the length of the step.
+
+    Withdrawals (a negative discharge of a boundary or a lateral) take at most half of the water present
+    at their point per step: what they ask beyond that is not delivered. Per boundary, then per
+    lateral, ``work.wreq`` gets the withdrawal asked and ``work.wshort`` what is not delivered (m³/s), and
+    ``work.bq`` each discharge boundary's delivered discharge (m³/s). Only the entries of forced points
+    are written: the others stay as :func:`run` set them at its start (no source, no lateral inflow, not
+    fixed). Returns the total of the laterals (m³/s).
     """
     src, fixed, fixed_val, qlat = work.src, work.fixed, work.fixed_val, work.qlat
     b_hp, b_type, b_col = net.b_hp, net.b_type, net.b_col
-    for bnd in range(b_hp.size):
+    n_b = b_hp.size
+    for bnd in range(n_b):
         src[b_hp[bnd]] = 0.0
     for lat in range(net.lat_hp.size):
         src[net.lat_hp[lat]] = 0.0
         qlat[net.lat_hp[lat]] = 0.0
-    for bnd in range(b_hp.size):
+    for bnd in range(n_b):
         i = b_hp[bnd]
         if b_type[bnd] == BOUNDARY_DISCHARGE:
-            src[i] += forcing[n, b_col[bnd]]
+            qb = _withdrawal(work, bnd, forcing[n, b_col[bnd]], vol[i], dt)
+            work.bq[bnd] = qb
+            src[i] += qb
         elif b_type[bnd] == BOUNDARY_LEVEL:
             fixed[i] = True
             fixed_val[i] = forcing[n, b_col[bnd]]
     total = 0.0
     for lat in range(net.lat_hp.size):
         i = net.lat_hp[lat]
-        ql = forcing[n, net.lat_col[lat]]
-        if ql < 0.0:
-            ql = max(ql, -0.5 * max(vol[i], 0.0) / dt)
-        else:
+        ql = _withdrawal(work, n_b + lat, forcing[n, net.lat_col[lat]], vol[i], dt)
+        if ql > 0.0:
             qlat[i] += ql * net.hp_ilen[i]  # an extraction leaves with the flow's velocity: no momentum change
         src[i] += ql
         total += ql
     return total
+
+
+@kernel
+def _withdrawal(work, j, q, vol, dt):
+    """Discharge ``q`` (m³/s) of forcing ``j``, a withdrawal limited to half the volume ``vol`` (m³) per ``dt`` (s).
+
+    Records the withdrawal asked and its shortfall (m³/s) in ``work.wreq[j]`` and ``work.wshort[j]``.
+    """
+    if q >= 0.0:
+        work.wreq[j] = 0.0
+        work.wshort[j] = 0.0
+        return q
+    limited = max(q, -0.5 * max(vol, 0.0) / dt)
+    work.wreq[j] = -q
+    work.wshort[j] = limited - q
+    return limited
 
 
 @kernel

@@ -53,12 +53,13 @@ __all__ = ["Work", "make_work", "run", "run_ext"]
 #: (:func:`.assemble.assemble`): low and high end and reference level (m AD), the volume there (m³) and the
 #: storage area (m²); the momentum terms of each channel link (:func:`.momentum.channel_coefficients`), its
 #: wetted perimeter (m) and R^(4/3) (m^(4/3)) at the upwind depth, and its friction value (unit of its
-#: friction type).
+#: friction type); per discharge boundary its delivered discharge (m³/s), and per boundary then lateral the
+#: withdrawal asked and not delivered in the step (m³/s) and over the run (m³).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
-     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric"],
+     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum"],
 )
 
 
@@ -81,6 +82,8 @@ def make_work(net, sx=None) -> Work:
         zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
         cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l), cper=np.ones(n_l), cr43=np.ones(n_l),
         lfric=np.ones(n_l),
+        bq=np.zeros(n_b), wreq=np.zeros(n_b + net.lat_hp.size), wshort=np.zeros(n_b + net.lat_hp.size),
+        wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
     )
 
 
@@ -135,7 +138,7 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         work.stats[STAT_STEPS] += 1
         picard_iterations(net, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
         fluxes_within_volume(net, work, vol, theta, dt, tol, u0, u1, q1)
-        status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u1, q1, balance)
+        status, index = finish_step(net, work, dt, vmax, z, dz, vol, u1, q1, balance)
         u0, q0, u1, q1 = u1, q1, u0, q0
         if status != STATUS_OK:
             _keep(u0, q0, u, q)
@@ -224,7 +227,7 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
         else:
             picard_iterations(net, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
         fluxes_within_volume(net, work, vol, theta, dt, tol, u0, u1, q1)
-        status, index = finish_step(net, work, n, forcing, dt, vmax, z, dz, vol, u1, q1, balance)
+        status, index = finish_step(net, work, dt, vmax, z, dz, vol, u1, q1, balance)
         u0, q0, u1, q1 = u1, q1, u0, q0
         if status != STATUS_OK:
             _keep(u0, q0, u, q)
