@@ -300,6 +300,7 @@ def covariance(jac: Any, *, scale: Any = None, rcond: float | None = None) -> Co
     keep = (s > tol * s[0]) if s[0] > 0 else np.zeros(p, dtype=bool)
     singular = not bool(keep.all())
     cov = (v[:, keep] / s[keep] ** 2) @ v[:, keep].T * np.outer(d, d)
+    cov = 0.5 * (cov + cov.T)  # symmetric to the last bit (the product's round-off is not)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     if singular:
         std = np.where(np.sum(v[:, ~keep] ** 2, axis=1) > 1e-12, np.inf, std)
