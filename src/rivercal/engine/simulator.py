@@ -360,7 +360,6 @@ class Simulator:
         t0 = _time.perf_counter()
         obs, zs, qs, balance, initial_volume = self._run(state, crest, fric, forcing, out_every, snapshots, start,
                                                          control=control)
-        shortfalls = self.last_run_shortfalls
         wall = _time.perf_counter() - t0
         times = pd.date_range(start, end, periods=n_steps // out_every + 1)
         series = pd.DataFrame(obs, index=times, columns=self.observables)
@@ -379,7 +378,7 @@ class Simulator:
         )
         log.debug("simulated %s .. %s in %.3f s", start, end, wall)
         return SimulationResult(series=series, balance=bal, levels=levels, discharges=discharges, wall_time=wall,
-                                shortfalls=shortfalls), state
+                                shortfalls=self.last_run_shortfalls), state
 
     def _domain_volume(self, state: EngineState) -> float:
         a = self.compiled.arrays
@@ -425,12 +424,12 @@ class Simulator:
         steps, solves, drying = int(stats[STAT_STEPS]), int(stats[STAT_SOLVES]), int(stats[STAT_DRYING])
         log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)
         self.last_run_stats = {"steps": steps, "solves": solves, "drying_resolves": drying}
-        self.last_run_shortfalls = self.shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
+        self.last_run_shortfalls = self._shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
         if status != STATUS_OK:
             raise EngineDivergedError(*self.divergence(status, step, index, state.z, state.u, start, phase))
         return obs, zs, qs, balance, initial_volume
 
-    def shortfalls(self, asked: np.ndarray, lacking: np.ndarray, start: pd.Timestamp,
+    def _shortfalls(self, asked: np.ndarray, lacking: np.ndarray, start: pd.Timestamp,
                    phase: str | None = None) -> dict[str, Shortfall]:
         """The withdrawals that took less than they asked, from a run's totals per boundary, then lateral (m³).
 

@@ -154,9 +154,7 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
 
     ``un`` (m/s) and ``qn`` (m³/s) are the new velocities and fluxes; they become the state by the time
     loop's swap of its velocity and flux arrays, not by a copy. Returns (status, index) of a divergence
-    check: ``STATUS_OK`` or the h-point / link at fault (the first one). Adds what the withdrawals asked and
-    what they lacked (:func:`.forcing.apply_forcing`) to their run totals (``work.wreq_sum``,
-    ``work.wshort_sum``, m³).
+    check: ``STATUS_OK`` or the h-point / link at fault (the first one).
 
     The loops over all points and links have no branches (their checks are conjunctions), so that they
     vectorise; the rare cases (a level outside its linearised piece, a divergence) are handled after them.
@@ -192,9 +190,6 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
             for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
                 inflow -= net.nl_sign[c] * qn[net.nl_link[c]]
             balance[bnd] += dt * inflow
-    for j in range(work.wreq.size):
-        work.wreq_sum[j] += dt * work.wreq[j]
-        work.wshort_sum[j] += dt * work.wshort[j]
     if not finite:
         for i in range(z.size):
             if not math.fabs(z[i] - net.hp_bed[i]) <= 1.0e4:

@@ -22,8 +22,8 @@ def apply_forcing(net, work, n, forcing, dt, vol):
 
     Withdrawals (a negative discharge of a boundary or a lateral) take at most half of the water present
     at their point per step: what they ask beyond that is not delivered. Per boundary, then per
-    lateral, ``work.wreq`` gets the withdrawal asked and ``work.wshort`` what is not delivered (m³/s), and
-    ``work.bq`` each discharge boundary's delivered discharge (m³/s). Only the entries of forced points
+    lateral, ``work.wreq_sum`` adds the volume asked and ``work.wshort_sum`` the volume not delivered (m³),
+    and ``work.bq`` gets each discharge boundary's delivered discharge (m³/s). Only the entries of forced points
     are written: the others stay as :func:`run` set them at its start (no source, no lateral inflow, not
     fixed). Returns the total of the laterals (m³/s).
     """
@@ -59,15 +59,14 @@ def apply_forcing(net, work, n, forcing, dt, vol):
 def _withdrawal(work, j, q, vol, dt):
     """Discharge ``q`` (m³/s) of forcing ``j``, a withdrawal limited to half the volume ``vol`` (m³) per ``dt`` (s).
 
-    Records the withdrawal asked and its shortfall (m³/s) in ``work.wreq[j]`` and ``work.wshort[j]``.
+    Adds the volume a withdrawal asks and the volume it lacks in the step (m³) to ``work.wreq_sum[j]`` and
+    ``work.wshort_sum[j]``.
     """
     if q >= 0.0:
-        work.wreq[j] = 0.0
-        work.wshort[j] = 0.0
         return q
     limited = max(q, -0.5 * max(vol, 0.0) / dt)
-    work.wreq[j] = -q
-    work.wshort[j] = limited - q
+    work.wreq_sum[j] -= dt * q
+    work.wshort_sum[j] += dt * (limited - q)
     return limited
 
 

@@ -54,12 +54,12 @@ __all__ = ["Work", "make_work", "run", "run_ext"]
 #: storage area (m²); the momentum terms of each channel link (:func:`.momentum.channel_coefficients`), its
 #: wetted perimeter (m) and R^(4/3) (m^(4/3)) at the upwind depth, and its friction value (unit of its
 #: friction type); per discharge boundary its delivered discharge (m³/s), and per boundary then lateral the
-#: withdrawal asked and not delivered in the step (m³/s) and over the run (m³).
+#: volume its withdrawals asked and did not get over the run (m³).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
-     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum"],
+     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric", "bq", "wreq_sum", "wshort_sum"],
 )
 
 
@@ -82,8 +82,7 @@ def make_work(net, sx=None) -> Work:
         zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
         cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l), cper=np.ones(n_l), cr43=np.ones(n_l),
         lfric=np.ones(n_l),
-        bq=np.zeros(n_b), wreq=np.zeros(n_b + net.lat_hp.size), wshort=np.zeros(n_b + net.lat_hp.size),
-        wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
+        bq=np.zeros(n_b), wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
     )
 
 
