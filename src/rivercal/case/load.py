@@ -373,8 +373,8 @@ def _load_forcing(spec: CaseFile, root: Path) -> dict[str, pd.Series]:
     ]
     for table, kind, i, item in items:
         key = f"{kind}:{item.id}"
-        if getattr(item, "type", None) == "rating" or item.catchment is not None:
-            continue  # catchment runoff is computed by rivercal.hydrology when the model is built
+        if getattr(item, "type", None) in ("rating", "critical") or item.catchment is not None:
+            continue  # no series (a table or the outfall's law), or catchment runoff computed by rivercal.hydrology
         if item.value is not None:
             forcing[key] = pd.Series([item.value, item.value], index=pd.DatetimeIndex([start, end]), name=key)
             continue

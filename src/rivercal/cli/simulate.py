@@ -58,4 +58,8 @@ def simulate(
         for key, short in summary["shortfalls"].items():
             out_console.print(f"[yellow]warning:[/] {key} ran short of water: {short['requested_m3']:.6g} m³ asked, "
                               f"{short['delivered_m3']:.6g} m³ delivered")
+        divided = summary["run"].get("divided_steps", 0)
+        if divided:
+            out_console.print(f"{divided} time steps were too long for the flow and were divided (into up to "
+                              f"{summary['run']['max_division']} sub-steps)")
         out_console.print("wrote " + ", ".join(summary["files"].values()))

@@ -37,12 +37,15 @@ from rivercal.engine.kernels.codes import (
     LINK_PUMP,
     LINK_UNIVERSAL_WEIR,
     LINK_WEIR,
+    NB_OUTFALL,
     O_WIDTH,
     OBS_FLUX,
     OBS_LEVEL,
     U_WIDTH,
 )
-from rivercal.engine.plan import connectivity, solver_plan
+from rivercal.engine.kernels.structures import G
+from rivercal.engine.plan import connectivity, drop_links, solver_plan
+from rivercal.errors import CaseError
 from rivercal.network import Bridge, CircularProfile, Culvert, Network, Orifice, Pump, UniversalWeir, Weir
 from rivercal.network.grid import Grid, layout_grid
 
@@ -57,7 +60,10 @@ __all__ = [
 
 #: ``allowed_flow`` of a structure → codes of the kernel arrays.
 DIRECTION_CODES = {"both": FLOW_BOTH, "positive": FLOW_POSITIVE, "negative": FLOW_NEGATIVE, "none": FLOW_NONE}
-_BOUNDARY_CODES = {"discharge": BOUNDARY_DISCHARGE, "level": BOUNDARY_LEVEL, "rating": BOUNDARY_RATING}
+_BOUNDARY_CODES = {"discharge": BOUNDARY_DISCHARGE, "level": BOUNDARY_LEVEL, "rating": BOUNDARY_RATING,
+                   "critical": BOUNDARY_RATING}
+#: Levels of the table of a critical boundary (:func:`critical_rating`).
+CRITICAL_LEVELS = 401
 
 
 class NetArrays(NamedTuple):
@@ -87,7 +93,8 @@ class NetArrays(NamedTuple):
     lk_fric: np.ndarray  # friction slot (channels.Channels: branches, then friction groups)
     lk_sidx: np.ndarray  # index in the weir/culvert/pump arrays
     lk_edge: np.ndarray  # solver edge, -1 for pumps
-    lk_nb1: np.ndarray  # the one other channel link at k1 (NB_JUNCTION: a junction, NB_NONE: none or a structure)
+    lk_nb1: np.ndarray  # the one other channel link at k1 (NB_JUNCTION: a junction, NB_NONE: none or a structure,
+    #                     NB_OUTFALL: k1 is a free outfall)
     lk_ns1: np.ndarray  # +1 if that link ends at k1, -1 if it starts there
     lk_nb2: np.ndarray  # same at k2
     lk_ns2: np.ndarray
@@ -95,6 +102,8 @@ class NetArrays(NamedTuple):
     lk_ftype: np.ndarray  # friction type of the link's group (FRICTION_CODES)
     mo_runs: np.ndarray  # runs of channel links whose momentum terms vectorise (uint64, plan.momentum_runs)
     mo_other: np.ndarray  # the other channel links (uint64)
+    dl_link: np.ndarray  # channel links whose bed ends above the bed of an end point (a drop: kernels.overfall)
+    of_link: np.ndarray  # channel links that reach a free outfall (a critical boundary: kernels.outfall)
     # profile tables
     tab_off: np.ndarray
     tab_n: np.ndarray
@@ -268,7 +277,14 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     lk_type, lk_sidx = _structure_links(grid, weirs, culverts + bridges, pumps, orifices, uweirs)
     lk_k1, lk_k2 = grid.link_k1, grid.link_k2
     nl_ptr, nl_link, nl_sign, lk_nb, lk_ns = connectivity(n_hp, lk_k1, lk_k2, lk_type)
-    forcing, forcing_keys, forcing_is_level = _forcing(network, grid)
+    for bd in network.boundaries:
+        if bd.type == "critical":  # the channel link that reaches a free outfall (critical_rating checks it is one)
+            point = grid.node_index[bd.node]
+            for link in np.flatnonzero(((lk_k1 == point) | (lk_k2 == point)) & (lk_type == LINK_CHANNEL)):
+                lk_nb[0 if lk_k1[link] == point else 1, link] = NB_OUTFALL
+    forcing, forcing_keys, forcing_is_level = _forcing(network, grid, lambda i, bd: critical_rating(
+        grid.node_index[bd.node], lk_k1, lk_k2, lk_type, channels.link_p1, channels.link_b1, channels.link_p2,
+        channels.link_b2, channels.storage, what=f"boundaries[{i}] ({bd.id!r} at node {bd.node!r})"))
     ob_type, ob_i1, ob_i2, ob_w, observables = _observables(network, grid)
     fr_type = channels.slot_type
     friction_values = channels.slot_value
@@ -309,6 +325,8 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         lk_ftype=lk_ftype,
         mo_runs=plan.momentum_runs,
         mo_other=plan.momentum_other,
+        dl_link=drop_links(lk_type, lk_k1, lk_k2, channels.link_b1, channels.link_b2, channels.storage["hp_bed"]),
+        of_link=np.flatnonzero((lk_nb == NB_OUTFALL).any(axis=0)).astype(np.int64),
         fr_type=fr_type,
         **structure_arrays,
         **forcing,
@@ -424,23 +442,29 @@ def _structure_arrays(network: Network, weirs: list[Weir], culverts: list[Culver
     )
 
 
-def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[str], list[bool]]:
+def _forcing(network: Network, grid: Grid, critical) -> tuple[dict[str, np.ndarray], list[str], list[bool]]:
     """The ``b_*`` and ``lat_*`` arrays, and the forcing columns: boundaries, laterals, then structure settings.
 
     Returns the arrays, the key of each forcing column (``boundary:<id>``, ``lateral:<id>``, ``crest:<weir>``,
     ``gate:<orifice>``, ``capacity:<pump>``) and whether it holds a level (m AD; the value at the end of a
-    step) rather than a discharge (m³/s; the step mean). A rating boundary has no column (-1).
+    step) rather than a discharge (m³/s; the step mean). A rating boundary has no column (-1); a critical
+    boundary is a rating boundary whose table ``critical(index, boundary)`` gives (levels, discharges).
     """
     keys: list[str] = []
     is_level: list[bool] = []
     b_hp, b_type, b_col, b_rptr, b_rlev, b_rq = [], [], [], [0], [], []
-    for bd in network.boundaries:
+    for i, bd in enumerate(network.boundaries):
         b_hp.append(grid.node_index[bd.node])
         b_type.append(_BOUNDARY_CODES[bd.type])
         if bd.type == "rating":
             b_col.append(-1)
             b_rlev.extend(bd.rating.levels)
             b_rq.extend(bd.rating.discharges)
+        elif bd.type == "critical":
+            b_col.append(-1)
+            levels, discharges = critical(i, bd)
+            b_rlev.extend(levels)
+            b_rq.extend(discharges)
         else:
             b_col.append(len(keys))
             keys.append(f"boundary:{bd.id}")
@@ -471,6 +495,40 @@ def _forcing(network: Network, grid: Grid) -> tuple[dict[str, np.ndarray], list[
         lat_col=np.asarray(lat_col, dtype=np.int64),
     )
     return arrays, keys, is_level
+
+
+def critical_rating(point: int, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_type: np.ndarray, link_p1: np.ndarray,
+                    link_b1: np.ndarray, link_p2: np.ndarray, link_b2: np.ndarray, tables: dict,
+                    what: str = "a critical boundary") -> tuple[list, list]:
+    """The Q(h) table of a free outfall at end point ``point``: levels (m AD) and critical discharges (m³/s).
+
+    At a free overfall the depth at the brink is the critical depth (Chow 1959, *Open-channel hydraulics*,
+    §3-4), where the Froude number Q² T / (g A³) is one: Q = A √(g A / T), with the flow area A (m²) and top
+    width T (m) of the cross-section of the channel link that reaches the point, at that end, above the bed
+    there. The table follows the profile table's depths (``CRITICAL_LEVELS`` levels from the bed to the
+    table's top, where the walls turn vertical; the engine extends it linearly above).
+
+    Raises
+    ------
+    CaseError
+        When a structure, not a channel, reaches the point (``what`` names the boundary in the message).
+    """
+    at_point = np.flatnonzero(((lk_k1 == point) | (lk_k2 == point)) & (lk_type == LINK_CHANNEL))
+    if at_point.size != 1:
+        raise CaseError("a critical boundary (a free outfall) needs the channel itself to reach its end node, but "
+                        "a structure sits at the end: move the structure away from the branch end, or use a rating "
+                        "boundary", field=what)
+    link = int(at_point[0])
+    prof, bed = (link_p1[link], link_b1[link]) if lk_k1[link] == point else (link_p2[link], link_b2[link])
+    off, n, dd = int(tables["tab_off"][prof]), int(tables["tab_n"][prof]), float(tables["tab_dd"][prof])
+    area = tables["tab_af"][off:off + n]
+    width = np.gradient(area, dd)
+    depth = np.arange(n) * dd
+    keep = np.unique(np.linspace(0, n - 1, min(n, CRITICAL_LEVELS)).round().astype(int))
+    q = np.zeros(keep.size)
+    wet = (area[keep] > 0.0) & (width[keep] > 0.0)
+    q[wet] = area[keep][wet] * np.sqrt(G * area[keep][wet] / width[keep][wet])
+    return (bed + depth[keep]).tolist(), np.maximum.accumulate(q).tolist()
 
 
 def _extended_links(lk_type: np.ndarray, lk_sidx: np.ndarray, arrays: dict, n_culverts: int) -> np.ndarray:

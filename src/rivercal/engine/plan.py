@@ -31,14 +31,17 @@ from rivercal.engine.kernels.codes import (
     MO_WIDTH,
     NB_JUNCTION,
     NB_NONE,
+    NB_OUTFALL,
     RUN_WIDTH,
     SCHED_WIDTH,
 )
 
 __all__ = [
+    "DROP_STEP",
     "SolverPlan",
     "SymbolicLDL",
     "connectivity",
+    "drop_links",
     "elimination_order",
     "link_runs",
     "momentum_runs",
@@ -110,6 +113,22 @@ class SolverPlan:
     link_runs: np.ndarray
     momentum_runs: np.ndarray
     momentum_other: np.ndarray
+
+
+#: A channel link whose bed ends more than this (m) above the bed of its end point ends in a drop.
+DROP_STEP = 0.01
+
+
+def drop_links(lk_type: np.ndarray, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_b1: np.ndarray, lk_b2: np.ndarray,
+               hp_bed: np.ndarray) -> np.ndarray:
+    """The channel links whose bed ends above the bed of an end point by more than ``DROP_STEP`` (m), in order.
+
+    Water leaving such a link can fall freely over the step (:mod:`rivercal.engine.kernels.overfall`). Beds in
+    m AD: ``lk_b1``, ``lk_b2`` at the link's two ends, ``hp_bed`` the lowest bed at each point.
+    """
+    channel = lk_type == LINK_CHANNEL
+    step = (lk_b1 > hp_bed[lk_k1] + DROP_STEP) | (lk_b2 > hp_bed[lk_k2] + DROP_STEP)
+    return np.flatnonzero(channel & step).astype(np.int64)
 
 
 def solver_plan(n_points: int, lk_type: np.ndarray, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_nb: np.ndarray,
@@ -411,7 +430,8 @@ def momentum_runs(lk_type: np.ndarray, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_
     starting at k2. For such *simple* links the momentum pass reads the levels, the neighbours' velocities
     and fluxes contiguously (:func:`rivercal.engine.kernels.momentum.channel_coefficients`). A channel link
     next to a junction, a structure, a branch end or a lateral, or with Chézy friction (whose hydraulic
-    radius costs a division that the others do not need; White-Colebrook too), is one of the others.
+    radius costs a division that the others do not need; White-Colebrook too), or next to a free outfall, is one
+    of the others.
 
     Parameters
     ----------
@@ -433,9 +453,11 @@ def momentum_runs(lk_type: np.ndarray, lk_k1: np.ndarray, lk_k2: np.ndarray, lk_
     """
     n = lk_type.size
     index = np.arange(n)
+    outfall = (lk_nb == NB_OUTFALL).any(axis=0)  # the links that reach a free outfall, and the links feeding them
+    feeding = np.isin(index, lk_nb[:, outfall][lk_nb[:, outfall] >= 0])
     simple = ((lk_type == LINK_CHANNEL) & (lk_k2 == lk_k1 + 1) & (lk_nb[0] == index - 1) & (lk_ns[0] == 1)
               & (lk_nb[1] == index + 1) & (lk_ns[1] == -1) & (lk_ftype < FRICTION_CHEZY)
-              & ~np.isin(lk_k1, lateral_points) & ~np.isin(lk_k2, lateral_points))
+              & ~np.isin(lk_k1, lateral_points) & ~np.isin(lk_k2, lateral_points) & ~outfall & ~feeding)
     rows = []
     link = 0
     while link < n:

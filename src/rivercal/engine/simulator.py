@@ -34,7 +34,20 @@ from rivercal._time import utc
 from rivercal.case.load import Case
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
 from rivercal.engine.controllers import Controls, ControlValues
-from rivercal.engine.kernels.codes import BOUNDARY_LEVEL, STAT_DRYING, STAT_SOLVES, STAT_STEPS, STATUS_LEVEL, STATUS_OK
+from rivercal.engine.kernels.codes import (
+    BOUNDARY_LEVEL,
+    DRY_TOLERANCE,
+    MAX_HALVINGS,
+    STAT_DRYING,
+    STAT_MAX_LEVEL,
+    STAT_REFINED,
+    STAT_SOLVES,
+    STAT_STEPS,
+    STAT_SUBSTEPS,
+    STATUS_DRY,
+    STATUS_OK,
+    STATUS_VELOCITY,
+)
 from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import make_work, run, run_ext
 from rivercal.engine.state import EngineState, Shortfall, SimulationResult, VolumeBalance
@@ -110,7 +123,8 @@ class Simulator:
         #: The case's controllers (``None`` without ``[[controllers]]``).
         self.controls: Controls | None = Controls(case.spec.controllers, self.compiled) if case.spec.controllers \
             else None
-        #: Counters of the last compiled run: steps, level solves, drying re-solves.
+        #: Counters of the last compiled run: steps, level solves, drying re-solves, and the step control's
+        #: steps divided into sub-steps, sub-steps taken and the deepest division (a step into 2^level).
         self.last_run_stats: dict[str, int] = {}
         #: What the withdrawals of the last compiled run asked and delivered (see :class:`Shortfall`).
         self.last_run_shortfalls: dict[str, Shortfall] = {}
@@ -420,10 +434,8 @@ class Simulator:
             )
         if cx is not None:
             obs[:, n_obs:] = cx.out
-        stats = self._work.stats
-        steps, solves, drying = int(stats[STAT_STEPS]), int(stats[STAT_SOLVES]), int(stats[STAT_DRYING])
-        log.debug("%d steps, %.2f solves per step, %d drying re-solves", steps, solves / max(steps, 1), drying)
-        self.last_run_stats = {"steps": steps, "solves": solves, "drying_resolves": drying}
+        self.last_run_stats = run_stats(self._work.stats)
+        log.debug("%s%s", phase + ": " if phase else "", self.last_run_stats)
         self.last_run_shortfalls = self._shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
         if status != STATUS_OK:
             raise EngineDivergedError(*self.divergence(status, step, index, state.z, state.u, start, phase))
@@ -458,10 +470,28 @@ class Simulator:
         when = (start + pd.Timedelta(seconds=(step + 1) * self.dt)).isoformat()
         if phase:
             when += f" ({phase}, forcing held at its start value)"
-        if status == STATUS_LEVEL:
-            return when, self.compiled.hp_label[index], f"level {float(z[index]):.6g} m AD"
-        return when, self.compiled.link_label[index], (
-            f"velocity {float(u[index]):.6g} m/s exceeds engine.max_velocity ({self.settings.max_velocity} m/s)")
+        if status == STATUS_VELOCITY:
+            return when, self.compiled.link_label[index], (
+                f"velocity {float(u[index]):.6g} m/s exceeds engine.max_velocity ({self.settings.max_velocity} m/s)")
+        where = self.compiled.hp_label[index]
+        smallest = self.dt / 2**MAX_HALVINGS
+        courant = self._courant_near(index, u)
+        if status == STATUS_DRY:
+            depth = float(z[index] - self.compiled.arrays.hp_bed[index])
+            return when, where, (
+                f"the level falls {-depth:.3g} m below the bed (more than {DRY_TOLERANCE:g} m) even with the time "
+                f"step divided into {2**MAX_HALVINGS} sub-steps of {smallest:.3g} s{courant}; the point loses more "
+                "water per step than it holds: reduce engine.dt, or check the withdrawals and pumps there")
+        return when, where, f"level {float(z[index]):.6g} m AD"
+
+    def _courant_near(self, point: int, u: np.ndarray) -> str:
+        """``", Courant number u·dt/dx up to C at the links of this point"`` (empty without flow), for messages."""
+        a = self.compiled.arrays
+        links = np.flatnonzero((a.lk_k1 == point) | (a.lk_k2 == point))
+        if links.size == 0:
+            return ""
+        courant = float(np.max(np.abs(u[links]) * self.dt * a.lk_ilen[links]))
+        return f", Courant number u·dt/dx up to {courant:.3g} at the links there" if courant > 0 else ""
 
     # -- views ---------------------------------------------------------------------------------------
 
@@ -497,6 +527,13 @@ class Simulator:
         columns = ["quantity", "value", "unit", "min", "max", "description"]
         return pd.DataFrame(rows, columns=columns).set_index("quantity")
 
+
+
+def run_stats(stats: np.ndarray) -> dict[str, int]:
+    """The counters of a run (``Work.stats``) by name: steps, solves, drying re-solves and the step control's."""
+    return {"steps": int(stats[STAT_STEPS]), "solves": int(stats[STAT_SOLVES]),
+            "drying_resolves": int(stats[STAT_DRYING]), "divided_steps": int(stats[STAT_REFINED]),
+            "substeps": int(stats[STAT_SUBSTEPS]), "max_division": 2 ** int(stats[STAT_MAX_LEVEL])}
 
 
 def _ratio(a: float, b: float, what_a: str, what_b: str) -> int:

@@ -177,9 +177,9 @@ def _classify(run: RunFile, case: Any, observables: list[str]) -> tuple[dict[Pat
             elif pi.location_id in kinds:
                 kind, btype = kinds[pi.location_id]
                 expected = "h" if btype == "level" else "Q"
-                if btype == "rating" or pi.parameter_id != expected:
+                if btype in ("rating", "critical") or pi.parameter_id != expected:
                     problems.append(f"{path.name}: {pi.label}: the {kind} {pi.location_id} ({btype}) takes "
-                                    + ("no series" if btype == "rating" else f"parameterId {expected!r}"))
+                                    + ("no series" if btype in ("rating", "critical") else f"parameterId {expected!r}"))
                     continue
                 forcing[series_id] = f"{kind}:{pi.location_id}"
             else:

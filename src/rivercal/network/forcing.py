@@ -89,8 +89,9 @@ class Boundary(NetworkModel):
     node
         Id of an end node (a node with exactly one branch).
     type
-        ``discharge`` (inflow Q(t), m³/s, negative for outflow), ``level`` (h(t), m AD) or
-        ``rating`` (outflow from a Q(h) table).
+        ``discharge`` (inflow Q(t), m³/s, negative for outflow), ``level`` (h(t), m AD),
+        ``rating`` (outflow from a Q(h) table) or ``critical`` (a free outfall: the water leaves over the end
+        at the critical flow of the end's cross-section for the depth there, Q = A √(g A / T)).
     series
         Time series of the value (for ``discharge`` and ``level``).
     value
@@ -104,8 +105,9 @@ class Boundary(NetworkModel):
 
     id: Identifier
     node: Identifier = Field(description="id of an end node (a node with exactly one branch)")
-    type: Literal["discharge", "level", "rating"] = Field(
-        description="'discharge' (inflow, m³/s), 'level' (water level, m AD) or 'rating' (outflow from a Q(h) table)"
+    type: Literal["discharge", "level", "rating", "critical"] = Field(
+        description="'discharge' (inflow, m³/s), 'level' (water level, m AD), 'rating' (outflow from a Q(h) table) "
+                    "or 'critical' (a free outfall: outflow at critical depth)"
     )
     series: SeriesRef | None = Field(default=None, description="time series of the value (discharge or level)")
     value: Discharge | None = Field(default=None, description="constant value instead of a series: m³/s or m AD")
@@ -116,6 +118,12 @@ class Boundary(NetworkModel):
 
     @model_validator(mode="after")
     def _one_source(self) -> Boundary:
+        if self.type == "critical":
+            for name in ("series", "value", "catchment", "rating"):
+                if getattr(self, name) is not None:
+                    raise FieldProblem(name, f"a critical boundary (a free outfall) takes its outflow from the "
+                                             f"critical depth at the end node, not a {name}")
+            return self
         if self.type == "rating":
             if self.rating is None:
                 raise FieldProblem("rating", "a rating boundary needs a rating table (levels and discharges)")

@@ -55,7 +55,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     bnd_nodes = {b.node: b.type for b in network.boundaries}
     for n in network.nodes:
         if n.id in bnd_nodes:
-            marker = {"discharge": ">", "level": "s", "rating": "D"}[bnd_nodes[n.id]]
+            marker = {"discharge": ">", "level": "s", "rating": "D", "critical": "v"}[bnd_nodes[n.id]]
             ax.plot(n.x, n.y, marker, color="#2f855a", ms=9, zorder=4)
     struct_xy = {}
     flip = 0

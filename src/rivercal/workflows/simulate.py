@@ -65,6 +65,7 @@ def simulate_case(model: Any, quantities: Mapping[str, float], out: str | Path, 
         # withdrawals that ran short of water: volume asked and delivered, m³ (empty when all were delivered)
         "shortfalls": {key: {"requested_m3": round(s.requested, 3), "delivered_m3": round(s.delivered, 3)}
                        for key, s in getattr(result, "shortfalls", {}).items()},
+        "run": dict(getattr(model, "last_run_stats", {}) or {}),
         "files": files,
         "final": {k: round(float(v), 4) for k, v in result.series.iloc[-1].items()},
     }

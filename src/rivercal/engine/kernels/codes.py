@@ -72,17 +72,46 @@ OBS_FLUX = 1
 # -- the neighbour of a channel link at one end (``lk_nb1``, ``lk_nb2``), when it is not one link --
 NB_JUNCTION = -1  # two or more other links meet there
 NB_NONE = -2  # a branch end without another link, or a structure
+NB_OUTFALL = -3  # the end at a free outfall (a critical boundary; kernels.outfall)
 
 # -- run status of the time loop (:func:`rivercal.engine.kernels.timeloop.run`) -------------------
 STATUS_OK = 0
 STATUS_LEVEL = 1  # a level left the plausible range (the index is an h-point)
 STATUS_VELOCITY = 2  # a velocity exceeded engine.max_velocity (the index is a link)
+STATUS_DRY = 3  # a level fell below its bed by more than DRY_TOLERANCE at the smallest sub-step (h-point)
 
 # -- counters of a run (``Work.stats``) -----------------------------------------------------------
 STAT_STEPS = 0
 STAT_SOLVES = 1
 STAT_DRYING = 2
-N_STATS = 3
+STAT_SUBSTEPS = 3  # sub-steps taken (a step divided into 2^level sub-steps counts 2^level)
+STAT_REFINED = 4  # steps that were divided into sub-steps
+STAT_MAX_LEVEL = 5  # the largest sub-step level used (the step divided by 2^level)
+STAT_LEVEL = 6  # the sub-step level of the next step (state of the step control)
+STAT_CALM = 7  # steps since the level last rose or fell
+STAT_RELAX = 8  # calm steps after which the level falls by one (doubles when a fall is undone at once)
+STAT_FELL = 9  # 1 while the last change of the level was a fall
+STAT_AMP = 10  # the last explicit-depth amplification of the step control, in millionths (kernels.stability)
+N_STATS = 11
+
+#: Relative difference of the depths at a channel link's two ends, the downstream one the smaller, above
+#: which its friction moves from the upwind depth towards their mean
+#: (:func:`rivercal.engine.kernels.momentum.channel_coefficients`).
+FRICTION_SPLIT = 0.01
+#: ... and at or above which (a drop in the bed, a jump: no gradually varied surface) it stays upwind.
+FRICTION_GRADUAL = 0.3
+
+# -- the step control (:mod:`rivercal.engine.kernels.timeloop`) -----------------------------------
+#: Most halvings of a step: a step is divided into at most 2^MAX_HALVINGS sub-steps.
+MAX_HALVINGS = 6
+#: A level this far below its bed (m) is not accepted: the (sub-)step is divided, or the run stops.
+DRY_TOLERANCE = 0.05
+#: Calm steps after which the sub-step level first falls by one again.
+RELAX_STEPS = 16
+#: Explicit-depth amplification (:mod:`rivercal.engine.kernels.stability`) above which a step is divided.
+AMP_RISE = 1.0
+#: ... and below which the sub-step level may fall again (a doubled step roughly doubles it).
+AMP_FALL = 0.4
 
 # -- columns of a row of ``lk_runs`` (:func:`rivercal.engine.plan.link_runs`) ---------------------
 RUN_LINK = 0

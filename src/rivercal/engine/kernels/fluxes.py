@@ -19,6 +19,7 @@ from rivercal.engine.kernels.assemble import in_pieces
 from rivercal.engine.kernels.codes import (
     BOUNDARY_DISCHARGE,
     BOUNDARY_RATING,
+    DRY_TOLERANCE,
     LINK_CHANNEL,
     LINK_PUMP,
     RUN_COUNT,
@@ -34,6 +35,7 @@ from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.picard import solve_levels
 
 __all__ = [
+    "check_levels",
     "compute_fluxes",
     "finish_step",
     "fluxes_within_volume",
@@ -149,12 +151,35 @@ def limit_draining_links(net, work, vol, dt, qn):
 
 
 @kernel
+def check_levels(net, work):
+    """Screen the solved levels ``work.zk`` (m AD) of a (sub-)step before :func:`finish_step` commits them.
+
+    Returns the first point whose level lies more than ``DRY_TOLERANCE`` below its bed (a NaN counts as
+    below), or -1 when there is none. Level-boundary points are not checked (their level is imposed). Runs
+    before the commit, so that the time loop can divide the step instead. One count over the points first,
+    so that it vectorises; the search runs only when a point fails.
+    """
+    zk, bed, fixed = work.zk, net.hp_bed, work.fixed
+    low = 0
+    for i in range(zk.size):
+        low += (not zk[i] >= bed[i] - DRY_TOLERANCE) & (not fixed[i])
+    if low == 0:
+        return -1
+    for i in range(zk.size):
+        if not ((zk[i] >= bed[i] - DRY_TOLERANCE) | fixed[i]):
+            return i
+    return -1
+
+
+@kernel
 def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
-    """Commit the step: volumes and levels from the net inflows of :func:`compute_fluxes`, the boundary balance.
+    """Commit the (sub-)step of ``dt`` s: volumes and levels from the net inflows of :func:`compute_fluxes`, balance.
 
     ``un`` (m/s) and ``qn`` (m³/s) are the new velocities and fluxes; they become the state by the time
     loop's swap of its velocity and flux arrays, not by a copy. Returns (status, index) of a divergence
-    check: ``STATUS_OK`` or the h-point / link at fault (the first one).
+    check: ``STATUS_OK`` or the h-point / link at fault (the first one). Adds what the withdrawals asked and
+    what they lacked (:func:`.forcing.apply_forcing`) to their run totals (``work.wreq_sum``,
+    ``work.wshort_sum``, m³).
 
     The loops over all points and links have no branches (their checks are conjunctions), so that they
     vectorise; the rare cases (a level outside its linearised piece, a divergence) are handled after them.
@@ -190,6 +215,9 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
             for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
                 inflow -= net.nl_sign[c] * qn[net.nl_link[c]]
             balance[bnd] += dt * inflow
+    for j in range(work.wreq.size):
+        work.wreq_sum[j] += dt * work.wreq[j]
+        work.wshort_sum[j] += dt * work.wshort[j]
     if not finite:
         for i in range(z.size):
             if not math.fabs(z[i] - net.hp_bed[i]) <= 1.0e4:

@@ -1,9 +1,9 @@
 """The forcing of a time step: boundary discharges and levels, laterals, and the rating-boundary law.
 
-Per step :func:`apply_forcing` writes the sources (m³/s) of discharge boundaries and laterals (withdrawals
-limited to the water present), the imposed levels (m AD) of level boundaries, and the lateral inflow per unit
-length (m²/s) that the momentum equation of the channel links sees. :func:`rating_flow` is the Q(h) law of a rating
-boundary, which the assembly linearises at each iterate.
+Per (sub-)step :func:`apply_forcing` writes the sources (m³/s) of discharge boundaries and laterals
+(withdrawals limited to the water present), the imposed levels (m AD) of level boundaries, and the lateral
+inflow per unit length (m²/s) that the momentum equation of the channel links sees. :func:`rating_flow` is the
+Q(h) law of a rating boundary, which the assembly linearises at each iterate.
 """
 
 from __future__ import annotations
@@ -15,15 +15,17 @@ __all__ = ["apply_forcing", "rating_flow"]
 
 
 @kernel
-def apply_forcing(net, work, n, forcing, dt, vol):
-    """Sources (m³/s), Dirichlet levels (m AD) and lateral inflow per unit length (m²/s) of step ``n``.
+def apply_forcing(net, work, n, forcing, dt, vol, z, weight):
+    """Sources (m³/s), Dirichlet levels (m AD) and lateral inflow per unit length (m²/s) of a step of ``n``.
 
-    ``dt`` (s) is the length of the step.
+    ``dt`` (s) is the length of the (sub-)step. A level boundary reaches its level for the end of step ``n``
+    over the rest of the step: its level moves from ``z`` (m AD, the current level) by the share ``weight``
+    of the way (1 for a whole step, or for the last sub-step of one).
 
     Withdrawals (a negative discharge of a boundary or a lateral) take at most half of the water present
-    at their point per step: what they ask beyond that is not delivered. Per boundary, then per
-    lateral, ``work.wreq_sum`` adds the volume asked and ``work.wshort_sum`` the volume not delivered (m³),
-    and ``work.bq`` gets each discharge boundary's delivered discharge (m³/s). Only the entries of forced points
+    at their point per (sub-)step: what they ask beyond that is not delivered. Per boundary, then per
+    lateral, ``work.wreq`` gets the withdrawal asked and ``work.wshort`` what is not delivered (m³/s), and
+    ``work.bq`` each discharge boundary's delivered discharge (m³/s). Only the entries of forced points
     are written: the others stay as :func:`run` set them at its start (no source, no lateral inflow, not
     fixed). Returns the total of the laterals (m³/s).
     """
@@ -43,7 +45,8 @@ def apply_forcing(net, work, n, forcing, dt, vol):
             src[i] += qb
         elif b_type[bnd] == BOUNDARY_LEVEL:
             fixed[i] = True
-            fixed_val[i] = forcing[n, b_col[bnd]]
+            target = forcing[n, b_col[bnd]]
+            fixed_val[i] = target if weight == 1.0 else z[i] + weight * (target - z[i])
     total = 0.0
     for lat in range(net.lat_hp.size):
         i = net.lat_hp[lat]
@@ -59,14 +62,15 @@ def apply_forcing(net, work, n, forcing, dt, vol):
 def _withdrawal(work, j, q, vol, dt):
     """Discharge ``q`` (m³/s) of forcing ``j``, a withdrawal limited to half the volume ``vol`` (m³) per ``dt`` (s).
 
-    Adds the volume a withdrawal asks and the volume it lacks in the step (m³) to ``work.wreq_sum[j]`` and
-    ``work.wshort_sum[j]``.
+    Records the withdrawal asked and its shortfall (m³/s) in ``work.wreq[j]`` and ``work.wshort[j]``.
     """
     if q >= 0.0:
+        work.wreq[j] = 0.0
+        work.wshort[j] = 0.0
         return q
     limited = max(q, -0.5 * max(vol, 0.0) / dt)
-    work.wreq_sum[j] -= dt * q
-    work.wshort_sum[j] += dt * (limited - q)
+    work.wreq[j] = -q
+    work.wshort[j] = limited - q
     return limited
 
 

@@ -24,7 +24,17 @@ import math
 import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
-from rivercal.engine.kernels.codes import FRICTION_CHEZY, LINK_CHANNEL, MO_COUNT, MO_K1, MO_LINK, NB_JUNCTION
+from rivercal.engine.kernels.codes import (
+    FRICTION_CHEZY,
+    FRICTION_GRADUAL,
+    FRICTION_SPLIT,
+    LINK_CHANNEL,
+    MO_COUNT,
+    MO_K1,
+    MO_LINK,
+    NB_JUNCTION,
+    NB_OUTFALL,
+)
 from rivercal.engine.kernels.lookup import flow_geometry
 from rivercal.engine.kernels.structures import G, friction_c2r, friction_c2r_any
 
@@ -34,6 +44,9 @@ __all__ = ["channel_coefficients"]
 @kernel
 def channel_coefficients(net, work, z, u, q, dt, min_depth):
     """Flux area A (m²), f (1/s) and r (m/s) of every channel link from the state at time n.
+
+    Returns the largest |u| / Δx of the wet channel links (1/s), the screen of the step control
+    (:func:`.timeloop.run`): times Δt their largest Courant number.
 
     Upwind flow area and implicit friction; upwind advection from the velocity of the link that
     feeds the upwind point (none across structures or from a boundary); the lateral-inflow momentum
@@ -55,11 +68,12 @@ def channel_coefficients(net, work, z, u, q, dt, min_depth):
     The coefficients written for structure and pump links are replaced before use, by
     :func:`.structures.switch_pumps` and :func:`.structures.structure_coefficients`.
     """
-    _link_geometry(net, work, z, u, min_depth)
+    fastest = _link_geometry(net, work, z, u, min_depth)
     _momentum_simple(net, work, z, u, q, dt)
     for link in net.mo_other:
         _momentum_other(net, work, link, z, u, q, dt)
     _link_newton(net.lk_ilen, work.area, work.cb, work.cs, work.cc2r, work.cdz, work.fco, work.rco)
+    return fastest
 
 
 @kernel
@@ -75,21 +89,57 @@ def _upwind(net, link, z, u):
 
 @kernel
 def _link_geometry(net, work, z, u, min_depth):
-    """Per link: flux area (m²; 0 when dry or not a channel), wetted perimeter (m) and R^(4/3) at the upwind depth."""
-    area, cper, cr43, lk_type = work.area, work.cper, work.cr43, net.lk_type
+    """Per link: flux area (m²; 0 when dry or not a channel) at the upwind depth, and the friction geometry.
+
+    The friction geometry — flow area (m²), wetted perimeter (m) and R^(4/3) (m^(4/3)) in ``work.cam``,
+    ``work.cper`` and ``work.cr43`` — is that of the upwind depth, except where the surface falls towards the
+    downstream end: where the downstream depth is smaller by ``FRICTION_SPLIT`` of the upwind one or more, it
+    is that of a depth that moves linearly to the mean of the two depths at twice that, and stays there up to
+    ``FRICTION_GRADUAL`` (beyond, a drop in the bed or a jump, the surface is not gradually varied and the
+    friction stays upwind). Upwind friction is first order in Δx: on a drawdown towards a critical control
+    the friction of the deeper upwind section is too small (a M2 curve to a free outfall stood 25-30 mm low at
+    0.5-1 km with Δx = 100 m). Friction at the mean depth makes the friction slope second order,
+    Q|Q| / K(d_mean)² with K = A C √R, while the flux area stays upwind (the positivity of the scheme). The
+    velocity of the link is Q / A_up, so ``work.cr43`` holds R^(4/3) of the friction geometry times
+    (A_fr / A_up)²: friction_c2r then gives C² R (A_fr / A_up)², and the friction term g |u| u / (C² R) that
+    Q|Q| / K(d_mean)² asks for. Only towards a drawdown: on a rising surface the friction of the shallower
+    upwind section errs on the safe side, and a friction that falls as the level downstream rises made fast
+    flow on a steep reach unstable.
+
+    Returns the largest |u| / Δx of the wet links (1/s), found on the way.
+    """
+    area, cam, cper, cr43, lk_type, ilen = work.area, work.cam, work.cper, work.cr43, net.lk_type, net.lk_ilen
+    fastest = 0.0
     for link in range(lk_type.size):
         area[link] = 0.0
         if lk_type[link] != LINK_CHANNEL:
             continue
-        _, depth, prof = _upwind(net, link, z, u)
+        sign, depth, prof = _upwind(net, link, z, u)
         if depth < min_depth:
             continue
         a_up, per, r43 = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
                                        net.tab_pf, net.tab_flow, prof, depth)
-        if a_up > 0.0:
-            area[link] = a_up
-            cper[link] = per
-            cr43[link] = r43
+        if a_up <= 0.0:
+            continue
+        area[link] = a_up
+        fastest = max(fastest, math.fabs(u[link]) * ilen[link])
+        cam[link] = a_up
+        cper[link] = per
+        cr43[link] = r43
+        if sign > 0.0:
+            other = z[np.uint64(net.lk_k2[link])] - net.lk_b2[link]
+        else:
+            other = z[np.uint64(net.lk_k1[link])] - net.lk_b1[link]
+        gap = depth - other
+        if FRICTION_SPLIT * depth < gap < FRICTION_GRADUAL * depth and other > min_depth:
+            shift = 0.5 * min(gap / (FRICTION_SPLIT * depth) - 1.0, 1.0) * gap
+            a_fr, per_fr, r43_fr = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top,
+                                                 net.tab_af, net.tab_pf, net.tab_flow, prof, depth - shift)
+            ratio = a_fr / a_up
+            cam[link] = a_fr
+            cper[link] = per_fr
+            cr43[link] = r43_fr * (ratio * ratio)
+    return fastest
 
 
 @kernel
@@ -156,7 +206,16 @@ def _momentum_other(net, work, link, z, u, q, dt):
     sign, depth, _ = _upwind(net, link, z, u)
     per = work.cper[link]
     ftype = net.lk_ftype[link]
-    radius = (a_up / per if per > 0.0 else depth) if ftype >= FRICTION_CHEZY else 0.0  # Chézy, White-Colebrook
+    conveyance = 1.0  # R^(4/3) of the friction geometry holds (A_fr / A_up)² already (_link_geometry)
+    radius = 0.0
+    if ftype >= FRICTION_CHEZY:  # Chézy, White-Colebrook: from the radius of the friction geometry
+        a_fr = work.cam[link]
+        radius = a_fr / per if per > 0.0 else depth
+        ratio = a_fr / a_up
+        conveyance = ratio * ratio
+    down = net.lk_nb2[link] if sign > 0.0 else net.lk_nb1[link]
+    if down >= 0 and (net.lk_nb1[np.uint64(down)] == NB_OUTFALL or net.lk_nb2[np.uint64(down)] == NB_OUTFALL):
+        a_up, conveyance = _toward_outfall(net, work, link, z, sign, a_up, conveyance)
     inv_dt = 1.0 / dt
     ql = qlat[k1] + qlat[k2]
     b = inv_dt + 0.5 * ql / a_up if ql != 0.0 else inv_dt  # skips a division: exact, the term is +0 then
@@ -205,8 +264,33 @@ def _momentum_other(net, work, link, z, u, q, dt):
     dzl = z[k2] - z[k1]
     work.cb[link] = b
     work.cs[link] = rhs_u - G * ilen * dzl
-    work.cc2r[link] = friction_c2r_any(ftype, work.lfric[link], radius, work.cr43[link])
+    work.cc2r[link] = friction_c2r_any(ftype, work.lfric[link], radius, work.cr43[link]) * conveyance
     work.cdz[link] = dzl
+
+
+@kernel
+def _toward_outfall(net, work, link, z, sign, a_up, conveyance):
+    """The flux area (m²) and friction conveyance factor of a channel link that feeds the reach to a free outfall.
+
+    The reach to the outfall balances the energy between its upstream point and the brink exactly
+    (:mod:`.outfall`); the upwind scheme's links account for the rise of the velocity head one cell late (a
+    link's velocity is that of its upwind point), so the rise over the cell just above that reach would be
+    missed, and every level upstream would stand too low by it (7 mm on a M2 drawdown with Δx = 100 m). This
+    link therefore carries the velocity of its downstream point, Q / A(d_down), when that section is the
+    narrower, so that its energy-conservative advection adds that rise; its friction stays that of its own
+    friction geometry at the same discharge (``conveyance``, the factor so far, times (A_up / A_down)²).
+    """
+    if sign > 0.0:
+        k, bed, prof = np.uint64(net.lk_k2[link]), net.lk_b2[link], net.lk_p2[link]
+    else:
+        k, bed, prof = np.uint64(net.lk_k1[link]), net.lk_b1[link], net.lk_p1[link]
+    a_down = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af, net.tab_pf,
+                           net.tab_flow, prof, z[k] - bed)[0]
+    if not 0.0 < a_down < a_up:
+        return a_up, conveyance
+    work.area[link] = a_down
+    ratio = a_up / a_down
+    return a_down, conveyance * ratio * ratio
 
 
 @kernel

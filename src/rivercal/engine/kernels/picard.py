@@ -2,7 +2,9 @@
 
 Weirs and culverts are written in the same linear form as the channel links, ``u = r - f (z2 - z1)``,
 with their flow area and regime taken from the current iterate of the levels
-(:func:`.structures.structure_coefficients`); the level system (:func:`.assemble.assemble`) is then
+(:func:`.structures.structure_coefficients`), and so are channel links in a free overfall at a step in the bed
+(:func:`.overfall.overfall_coefficients`) and the links that reach a free outfall
+(:func:`.outfall.outfall_coefficients`); the level system (:func:`.assemble.assemble`) is then
 solved by :func:`.solver.ldl_solve_packed`. Non-linear storage enters through the volume curve's
 linearisation at the iterate. The iterations stop when no level changes by ``tol`` or more.
 """
@@ -14,6 +16,8 @@ import math
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.assemble import assemble
 from rivercal.engine.kernels.codes import STAT_SOLVES
+from rivercal.engine.kernels.outfall import outfall_coefficients
+from rivercal.engine.kernels.overfall import overfall_coefficients
 from rivercal.engine.kernels.solver import ldl_solve_packed
 from rivercal.engine.kernels.structures import extended_coefficients, structure_coefficients
 
@@ -31,8 +35,12 @@ def picard_iterations(net, work, z, dz, vol, u, crest, theta, dt, max_iter, tol,
     zk = work.zk
     for i in range(z.size):
         zk[i] = max(z[i] + dz[i], min(z[i], net.hp_bed[i] + min_depth))
-    for _ in range(max_iter):
+    for it in range(max_iter):
         structure_coefficients(net, work, zk, u, crest, dt)
+        if net.dl_link.size:
+            overfall_coefficients(net, work, zk, u, dt, it == 0)
+        if net.of_link.size:
+            outfall_coefficients(net, work, zk, u, dt)
         converged = solve_levels(net, work, zk, vol, u, theta, dt, tol)
         work.stats[STAT_SOLVES] += 1
         if converged:
@@ -49,9 +57,13 @@ def picard_iterations_ext(net, sx, work, z, dz, vol, u, crest, theta, dt, max_it
     zk = work.zk
     for i in range(z.size):
         zk[i] = max(z[i] + dz[i], min(z[i], net.hp_bed[i] + min_depth))
-    for _ in range(max_iter):
+    for it in range(max_iter):
         structure_coefficients(net, work, zk, u, crest, dt)
         extended_coefficients(net, sx, work, zk, u, dt)
+        if net.dl_link.size:
+            overfall_coefficients(net, work, zk, u, dt, it == 0)
+        if net.of_link.size:
+            outfall_coefficients(net, work, zk, u, dt)
         converged = solve_levels(net, work, zk, vol, u, theta, dt, tol)
         work.stats[STAT_SOLVES] += 1
         if converged:

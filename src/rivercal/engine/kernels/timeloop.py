@@ -3,16 +3,28 @@
 Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003), each phase in its own module:
 
 1. :mod:`~rivercal.engine.kernels.forcing` — boundary discharges and levels, laterals
-   (:func:`~.forcing.apply_forcing`). Extractions (negative laterals) are limited to half of the water
-   present at their point per step.
+   (:func:`~.forcing.apply_forcing`). Withdrawals (negative discharges of boundaries and laterals) are
+   limited to half of the water present at their point per step; what they lack is counted.
 2. :mod:`.momentum` — each channel link's momentum equation from the state at n, with Newton-linearised
    friction, as ``u = r - f (z2 - z1)`` (:func:`~.momentum.channel_coefficients`); pumps switch on the
    suction-side level (:func:`~.structures.switch_pumps`).
 3. :mod:`.picard` — Picard iterations: the structures' laws (:mod:`~rivercal.engine.kernels.structures`: weir,
    culvert) linearised at the iterate, the level system assembled (:mod:`.assemble`) and solved (:mod:`.solver`).
-4. :mod:`.fluxes` — the link fluxes of the solved levels, throttled where a point would drain dry, then
-   committed to the volumes (:func:`~.fluxes.finish_step`), with the divergence checks.
+4. :mod:`.fluxes` — the link fluxes of the solved levels, throttled where a point would drain dry, screened
+   (:func:`~.fluxes.check_levels`), then committed to the volumes (:func:`~.fluxes.finish_step`), with the
+   divergence checks.
 5. :mod:`.record` — the station series at the output times.
+
+**Step control.** A step is divided into two half steps (the way SOBEK halves a failing step), down to
+2^``MAX_HALVINGS`` sub-steps, when the flow is forecast to be too fast for it — the explicit upwind depth
+would amplify level errors from step to step by more than ``AMP_RISE`` (:mod:`.stability`), which at
+Courant numbers above about 2 on a steep reach makes the solution alternate between two states or
+diverge — and when its solved levels fail the screen (then it is not committed but computed again): a
+level more than ``DRY_TOLERANCE`` below its bed. The sub-step level carries over to the next steps and
+falls by one after ``RELAX_STEPS`` calm steps (twice as many each time a fall is undone at once). Sub-steps
+share the step's discharges; a level boundary moves linearly to its level for the step's end. When the
+smallest sub-step fails too, the run stops with ``STATUS_DRY`` and the point. A run that never needs it
+computes exactly what it computed before.
 
 Each phase is its own compiled function taking the network arrays (``net``) and the scratch arrays
 (``work``, :func:`make_work`): LLVM optimises these small functions much better than one large loop
@@ -27,22 +39,41 @@ import numpy as np
 
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.codes import (
+    AMP_FALL,
+    AMP_RISE,
     LINK_CULVERT,
     LINK_PUMP,
     LINK_WEIR,
+    MAX_HALVINGS,
     N_STATS,
+    RELAX_STEPS,
+    STAT_AMP,
+    STAT_CALM,
+    STAT_FELL,
+    STAT_LEVEL,
+    STAT_MAX_LEVEL,
+    STAT_REFINED,
+    STAT_RELAX,
     STAT_STEPS,
+    STAT_SUBSTEPS,
+    STATUS_DRY,
     STATUS_OK,
 )
 from rivercal.engine.kernels.control import control_step, record_controls, start_controls
-from rivercal.engine.kernels.fluxes import finish_step, fluxes_within_volume
+from rivercal.engine.kernels.fluxes import check_levels, finish_step, fluxes_within_volume
 from rivercal.engine.kernels.forcing import apply_forcing
 from rivercal.engine.kernels.momentum import channel_coefficients
 from rivercal.engine.kernels.picard import picard_iterations, picard_iterations_ext
 from rivercal.engine.kernels.record import record
+from rivercal.engine.kernels.stability import explicit_amplification
 from rivercal.engine.kernels.structures import apply_settings, reset_settings, switch_pumps
 
 __all__ = ["Work", "make_work", "run", "run_ext"]
+
+#: A step in units of the smallest sub-step.
+FULL = 1 << MAX_HALVINGS
+#: :func:`_screen`'s verdict that the (sub-)step is to be computed again, shorter (not a run status).
+SCREEN_REDO = -1
 
 #: Scratch arrays of :func:`run` (kernels do not allocate; see :mod:`._jit`): matrix diagonal, right-hand
 #: side, iterate (m AD), sources (m³/s), lateral inflow per unit length (m²/s), net inflow (m³/s), Dirichlet
@@ -51,15 +82,18 @@ __all__ = ["Work", "make_work", "run", "run_ext"]
 #: state's arrays every step, rating-boundary linearisation (m³/s, m²/s), the structure and pump links,
 #: counters (``STAT_*`` of :mod:`.codes`), per point the piece of its volume curve last looked up
 #: (:func:`.assemble.assemble`): low and high end and reference level (m AD), the volume there (m³) and the
-#: storage area (m²); the momentum terms of each channel link (:func:`.momentum.channel_coefficients`), its
-#: wetted perimeter (m) and R^(4/3) (m^(4/3)) at the upwind depth, and its friction value (unit of its
-#: friction type); per discharge boundary its delivered discharge (m³/s), and per boundary then lateral the
-#: volume its withdrawals asked and did not get over the run (m³).
+#: storage area (m²); the momentum terms of each channel link (:func:`.momentum.channel_coefficients`), the
+#: flow area (m²), wetted perimeter (m) and R^(4/3) (m^(4/3)) of its friction, and its friction value (unit of
+#: its friction type); per discharge boundary its delivered discharge (m³/s), and per boundary then lateral the
+#: withdrawal asked and not delivered in the (sub-)step (m³/s) and over the run (m³); the channel coefficients
+#: (area, f, r) of the links that may become free overfalls (:mod:`.overfall`); per point the sums of the step
+#: control's forecast (:mod:`.stability`, m²/s).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
-     "cb", "cs", "cc2r", "cdz", "cper", "cr43", "lfric", "bq", "wreq_sum", "wshort_sum"],
+     "cb", "cs", "cc2r", "cdz", "cam", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum",
+     "ovf", "anum", "aden"],
 )
 
 
@@ -80,9 +114,12 @@ def make_work(net, sx=None) -> Work:
         pump_links=np.flatnonzero(net.lk_type == LINK_PUMP).astype(np.int64),
         stats=np.zeros(N_STATS, dtype=np.int64),
         zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
-        cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l), cper=np.ones(n_l), cr43=np.ones(n_l),
+        cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l), cam=np.ones(n_l), cper=np.ones(n_l),
+        cr43=np.ones(n_l),
         lfric=np.ones(n_l),
-        bq=np.zeros(n_b), wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
+        bq=np.zeros(n_b), wreq=np.zeros(n_b + net.lat_hp.size), wshort=np.zeros(n_b + net.lat_hp.size),
+        wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
+        ovf=np.zeros((3, net.dl_link.size)), anum=np.zeros(n_h), aden=np.zeros(n_h),
     )
 
 
@@ -118,30 +155,41 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     Returns
     -------
     tuple of int
-        (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` with the h-point, or
-        ``STATUS_VELOCITY`` with the link at which the run diverged.
+        (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` or ``STATUS_DRY`` with the h-point, or
+        ``STATUS_VELOCITY`` with the link at which the run failed.
     """
     n_b = net.b_hp.size
     record(net, 0, z, q, obs_out, z_out, q_out)
     # velocities and fluxes at time n (u0, q0) and n+1 (u1, q1): the arrays swap roles after each step
     u0, q0, u1, q1 = u, q, work.un, work.qn
-    work.src[:] = 0.0
-    work.qlat[:] = 0.0
-    work.fixed[:] = False
-    for link in range(work.lfric.size):
-        work.lfric[link] = fric[net.lk_fric[link]]
+    _start(net, work, fric)
     for n in range(forcing.shape[0]):
-        balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
-        channel_coefficients(net, work, z, u0, q0, dt, min_depth)
-        switch_pumps(net, work, z, pump_on)
         work.stats[STAT_STEPS] += 1
-        picard_iterations(net, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
-        fluxes_within_volume(net, work, vol, theta, dt, tol, u0, u1, q1)
-        status, index = finish_step(net, work, dt, vmax, z, dz, vol, u1, q1, balance)
-        u0, q0, u1, q1 = u1, q1, u0, q0
-        if status != STATUS_OK:
-            _keep(u0, q0, u, q)
-            return status, n, index
+        done = 0
+        while done < FULL:
+            span = FULL >> work.stats[STAT_LEVEL]
+            h = dt * span / FULL
+            lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
+            fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
+            if _too_fast(net, work, z, u0, h, theta, min_depth, fastest):
+                continue
+            switch_pumps(net, work, z, pump_on)
+            picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+            fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
+            status, index = _screen(net, work)
+            if status == SCREEN_REDO:
+                continue
+            if status != STATUS_OK:
+                _keep(u0, q0, u, q)
+                return status, n, index
+            balance[n_b] += h * lateral
+            status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
+            u0, q0, u1, q1 = u1, q1, u0, q0
+            done += span
+            if status != STATUS_OK:
+                _keep(u0, q0, u, q)
+                return status, n, index
+        _step_done(work)
         if (n + 1) % out_every == 0:
             record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
     _keep(u0, q0, u, q)
@@ -192,8 +240,8 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
     Returns
     -------
     tuple of int
-        (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` with the h-point, or
-        ``STATUS_VELOCITY`` with the link at which the run diverged.
+        (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` or ``STATUS_DRY`` with the h-point, or
+        ``STATUS_VELOCITY`` with the link at which the run failed.
     """
     n_b = net.b_hp.size
     record(net, 0, z, q, obs_out, z_out, q_out)
@@ -202,41 +250,127 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
         record_controls(cx, 0)
     # velocities and fluxes at time n (u0, q0) and n+1 (u1, q1): the arrays swap roles after each step
     u0, q0, u1, q1 = u, q, work.un, work.qn
-    work.src[:] = 0.0
-    work.qlat[:] = 0.0
-    work.fixed[:] = False
-    for link in range(work.lfric.size):
-        work.lfric[link] = fric[net.lk_fric[link]]
+    _start(net, work, fric)
     reset_settings(net, sx)
     extended = sx.links.size > 0
     scheduled = False  # any structure setting that follows a series (most cases have none)
     for k in range(sx.set_col.size):
         scheduled |= sx.set_col[k] >= 0
     for n in range(forcing.shape[0]):
-        balance[n_b] += dt * apply_forcing(net, work, n, forcing, dt, vol)
+        work.stats[STAT_STEPS] += 1
         if scheduled:
             apply_settings(net, sx, n, forcing, crest)
         if cx is not None:
             control_step(cx, n, dt, z, q0, crest)
-        channel_coefficients(net, work, z, u0, q0, dt, min_depth)
-        switch_pumps(net, work, z, pump_on)
-        work.stats[STAT_STEPS] += 1
-        if extended:
-            picard_iterations_ext(net, sx, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
-        else:
-            picard_iterations(net, work, z, dz, vol, u0, crest, theta, dt, max_iter, tol, min_depth)
-        fluxes_within_volume(net, work, vol, theta, dt, tol, u0, u1, q1)
-        status, index = finish_step(net, work, dt, vmax, z, dz, vol, u1, q1, balance)
-        u0, q0, u1, q1 = u1, q1, u0, q0
-        if status != STATUS_OK:
-            _keep(u0, q0, u, q)
-            return status, n, index
+        done = 0
+        while done < FULL:
+            span = FULL >> work.stats[STAT_LEVEL]
+            h = dt * span / FULL
+            lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
+            fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
+            if _too_fast(net, work, z, u0, h, theta, min_depth, fastest):
+                continue
+            switch_pumps(net, work, z, pump_on)
+            if extended:
+                picard_iterations_ext(net, sx, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+            else:
+                picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+            fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
+            status, index = _screen(net, work)
+            if status == SCREEN_REDO:
+                continue
+            if status != STATUS_OK:
+                _keep(u0, q0, u, q)
+                return status, n, index
+            balance[n_b] += h * lateral
+            status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
+            u0, q0, u1, q1 = u1, q1, u0, q0
+            done += span
+            if status != STATUS_OK:
+                _keep(u0, q0, u, q)
+                return status, n, index
+        _step_done(work)
         if (n + 1) % out_every == 0:
             record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
             if cx is not None:
                 record_controls(cx, (n + 1) // out_every)
     _keep(u0, q0, u, q)
     return STATUS_OK, forcing.shape[0], -1
+
+
+@kernel
+def _start(net, work, fric):
+    """Reset the per-run scratch arrays and take the run's friction values per link; arm the step control."""
+    work.src[:] = 0.0
+    work.qlat[:] = 0.0
+    work.fixed[:] = False
+    for link in range(work.lfric.size):
+        work.lfric[link] = fric[net.lk_fric[link]]
+    if work.stats[STAT_RELAX] == 0:
+        work.stats[STAT_RELAX] = RELAX_STEPS
+
+
+@kernel
+def _too_fast(net, work, z, u, dt, theta, min_depth, fastest):
+    """Whether a (sub-)step of ``dt`` s is too long for the explicit upwind depth; if so, raise the sub-step level.
+
+    The forecast of the step control (:mod:`.stability`), from the state at the step's start: the
+    amplification is computed only when some link is crossed in less than the step (``fastest``, the largest
+    |u| / Δx of the wet channel links, 1/s, from :func:`.momentum.channel_coefficients`), and kept (in millionths,
+    ``STAT_AMP``) for the decision to let the level fall.
+    """
+    stats = work.stats
+    amp = 0.0
+    if fastest * dt > 1.0:
+        amp = explicit_amplification(net, work, z, u, dt, theta, min_depth)
+    stats[STAT_AMP] = int(min(amp, 1.0e6) * 1.0e6)
+    if amp <= AMP_RISE or stats[STAT_LEVEL] >= MAX_HALVINGS:
+        return False
+    _rise(stats)
+    return True
+
+
+@kernel
+def _rise(stats):
+    """Raise the sub-step level by one (a fall that is undone before its calm period ends doubles that period)."""
+    if stats[STAT_FELL] == 1 and stats[STAT_CALM] < stats[STAT_RELAX]:
+        stats[STAT_RELAX] = min(2 * stats[STAT_RELAX], RELAX_STEPS << 8)  # the fall was too early
+    stats[STAT_LEVEL] += 1
+    stats[STAT_MAX_LEVEL] = max(stats[STAT_MAX_LEVEL], stats[STAT_LEVEL])
+    stats[STAT_CALM] = 0
+    stats[STAT_FELL] = 0
+
+
+@kernel
+def _screen(net, work):
+    """The step control's verdict on the solved levels of a (sub-)step (:func:`.fluxes.check_levels`).
+
+    Returns (``STATUS_OK``, -1) to commit, (``SCREEN_REDO``, -1) after raising the sub-step level (the
+    sub-step is computed again, shorter), or (``STATUS_DRY``, point) when the smallest sub-step fails.
+    """
+    dry = check_levels(net, work)
+    if dry < 0:
+        return STATUS_OK, -1
+    if work.stats[STAT_LEVEL] >= MAX_HALVINGS:
+        return STATUS_DRY, dry
+    _rise(work.stats)
+    return SCREEN_REDO, -1
+
+
+@kernel
+def _step_done(work):
+    """Book a finished step in the step control; let the sub-step level fall after enough calm steps."""
+    stats = work.stats
+    level = stats[STAT_LEVEL]
+    if level == 0:
+        return
+    stats[STAT_REFINED] += 1
+    stats[STAT_SUBSTEPS] += 1 << level
+    stats[STAT_CALM] += 1
+    if stats[STAT_CALM] >= stats[STAT_RELAX] and stats[STAT_AMP] < AMP_FALL * 1.0e6:
+        stats[STAT_LEVEL] = level - 1
+        stats[STAT_CALM] = 0
+        stats[STAT_FELL] = 1
 
 
 @kernel

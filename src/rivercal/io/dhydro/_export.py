@@ -468,6 +468,14 @@ class _Writer:
 
     # -- boundaries and laterals ------------------------------------------------------------------------
 
+    def _critical_table(self, index: int) -> tuple[list[float], list[float]]:
+        """Levels (m AD) and discharges (m³/s) of the engine's critical-flow table of boundary ``index``."""
+        from rivercal.engine.compile import compile_network
+
+        arrays = compile_network(self.net, self.case.spec.engine).arrays
+        lo, hi = int(arrays.b_rptr[index]), int(arrays.b_rptr[index + 1])
+        return arrays.b_rlev[lo:hi].tolist(), arrays.b_rq[lo:hi].tolist()
+
     def external_forcing(self):
         from hydrolib.core.dflowfm.bc.models import Constant, ForcingModel, QHTable, QuantityUnitPair
         from hydrolib.core.dflowfm.ext.models import Boundary, ExtModel, Lateral
@@ -475,14 +483,21 @@ class _Writer:
         bc = ForcingModel(forcing=[])
         bc.filepath = Path("boundaries.bc")
         boundaries, laterals = [], []
-        for b in self.net.boundaries:
-            if b.type == "rating":
+        for i, b in enumerate(self.net.boundaries):
+            if b.type in ("rating", "critical"):
+                levels, discharges = (b.rating.levels, b.rating.discharges) if b.type == "rating" \
+                    else self._critical_table(i)
                 bc.forcing.append(QHTable(
                     name=b.node, function="qhtable",
                     quantityunitpair=[QuantityUnitPair(quantity="qhbnd discharge", unit="m3/s"),
                                       QuantityUnitPair(quantity="qhbnd waterlevel", unit="m")],
-                    datablock=[[q, h] for q, h in zip(b.rating.discharges, b.rating.levels, strict=True)]))
+                    datablock=[[q, h] for q, h in zip(discharges, levels, strict=True)]))
                 quantity = "qhbnd"
+                if b.type == "critical":
+                    self.result.notes.append(
+                        f"boundary {b.id!r} is a free outfall; D-Flow FM has no such boundary: it is written as the "
+                        "QH table of the critical flow at its end (the reach above it is not integrated as rivercal "
+                        "does, so D-Flow FM's levels there differ)")
             else:
                 quantity = "waterlevelbnd" if b.type == "level" else "dischargebnd"
                 unit = "m" if b.type == "level" else "m3/s"

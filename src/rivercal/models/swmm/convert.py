@@ -21,7 +21,8 @@ The conversion keeps what both engines share and says what it changes:
   branch); a flow direction ``positive`` gets a flap gate;
 - a culvert becomes a closed conduit (circular or rectangular) with its entrance and exit losses;
 - boundaries: a discharge becomes an external inflow, a level an outfall with a stage series, a Q(h)
-  rating an ``OUTLET`` with a ``TABULAR/DEPTH`` curve to a free outfall;
+  rating an ``OUTLET`` with a ``TABULAR/DEPTH`` curve to a free outfall, a critical boundary (a free
+  outfall) SWMM's ``FREE`` outfall (the smaller of the critical and the normal depth of the conduit);
 - laterals become external inflows at the nearest junction (several at one junction are summed);
 - stations: ``h_up``/``h_down``/``Q`` of a structure become the heads of ``<id>_up``/``<id>_dn`` and the
   structure's flow; ``h``/``Q`` at a branch chainage the head of the junction there and the flow of the
@@ -296,6 +297,9 @@ def case_to_inp(case, forcing: Mapping[str, pd.Series], *, dx: float = 500.0, mi
         if bd is not None and bd.type == "level":
             outfalls.append(f"{nid} {z:.4f} TIMESERIES ts_{bd.id} NO")
             series_rows += _series_rows(f"ts_{bd.id}", extended(f"boundary:{bd.id}"))
+            continue
+        if bd is not None and bd.type == "critical":
+            outfalls.append(f"{nid} {z:.4f} FREE NO")
             continue
         junction_rows.append(f"{nid} {z:.4f} 20 {depth:g} 0 0")
         if bd is not None and bd.type == "discharge":
