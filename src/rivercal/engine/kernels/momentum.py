@@ -114,7 +114,15 @@ def _link_geometry(net, work, z, u, min_depth):
         area[link] = 0.0
         if lk_type[link] != LINK_CHANNEL:
             continue
-        sign, depth, prof = _upwind(net, link, z, u)
+        k1 = np.uint64(net.lk_k1[link])
+        k2 = np.uint64(net.lk_k2[link])
+        z1 = z[k1]
+        z2 = z[k2]
+        u0 = u[link]
+        if u0 > 0.0 or (u0 == 0.0 and z1 >= z2):  # as _upwind, with the downstream depth too
+            depth, other, prof = z1 - net.lk_b1[link], z2 - net.lk_b2[link], np.uint64(net.lk_p1[link])
+        else:
+            depth, other, prof = z2 - net.lk_b2[link], z1 - net.lk_b1[link], np.uint64(net.lk_p2[link])
         if depth < min_depth:
             continue
         a_up, per, r43 = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
@@ -122,14 +130,10 @@ def _link_geometry(net, work, z, u, min_depth):
         if a_up <= 0.0:
             continue
         area[link] = a_up
-        fastest = max(fastest, math.fabs(u[link]) * ilen[link])
+        fastest = max(fastest, math.fabs(u0) * ilen[link])
         cam[link] = a_up
         cper[link] = per
         cr43[link] = r43
-        if sign > 0.0:
-            other = z[np.uint64(net.lk_k2[link])] - net.lk_b2[link]
-        else:
-            other = z[np.uint64(net.lk_k1[link])] - net.lk_b1[link]
         gap = depth - other
         if FRICTION_SPLIT * depth < gap < FRICTION_GRADUAL * depth and other > min_depth:
             shift = 0.5 * min(gap / (FRICTION_SPLIT * depth) - 1.0, 1.0) * gap

@@ -158,37 +158,19 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` or ``STATUS_DRY`` with the h-point, or
         ``STATUS_VELOCITY`` with the link at which the run failed.
     """
-    n_b = net.b_hp.size
     record(net, 0, z, q, obs_out, z_out, q_out)
     # velocities and fluxes at time n (u0, q0) and n+1 (u1, q1): the arrays swap roles after each step
     u0, q0, u1, q1 = u, q, work.un, work.qn
     _start(net, work, fric)
     for n in range(forcing.shape[0]):
         work.stats[STAT_STEPS] += 1
-        done = 0
-        while done < FULL:
-            span = FULL >> work.stats[STAT_LEVEL]
-            h = dt * span / FULL
-            lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
-            fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
-            if _too_fast(net, work, z, u0, h, theta, min_depth, fastest):
-                continue
-            switch_pumps(net, work, z, pump_on)
-            picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
-            fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
-            status, index = _screen(net, work)
-            if status == SCREEN_REDO:
-                continue
-            if status != STATUS_OK:
-                _keep(u0, q0, u, q)
-                return status, n, index
-            balance[n_b] += h * lateral
-            status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
+        status, index, swap = _step(net, None, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta,
+                                    max_iter, tol, min_depth, vmax, balance)
+        if swap:
             u0, q0, u1, q1 = u1, q1, u0, q0
-            done += span
-            if status != STATUS_OK:
-                _keep(u0, q0, u, q)
-                return status, n, index
+        if status != STATUS_OK:
+            _keep(u0, q0, u, q)
+            return status, n, index
         _step_done(work)
         if (n + 1) % out_every == 0:
             record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
@@ -243,7 +225,6 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
         (status, step, index): ``STATUS_OK``, or ``STATUS_LEVEL`` or ``STATUS_DRY`` with the h-point, or
         ``STATUS_VELOCITY`` with the link at which the run failed.
     """
-    n_b = net.b_hp.size
     record(net, 0, z, q, obs_out, z_out, q_out)
     if cx is not None:
         start_controls(cx, crest)
@@ -252,7 +233,6 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
     u0, q0, u1, q1 = u, q, work.un, work.qn
     _start(net, work, fric)
     reset_settings(net, sx)
-    extended = sx.links.size > 0
     scheduled = False  # any structure setting that follows a series (most cases have none)
     for k in range(sx.set_col.size):
         scheduled |= sx.set_col[k] >= 0
@@ -262,33 +242,13 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
             apply_settings(net, sx, n, forcing, crest)
         if cx is not None:
             control_step(cx, n, dt, z, q0, crest)
-        done = 0
-        while done < FULL:
-            span = FULL >> work.stats[STAT_LEVEL]
-            h = dt * span / FULL
-            lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
-            fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
-            if _too_fast(net, work, z, u0, h, theta, min_depth, fastest):
-                continue
-            switch_pumps(net, work, z, pump_on)
-            if extended:
-                picard_iterations_ext(net, sx, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
-            else:
-                picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
-            fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
-            status, index = _screen(net, work)
-            if status == SCREEN_REDO:
-                continue
-            if status != STATUS_OK:
-                _keep(u0, q0, u, q)
-                return status, n, index
-            balance[n_b] += h * lateral
-            status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
+        status, index, swap = _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta,
+                                    max_iter, tol, min_depth, vmax, balance)
+        if swap:
             u0, q0, u1, q1 = u1, q1, u0, q0
-            done += span
-            if status != STATUS_OK:
-                _keep(u0, q0, u, q)
-                return status, n, index
+        if status != STATUS_OK:
+            _keep(u0, q0, u, q)
+            return status, n, index
         _step_done(work)
         if (n + 1) % out_every == 0:
             record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
@@ -296,6 +256,50 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
                 record_controls(cx, (n + 1) // out_every)
     _keep(u0, q0, u, q)
     return STATUS_OK, forcing.shape[0], -1
+
+
+@kernel
+def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta, max_iter, tol, min_depth,
+          vmax, balance):
+    """Advance the state over step ``n`` of ``dt`` s, in sub-steps where the step control divides it.
+
+    The arguments are those of :func:`run`, with ``sx`` ``None`` for :func:`run`'s networks (the branch on it
+    is pruned when compiling); ``u0``, ``q0`` hold the velocities (m/s) and fluxes (m³/s) at the step's start
+    and ``u1``, ``q1`` receive the next ones, swapping roles after each sub-step. Returns (status, index,
+    swapped): the status and point or link of :func:`run`, and whether the last committed values ended in
+    ``u1``, ``q1`` after an odd number of sub-steps (the caller swaps its arrays then).
+    """
+    n_b = net.b_hp.size
+    swapped = False
+    done = 0
+    while done < FULL:
+        span = FULL >> work.stats[STAT_LEVEL]
+        h = dt * span / FULL
+        lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
+        fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
+        if _too_fast(net, work, z, u0, h, theta, min_depth, fastest):
+            continue
+        switch_pumps(net, work, z, pump_on)
+        if sx is None:
+            picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+        elif sx.links.size > 0:
+            picard_iterations_ext(net, sx, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+        else:
+            picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+        fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
+        status, index = _screen(net, work)
+        if status == SCREEN_REDO:
+            continue
+        if status != STATUS_OK:
+            return status, index, swapped
+        balance[n_b] += h * lateral
+        status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
+        u0, q0, u1, q1 = u1, q1, u0, q0
+        swapped = not swapped
+        done += span
+        if status != STATUS_OK:
+            return status, index, swapped
+    return STATUS_OK, -1, swapped
 
 
 @kernel
