@@ -272,7 +272,8 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
     n_b = net.b_hp.size
     swapped = False
     done = 0
-    while done < FULL:
+    status, index = STATUS_OK, -1
+    while done < FULL and status == STATUS_OK:  # one way in and one way out: a smaller compiled loop
         span = FULL >> work.stats[STAT_LEVEL]
         h = dt * span / FULL
         lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
@@ -288,18 +289,15 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
             picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
         fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
         status, index = _screen(net, work)
-        if status == SCREEN_REDO:
-            continue
-        if status != STATUS_OK:
-            return status, index, swapped
-        balance[n_b] += h * lateral
-        status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
-        u0, q0, u1, q1 = u1, q1, u0, q0
-        swapped = not swapped
-        done += span
-        if status != STATUS_OK:
-            return status, index, swapped
-    return STATUS_OK, -1, swapped
+        if status == STATUS_OK:
+            balance[n_b] += h * lateral
+            status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
+            u0, q0, u1, q1 = u1, q1, u0, q0
+            swapped = not swapped
+            done += span
+        elif status == SCREEN_REDO:
+            status = STATUS_OK
+    return status, index, swapped
 
 
 @kernel
