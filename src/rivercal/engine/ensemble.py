@@ -3,9 +3,13 @@
 A member is a parameter set (model quantities, as for :meth:`Simulator.simulate`, controller
 quantities included), a hot-start state (with its controllers' state) and, optionally, its own forcing
 (e.g. perturbed inflows and laterals of an ensemble Kalman filter).
-:func:`run_ensemble` advances all members through :func:`.kernels.batch.run_members`, which runs the
-single-run time loop per member on numba's threads; each member's series and final state are
-bit-identical to its :meth:`Simulator.simulate` from the same state.
+:func:`run_ensemble` advances every member with the single-run time loop (the compiled
+:func:`.kernels.timeloop.run` or ``run_ext`` that :meth:`Simulator.simulate` calls), on its own state,
+parameters, forcing, controllers and scratch arrays, the members spread over a pool of threads (the loop
+releases the interpreter lock); each member's series and final state are bit-identical to its
+:meth:`Simulator.simulate` from the same state. What a member writes is its own: its state rows, its output
+rows, its scratch arrays, its controller arrays and — for a network with scheduled structure settings, which
+the loop writes into the pump capacities and the structures' gate levels — its own copies of those arrays.
 
 A member that diverges follows an explicit policy: ``raise`` (an :class:`~rivercal.errors.EngineDivergedError`
 naming the member) or ``report`` (its series are NaN, its state is None, and ``failures`` says where and
@@ -14,22 +18,20 @@ why); the other members are unaffected either way.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import time as _time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numba
 import numpy as np
 import pandas as pd
-from numba.typed import List as TypedList
 
 from rivercal._time import utc
-from rivercal.engine.kernels.batch import run_members
 from rivercal.engine.kernels.codes import STATUS_OK
-from rivercal.engine.kernels.timeloop import make_work
+from rivercal.engine.kernels.timeloop import make_work, run, run_ext
 from rivercal.engine.simulator import Simulator, _ratio
 from rivercal.engine.state import EngineState
 from rivercal.errors import EngineDivergedError
@@ -82,19 +84,13 @@ class EnsembleResult:
         return frame
 
 
-@contextlib.contextmanager
-def threads(n: int | None) -> Iterator[int]:
-    """Run the block with ``n`` numba threads (None: all numba has); restores the previous number."""
-    previous = numba.get_num_threads()
+def threads(n: int | None) -> int:
+    """The number of threads for ``n`` (None: numba's ``NUMBA_NUM_THREADS``, by default the cores); checked."""
     wanted = numba.config.NUMBA_NUM_THREADS if n is None else int(n)
     if not 1 <= wanted <= numba.config.NUMBA_NUM_THREADS:
         raise ValueError(f"threads must be between 1 and {numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS), "
                          f"got {n}")
-    numba.set_num_threads(wanted)
-    try:
-        yield wanted
-    finally:
-        numba.set_num_threads(previous)
+    return wanted
 
 
 def run_ensemble(
@@ -110,7 +106,7 @@ def run_ensemble(
     n_threads: int | None = None,
     on_failure: Literal["raise", "report"] = "raise",
 ) -> EnsembleResult:
-    """Run every member from ``start`` to ``end`` in one compiled call.
+    """Run every member from ``start`` to ``end``, the members on parallel threads.
 
     Parameters
     ----------
@@ -133,7 +129,7 @@ def run_ensemble(
     snapshots
         Also return levels and discharges at every point at the output times.
     n_threads
-        numba threads (None: all).
+        Threads that run members at the same time (None: ``NUMBA_NUM_THREADS``, by default the cores).
     on_failure
         A diverging member: ``raise`` or ``report`` (module docstring).
 
@@ -168,30 +164,31 @@ def run_ensemble(
         if forcing.shape != (n_mem, n_steps, n_cols):
             raise ValueError(f"forcing must have shape (members, steps, columns) = {(n_mem, n_steps, n_cols)}, "
                              f"got {forcing.shape}")
-    with threads(n_threads):
-        if states is None:
-            stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)])
-            if sim.case.spec.initial.spinup > 0:
-                n_spin = max(1, round(sim.case.spec.initial.spinup * 3600.0 / sim.dt))
-                spin = sim.forcing_matrix(start, n_spin, constant=True)[None]
-                spun = _call(sim, stack, crest, fric, control, spin, n_spin, False,
-                             start - pd.Timedelta(seconds=n_spin * sim.dt), held=True)
-                _check(sim, spun[4], start - pd.Timedelta(seconds=n_spin * sim.dt), stack, on_failure, "spin-up")
-        else:
-            if len(states) != n_mem:
-                raise ValueError(f"{len(states)} states for {n_mem} members")
-            for m, s in enumerate(states):
-                if s.signature != (sim.compiled.n_hpoints, sim.compiled.n_links):
-                    raise ValueError(f"member {m}: the state belongs to another network")
-                if s.ctl.shape[0] != len(sim.controls or ()):
-                    raise ValueError(f"member {m}: the state holds {s.ctl.shape[0]} controllers, the case has "
-                                     f"{len(sim.controls or ())}")
-                if s.time != start:
-                    raise ValueError(f"member {m}: the state is at {s.time}, the run starts at {start}")
-            stack = _Stack.of(states)
-        t0 = _time.perf_counter()
-        obs, zs, qs, _, status = _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start)
-        wall = _time.perf_counter() - t0
+    n_threads = threads(n_threads)
+    if states is None:
+        stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)])
+        if sim.case.spec.initial.spinup > 0:
+            n_spin = max(1, round(sim.case.spec.initial.spinup * 3600.0 / sim.dt))
+            spin = sim.forcing_matrix(start, n_spin, constant=True)[None]
+            spun = _call(sim, stack, crest, fric, control, spin, n_spin, False,
+                         start - pd.Timedelta(seconds=n_spin * sim.dt), held=True, n_threads=n_threads)
+            _check(sim, spun[4], start - pd.Timedelta(seconds=n_spin * sim.dt), stack, on_failure, "spin-up")
+    else:
+        if len(states) != n_mem:
+            raise ValueError(f"{len(states)} states for {n_mem} members")
+        for m, s in enumerate(states):
+            if s.signature != (sim.compiled.n_hpoints, sim.compiled.n_links):
+                raise ValueError(f"member {m}: the state belongs to another network")
+            if s.ctl.shape[0] != len(sim.controls or ()):
+                raise ValueError(f"member {m}: the state holds {s.ctl.shape[0]} controllers, the case has "
+                                 f"{len(sim.controls or ())}")
+            if s.time != start:
+                raise ValueError(f"member {m}: the state is at {s.time}, the run starts at {start}")
+        stack = _Stack.of(states)
+    t0 = _time.perf_counter()
+    obs, zs, qs, _, status = _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start,
+                                  n_threads=n_threads)
+    wall = _time.perf_counter() - t0
     failures = _check(sim, status, start, stack, on_failure, "")
     for m in failures:
         obs[m] = np.nan
@@ -227,11 +224,12 @@ class _Stack:
                            signature=self.signature, ctl=self.ctl[m].copy())
 
 
-def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False):
-    """One call of the batched kernel from ``start``; returns (series, levels, discharges, balance, status).
+def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False, n_threads=1):
+    """One run of every member from ``start``; returns (series, levels, discharges, balance, status).
 
     ``control`` holds each member's controller quantities (None entries without controllers); ``held`` holds
-    the controllers' time tables at their value at the end of the call (a spin-up, as the single run does).
+    the controllers' time tables at their value at the end of the run (a spin-up, as the single run does).
+    The members run on ``n_threads`` threads, each its single run's compiled time loop on its own rows.
     """
     c = sim.compiled
     a, sx = c.arrays, c.structures
@@ -244,11 +242,6 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
         cxs = [sim.controls.arrays(control[m], start, n_steps, sim.dt, n_out, stack.ctl[m], held=held)
                for m in range(n_mem)]
     extended = bool(sx.links.size or (sx.set_col >= 0).any() or sim.controls is not None)
-    kits = TypedList()
-    for m in range(n_mem):
-        # the loop writes scheduled settings into these two arrays: each member its own
-        net = a._replace(p_cap=a.p_cap.copy()) if extended else a
-        kits.append((net, sx._replace(ogate=sx.ogate.copy()) if extended else sx, cxs[m], make_work(a, sx)))
     obs = np.full((n_mem, n_out, n_obs + len(sim.controls or ())), np.nan)
     zs = np.empty((n_mem, n_out if snapshots else 0, c.n_hpoints))
     qs = np.empty((n_mem, n_out if snapshots else 0, c.n_links))
@@ -256,9 +249,25 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
     status = np.zeros((n_mem, 3), dtype=np.int64)
     s = sim.settings
     settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
-                float(s.max_velocity))
-    run_members(kits, extended, crest, fric, stack.z, stack.dz, stack.vol, stack.u, stack.q, stack.pump_on, forcing,
-                settings, int(out_every), obs, zs, qs, balance, status)
+                float(s.max_velocity), int(out_every))
+
+    def member(m: int) -> None:
+        f = forcing[0] if forcing.shape[0] == 1 else forcing[m]
+        state = (stack.z[m], stack.dz[m], stack.vol[m], stack.u[m], stack.q[m], stack.pump_on[m], f)
+        out = (obs[m], zs[m], qs[m], balance[m])
+        work = make_work(a, sx)
+        if extended:  # the loop writes scheduled settings into these two arrays: each member its own
+            net, sxm = a._replace(p_cap=a.p_cap.copy()), sx._replace(ogate=sx.ogate.copy())
+            status[m] = run_ext(net, sxm, cxs[m], work, crest[m], fric[m], *state, *settings, *out)
+        else:
+            status[m] = run(a, work, crest[m], fric[m], *state, *settings, *out)
+
+    if n_threads == 1 or n_mem == 1:
+        for m in range(n_mem):
+            member(m)
+    else:
+        with ThreadPoolExecutor(max_workers=min(n_threads, n_mem), thread_name_prefix="rivercal-member") as pool:
+            list(pool.map(member, range(n_mem)))  # list(): a member's exception is raised here
     for m, cx in enumerate(cxs):
         if cx is not None:
             obs[m, :, n_obs:] = cx.out
