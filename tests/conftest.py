@@ -49,6 +49,17 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         pytest.exit(f"{REQUIRE_HUPSEL} is set but {reason}", returncode=pytest.ExitCode.USAGE_ERROR)
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Run the modules that hold slow tests first, each module's tests together and in their order.
+
+    On two workers the long end-to-end runs then overlap with the many short tests, instead of one worker
+    finishing the suite alone with the last of them while the other waits. A module stays whole, so its
+    module-scoped fixtures are made once per worker.
+    """
+    slow = {item.path for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.path not in slow)
+
+
 @pytest.fixture(scope="session")
 def hupsel_file() -> Path:
     """``PEQ_Hupsel.dat`` (see :func:`hupsel_location`); the test is skipped with the reason when it is missing."""

@@ -150,6 +150,7 @@ def _fews_run(module: Path, truth: pd.DataFrame, t0: pd.Timestamp, first: bool) 
     return write_run_file(module, t0, state=not first, properties=PROPS)
 
 
+@pytest.mark.slow
 def test_five_consecutive_forecasts_hand_the_state_on(tmp_path: Path, truth: pd.DataFrame, pi_schema) -> None:
     module = tmp_path / "Modules" / "rivercal"
     series_schema, state_schema, diag_schema = (pi_schema(n) for n in ("pi_timeseries.xsd", "pi_state.xsd",

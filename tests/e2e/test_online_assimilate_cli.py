@@ -6,6 +6,10 @@ import json
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.slow
+
 
 def rivercal(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)

@@ -14,6 +14,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+pytestmark = pytest.mark.slow
+
 
 def rivercal(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)

@@ -230,6 +230,7 @@ def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed(role: str,
 
 
 
+@pytest.mark.slow
 def test_the_command_line_runs_on_a_dask_cluster_and_checks_the_address(tmp_path: Path) -> None:
     import json
 
@@ -250,6 +251,7 @@ def test_the_command_line_runs_on_a_dask_cluster_and_checks_the_address(tmp_path
         assert bad.exit_code == 2 and "--dask" in bad.output and text in bad.output, bad.output
 
 
+@pytest.mark.slow
 def test_the_command_line_shows_no_dask_chatter_unless_verbose(tmp_path: Path) -> None:
     """Dask logs its cluster's start at INFO; the command line shows warnings only, as for rivercal's own log."""
     base = [sys.executable, "-m", "rivercal.cli"]

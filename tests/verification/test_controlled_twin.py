@@ -22,6 +22,8 @@ from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin import twin_truth
 from rivercal.workflows.online import run_online
 
+pytestmark = pytest.mark.slow
+
 FA0, S20 = 16.0, 10.56  # the case's friction (m^(1/3)/s) and W2's setpoint (m AD)
 
 
