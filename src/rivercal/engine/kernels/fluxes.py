@@ -19,7 +19,6 @@ from rivercal.engine.kernels.assemble import in_pieces
 from rivercal.engine.kernels.codes import (
     BOUNDARY_DISCHARGE,
     BOUNDARY_RATING,
-    DRY_TOLERANCE,
     LINK_CHANNEL,
     LINK_PUMP,
     RUN_COUNT,
@@ -154,19 +153,19 @@ def limit_draining_links(net, work, vol, dt, qn):
 def check_levels(net, work):
     """Screen the solved levels ``work.zk`` (m AD) of a (sub-)step before :func:`finish_step` commits them.
 
-    Returns the first point whose level lies more than ``DRY_TOLERANCE`` below its bed (a NaN counts as
-    below), or -1 when there is none. Level-boundary points are not checked (their level is imposed). Runs
-    before the commit, so that the time loop can divide the step instead. One count over the points first,
-    so that it vectorises; the search runs only when a point fails.
+    Returns the first point whose level lies below ``work.floor``, more than ``DRY_TOLERANCE`` below its bed (a
+    NaN counts as below), or -1 when there is none. Level-boundary points are not checked (their floor is
+    -inf: their level is imposed). Runs before the commit, so that the time loop can divide the step instead.
+    One count over the points first, so that it vectorises; the search runs only when a point fails.
     """
-    zk, bed, fixed = work.zk, net.hp_bed, work.fixed
+    zk, floor = work.zk, work.floor
     low = 0
     for i in range(zk.size):
-        low += (not zk[i] >= bed[i] - DRY_TOLERANCE) & (not fixed[i])
+        low += not zk[i] >= floor[i]
     if low == 0:
         return -1
     for i in range(zk.size):
-        if not ((zk[i] >= bed[i] - DRY_TOLERANCE) | fixed[i]):
+        if not zk[i] >= floor[i]:
             return i
     return -1
 

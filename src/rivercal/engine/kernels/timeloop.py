@@ -41,6 +41,8 @@ from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.codes import (
     AMP_FALL,
     AMP_RISE,
+    BOUNDARY_LEVEL,
+    DRY_TOLERANCE,
     LINK_CULVERT,
     LINK_PUMP,
     LINK_WEIR,
@@ -87,13 +89,13 @@ SCREEN_REDO = -1
 #: its friction type); per discharge boundary its delivered discharge (m³/s), and per boundary then lateral the
 #: withdrawal asked and not delivered in the (sub-)step (m³/s) and over the run (m³); the channel coefficients
 #: (area, f, r) of the links that may become free overfalls (:mod:`.overfall`); per point the sums of the step
-#: control's forecast (:mod:`.stability`, m²/s).
+#: control's forecast (:mod:`.stability`, m²/s); per point the lowest level a step may leave (m AD).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
      "cb", "cs", "cc2r", "cdz", "cam", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum",
-     "ovf", "anum", "aden"],
+     "ovf", "anum", "aden", "floor"],
 )
 
 
@@ -120,7 +122,18 @@ def make_work(net, sx=None) -> Work:
         bq=np.zeros(n_b), wreq=np.zeros(n_b + net.lat_hp.size), wshort=np.zeros(n_b + net.lat_hp.size),
         wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
         ovf=np.zeros((3, net.dl_link.size)), anum=np.zeros(n_h), aden=np.zeros(n_h),
+        floor=_floor(net),
     )
+
+
+def _floor(net) -> np.ndarray:
+    """The lowest level a (sub-)step may leave at each point (:func:`.fluxes.check_levels`), m AD.
+
+    Its bed less ``DRY_TOLERANCE``; none (-inf) where a level boundary imposes the level.
+    """
+    floor = net.hp_bed - DRY_TOLERANCE
+    floor[net.b_hp[net.b_type == BOUNDARY_LEVEL]] = -np.inf
+    return floor
 
 
 @kernel
