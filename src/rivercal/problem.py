@@ -324,8 +324,8 @@ class CalibrationProblem:
     def residuals_batch(self, xs: list[np.ndarray], *, threads: int | None = None) -> list[np.ndarray]:
         """:meth:`residuals` of several points, their model runs in one batched engine call.
 
-        The runs go through :func:`rivercal.engine.ensemble.run_ensemble` on ``threads`` numba threads (None:
-        all; more than numba has: all it has); each is bit-identical to its single run, so the results equal
+        The runs go through :func:`rivercal.engine.ensemble.run_ensemble` on ``threads`` threads (None:
+        ``NUMBA_NUM_THREADS``; more than that: that many); each is bit-identical to its single run, so the results equal
         ``[self.residuals(x) for x in xs]``. A point whose run fails is run again alone, so that it follows
         the failure policy with the single run's error, in the order of the points. A model that is not the
         embedded engine runs the points one by one.

@@ -69,7 +69,7 @@ def bench_ensemble(case: str = "dommel", members: int = 64, days: float = 7.0, r
     repeats
         Timed repetitions of the ensemble call and of the single run, interleaved (medians reported).
     threads
-        numba threads (None: all).
+        Threads that run members at the same time (None: ``NUMBA_NUM_THREADS``, by default the cores).
     seed
         Seed of the forcing perturbations.
     """

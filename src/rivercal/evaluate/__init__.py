@@ -14,12 +14,10 @@ difference Jacobians, SCE-UA complexes, grid and GLUE samples) to a ``batch`` ca
   the scheduler re-runs the points of a worker that is lost.
 
 A function that can evaluate several points at once in this process (``batch``: for a calibration on the
-embedded engine, :meth:`rivercal.problem.CalibrationProblem.residuals_batch`, one compiled call that runs
-the points' models on numba threads) replaces the local processes: with two or more workers, every batch of
-two or more points is one such call with as many threads as there would be workers. With one worker the
-points run one by one as before: a process that a pool forked (a twin suite's calibrations each run in one,
-with one worker) must not start numba's OpenMP threads when its parent has used them, which GNU OpenMP
-refuses. A Dask cluster keeps its tasks.
+embedded engine, :meth:`rivercal.problem.CalibrationProblem.residuals_batch`, which runs the points' models
+on threads of this process) replaces the local processes: with two or more workers, every batch of two or
+more points is one such call with as many threads as there would be workers. With one worker the points run
+one by one, as a batch on one thread would. A Dask cluster keeps its tasks.
 
 Either way the results come back in the order of the points, and an exception raised by a run (a diverged
 run under the ``raise`` failure policy) reaches the caller unchanged; budgets and deadlines are the
