@@ -14,7 +14,9 @@ def test_bench_ensemble_prints_members_wall_single_run_and_speedup():
                                    "--threads", "1", "--json"])
     assert out.exit_code == 0, out.output
     result = json.loads(out.stdout)
-    assert {"members", "wall_s", "single_run_wall_s", "speedup", "cpu_s", "load_average_1min"} <= set(result)
+    assert {"members", "wall_s", "single_run_wall_s", "speedup", "cpu_s", "load_average_1min",
+            "first_call_s"} <= set(result)
+    assert result["first_call_s"] > 0.0
     assert result["members"] == 3 and result["threads"] == 1
     assert result["speedup"] == result["members"] * result["single_run_wall_s"] / result["wall_s"]
 
