@@ -50,10 +50,10 @@ postgres:
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
 
 test: $(STAMP) kernels browser postgres
-	$(PY) -m pytest -n auto -q
+	$(PY) -m pytest -n auto --dist worksteal -q
 
 test-fast: $(STAMP) kernels browser postgres
-	$(PY) -m pytest -n auto -q -m "not slow"
+	$(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
 
 bench: $(STAMP) kernels browser
 	@mkdir -p out/bench
