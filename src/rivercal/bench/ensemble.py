@@ -34,9 +34,8 @@ __all__ = ["EnsembleBenchmark", "bench_ensemble"]
 class EnsembleBenchmark:
     """Result of :func:`bench_ensemble` (times in s).
 
-    ``first_call_s`` is the first ensemble call of the process, over one hour: loading the engine's cached
-    machine code (or compiling it, the first time after an install), what every process that calibrates with
-    two or more workers pays once.
+    ``first_call_s`` is the first ensemble call of the process, two members over one hour, after the single run
+    that made the hot-start state: what an ensemble adds once per process to the engine's time loop.
     """
 
     members: int
