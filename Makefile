@@ -9,7 +9,8 @@ OUT ?= out/demo
 .PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels
 
 # numba's cache notices a change of a kernel's own file but not of a kernel it inlines from another file;
-# after a change anywhere in the engine the cached machine code is dropped (a fresh clone has none).
+# after a change anywhere in the engine the cached machine code is dropped (a fresh clone has none) and
+# the time loop is compiled again, once (minutes), instead of in every process that runs the engine first.
 KERNEL_SOURCES := $(shell find src/rivercal/engine -name '*.py' | sort)
 KERNEL_STAMP := $(VENV)/.kernels
 
@@ -28,6 +29,8 @@ venv: $(STAMP)
 
 $(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
 	@find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+	@echo "compiling the engine's time loop (after a change of the engine: a few minutes, once)"
+	$(PY) -c 'from rivercal.engine.warmup import compile_engine; compile_engine()'
 	@touch $(KERNEL_STAMP)
 
 kernels: $(KERNEL_STAMP)

@@ -140,6 +140,18 @@ PI_SCHEMA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data" /
 
 
 @pytest.fixture(scope="session")
+def compiled_engine() -> dict[str, float]:
+    """The time loop compiled into numba's cache before a test times subprocesses of rivercal.
+
+    ``make test`` compiles it before the suite; a test run on its own with a cold cache would otherwise
+    see its first subprocess take minutes longer than the next ones. The wall time of each variant, s.
+    """
+    from rivercal.engine.warmup import compile_engine
+
+    return compile_engine()
+
+
+@pytest.fixture(scope="session")
 def pi_schema():
     """``pi_schema("pi_timeseries.xsd")``: an :class:`xmlschema.XMLSchema` read from ../shared/data/fews-pi-schemas.
 

@@ -8,6 +8,8 @@ land anywhere in it: in the start-up, in cycles, in commits, between cycles. The
 exactly what the reference holds, apart from wall-clock stamps, owners and attempt counts; and after
 every kill, every process of the killed run (its evaluation workers) must be gone within seconds. The
 same test runs against a real PostgreSQL server (a fresh database; fewer kills, to keep the suite short).
+The engine is compiled before the reference: a first compile inside it would make its start-up minutes
+long, and every delay drawn from it too long to land before the run ends.
 """
 
 from __future__ import annotations
@@ -150,8 +152,8 @@ def phase(db: str, since: float) -> str:
 
 
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
-def test_random_sigkills_then_resume_store_equals_an_uninterrupted_run(tmp_path: Path, backend: str,
-                                                                      request) -> None:
+def test_random_sigkills_then_resume_store_equals_an_uninterrupted_run(tmp_path: Path, backend: str, request,
+                                                                      compiled_engine) -> None:
     if backend == "postgresql":
         reference, killed = request.getfixturevalue("postgres_server").new_database(), \
             request.getfixturevalue("postgres_server").new_database()

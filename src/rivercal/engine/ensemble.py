@@ -31,8 +31,8 @@ import pandas as pd
 
 from rivercal._time import utc
 from rivercal.engine.kernels.codes import STATUS_OK
-from rivercal.engine.kernels.timeloop import make_work, run, run_ext
-from rivercal.engine.simulator import Simulator, _ratio
+from rivercal.engine.kernels.timeloop import make_work
+from rivercal.engine.simulator import Simulator, _ratio, time_loop
 from rivercal.engine.state import EngineState
 from rivercal.errors import EngineDivergedError
 
@@ -241,26 +241,17 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
     if sim.controls is not None:  # each member its own controller arrays, its state rows used in place
         cxs = [sim.controls.arrays(control[m], start, n_steps, sim.dt, n_out, stack.ctl[m], held=held)
                for m in range(n_mem)]
-    extended = bool(sx.links.size or (sx.set_col >= 0).any() or sim.controls is not None)
     obs = np.full((n_mem, n_out, n_obs + len(sim.controls or ())), np.nan)
     zs = np.empty((n_mem, n_out if snapshots else 0, c.n_hpoints))
     qs = np.empty((n_mem, n_out if snapshots else 0, c.n_links))
     balance = np.zeros((n_mem, a.b_hp.size + 1))
     status = np.zeros((n_mem, 3), dtype=np.int64)
-    s = sim.settings
-    settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
-                float(s.max_velocity), int(out_every))
 
     def member(m: int) -> None:
-        f = forcing[0] if forcing.shape[0] == 1 else forcing[m]
-        state = (stack.z[m], stack.dz[m], stack.vol[m], stack.u[m], stack.q[m], stack.pump_on[m], f)
-        out = (obs[m], zs[m], qs[m], balance[m])
-        work = make_work(a, sx)
-        if extended:  # the loop writes scheduled settings into these two arrays: each member its own
-            net, sxm = a._replace(p_cap=a.p_cap.copy()), sx._replace(ogate=sx.ogate.copy())
-            status[m] = run_ext(net, sxm, cxs[m], work, crest[m], fric[m], *state, *settings, *out)
-        else:
-            status[m] = run(a, work, crest[m], fric[m], *state, *settings, *out)
+        state = (stack.z[m], stack.dz[m], stack.vol[m], stack.u[m], stack.q[m], stack.pump_on[m])
+        status[m] = time_loop(sim, make_work(a, sx), cxs[m], crest[m], fric[m], state,
+                              forcing[0] if forcing.shape[0] == 1 else forcing[m], out_every,
+                              (obs[m], zs[m], qs[m], balance[m]), private=True)
 
     if n_threads == 1 or n_mem == 1:
         for m in range(n_mem):

@@ -123,6 +123,9 @@ class Simulator:
         #: The case's controllers (``None`` without ``[[controllers]]``).
         self.controls: Controls | None = Controls(case.spec.controllers, self.compiled) if case.spec.controllers \
             else None
+        sx = self.compiled.structures
+        #: Whether runs take the extended time loop (structures beyond weirs, setting series, controllers).
+        self.extended = bool(sx.links.size or (sx.set_col >= 0).any() or self.controls is not None)
         #: Counters of the last compiled run: steps, level solves, drying re-solves, and the step control's
         #: steps divided into sub-steps, sub-steps taken and the deepest division (a step into 2^level).
         self.last_run_stats: dict[str, int] = {}
@@ -414,24 +417,12 @@ class Simulator:
         qs = np.empty((n_out if snapshots else 0, self.compiled.n_links))
         balance = np.zeros(a.b_hp.size + 1)
         initial_volume = self._domain_volume(state)
-        s = self.settings
         self._work.stats[:] = 0
         self._work.wreq_sum[:] = 0.0
         self._work.wshort_sum[:] = 0.0
-        sx = self.compiled.structures
-        if sx.links.size or (sx.set_col >= 0).any() or cx is not None:
-            status, step, index = run_ext(
-                a, sx, cx, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on,
-                forcing,
-                float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
-                float(s.max_velocity), int(out_every), obs, zs, qs, balance,
-            )
-        else:
-            status, step, index = run(
-                a, self._work, crest, fric, state.z, state.dz, state.vol, state.u, state.q, state.pump_on, forcing,
-                float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
-                float(s.max_velocity), int(out_every), obs, zs, qs, balance,
-            )
+        status, step, index = time_loop(self, self._work, cx, crest, fric,
+                                        (state.z, state.dz, state.vol, state.u, state.q, state.pump_on), forcing,
+                                        out_every, (obs, zs, qs, balance))
         if cx is not None:
             obs[:, n_obs:] = cx.out
         self.last_run_stats = run_stats(self._work.stats)
@@ -527,6 +518,25 @@ class Simulator:
         columns = ["quantity", "value", "unit", "min", "max", "description"]
         return pd.DataFrame(rows, columns=columns).set_index("quantity")
 
+
+
+def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, state: tuple, forcing: np.ndarray,
+              out_every: int, out: tuple, *, private: bool = False) -> tuple[int, int, int]:
+    """One call of the compiled time loop of ``sim`` (the extended one where :attr:`Simulator.extended`).
+
+    ``state`` (z m AD, dz m, vol m³, u m/s, q m³/s, pump_on) is advanced in place; ``out`` (obs, zs, qs,
+    balance) is written; ``work`` and ``cx`` are the run's scratch and controller arrays. ``private`` copies
+    the two arrays the extended loop writes scheduled settings into (pump capacities, orifice gates), for a
+    call on a thread beside others. Returns the status code, the step and the index where it stopped.
+    """
+    s, a, sx = sim.settings, sim.compiled.arrays, sim.compiled.structures
+    settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
+                float(s.max_velocity), int(out_every))
+    if not sim.extended:
+        return run(a, work, crest, fric, *state, forcing, *settings, *out)
+    if private:
+        a, sx = a._replace(p_cap=a.p_cap.copy()), sx._replace(ogate=sx.ogate.copy())
+    return run_ext(a, sx, cx, work, crest, fric, *state, forcing, *settings, *out)
 
 
 def run_stats(stats: np.ndarray) -> dict[str, int]:

@@ -1,0 +1,49 @@
+"""Compile the time loop ahead of use.
+
+numba compiles a kernel at its first call and keeps the machine code beside the package's sources
+(``cache=True``); later processes load it in about a second. The first compile of the time loop takes
+minutes (about two for the plain loop on one core, half a minute more for the loop with controllers), and
+a process that pays it looks hung and times everything it does wrongly. :func:`compile_engine` pays it
+once, on purpose: ``make`` calls it after a change of the engine, before the demo, the tests, the
+benchmarks and the documentation.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import pandas as pd
+
+from rivercal.case import load_case
+from rivercal.engine.simulator import Simulator
+
+__all__ = ["VARIANTS", "compile_engine"]
+
+log = logging.getLogger(__name__)
+
+#: The embedded case that takes each variant of the time loop: without structures or controllers
+#: (:func:`~rivercal.engine.kernels.timeloop.run`), and with controllers
+#: (:func:`~rivercal.engine.kernels.timeloop.run_ext`).
+VARIANTS = {"plain": "synthetic", "controlled": "dommel-controlled"}
+
+
+def compile_engine() -> dict[str, float]:
+    """Run each variant of the time loop for one simulated hour; the wall time of each, s.
+
+    Boundaries and laterals that the case leaves to a rainfall-runoff model get a constant 1 m³/s: the
+    run is there to compile, its result is dropped.
+    """
+    seconds = {}
+    for variant, name in VARIANTS.items():
+        began = time.perf_counter()
+        case = load_case(name)
+        sim = Simulator(case)
+        missing = [key for key in sim.compiled.forcing_keys if key not in sim.forcing]
+        if missing:
+            index = pd.date_range(sim.start, sim.end, freq="1D")
+            sim = Simulator(case, forcing={key: pd.Series(1.0, index=index) for key in missing})
+        sim.simulate(end=sim.start + pd.Timedelta("1h"))
+        seconds[variant] = time.perf_counter() - began
+        log.info("time loop %s (case %s) ready in %.1f s", variant, name, seconds[variant])
+    return seconds
