@@ -54,7 +54,8 @@ class KillOnce:
 
 
 def hold_interpreter(additions: float) -> float:
-    """Add ``additions`` times in one compiled call that holds the interpreter lock, as a model run does."""
+    """Add ``additions`` times in one compiled call that keeps the interpreter lock (the worst case for a worker's
+    own threads: Python code, or compiled code without ``nogil``, in the middle of a long task)."""
     import numba
 
     @numba.njit

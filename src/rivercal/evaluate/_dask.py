@@ -6,9 +6,10 @@ processes on this machine (``local:N``) and ships objects to its workers once pe
 process crashed or its machine went away) on the remaining workers; a task that *raises* is not re-run,
 its exception reaches the caller (a diverged model run under the ``raise`` failure policy).
 
-Each worker runs one task at a time: a model run holds the Python interpreter lock (the engine's
-numba kernels do not release it), so more threads in one worker would not run faster and would share one
-copy of the model. A cluster whose workers run several threads is refused.
+Each worker runs one task at a time: a worker holds one copy of the model, and a run of the embedded
+engine works in that copy's scratch arrays, so two runs at once in one worker would write over each other
+(and an external model's files are one set per copy as well). A cluster whose workers run several threads
+is refused; one single-threaded worker per core uses the machine.
 
 The worker processes of a ``local:N`` cluster are Dask's own; each ends when this process ends, however it
 ends, also in the middle of a model run: the kernel's parent-death signal (armed by a worker plugin) does not
@@ -113,9 +114,10 @@ class DaskCluster:
         crowded = {w: n for w, n in threads.items() if n > 1}
         if crowded:
             worker, n = next(iter(crowded.items()))
-            raise ClusterError(f"Dask worker {worker} runs {n} threads; rivercal runs one model per worker process "
-                               "(a model run holds the interpreter lock): start the workers with --nthreads 1 and "
-                               "as many processes as cores (dask worker ADDRESS --nthreads 1 --nworkers N)")
+            raise ClusterError(f"Dask worker {worker} runs {n} threads; rivercal runs one model at a time per "
+                               "worker process (the runs of a worker share its copy of the model): start the workers "
+                               "with --nthreads 1 and as many processes as cores "
+                               "(dask worker ADDRESS --nthreads 1 --nworkers N)")
 
     @property
     def n_workers(self) -> int:

@@ -32,9 +32,9 @@ class Install(WorkerPlugin):
 class EndWithParent(WorkerPlugin):
     """Make each worker process of a ``local:N`` cluster end as soon as the process that started it ends.
 
-    Dask's own watch of the parent is a thread of the worker, which waits for the interpreter lock: a worker
-    in the middle of a model run (compiled code that holds the lock) would outlive a killed parent until the
-    run ends, minutes on a large network. The kernel's parent-death signal does not wait
+    Dask's own watch of the parent is a thread of the worker, which needs the interpreter lock: a worker in
+    the middle of Python code that keeps it (an external model's or a case's loading, a long numpy call)
+    could outlive a killed parent until that ends. The kernel's parent-death signal does not wait
     (:func:`rivercal.evaluate.end_with_parent`). A worker that another process started (a remote cluster's
     worker, or one whose parent is not ``parent_pid``) is left alone.
     """
