@@ -30,7 +30,7 @@ venv: $(STAMP)
 $(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
 	@find src -name '*.nbi' -delete -o -name '*.nbc' -delete
 	@echo "compiling the engine's time loop (after a change of the engine: a few minutes, once)"
-	$(PY) -c 'from rivercal.engine.warmup import compile_engine; compile_engine()'
+	$(VENV)/bin/rivercal compile
 	@touch $(KERNEL_STAMP)
 
 kernels: $(KERNEL_STAMP)

@@ -140,11 +140,11 @@ PI_SCHEMA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data" /
 
 
 @pytest.fixture(scope="session")
-def compiled_engine() -> dict[str, float]:
+def compiled_engine() -> dict:
     """The time loop compiled into numba's cache before a test times subprocesses of rivercal.
 
     ``make test`` compiles it before the suite; a test run on its own with a cold cache would otherwise
-    see its first subprocess take minutes longer than the next ones. The wall time of each variant, s.
+    see its first subprocess take minutes longer than the next ones. Each variant's readiness.
     """
     from rivercal.engine.warmup import compile_engine
 

@@ -21,6 +21,17 @@ def test_case_schema_is_json_schema() -> None:
     assert {"case", "branches", "weirs", "parameters", "catchments"} <= set(schema["properties"])
 
 
+def test_compile_fills_the_cache_that_the_next_process_loads() -> None:
+    """``rivercal compile`` leaves both time loops in numba's cache: a second process compiles nothing."""
+    first = rivercal("compile", "--json")
+    assert first.returncode == 0, first.stderr
+    second = rivercal("compile", "--json")
+    assert second.returncode == 0, second.stderr
+    ready = json.loads(second.stdout)
+    assert set(ready) == {"plain", "controlled"}
+    assert all(r["from_cache"] for r in ready.values()), ready
+
+
 def test_simulate_writes_csv_and_cf_netcdf(tmp_path: Path) -> None:
     import xarray as xr
 

@@ -84,7 +84,8 @@ app.add_typer(dhydro.import_app, name="import")
 app.add_typer(dhydro.export_app, name="export")
 for _name, _command in (("simulate", simulate.simulate), ("calibrate", calibrate.calibrate), ("twin", twin.twin),
                         ("analyse", analyse.analyse), ("online", online.online), ("report", online.report),
-                        ("demo", online.demo), ("dashboard", dashboard.dashboard)):
+                        ("demo", online.demo), ("dashboard", dashboard.dashboard),
+                        ("compile", simulate.compile_engine)):
     app.command(_name)(guard(_command))
 app.command("fews", help=fews.HELP)(guard(fews.fews))
 

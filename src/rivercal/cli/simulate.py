@@ -10,7 +10,7 @@ import typer
 from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, Reporter, emit_json, out_console
 from rivercal.cli.options import open_model, output_dir, parse_sets, parse_time
 
-__all__ = ["simulate"]
+__all__ = ["compile_engine", "simulate"]
 
 
 def simulate(
@@ -63,3 +63,19 @@ def simulate(
             out_console.print(f"{divided} time steps were too long for the flow and were divided (into up to "
                               f"{summary['run']['max_division']} sub-steps)")
         out_console.print("wrote " + ", ".join(summary["files"].values()))
+
+
+def compile_engine(as_json: JsonOpt = False) -> None:
+    """Compile the engine into numba's cache now (minutes, once per installation), so later runs start at once."""
+    from rivercal.engine.warmup import VARIANTS
+    from rivercal.engine.warmup import compile_engine as compile_variants
+
+    ready = compile_variants()
+    if as_json:
+        emit_json({variant: {"case": VARIANTS[variant], "seconds": round(r.seconds, 2), "from_cache": r.from_cache}
+                   for variant, r in ready.items()})
+        return
+    for variant, r in ready.items():
+        how = "loaded from the cache" if r.from_cache else "compiled"
+        out_console.print(f"time loop {variant} (case {VARIANTS[variant]}): {how} in {r.seconds:.1f} s",
+                          highlight=False)

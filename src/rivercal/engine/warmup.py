@@ -4,21 +4,23 @@ numba compiles a kernel at its first call and keeps the machine code beside the 
 (``cache=True``); later processes load it in about a second. The first compile of the time loop takes
 minutes (about two for the plain loop on one core, half a minute more for the loop with controllers), and
 a process that pays it looks hung and times everything it does wrongly. :func:`compile_engine` pays it
-once, on purpose: ``make`` calls it after a change of the engine, before the demo, the tests, the
-benchmarks and the documentation.
+once, on purpose: ``rivercal compile`` (which ``make`` runs after a change of the engine, before the demo,
+the tests, the benchmarks and the documentation; run it once on each machine of a cluster after installing).
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 
 import pandas as pd
 
 from rivercal.case import load_case
+from rivercal.engine.kernels import timeloop
 from rivercal.engine.simulator import Simulator
 
-__all__ = ["VARIANTS", "compile_engine"]
+__all__ = ["VARIANTS", "Readiness", "compile_engine"]
 
 log = logging.getLogger(__name__)
 
@@ -26,15 +28,24 @@ log = logging.getLogger(__name__)
 #: (:func:`~rivercal.engine.kernels.timeloop.run`), and with controllers
 #: (:func:`~rivercal.engine.kernels.timeloop.run_ext`).
 VARIANTS = {"plain": "synthetic", "controlled": "dommel-controlled"}
+_KERNELS = {"plain": timeloop.run, "controlled": timeloop.run_ext}
 
 
-def compile_engine() -> dict[str, float]:
-    """Run each variant of the time loop for one simulated hour; the wall time of each, s.
+@dataclass(frozen=True)
+class Readiness:
+    """One variant of the time loop made ready: wall time, s, and whether numba loaded it from its cache."""
+
+    seconds: float
+    from_cache: bool
+
+
+def compile_engine() -> dict[str, Readiness]:
+    """Run each variant of the time loop (:data:`VARIANTS`) for one simulated hour.
 
     Boundaries and laterals that the case leaves to a rainfall-runoff model get a constant 1 m³/s: the
     run is there to compile, its result is dropped.
     """
-    seconds = {}
+    ready = {}
     for variant, name in VARIANTS.items():
         began = time.perf_counter()
         case = load_case(name)
@@ -44,6 +55,9 @@ def compile_engine() -> dict[str, float]:
             index = pd.date_range(sim.start, sim.end, freq="1D")
             sim = Simulator(case, forcing={key: pd.Series(1.0, index=index) for key in missing})
         sim.simulate(end=sim.start + pd.Timedelta("1h"))
-        seconds[variant] = time.perf_counter() - began
-        log.info("time loop %s (case %s) ready in %.1f s", variant, name, seconds[variant])
-    return seconds
+        stats = _KERNELS[variant].stats
+        ready[variant] = Readiness(time.perf_counter() - began,
+                                   from_cache=bool(stats.cache_hits) and not stats.cache_misses)
+        log.info("time loop %s (case %s) %s in %.1f s", variant, name,
+                 "loaded from the cache" if ready[variant].from_cache else "compiled", ready[variant].seconds)
+    return ready
