@@ -53,7 +53,7 @@ postgres:
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
 
 test: $(STAMP) kernels browser postgres
-	$(PY) -m pytest -n auto --dist worksteal -q
+	$(PY) -m pytest -n auto --dist worksteal -q --durations=25
 
 test-fast: $(STAMP) kernels browser postgres
 	$(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
