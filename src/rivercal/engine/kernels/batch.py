@@ -5,13 +5,13 @@ The members themselves run the single-run time loop (:mod:`rivercal.engine.ensem
 
 from __future__ import annotations
 
-from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels._jit import entry
 from rivercal.engine.kernels.lookup import hp_volume_width
 
 __all__ = ["volumes"]
 
 
-@kernel
+@entry
 def volumes(net, z, vol):
     """The volume (m³) at every h-point for levels ``z`` (m AD), into ``vol`` (e.g. after a state analysis)."""
     for i in range(z.size):

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels._jit import entry, kernel
 from rivercal.engine.kernels.codes import FLOW_WIDTH
 
 __all__ = [
@@ -23,7 +23,7 @@ __all__ = [
 ]
 
 
-@kernel
+@entry
 def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, tab_flow, p, d):
     """Flow area (m²), wetted perimeter (m) and R^(4/3) (m^(4/3)) of profile ``p`` at depth ``d`` (m).
 
@@ -49,7 +49,7 @@ def flow_geometry(tab_off, tab_n, tab_idd, tab_top, tab_wf_top, tab_af, tab_pf, 
             tab_flow[k + np.uint64(4)] + f * tab_flow[k + np.uint64(5)])
 
 
-@kernel
+@entry
 def storage_area_width(tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, p, d):
     """Total area (m²) and storage width (m) of profile ``p`` at depth ``d`` (m).
 
@@ -69,7 +69,7 @@ def storage_area_width(tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab
     return tab_at[k] + (d - j * tab_dd[p]) * w, w
 
 
-@kernel
+@entry
 def hp_volume_width(sc_ptr, sc_prof, sc_bed, sc_len, hp_bed, hp_amin,
                     tab_off, tab_n, tab_dd, tab_idd, tab_top, tab_wt_top, tab_at, tab_wt, i, z):
     """Volume (m³) and storage area (m²) of h-point ``i`` at level ``z`` (m AD).

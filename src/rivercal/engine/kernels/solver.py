@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels._jit import entry
 from rivercal.engine.kernels.codes import SCHED_WIDTH
 
 __all__ = ["ldl_solve", "ldl_solve_packed"]
@@ -26,7 +26,7 @@ __all__ = ["ldl_solve", "ldl_solve_packed"]
 _STEP = 2 * SCHED_WIDTH
 
 
-@kernel
+@entry
 def ldl_solve(order, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval, rhs):
     """Factorise and solve in place; on return ``rhs`` holds the solution.
 
@@ -59,7 +59,7 @@ def ldl_solve(order, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval,
         rhs[k] = s
 
 
-@kernel
+@entry
 def _forward(rec, carried, d_carried, b_carried, diag, off, lval, rhs):
     """Eliminate the point of one schedule lane ``rec`` (its updates when it has at most two later points).
 
@@ -110,7 +110,7 @@ def _forward(rec, carried, d_carried, b_carried, diag, off, lval, rhs):
     return o2, d2, b2, inv, bk
 
 
-@kernel
+@entry
 def _eliminate_general(p, inv, bk, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval, rhs):
     """The updates of the elimination at position ``p`` of the CSR factorisation (any number of later points)."""
     for c in range(cptr[p], cptr[p + 1]):
@@ -127,7 +127,7 @@ def _eliminate_general(p, inv, bk, cptr, cedge, cother, uptr, ue1, ue2, utgt, di
         rhs[cother[c]] -= lval[cedge[c]] * bk
 
 
-@kernel
+@entry
 def _back(rec, solved, x_solved, lval, rhs):
     """Back substitution of one schedule lane with at most two later points; returns its point and value.
 
@@ -149,7 +149,7 @@ def _back(rec, solved, x_solved, lval, rhs):
     return k, x
 
 
-@kernel
+@entry
 def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval, rhs):
     """:func:`ldl_solve` on the two-lane schedule of the factorisation (bit-identical result).
 

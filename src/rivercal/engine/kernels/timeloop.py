@@ -37,7 +37,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from rivercal.engine.kernels._jit import kernel
+from rivercal.engine.kernels._jit import entry, kernel
 from rivercal.engine.kernels.codes import (
     AMP_FALL,
     AMP_RISE,
@@ -136,7 +136,7 @@ def _floor(net) -> np.ndarray:
     return floor
 
 
-@kernel
+@entry
 def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth, vmax,
         out_every, obs_out, z_out, q_out, balance):
     """Advance the state over ``forcing.shape[0]`` steps of ``dt`` seconds.
@@ -191,7 +191,7 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     return STATUS_OK, forcing.shape[0], -1
 
 
-@kernel
+@entry
 def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth,
             vmax, out_every, obs_out, z_out, q_out, balance):
     """:func:`run` for a network with structures of D-HYDRO's kinds or structure settings that follow a series.
