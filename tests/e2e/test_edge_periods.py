@@ -1,6 +1,6 @@
 """Edge periods on the dommel case (2010-09-01 … 2010-12-01): short replays, single cycles, case start and end.
 
-- the replay of 2010-10-28 … 2010-11-06 (ten cycles, none of whose windows has left the change of
+- the replay of 2010-11-04 … 2010-11-06 (three cycles, none of whose windows has left the change of
   2010-11-01) ends with exit 0, a summary that says why no forecast of a window past the change could
   be compared yet (and gives the errors of the cycles issued after the change), and a report;
 - a single cycle on observations that end at its issue time: its forecasts cannot be scored, and the
@@ -32,12 +32,12 @@ def rivercal(*args: str) -> subprocess.CompletedProcess:
 
 def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:
     db, out = tmp_path / "run.sqlite", tmp_path / "x"
-    args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-10-28", "--to", "2010-11-06", "--db", str(db),
+    args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-04", "--to", "2010-11-06", "--db", str(db),
             "--out", str(out), "--workers", "2")
     run = rivercal(*args, "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
-    assert summary["cycles"] == 10 and summary["status"] == {"done": 10}
+    assert summary["cycles"] == 3 and summary["status"] == {"done": 3}
     fe = summary["forecast_errors"]
     assert fe["n"] == 0 and fe["updated_mae_m"] is None
     assert "starts at or after the change at 2010-11-01 00:00" in fe["reason"]
