@@ -10,7 +10,7 @@ OUT ?= out/demo
 
 # numba's cache notices a change of a kernel's own file but not of a kernel it inlines from another file;
 # after a change anywhere in the engine the cached machine code is dropped (a fresh clone has none) and
-# the time loop is compiled again, once (minutes), instead of in every process that runs the engine first.
+# the time loop is compiled again, once (about a minute), instead of in every process that runs the engine first.
 KERNEL_SOURCES := $(shell find src/rivercal/engine -name '*.py' | sort)
 KERNEL_STAMP := $(VENV)/.kernels
 
@@ -29,7 +29,7 @@ venv: $(STAMP)
 
 $(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
 	@find src -name '*.nbi' -delete -o -name '*.nbc' -delete
-	@echo "compiling the engine's time loop (after a change of the engine: a few minutes, once)"
+	@echo "compiling the engine's time loop (after a change of the engine: about a minute, once)"
 	$(VENV)/bin/rivercal compile
 	@touch $(KERNEL_STAMP)
 
