@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels
+.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels bytecode
 
 # numba's cache notices a change of a kernel's own file but not of a kernel it inlines from another file;
 # after a change anywhere in the engine the cached machine code is dropped (a fresh clone has none) and
@@ -35,7 +35,12 @@ $(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
 
 kernels: $(KERNEL_STAMP)
 
-demo: $(STAMP) kernels
+# rivercal's own modules as bytecode beside them: an environment with PYTHONDONTWRITEBYTECODE set never
+# writes it, and every process (each test's subprocess) would compile them again (0.3 s each, measured).
+bytecode: $(STAMP)
+	@$(PY) -m compileall -q src >/dev/null
+
+demo: $(STAMP) kernels bytecode
 	$(VENV)/bin/rivercal demo --out $(OUT)
 
 $(CHROMIUM) $(CHROMEDRIVER):
@@ -52,13 +57,13 @@ postgres:
 		command -v apt-get >/dev/null || { echo "make test needs Debian's postgresql package (apt-get)"; exit 1; }; \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
 
-test: $(STAMP) kernels browser postgres
+test: $(STAMP) kernels browser postgres bytecode
 	$(PY) -m pytest -n auto --dist worksteal -q --durations=25
 
-test-fast: $(STAMP) kernels browser postgres
+test-fast: $(STAMP) kernels browser postgres bytecode
 	$(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
 
-bench: $(STAMP) kernels browser
+bench: $(STAMP) kernels browser bytecode
 	@mkdir -p out/bench
 	$(PY) benchmarks/run_all.py --out out/bench
 
