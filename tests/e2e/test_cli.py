@@ -22,13 +22,13 @@ def test_case_schema_is_json_schema() -> None:
 
 
 def test_compile_fills_the_cache_that_the_next_process_loads() -> None:
-    """``rivercal compile`` leaves both time loops in numba's cache: a second process compiles nothing."""
+    """``rivercal compile`` leaves each variant of the time loop in numba's cache: a second process compiles nothing."""
     first = rivercal("compile", "--json")
     assert first.returncode == 0, first.stderr
     second = rivercal("compile", "--json")
     assert second.returncode == 0, second.stderr
     ready = json.loads(second.stdout)
-    assert set(ready) == {"plain", "controlled"}
+    assert set(ready) == {"plain", "structures", "controlled"}
     assert all(r["from_cache"] for r in ready.values()), ready
 
 
