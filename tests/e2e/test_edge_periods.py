@@ -32,8 +32,8 @@ def rivercal(*args: str) -> subprocess.CompletedProcess:
 
 def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:
     db, out = tmp_path / "run.sqlite", tmp_path / "x"
-    args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-04", "--to", "2010-11-06", "--db", str(db),
-            "--out", str(out), "--workers", "2")
+    args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-04", "--to", "2010-11-06", "--params", "FA",
+            "--no-transition", "--db", str(db), "--out", str(out), "--workers", "2")
     run = rivercal(*args, "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
