@@ -18,6 +18,7 @@ import json
 import logging
 import math
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -38,12 +39,14 @@ PARAMS = tuple(f"F{k}" for k in range(1, 21))
 
 class Timeline(logging.Handler):
     def __init__(self) -> None:
-        super().__init__(logging.INFO)
+        super().__init__(logging.DEBUG)
         self.t0 = time.perf_counter()
         self.events: list[tuple[float, str]] = []
 
     def emit(self, record: logging.LogRecord) -> None:
-        self.events.append((round(time.perf_counter() - self.t0, 2), record.getMessage()[:160]))
+        event = (round(time.perf_counter() - self.t0, 2), record.getMessage()[:160])
+        self.events.append(event)
+        print(f"{event[0]:8.1f} s  {event[1]}", file=sys.stderr, flush=True)  # progress while it runs
 
 
 class Phases:
@@ -155,7 +158,7 @@ def main() -> None:
         phases.wrap_runs()
         for name in ("rivercal.online", "rivercal.problem", "rivercal.optimise", "rivercal.analysis"):
             logging.getLogger(name).addHandler(timeline)
-            logging.getLogger(name).setLevel(logging.INFO)
+            logging.getLogger(name).setLevel(logging.DEBUG if name == "rivercal.optimise" else logging.INFO)
         try:
             config = OnlineConfig(**{**config.__dict__, "workers": cluster})
             with Store(Path(folder) / "online.sqlite") as store:

@@ -1,6 +1,6 @@
 """The command line on a model.toml: the packaged SWMM case dommel-swmm wherever a CASE is taken.
 
-The on-line replay is the acceptance run: seven daily cycles of scenario PI-Wg (the nine adjustable
+The on-line replay is the acceptance run: four daily cycles of scenario PI-Wg (the nine adjustable
 crests drop 15 cm on 2010-11-01, thesis §5-2-1) on EPA SWMM, every cycle after the first hot-started from
 the SWMM hotstart file the previous cycle stored in the run's store.
 """
@@ -68,7 +68,7 @@ def test_online_replays_four_daily_cycles_on_swmm_from_hotstart_files(tmp_path) 
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 4 and summary["status"] == {"done": 4} and summary["case"] == "dommel-swmm"
     wd = {e["issue_time"][:10]: e["Wd"] for e in summary["estimates"]}
-    assert abs(wd["2010-11-01"]) < 0.005  # its one-day window ends before the drop
+    assert abs(wd["2010-11-01"]) < 0.005  # its one-day window ends as the crests drop
     assert all(abs(wd[d] + 0.15) < 0.005 for d in ("2010-11-03", "2010-11-04"))  # runs after the drop
     # a one-day window never holds the change inside it, so the transition estimator cannot date it; without
     # it (--no-transition) the jump of the one-value estimate alerts
