@@ -2,10 +2,11 @@
 
 numba compiles a kernel at its first call and keeps the machine code beside the package's sources
 (``cache=True``); later processes load it in about a second. The first compile of the time loop takes
-about a minute (some 40 s for the plain loop on one core, 20 s more for the loop with controllers), and
-a process that pays it looks hung and times everything it does wrongly. :func:`compile_engine` pays it
-once, on purpose: ``rivercal compile`` (which ``make`` runs after a change of the engine, before the demo,
-the tests, the benchmarks and the documentation; run it once on each machine of a cluster after installing).
+over a minute (measured on one core: 44 s for the plain loop, 19 s for the extended loop, 11 s more for
+the extended loop with controllers), and a process that pays it looks hung and times everything it does
+wrongly. :func:`compile_engine` pays it once, on purpose: ``rivercal compile`` (which ``make`` runs after
+a change of the engine, before the demo, the tests, the benchmarks and the documentation; run it once on
+each machine of a cluster after installing).
 """
 
 from __future__ import annotations
