@@ -46,6 +46,20 @@ def _meta(run: Any) -> dict[str, Any]:
     return dict(run.config.get("meta") or {})
 
 
+def _truth_words(meta: dict[str, Any]) -> list[str]:
+    """What "truth" means on the error maps of a run whose observations came from a perturbed truth."""
+    realism = meta.get("realism") or {}
+    changed = any(realism.get(k) is not None for k in ("rain", "runoff", "structure"))  # Realism.changes_truth
+    perturbed = [f"realism {realism.get('name', '?')}"] if changed else []
+    perturbed += [f"a rain error of about {float(meta['rain_error']):.0%}"] if meta.get("rain_error") else []
+    if not perturbed:
+        return ["truth: the scenario's parameters on the model itself (the identical twin of the observations)."]
+    return [f"truth: the scenario's parameters on the model itself. The observations came from a truth with "
+            f"{' and '.join(perturbed)}, which these maps do not use (its grid, forcing or friction differ from "
+            "the model's): they show what the parameter estimates leave of the change, not the model's error "
+            "against that truth; the forecast scores above are against the observations."]
+
+
 def _change_time(run: Any) -> pd.Timestamp | None:
     scenario = _meta(run).get("scenario")
     if not scenario:
@@ -545,15 +559,22 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
             f"rivercal {sel['rivercal'].abs().mean() * 100:.2f} cm. Largest DSS errors at "
             + ", ".join(f"{k} ({v * 100:.1f} cm)" for k, v in worst.items()) + "."))
     station_cols = [c for c in runs["truth_series"].columns if c.rpartition(".")[2] in _LEVELS]
-    seen = (runs["dss_series"][station_cols] - runs["truth_series"][station_cols]).loc[change + window:].abs().mean()
-    visible = seen[seen > 0.01]
-    blocks.append(paragraph(
-        "What the stations see of the change (mean |DSS − truth| after the transition left the window): "
-        + ", ".join(f"{k} {v * 100:.2f} cm" for k, v in seen.items()) + ". "
-        + (f"{len(visible)} of {len(seen)} station series differ by more than 1 cm."
-           if len(visible) else "No station series differs by more than 1 cm: the stations cannot see this change, "
-           "so no estimator fed by them can follow it; a station at the points with the largest DSS errors "
-           "above would.")))
+    after = (runs["dss_series"][station_cols] - runs["truth_series"][station_cols]).loc[change + window:]
+    if after.empty:
+        blocks.append(paragraph(
+            f"What the stations see of the change: not yet measurable here. The transition leaves a "
+            f"{window / pd.Timedelta('1D'):g}-day calibration window at {change + window:%Y-%m-%d %H:%M}, after "
+            f"the replayed period (up to {end:%Y-%m-%d %H:%M})."))
+    else:
+        seen = after.abs().mean()
+        visible = seen[seen > 0.01]
+        blocks.append(paragraph(
+            "What the stations see of the change (mean |DSS − truth| after the transition left the window): "
+            + ", ".join(f"{k} {v * 100:.2f} cm" for k, v in seen.items()) + ". "
+            + (f"{len(visible)} of {len(seen)} station series differ by more than 1 cm."
+               if len(visible) else "No station series differs by more than 1 cm: the stations cannot see this "
+               "change, so no estimator fed by them can follow it; a station at the points with the largest DSS "
+               "errors above would.")))
     page.section("Levels at weir ZL1-5930 (thesis Fig. 5-4)",
                  figure(out / "weir_levels.png", f"Levels just up- and downstream of weir {LOCAL_WEIR}: the truth "
                                                  "(grey; no station there), the DSS (red) and rivercal (blue); "
@@ -561,4 +582,5 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
     page.section("Errors over the network (thesis Figs 5-2, 5-3, 5-5 … 5-15)",
                  figure(fig_time, "Mean absolute level error over all calculation points, hourly."), *blocks,
                  bullets([f"DSS: the case's fixed parameters throughout (run {run.name}).",
-                          "rivercal: each cycle's accepted parameters from its issue time until the next cycle."]))
+                          "rivercal: each cycle's accepted parameters from its issue time until the next cycle.",
+                          *_truth_words(_meta(run))]))
