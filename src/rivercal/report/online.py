@@ -47,10 +47,16 @@ def _meta(run: Any) -> dict[str, Any]:
 
 
 def _truth_words(meta: dict[str, Any]) -> list[str]:
-    """What "truth" means on the error maps of a run whose observations came from a perturbed truth."""
-    realism = meta.get("realism") or {}
-    changed = any(realism.get(k) is not None for k in ("rain", "runoff", "structure"))  # Realism.changes_truth
-    perturbed = [f"realism {realism.get('name', '?')}"] if changed else []
+    """What "truth" means on the error maps, and whether the observations came from another truth.
+
+    The maps re-run the scenario's parameters on the model itself: the truth of an identical twin (also
+    under sensor errors alone), not that of a realism level with rain, runoff or structural errors or of
+    a rain error.
+    """
+    from rivercal.twin.realism import Realism
+
+    realism = Realism.model_validate(meta["realism"]) if meta.get("realism") else None
+    perturbed = [f"realism {realism.name}"] if realism is not None and realism.changes_truth else []
     perturbed += [f"a rain error of about {float(meta['rain_error']):.0%}"] if meta.get("rain_error") else []
     if not perturbed:
         return ["truth: the scenario's parameters on the model itself (the identical twin of the observations)."]
