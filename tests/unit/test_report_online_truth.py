@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from rivercal.report.online import _truth_words
+from rivercal.report.online import _perturbed, _truth_words
 from rivercal.twin.realism import REALISM_LEVELS
 
 
@@ -32,3 +32,9 @@ def test_a_rain_error_is_named() -> None:
 def test_the_identical_twin() -> None:
     assert _truth_words({"scenario": "PI-Fg"}) == [
         "truth: the scenario's parameters on the model itself (the identical twin of the observations)."]
+
+
+def test_what_perturbed_the_truth_is_named_for_the_estimates_caption() -> None:
+    both = {"realism": REALISM_LEVELS["realistic"].summary(), "rain_error": 0.25}
+    assert _perturbed(both) == ["realism realistic", "a rain error of about 25%"]
+    assert _perturbed({"realism": REALISM_LEVELS["noisy"].summary()}) == []  # sensor errors leave the truth alone

@@ -46,6 +46,15 @@ def _meta(run: Any) -> dict[str, Any]:
     return dict(run.config.get("meta") or {})
 
 
+def _perturbed(meta: dict[str, Any]) -> list[str]:
+    """What made the truth behind a twin's observations differ from the model (empty: nothing did)."""
+    from rivercal.twin.realism import Realism
+
+    realism = Realism.model_validate(meta["realism"]) if meta.get("realism") else None
+    out = [f"realism {realism.name}"] if realism is not None and realism.changes_truth else []
+    return out + ([f"a rain error of about {float(meta['rain_error']):.0%}"] if meta.get("rain_error") else [])
+
+
 def _truth_words(meta: dict[str, Any]) -> list[str]:
     """What "truth" means on the error maps, and whether the observations came from another truth.
 
@@ -53,11 +62,7 @@ def _truth_words(meta: dict[str, Any]) -> list[str]:
     under sensor errors alone), not that of a realism level with rain, runoff or structural errors or of
     a rain error.
     """
-    from rivercal.twin.realism import Realism
-
-    realism = Realism.model_validate(meta["realism"]) if meta.get("realism") else None
-    perturbed = [f"realism {realism.name}"] if realism is not None and realism.changes_truth else []
-    perturbed += [f"a rain error of about {float(meta['rain_error']):.0%}"] if meta.get("rain_error") else []
+    perturbed = _perturbed(meta)
     if not perturbed:
         return ["truth: the scenario's parameters on the model itself (the identical twin of the observations)."]
     return [f"truth: the scenario's parameters on the model itself. The observations came from a truth with "
@@ -466,9 +471,13 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
         fig_est = _estimates_figure(est, units, truth, dss_values, change, out / "estimates.png")
         files["estimates_figure"] = str(fig_est)
         wide = est.pivot_table(index=["cycle", "issue_time"], columns="parameter", values="value")
+        perturbed = _perturbed(meta)
         page.section("Estimates per cycle",
-                     figure(fig_est, "Estimates per cycle with ±σ (thesis Eq. 2-12); dotted: the truth, red: the "
-                                     "DSS; dashed: the transition."),
+                     figure(fig_est, "Estimates per cycle with ±σ (thesis Eq. 2-12); dotted: the truth"
+                                     + (f" (the scenario's values; the truth behind the observations, with "
+                                        f"{' and '.join(perturbed)}, has no single value to draw)"
+                                        if perturbed else "")
+                                     + ", red: the DSS; dashed: the transition."),
                      table(wide.reset_index().set_index("cycle"), "Estimates per cycle", float_format=".4g"))
         ptable = _parameter_table(model, run, est, change)
         ptable.to_csv(out / "parameters.csv")
