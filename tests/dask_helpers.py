@@ -52,6 +52,13 @@ class KillOnce:
         return 2.0 * np.asarray(x, dtype=float)
 
 
+def slow_square(x: np.ndarray) -> np.ndarray:
+    """x², after a second's wait (a model run long enough for a deadline to fall in the middle of a batch)."""
+    import time
+
+    time.sleep(1.0)
+    return np.asarray(x, dtype=float) ** 2
+
 
 def hold_interpreter(additions: float) -> float:
     """Add ``additions`` times in one compiled call that keeps the interpreter lock (the worst case for a worker's

@@ -240,8 +240,31 @@ def test_batch_sees_every_evaluation(method):
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_tiny_deadline_still_evaluates_x0(method):
+def test_tiny_deadline_runs_x0_alone(method):
     res = call(method, rosenbrock, ROSEN_START, ROSEN_LB, ROSEN_UB, rosen=True, deadline=1e-9)
-    expected = 1 if method == "grid" else -2   # the whole grid (289 points) is the first batch
-    assert res.status == expected and res.nfev >= 1 and np.isfinite(res.cost)
-    assert any(np.array_equal(x, ROSEN_START) for x, _ in res.evaluations)
+    assert res.status == -2 and res.aborted and res.nfev == 1
+    assert [x.tolist() for x, _ in res.evaluations] == [ROSEN_START.tolist()]
+    assert res.cost == pytest.approx(float(rosenbrock(ROSEN_START) @ rosenbrock(ROSEN_START)))
+
+
+def test_no_run_of_a_batch_starts_after_the_deadline():
+    """The grid's first batch is x0 and all 289 grid points; at 10 ms a run, a 0.1 s deadline cuts it early."""
+    def slow(x):
+        time.sleep(0.01)
+        return rosenbrock(x)
+
+    res = call("grid", slow, ROSEN_START, ROSEN_LB, ROSEN_UB, rosen=True, deadline=0.1)
+    assert res.status == -2 and 1 <= res.nfev < 100
+    assert res.cost == min(c for _, c in res.evaluations)
+
+
+def test_a_batch_without_within_runs_whole():
+    """A caller's batch that cannot stop at a deadline runs its first batch whole; later ones are not started."""
+    sizes = []
+
+    def batch(points):
+        sizes.append(len(points))
+        return [rosenbrock(p) for p in points]
+
+    res = call("grid", rosenbrock, ROSEN_START, ROSEN_LB, ROSEN_UB, rosen=True, batch=batch, deadline=1e-9)
+    assert res.nfev == sizes[0] == 1 + 289 and len(sizes) == 1   # x0 and the grid

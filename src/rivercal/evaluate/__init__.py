@@ -20,9 +20,9 @@ more points is one such call with as many threads as there would be workers. Wit
 one by one, as a batch on one thread would. A Dask cluster keeps its tasks.
 
 Either way the results come back in the order of the points, and an exception raised by a run (a diverged
-run under the ``raise`` failure policy) reaches the caller unchanged; budgets and deadlines are the
-optimiser's (:mod:`rivercal.optimise`), checked between batches, whatever runs the batches.
-:meth:`Evaluator.as_completed` yields results as they finish.
+run under the ``raise`` failure policy) reaches the caller unchanged. :meth:`Evaluator.as_completed`
+yields results as they finish. :meth:`Evaluator.within` runs a batch up to a deadline: no run starts after
+it, so that an optimiser's deadline (:mod:`rivercal.optimise`) holds inside a batch too.
 
 :class:`Tasks` is the same machinery for whole jobs over one shared object, e.g. every calibration of a
 twin suite over one model: all of them are submitted at once, so that a cluster stays busy.
@@ -31,9 +31,11 @@ twin suite over one model: all of them are submitted at once, so that a cluster 
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as _as_completed
+from concurrent.futures import wait as _wait
 from typing import Any
 
 import numpy as np
@@ -213,6 +215,54 @@ class Evaluator:
         finally:
             for future in futures:
                 future.cancel()
+
+    def within(self, xs: Sequence[np.ndarray], deadline: float, *, keep: int | None = None) -> list[np.ndarray | None]:
+        """:meth:`__call__` up to ``deadline`` (a :func:`time.monotonic` time): the runs not done by then are None.
+
+        No run starts after the deadline. A run that is going at the deadline cannot be interrupted in this
+        process or in a batched engine call (the batch goes in groups of one point per worker, checked between
+        groups), so it finishes and counts; on local worker processes or a Dask cluster the evaluator stops
+        waiting at the deadline and cancels what is left (a Dask worker drops the result of a run it was
+        computing). The point ``keep`` (an optimiser's start point) is run and awaited whatever the time.
+        A failure is raised as in :meth:`__call__`, the first in the order of the points among the runs that
+        finished.
+        """
+        points = [np.asarray(x, dtype=float) for x in xs]
+        order = list(range(len(points)))
+        if keep is not None:
+            order.remove(keep)
+            order.insert(0, keep)
+        out: list[np.ndarray | None] = [None] * len(points)
+        if self.batch is not None and len(points) > 1:
+            for g in range(0, len(order), self.workers):
+                if g and time.monotonic() >= deadline:
+                    break
+                group = order[g: g + self.workers]
+                results = self._batched([points[i] for i in group]) if len(group) > 1 else [self.fun(points[group[0]])]
+                for i, r in zip(group, results, strict=True):
+                    out[i] = r
+            return out
+        if self.cluster is None and (self.workers == 1 or len(points) <= 1):
+            for n, i in enumerate(order):
+                if n and time.monotonic() >= deadline:
+                    break
+                out[i] = self.fun(points[i])
+            return out
+        futures = {i: self._tasks.submit(_call, points[i]) for i in order}   # the kept point is submitted first
+        try:
+            _wait(list(futures.values()), timeout=max(0.0, deadline - time.monotonic()))
+            if keep is not None:
+                _wait([futures[keep]])
+            for i in range(len(points)):
+                if futures[i].done() and not futures[i].cancelled():
+                    out[i] = futures[i].result()
+        finally:
+            for future in futures.values():
+                future.cancel()
+        cut = sum(r is None for r in out)
+        if cut:
+            log.info("deadline: %d of %d runs of the batch not done, cancelled", cut, len(points))
+        return out
 
     def close(self) -> None:
         """Stop the worker processes (or remove the function from the Dask workers)."""

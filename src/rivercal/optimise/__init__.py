@@ -12,12 +12,14 @@ Every optimiser has the signature (scipy-like)::
 - ``options`` is the algorithm's frozen options dataclass (e.g. :class:`DudOptions`) or a dict of its
   fields (unknown keys raise ValueError).
 - ``batch(list_of_x) -> list_of_r`` evaluates independent points, possibly in parallel (default: a
-  serial map over ``fun``).
+  serial map over ``fun``). A batch may also offer ``batch.within(list_of_x, deadline, keep=i)``, the
+  results of the runs done by ``deadline`` (a ``time.monotonic`` time) and None for the others, with
+  point ``i`` run whatever the time (:meth:`rivercal.evaluate.Evaluator.within` and the default do).
 - ``callback(record)`` is called after every iteration with an :class:`IterationRecord`; returning True
   aborts. ``max_nfev`` caps the number of model runs (a batch that does not fit is cut to the runs
-  that do); ``deadline`` (wall-clock seconds from the call, ``time.monotonic``) is checked before every
-  evaluation or batch after the first, so a batch already running is not interrupted (and x0 is always
-  evaluated, which validates the problem). All three end the run with
+  that do); ``deadline`` (wall-clock seconds from the call) is checked before every evaluation or batch,
+  and inside a batch that offers ``within``: no run starts after it. A run already going is not
+  interrupted, and x0 is always evaluated (which validates the problem). All three end the run with
   ``aborted=True`` and the best point so far.
 
 Algorithms (one module each): :func:`dud`, :func:`sparse_dud`, :func:`trf`, :func:`sce_ua`, :func:`dds`,

@@ -45,8 +45,8 @@ _CACHE_SIZE = 16
 class Stop(Exception):
     """Internal signal: end the run now with ``status`` (budget, deadline or callback).
 
-    ``partial`` holds, when the budget ran out inside a batch, the residuals of the points of that batch
-    that were run (None for the others), so that samplers can keep them.
+    ``partial`` holds, when the budget or the deadline ran out inside a batch, the residuals of the points of
+    that batch that were run (None for the others), so that samplers can keep them.
     """
 
     def __init__(self, status: int, partial: list[np.ndarray | None] | None = None):
@@ -220,11 +220,26 @@ def project(x: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------------
 
 
-def _serial_batch(fun: Fun) -> Batch:
-    def batch(points: list[np.ndarray]) -> list[np.ndarray]:
-        return [fun(p) for p in points]
+class _Serial:
+    """The default batch: ``fun`` at each point in turn, and :meth:`within` a deadline (no run starts after it)."""
 
-    return batch
+    def __init__(self, fun: Fun):
+        self.fun = fun
+
+    def __call__(self, points: list[np.ndarray]) -> list[np.ndarray]:
+        return [self.fun(p) for p in points]
+
+    def within(self, points: list[np.ndarray], deadline: float, *, keep: int | None = None) -> list[np.ndarray | None]:
+        order = list(range(len(points)))
+        if keep is not None:
+            order.remove(keep)
+            order.insert(0, keep)
+        out: list[np.ndarray | None] = [None] * len(points)
+        for n, i in enumerate(order):
+            if n and time.monotonic() >= deadline:
+                break
+            out[i] = self.fun(points[i])
+        return out
 
 
 class Run:
@@ -249,7 +264,7 @@ class Run:
                  max_nfev: int | None, deadline: float | None, callback: Callback | None,
                  augment: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None, track_pending: bool = False):
         self.fun = fun
-        self.batch = batch if batch is not None else _serial_batch(fun)
+        self.batch = batch if batch is not None else _Serial(fun)
         self.x0, self.lb, self.ub = x0, lb, ub
         self.max_nfev = max_nfev if max_nfev is not None else math.inf
         self.t_end = time.monotonic() + deadline if deadline is not None else math.inf
@@ -308,21 +323,39 @@ class Run:
         return [self._augmented(x, r) for x, r in zip(xs, raw, strict=True)]  # type: ignore[arg-type]
 
     def _run(self, xs: list[np.ndarray], raw: list[np.ndarray | None], todo: list[int]) -> None:
-        if self.nfev > 0 and time.monotonic() >= self.t_end:   # the first batch (with x0) always runs
+        if self.nfev > 0 and time.monotonic() >= self.t_end:   # the start point always runs
             raise Stop(STATUS_DEADLINE)
         room = self.max_nfev - self.nfev
         if room < 1:
             raise Stop(STATUS_MAX_NFEV)
         now = todo[: int(min(room, len(todo)))]
-        results = list(self.batch([xs[i].copy() for i in now]))
+        results = self._batch([xs[i].copy() for i in now])
         if len(results) != len(now):
             raise ValueError(f"batch returned {len(results)} residual vectors for {len(now)} points")
         for i, r in zip(now, results, strict=True):
+            if r is None:
+                continue
             raw[i] = self._check_residuals(xs[i], r)
             self.nfev += 1
             self._remember(xs[i], raw[i], record=True)
+        if any(r is None for r in results):
+            raise Stop(STATUS_DEADLINE)
         if len(now) < len(todo):
             raise Stop(STATUS_MAX_NFEV)
+
+    def _batch(self, points: list[np.ndarray]) -> list[np.ndarray | None]:
+        """The batch's results; under a deadline, through its ``within`` where it has one (None: not run in time).
+
+        The first batch keeps its start point (x0, else its first point) whatever the time: it validates the
+        problem and is the result of a run cut at once.
+        """
+        within = getattr(self.batch, "within", None)
+        if not math.isfinite(self.t_end) or within is None:
+            return list(self.batch(points))
+        keep = None
+        if self.nfev == 0:
+            keep = next((n for n, p in enumerate(points) if p.tobytes() == self._x0_key), 0)
+        return list(within(points, self.t_end, keep=keep))
 
     def _check_bounds(self, x: np.ndarray) -> None:
         if x.shape != self.x0.shape or np.any(x < self.lb) or np.any(x > self.ub):
