@@ -14,6 +14,16 @@ def rivercal(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
 
 
+def test_help_loads_no_numerics() -> None:
+    """``rivercal --help`` and ``--version`` build the command tree without numpy or pandas (they are slow to load)."""
+    code = ("import sys; from rivercal.cli.main import app; "
+            "print(sorted(m for m in ('numpy', 'pandas', 'scipy', 'numba') if m in sys.modules))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "[]"
+    assert "deadline" in rivercal("fews", "--help").stdout  # the module's properties are still listed
+
+
 def test_case_schema_is_json_schema() -> None:
     run = rivercal("case", "schema")
     assert run.returncode == 0

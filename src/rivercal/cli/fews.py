@@ -15,7 +15,7 @@ _LEVELS = {0: "fatal", 1: "error", 2: "warning", 3: "info", 4: "debug"}
 
 
 def _help() -> str:
-    from rivercal.fews.adapter import PROPERTIES
+    from rivercal.fews.properties import PROPERTIES
 
     lines = [
         "Run one on-line cycle as a Delft-FEWS General Adapter module, from a PI run file.",

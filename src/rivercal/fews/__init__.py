@@ -4,16 +4,10 @@
 reads and writes the PI run file, state description and diagnostics file.
 """
 
-from rivercal.fews.adapter import PROPERTIES, AdapterError, FewsOutcome, run_module
-from rivercal.fews.pi import (
-    DiagLine,
-    RunFile,
-    StateLocation,
-    read_run_file,
-    read_state_description,
-    write_diag,
-    write_state_description,
-)
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 __all__ = [
     "PROPERTIES",
@@ -28,3 +22,12 @@ __all__ = [
     "write_diag",
     "write_state_description",
 ]
+
+#: Where each public name lives; imported on first use, so that ``rivercal --help`` does not load pandas.
+_HOME = {"PROPERTIES": "properties", "AdapterError": "properties", "FewsOutcome": "adapter", "run_module": "adapter"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        return getattr(importlib.import_module(f"rivercal.fews.{_HOME.get(name, 'pi')}"), name)
+    raise AttributeError(f"module 'rivercal.fews' has no attribute {name!r}")

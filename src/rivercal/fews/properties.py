@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from rivercal.errors import CaseError
-from rivercal.fews.pi import RunFile
+
+if TYPE_CHECKING:
+    from rivercal.fews.pi import RunFile
 
 __all__ = ["PROPERTIES", "AdapterError", "duration", "number", "prop"]
 
@@ -51,6 +52,8 @@ def prop(run: RunFile, key: str) -> str:
 
 def duration(run: RunFile, key: str, allow_zero: bool = False) -> str:
     """A duration property (e.g. ``7D``, ``48h``) as text, checked to be positive (or zero when allowed)."""
+    import pandas as pd
+
     text = prop(run, key)
     try:
         value = pd.Timedelta(text)
