@@ -60,7 +60,7 @@ import pandas as pd
 from rivercal._time import interpolate_at, utc
 from rivercal.errors import ModelRunError
 from rivercal.evaluate import Evaluator
-from rivercal.models.contract import Model, check_parameters
+from rivercal.models.contract import Model, check_parameters, spun_up
 from rivercal.observations import ObservationSet
 from rivercal.optimise import OPTIONS, IterationRecord, OptimiseResult, get_optimiser
 from rivercal.parameters import ParameterSet
@@ -253,7 +253,7 @@ class CalibrationProblem:
         model_start = getattr(self.model, "start", None)
         if self._state is None and (model_start is None or self.run_start > utc(model_start)):
             log.info("computing the start state at %s with the initial parameters", self.run_start)
-            _, self._state = self.model.simulate(self.quantities(self.x0), end=self.run_start)
+            self._state = spun_up(self.model, self.quantities(self.x0), self.run_start)
         return self._state
 
     def _weights(self, predictions: dict[str, np.ndarray]) -> np.ndarray:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import time as _time
+from collections import OrderedDict
 from collections.abc import Mapping
 
 import numpy as np
@@ -86,6 +87,10 @@ def parse_target(target: str) -> tuple[str, str]:
     )
 
 
+#: How many spun-up states a Simulator keeps for :meth:`Simulator.state_at`.
+SPUN_UP_KEPT = 8
+
+
 class Simulator:
     """A case ready to run.
 
@@ -131,6 +136,12 @@ class Simulator:
         self.last_run_stats: dict[str, int] = {}
         #: What the withdrawals of the last compiled run asked and delivered (see :class:`Shortfall`).
         self.last_run_shortfalls: dict[str, Shortfall] = {}
+        self._spun: OrderedDict[tuple[bytes, pd.Timestamp], EngineState] = OrderedDict()   # see state_at
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_spun"] = OrderedDict()   # the states of earlier spin-ups stay in this process
+        return state
 
     # -- facts -------------------------------------------------------------------------------
 
@@ -277,6 +288,39 @@ class Simulator:
             signature=(self.compiled.n_hpoints, self.compiled.n_links),
             ctl=self.controls.initial_state() if self.controls else np.zeros((0, 6)),
         )
+
+    def state_at(self, parameters: Mapping[str, float] | None, at: pd.Timestamp | str) -> EngineState:
+        """The state at ``at`` of a run that cold-starts at the case's start: ``simulate(parameters, end=at)[1]``.
+
+        A workflow spins the same model up again and again: the on-line service for each of its models, its
+        report for the same ones, every calibration of a twin suite from the same initial values. This
+        process keeps the last :data:`SPUN_UP_KEPT` such states and continues from the latest one with the same
+        parameters at or before ``at``; a run split in two equals the whole run to the last bit, so the
+        state is the same as a spin-up from the case's start.
+        """
+        at = utc(at)
+        key = self._run_key(parameters)
+        earlier = [s for (k, _), s in self._spun.items() if k == key and s.time <= at]
+        if earlier:
+            base = max(earlier, key=lambda s: s.time)
+            state = base.copy() if base.time == at else self.simulate(parameters, start=base.time, end=at,
+                                                                      state=base)[1]
+        else:
+            _, state = self.simulate(parameters, end=at)
+        self._spun[(key, at)] = state
+        self._spun.move_to_end((key, at))
+        while len(self._spun) > SPUN_UP_KEPT:
+            self._spun.popitem(last=False)
+        return state.copy()
+
+    def _run_key(self, parameters: Mapping[str, float] | None) -> bytes:
+        """What a run's parameters come to in the kernels' arrays (two mappings that say the same are one key)."""
+        crest, fric = self.parameter_arrays(parameters)
+        parts = [crest, fric]
+        control = self.control_values(parameters)
+        if control is not None:
+            parts += [control.par, control.rel_y, *control.tables]
+        return b"|".join(np.ascontiguousarray(p, dtype=float).tobytes() for p in parts)
 
     # -- forcing -------------------------------------------------------------------------------
 

@@ -28,12 +28,13 @@ __all__ = [
     "check_parameters",
     "check_settable",
     "load_model",
+    "spun_up",
 ]
 
 _WHERE = {
     "CalibrationSetup": "contract", "FileState": "contract", "Model": "contract", "Quantity": "contract",
     "check_parameters": "contract", "check_settable": "contract", "EmbeddedModel": "embedded",
-    "build_model": "embedded", "load_model": "load",
+    "build_model": "embedded", "load_model": "load", "spun_up": "contract",
 }
 
 

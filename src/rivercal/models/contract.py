@@ -55,6 +55,7 @@ __all__ = [
     "check_parameters",
     "check_run",
     "check_settable",
+    "spun_up",
     "utc",
 ]
 
@@ -212,6 +213,19 @@ class FileState:
         if origin and stored != origin:
             raise ValueError(f"the state was written by {stored!r}, not by {origin!r}")
         return cls(time=utc(when), files=files, origin=stored)
+
+
+def spun_up(model: Any, parameters: Mapping[str, float] | None, at: Any) -> Any:
+    """The model's state at ``at`` after a cold start at its own start with ``parameters``.
+
+    That is ``model.simulate(parameters, end=at)[1]``; a model that offers ``state_at(parameters, at)`` (the
+    embedded engine: :meth:`rivercal.engine.Simulator.state_at`) answers it from the spin-ups it ran
+    before.
+    """
+    state_at = getattr(model, "state_at", None)
+    if state_at is not None:
+        return state_at(parameters, at)
+    return model.simulate(parameters, end=at)[1]
 
 
 def check_settable(model: Any, quantities: Iterable[str], *, what: str = "") -> None:

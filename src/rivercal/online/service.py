@@ -42,6 +42,7 @@ import pandas as pd
 from rivercal._time import utc
 from rivercal.analysis.forecast import score_forecasts
 from rivercal.errors import ModelRunError
+from rivercal.models.contract import spun_up
 from rivercal.observations import DEFAULT_SIGMA, measurable
 from rivercal.online import guardrails, intervention
 from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig
@@ -218,7 +219,7 @@ class OnlineService:
             else:
                 log.warning("stored %s state is at %s, the cycle needs %s; spinning the model up again", name, when,
                             at)
-        _, state = self.model.simulate(dict(quantities), end=at)
+        state = spun_up(self.model, dict(quantities), at)
         return state, False
 
     def _quantities(self, values: Mapping[str, float], change: TransitionRecord | None = None,

@@ -27,6 +27,7 @@ import pandas as pd
 from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
+from rivercal.models.contract import spun_up
 from rivercal.report.html import Page, bullets, figure, paragraph, table
 from rivercal.report.online_bands import band_blocks
 from rivercal.report.online_figures import figure_blocks
@@ -190,7 +191,7 @@ def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> d
     start, end = utc(start), utc(end)
     truth = practical_truth(model, meta["scenario"], start, end, levels=True)
     dss_q = dict(config.get("dss") or {})
-    _, state = model.simulate(dss_q, end=start)
+    state = spun_up(model, dss_q, start)
     dss, _ = model.simulate(dss_q, start=start, end=end, state=state, output_interval=3600, snapshots=True)
     known = {p.name: p for p in model.calibration.parameters}
     params = ParameterSet(known[n] for n in config["parameters"])
@@ -204,7 +205,7 @@ def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> d
         segments.append((c.issue_time, dict(accepted)))
     first = [q for t, q in segments if t <= start]
     values = first[-1] if first else {p.name: p.initial for p in params}
-    _, state = model.simulate({**dss_q, **params.quantities(values)}, end=start)
+    state = spun_up(model, {**dss_q, **params.quantities(values)}, start)
     bounds = [t for t, _ in segments if start < t < end]
     edges = [start, *bounds, end]
     level_parts, series_parts = [], []

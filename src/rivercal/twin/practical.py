@@ -40,6 +40,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
+from rivercal.models.contract import spun_up
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import NOISE_MODELS, add_noise
 from rivercal.twin.realism import REALISM_LEVELS, Realism, apply_sensor_errors, get_realism
@@ -256,6 +257,12 @@ def _on_grid(what: str, t: pd.Timestamp, origin: pd.Timestamp, interval: float) 
                          f"model start {origin.isoformat()}")
 
 
+def _on_model_grid(model: Any, span: pd.Timedelta) -> bool:
+    """Whether ``span`` from the model's start is a whole number of the model's own output intervals."""
+    step = float(getattr(model, "output_interval", 0.0) or 0.0)
+    return step > 0 and span.total_seconds() % step == 0
+
+
 def _legs(model_start: pd.Timestamp, start: pd.Timestamp, end: pd.Timestamp,
           change: pd.Timestamp) -> list[tuple[pd.Timestamp, pd.Timestamp, bool]]:
     """The runs (from, to, after the change?) from the model start to ``end``, cut at ``start`` and the change."""
@@ -352,6 +359,11 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     level_frames: list[pd.DataFrame] = []
     for a, b, after in _legs(model_start, start, end, change):
         keep = b > start
+        if state is None and not keep and _on_model_grid(truth_of, b - model_start):
+            state = spun_up(truth_of, values[after], b)   # a spin-up: the model may have run it before
+            if b == start:
+                start_state = state
+            continue
         extra = {"snapshots": True} if levels and keep else {}  # the embedded engine's full fields
         result, state = truth_of.simulate(values[after], a, b, state, output_interval=interval, **extra)
         if b == start:

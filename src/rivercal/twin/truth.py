@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
+from rivercal.models.contract import spun_up
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import add_noise
 
@@ -72,7 +73,7 @@ def twin_truth(model: Any, truth: Mapping[str, float], window: tuple[Any, Any], 
     start, end = utc(window[0]), utc(window[1])
     run_start = start - pd.Timedelta(warmup)
     truth = dict(truth)
-    _, state = model.simulate(truth, end=run_start)
+    state = spun_up(model, truth, run_start)
     result, _ = model.simulate(truth, start=run_start, end=end, state=state)
     frame = result.series
     inside = frame.loc[start:end]
