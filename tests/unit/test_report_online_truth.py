@@ -16,7 +16,7 @@ from rivercal.twin.realism import REALISM_LEVELS
 @pytest.mark.parametrize("level", ["noisy", "realistic"])
 def test_the_words_follow_whether_the_realism_changes_the_truth(level: str) -> None:
     realism = REALISM_LEVELS[level]
-    words = " ".join(_truth_words({"scenario": "PI-Wg", "realism": realism.summary()}))
+    words = " ".join(_truth_words(_perturbed({"scenario": "PI-Wg", "realism": realism.summary()})))
     if realism.changes_truth:
         assert f"a truth with realism {level}, which these maps do not use" in words
         assert "not the model's error against that truth" in words
@@ -25,12 +25,12 @@ def test_the_words_follow_whether_the_realism_changes_the_truth(level: str) -> N
 
 
 def test_a_rain_error_is_named() -> None:
-    words = " ".join(_truth_words({"scenario": "PI-Fg", "rain_error": 0.3}))
+    words = " ".join(_truth_words(_perturbed({"scenario": "PI-Fg", "rain_error": 0.3})))
     assert "a rain error of about 30%, which these maps do not use" in words
 
 
 def test_the_identical_twin() -> None:
-    assert _truth_words({"scenario": "PI-Fg"}) == [
+    assert _truth_words(_perturbed({"scenario": "PI-Fg"})) == [
         "truth: the scenario's parameters on the model itself (the identical twin of the observations)."]
 
 

@@ -56,14 +56,13 @@ def _perturbed(meta: dict[str, Any]) -> list[str]:
     return out + ([f"a rain error of about {float(meta['rain_error']):.0%}"] if meta.get("rain_error") else [])
 
 
-def _truth_words(meta: dict[str, Any]) -> list[str]:
+def _truth_words(perturbed: list[str]) -> list[str]:
     """What "truth" means on the error maps, and whether the observations came from another truth.
 
     The maps re-run the scenario's parameters on the model itself: the truth of an identical twin (also
     under sensor errors alone), not that of a realism level with rain, runoff or structural errors or of
-    a rain error.
+    a rain error (``perturbed``: :func:`_perturbed`).
     """
-    perturbed = _perturbed(meta)
     if not perturbed:
         return ["truth: the scenario's parameters on the model itself (the identical twin of the observations)."]
     return [f"truth: the scenario's parameters on the model itself. The observations came from a truth with "
@@ -524,14 +523,14 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     if bands:
         page.section("Ensemble forecast and its 90 % band", *bands)
     if scenario is not None and len(cycles) and hasattr(model, "compiled"):  # the maps need every point's level
-        _twin_sections(page, model, store, run, cycles, change, out, files)
+        _twin_sections(page, model, store, run, cycles, change, out, files, perturbed)
     page.write(out / "index.html")
     files["report"] = str(out / "index.html")
     return files
 
 
 def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.DataFrame, change: pd.Timestamp,
-                   out: Path, files: dict[str, str]) -> None:
+                   out: Path, files: dict[str, str], perturbed: list[str]) -> None:
     """Figs 5-2 … 5-15: the levels at weir ZL1-5930, the error maps, the error over time."""
     from rivercal.report.figures import plot_network_pair, plot_transition_levels
     from rivercal.twin.practical import LOCAL_WEIR
@@ -599,4 +598,4 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
                  figure(fig_time, "Mean absolute level error over all calculation points, hourly."), *blocks,
                  bullets([f"DSS: the case's fixed parameters throughout (run {run.name}).",
                           "rivercal: each cycle's accepted parameters from its issue time until the next cycle.",
-                          *_truth_words(_meta(run))]))
+                          *_truth_words(perturbed)]))
