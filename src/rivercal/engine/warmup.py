@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import logging
 import time
+import tomllib
 from dataclasses import dataclass
 
 import pandas as pd
 
 from rivercal.case import load_case
+from rivercal.case.load import CASE_FILE, Case, case_from_dict, resolve_case_path
 from rivercal.engine.kernels import timeloop
 from rivercal.engine.simulator import Simulator
 
@@ -27,10 +29,10 @@ log = logging.getLogger(__name__)
 
 #: The embedded case that takes each variant of the time loop: without D-HYDRO structures or controllers
 #: (:func:`~rivercal.engine.kernels.timeloop.run`); the extended loop
-#: (:func:`~rivercal.engine.kernels.timeloop.run_ext`) without controllers, which every imported D-HYDRO
-#: model with orifices, culverts or bridges takes (run here on the plain case: the same argument types, its
-#: structure arrays empty); and the extended loop with controllers.
-VARIANTS = {"plain": "synthetic", "structures": "synthetic", "controlled": "dommel-controlled"}
+#: (:func:`~rivercal.engine.kernels.timeloop.run_ext`) without controllers, which imported D-HYDRO models
+#: with orifices, universal weirs, bridges, culverts with their own barrel or structure setting series take
+#: (the synthetic case with one orifice added, :func:`_case`); and the extended loop with controllers.
+VARIANTS = {"plain": "synthetic", "structures": "synthetic with an orifice", "controlled": "dommel-controlled"}
 _KERNELS = {"plain": timeloop.run, "structures": timeloop.run_ext, "controlled": timeloop.run_ext}
 
 
@@ -51,14 +53,12 @@ def compile_engine() -> dict[str, Readiness]:
     ready = {}
     for variant, name in VARIANTS.items():
         began = time.perf_counter()
-        case = load_case(name)
-        sim = Simulator(case)
-        missing = [key for key in sim.compiled.forcing_keys if key not in sim.forcing]
-        if missing:
-            index = pd.date_range(sim.start, sim.end, freq="1D")
-            sim = Simulator(case, forcing={key: pd.Series(1.0, index=index) for key in missing})
-        if variant == "structures":
-            sim.extended = True
+        sim = Simulator(_case(variant))
+        index = pd.date_range(sim.start, sim.end, freq="1D")
+        for key in sim.compiled.forcing_keys:
+            sim.forcing.setdefault(key, pd.Series(1.0, index=index))   # before its first run: nothing cached yet
+        if sim.extended != (_KERNELS[variant] is timeloop.run_ext):
+            raise RuntimeError(f"internal error: the case of the {variant!r} time loop takes the other loop")
         stats = _KERNELS[variant].stats
         hits, misses = sum(stats.cache_hits.values()), sum(stats.cache_misses.values())
         sim.simulate(end=sim.start + pd.Timedelta("1h"))
@@ -67,3 +67,15 @@ def compile_engine() -> dict[str, Readiness]:
         log.info("time loop %s (case %s) %s in %.1f s", variant, name,
                  "loaded from the cache" if ready[variant].from_cache else "compiled", ready[variant].seconds)
     return ready
+
+
+def _case(variant: str) -> Case:
+    """The embedded case of a variant; for ``structures`` the synthetic case with an orifice on its main stream."""
+    if variant != "structures":
+        return load_case(VARIANTS[variant])
+    root = resolve_case_path("synthetic")
+    data = tomllib.loads((root / CASE_FILE).read_text(encoding="utf-8"))
+    # 6 km down branch M, where its bed lies at 11.0 m AD: sill 0.4 m above it, gate edge 2 m above the sill
+    data["orifices"] = [{"id": "warm-up-orifice", "branch": "M", "chainage": 6000.0, "crest_level": 11.4,
+                         "crest_width": 4.0, "gate_lower_edge_level": 13.4}]
+    return case_from_dict(data, root)
