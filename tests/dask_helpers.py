@@ -52,12 +52,25 @@ class KillOnce:
         return 2.0 * np.asarray(x, dtype=float)
 
 
-def slow_square(x: np.ndarray) -> np.ndarray:
-    """x², after a second's wait (a model run long enough for a deadline to fall in the middle of a batch)."""
-    import time
+class Logged:
+    """fun(x) = x², after ``seconds`` of waiting; each call first appends its start (``time.monotonic``, one clock
+    for every process of this machine) to ``path``: a model run long enough for a deadline to fall in a batch."""
 
-    time.sleep(1.0)
-    return np.asarray(x, dtype=float) ** 2
+    def __init__(self, path: Path, seconds: float):
+        self.path = Path(path)
+        self.seconds = seconds
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        import time
+
+        with self.path.open("a") as f:
+            f.write(f"{time.monotonic()!r}\n")
+        time.sleep(self.seconds)
+        return np.asarray(x, dtype=float) ** 2
+
+    def starts(self) -> list[float]:
+        """The start of every call so far."""
+        return [float(t) for t in self.path.read_text().split()] if self.path.exists() else []
 
 
 def hold_interpreter(additions: float) -> float:

@@ -135,24 +135,27 @@ def test_budget_and_deadline_stop_a_calibration_on_the_cluster(cluster, problem)
     np.testing.assert_array_equal(on_cluster.result.x, serial.result.x)
     late = calibrate(problem, "dud", workers=cluster, deadline=1e-6)
     assert late.result.status == STATUS_DEADLINE and late.result.aborted
-    # the start point always runs; of the rest of the first batch only what finished with it counts
-    assert 1 <= late.result.nfev <= problem.x0.size + 1
-    assert any(np.array_equal(x, problem.x0) for x, _ in late.result.evaluations)
+    assert late.result.nfev == 1   # past its deadline before it began: the start point alone
+    assert [x.tolist() for x, _ in late.result.evaluations] == [problem.x0.tolist()]
 
 
-def test_no_run_starts_on_the_cluster_after_the_deadline(cluster) -> None:
-    """Twelve one-second runs on two workers take six seconds; a deadline after 1.5 s cancels what is left."""
+def test_no_run_starts_on_the_cluster_after_the_deadline(cluster, tmp_path) -> None:
+    """Twelve one-second runs on two workers take six seconds; with a deadline after 1.5 s none starts later."""
     xs = [np.array([float(i)]) for i in range(12)]
-    with Evaluator(dask_helpers.slow_square, workers=cluster) as batch:
-        t0 = time.monotonic()
-        out = batch.within(xs, t0 + 1.5, keep=7)
-        waited = time.monotonic() - t0
-        after = batch(xs[:3])  # the workers take new work: the cancelled runs hold nothing up for long
+    fun = dask_helpers.Logged(tmp_path / "starts.txt", 1.0)
+    with Evaluator(fun, workers=cluster) as batch:
+        deadline = time.monotonic() + 1.5
+        out = batch.within(xs, deadline, keep=7)
+        returned = time.monotonic()
+        after = batch(xs[:3])  # the workers take new work
     done = [i for i, r in enumerate(out) if r is not None]
-    assert 7 in done and len(done) < len(xs)
+    assert 7 in done and 2 <= len(done) < len(xs)
     for i in done:
         np.testing.assert_array_equal(out[i], xs[i] ** 2)
-    assert waited < 4.0, waited
+    assert returned < deadline + 0.5   # it stopped waiting at the deadline
+    started = [t for t in fun.starts() if t < returned]
+    assert all(t < deadline + 0.5 for t in started), [t - deadline for t in started]
+    assert len(started) <= len(done) + cluster.n_workers   # at most one run per worker dropped, none queued
     np.testing.assert_array_equal(np.concatenate(after), [0.0, 1.0, 4.0])
 
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as _as_completed
 from concurrent.futures import wait as _wait
 from typing import Any
@@ -219,13 +219,14 @@ class Evaluator:
     def within(self, xs: Sequence[np.ndarray], deadline: float, *, keep: int | None = None) -> list[np.ndarray | None]:
         """:meth:`__call__` up to ``deadline`` (a :func:`time.monotonic` time): the runs not done by then are None.
 
-        No run starts after the deadline. A run that is going at the deadline cannot be interrupted in this
-        process or in a batched engine call (the batch goes in groups of one point per worker, checked between
-        groups), so it finishes and counts; on local worker processes or a Dask cluster the evaluator stops
-        waiting at the deadline and cancels what is left (a Dask worker drops the result of a run it was
-        computing). The point ``keep`` (an optimiser's start point) is run and awaited whatever the time.
-        A failure is raised as in :meth:`__call__`, the first in the order of the points among the runs that
-        finished.
+        No run starts after the deadline, except the point ``keep`` (an optimiser's start point), which is
+        run and awaited whatever the time, alone if the deadline has passed. The points go out one per worker
+        at a time (a batched engine call in groups of one point per worker), the kept point first. A run that
+        is going at the deadline cannot be interrupted in this process, in a batched call or on a local worker
+        process: it finishes, and counts where the evaluator waits for it (this process, a batched call). On
+        local worker processes and a Dask cluster the evaluator stops waiting at the deadline (a Dask worker
+        drops the result of a run it was computing). A failure is raised as in :meth:`__call__`: the first in
+        the order of the points among the runs that finished.
         """
         points = [np.asarray(x, dtype=float) for x in xs]
         order = list(range(len(points)))
@@ -233,36 +234,61 @@ class Evaluator:
             order.remove(keep)
             order.insert(0, keep)
         out: list[np.ndarray | None] = [None] * len(points)
-        if self.batch is not None and len(points) > 1:
-            for g in range(0, len(order), self.workers):
-                if g and time.monotonic() >= deadline:
+        if self.cluster is None and (self.workers == 1 or len(points) <= 1 or self.batch is not None):
+            width = self.workers if self.batch is not None else 1
+            n = 0
+            while n < len(order):
+                late = time.monotonic() >= deadline
+                if late and not (n == 0 and keep is not None):
                     break
-                group = order[g: g + self.workers]
+                group = sorted(order[n: n + (1 if late else width)])
                 results = self._batched([points[i] for i in group]) if len(group) > 1 else [self.fun(points[group[0]])]
                 for i, r in zip(group, results, strict=True):
                     out[i] = r
-            return out
-        if self.cluster is None and (self.workers == 1 or len(points) <= 1):
-            for n, i in enumerate(order):
-                if n and time.monotonic() >= deadline:
-                    break
-                out[i] = self.fun(points[i])
-            return out
-        futures = {i: self._tasks.submit(_call, points[i]) for i in order}   # the kept point is submitted first
+                n += len(group)
+        else:
+            self._in_flight(points, order, deadline, keep, out)
+        cut = sum(r is None for r in out)
+        if cut:
+            log.info("deadline: %d of %d runs of the batch not run", cut, len(points))
+        return out
+
+    def _in_flight(self, points: list[np.ndarray], order: list[int], deadline: float, keep: int | None,
+                   out: list[np.ndarray | None]) -> None:
+        """:meth:`within` on worker processes or a cluster: one run per worker in flight, none sent after the deadline.
+
+        Sending the points one per free worker (not all at once) leaves nothing queued at the deadline: a
+        process pool cannot take back what it has queued, and a cluster cancels pending tasks one by one.
+        """
+        futures: dict[int, Future] = {}
+        queue = iter(order[1:] if keep is not None else order)
         try:
-            _wait(list(futures.values()), timeout=max(0.0, deadline - time.monotonic()))
+            if keep is not None:
+                futures[keep] = self._tasks.submit(_call, points[keep])
+            while True:
+                running = [f for f in futures.values() if not f.done()]
+                failed = any(f.done() and not f.cancelled() and f.exception() is not None for f in futures.values())
+                while not failed and len(running) < self.workers and time.monotonic() < deadline:
+                    i = next(queue, None)
+                    if i is None:
+                        break
+                    futures[i] = self._tasks.submit(_call, points[i])
+                    running.append(futures[i])
+                left = deadline - time.monotonic()
+                if failed or not running or left <= 0:
+                    break
+                _wait(running, timeout=left, return_when=FIRST_COMPLETED)
+            for i, future in futures.items():
+                if i != keep and not future.done():
+                    future.cancel()
             if keep is not None:
                 _wait([futures[keep]])
-            for i in range(len(points)):
+            for i in sorted(futures):
                 if futures[i].done() and not futures[i].cancelled():
                     out[i] = futures[i].result()
         finally:
             for future in futures.values():
                 future.cancel()
-        cut = sum(r is None for r in out)
-        if cut:
-            log.info("deadline: %d of %d runs of the batch not done, cancelled", cut, len(points))
-        return out
 
     def close(self) -> None:
         """Stop the worker processes (or remove the function from the Dask workers)."""

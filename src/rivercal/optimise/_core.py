@@ -221,7 +221,7 @@ def project(x: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
 
 
 class _Serial:
-    """The default batch: ``fun`` at each point in turn, and :meth:`within` a deadline (no run starts after it)."""
+    """The default batch: ``fun`` at each point in turn; :meth:`within` a deadline, after which only ``keep`` starts."""
 
     def __init__(self, fun: Fun):
         self.fun = fun
@@ -236,7 +236,7 @@ class _Serial:
             order.insert(0, keep)
         out: list[np.ndarray | None] = [None] * len(points)
         for n, i in enumerate(order):
-            if n and time.monotonic() >= deadline:
+            if time.monotonic() >= deadline and not (n == 0 and keep is not None):
                 break
             out[i] = self.fun(points[i])
         return out
