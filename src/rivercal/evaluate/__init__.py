@@ -42,6 +42,7 @@ import numpy as np
 
 from rivercal.evaluate._dask import ClusterError, DaskCluster
 from rivercal.evaluate._pool import call_installed, default_workers, end_with_parent, install, process_pool
+from rivercal.optimise import start_first, until_deadline
 
 __all__ = ["ClusterError", "DaskCluster", "Evaluator", "Tasks", "Workers", "as_completed", "default_workers",
            "describe_workers", "end_with_parent", "process_pool"]
@@ -229,29 +230,21 @@ class Evaluator:
         the order of the points among the runs that finished.
         """
         points = [np.asarray(x, dtype=float) for x in xs]
-        order = list(range(len(points)))
-        if keep is not None:
-            order.remove(keep)
-            order.insert(0, keep)
-        out: list[np.ndarray | None] = [None] * len(points)
+        out: list[np.ndarray | None]
         if self.cluster is None and (self.workers == 1 or len(points) <= 1 or self.batch is not None):
             width = self.workers if self.batch is not None else 1
-            n = 0
-            while n < len(order):
-                late = time.monotonic() >= deadline
-                if late and not (n == 0 and keep is not None):
-                    break
-                group = sorted(order[n: n + (1 if late else width)])
-                results = self._batched([points[i] for i in group]) if len(group) > 1 else [self.fun(points[group[0]])]
-                for i, r in zip(group, results, strict=True):
-                    out[i] = r
-                n += len(group)
+            out = until_deadline(points, deadline, keep, self._group, width)
         else:
-            self._in_flight(points, order, deadline, keep, out)
+            out = [None] * len(points)
+            self._in_flight(points, start_first(len(points), keep), deadline, keep, out)
         cut = sum(r is None for r in out)
         if cut:
             log.info("deadline: %d of %d runs of the batch not run", cut, len(points))
         return out
+
+    def _group(self, points: list[np.ndarray]) -> list[np.ndarray]:
+        """One group of :meth:`within` in this process: a batched call, or ``fun`` for a single point."""
+        return self._batched(points) if len(points) > 1 else [self.fun(points[0])]
 
     def _in_flight(self, points: list[np.ndarray], order: list[int], deadline: float, keep: int | None,
                    out: list[np.ndarray | None]) -> None:

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from rivercal.optimise._core import default_scale, validate_problem
+from rivercal.optimise._core import default_scale, start_first, until_deadline, validate_problem
 from rivercal.optimise.bfgs import BfgsOptions, bfgs
 from rivercal.optimise.cg import CgOptions, cg
 from rivercal.optimise.dds import DdsOptions, dds
@@ -100,7 +100,9 @@ __all__ = [
     "powell",
     "sce_ua",
     "sparse_dud",
+    "start_first",
     "trf",
+    "until_deadline",
 ]
 
 

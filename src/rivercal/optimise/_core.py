@@ -220,6 +220,38 @@ def project(x: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------------
 
 
+def start_first(n: int, keep: int | None) -> list[int]:
+    """The indices 0 … n-1 with ``keep`` (a batch's kept start point) moved to the front."""
+    order = list(range(n))
+    if keep is not None:
+        order.remove(keep)
+        order.insert(0, keep)
+    return order
+
+
+def until_deadline(points: Sequence[np.ndarray], deadline: float, keep: int | None,
+                   run: Callable[[list[np.ndarray]], Sequence[np.ndarray]], width: int = 1) -> list[np.ndarray | None]:
+    """``run`` over ``points`` in groups of ``width``, no group started after ``deadline`` (``time.monotonic``).
+
+    The point ``keep`` goes first and runs whatever the time (alone, when the deadline has passed); a group
+    that is running at the deadline finishes. Each group is in the order of the points. None for the points
+    not run. This is ``batch.within`` for batches that run in this process (the serial default here, and
+    :meth:`rivercal.evaluate.Evaluator.within`).
+    """
+    order = start_first(len(points), keep)
+    out: list[np.ndarray | None] = [None] * len(points)
+    n = 0
+    while n < len(order):
+        late = time.monotonic() >= deadline
+        if late and not (n == 0 and keep is not None):
+            break
+        group = sorted(order[n: n + (1 if late else width)])
+        for i, r in zip(group, run([points[i] for i in group]), strict=True):
+            out[i] = r
+        n += len(group)
+    return out
+
+
 class _Serial:
     """The default batch: ``fun`` at each point in turn; :meth:`within` a deadline, after which only ``keep`` starts."""
 
@@ -230,16 +262,7 @@ class _Serial:
         return [self.fun(p) for p in points]
 
     def within(self, points: list[np.ndarray], deadline: float, *, keep: int | None = None) -> list[np.ndarray | None]:
-        order = list(range(len(points)))
-        if keep is not None:
-            order.remove(keep)
-            order.insert(0, keep)
-        out: list[np.ndarray | None] = [None] * len(points)
-        for n, i in enumerate(order):
-            if time.monotonic() >= deadline and not (n == 0 and keep is not None):
-                break
-            out[i] = self.fun(points[i])
-        return out
+        return until_deadline(points, deadline, keep, self)
 
 
 class Run:
