@@ -20,6 +20,7 @@ from rivercal.network.coordinates import branch_polylines, point_along, station_
 
 __all__ = [
     "case_weir_labels",
+    "mark_change",
     "plot_convergence",
     "plot_cost",
     "plot_network",
@@ -363,7 +364,8 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
     series
         The series to draw, one panel each, e.g. ``["ZL1-5930.h_up", "ZL1-5930.h_down"]``.
     change_time
-        Moment of the transition, drawn as a dashed black vertical line.
+        Moment of the transition, drawn as a dashed black vertical line; when it lies outside the
+        series' period, named in the time axis's label instead (see :func:`mark_change`).
     title
         Figure title.
     dss_label, updated_label
@@ -390,6 +392,9 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
     from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
 
     change = pd.Timestamp(change_time)
+    shown = [frame.index for frame in (observed, dss, updated) if len(frame.index)]
+    lo, hi = min(i.min() for i in shown), max(i.max() for i in shown)
+    note = ""
     fig = new_figure(figsize=(11, 2.6 * len(series) + 0.8), layout="constrained")
     axes = fig.subplots(len(series), 1, sharex=True, squeeze=False)[:, 0]
     for ax, sid in zip(axes, series, strict=True):
@@ -397,7 +402,7 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
                 zorder=1)
         ax.plot(dss.index, dss[sid], "-", color="#c53030", lw=1.5, label=dss_label, zorder=2)
         ax.plot(updated.index, updated[sid], "-", color="#2b6cb0", lw=1.5, label=updated_label, zorder=3)
-        ax.axvline(change, ls="--", color="black", lw=1.2, label="transition", zorder=4)
+        note = mark_change(ax, change, lo, hi, "transition")
         ax.set_ylabel(_axis_label(sid))
         ax.set_title(sid, fontsize=10, loc="left")
         ax.grid(alpha=0.3)
@@ -405,6 +410,22 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
     locator = AutoDateLocator()
     axes[-1].xaxis.set_major_locator(locator)
     axes[-1].xaxis.set_major_formatter(ConciseDateFormatter(locator))
-    axes[-1].set_xlabel("time (UTC)")
+    axes[-1].set_xlabel(f"time (UTC); {note}" if note else "time (UTC)")
     fig.suptitle(title)
     return fig
+
+
+def mark_change(ax: Any, change: pd.Timestamp | None, lo: pd.Timestamp, hi: pd.Timestamp,
+                label: str | None = None) -> str:
+    """Draw a transition at ``change`` as a dashed line where it lies in ``lo`` .. ``hi`` (UTC times).
+
+    A line far outside the data would stretch the time axis to it and crowd the data at one edge (a replay
+    that begins weeks after the change). Outside, nothing is drawn and the words for the time axis's label
+    are returned; ``""`` when the line is drawn or there is no transition.
+    """
+    if change is None:
+        return ""
+    if lo <= change <= hi:
+        ax.axvline(change, ls="--", color="black", lw=1.2, label=label, zorder=4)
+        return ""
+    return f"transition {change:%Y-%m-%d %H:%M} UTC, {'before' if change < lo else 'after'} this period"

@@ -28,6 +28,7 @@ from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
 from rivercal.models.contract import spun_up
+from rivercal.report.figures import mark_change
 from rivercal.report.html import Page, bullets, figure, paragraph, table
 from rivercal.report.online_bands import band_blocks
 from rivercal.report.online_figures import figure_blocks
@@ -226,9 +227,23 @@ def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> d
 # -- figures -----------------------------------------------------------------------------------------------
 
 
+def _time_label(ax: Any, text: str, note: str) -> None:
+    ax.set_xlabel(f"{text}; {note}" if note else text)
+
+
 def _estimates_figure(est: pd.DataFrame, units: dict[str, str], truth: dict[str, tuple], dss: dict[str, float],
                       change: pd.Timestamp | None, path: Path) -> Path:
+    _estimates_plot(est, units, truth, dss, change).savefig(path, dpi=110)
+    return path
+
+
+def _estimates_plot(est: pd.DataFrame, units: dict[str, str], truth: dict[str, tuple], dss: dict[str, float],
+                    change: pd.Timestamp | None) -> Any:
+    """One panel per parameter: the estimates per cycle (parameter units), the DSS's value and the truth."""
     names = list(dict.fromkeys(est["parameter"]))
+    # the period the estimates speak for: from the first window's start to the last issue time
+    lo, t0, t1 = est["window_start"].min(), est["issue_time"].min(), est["issue_time"].max()
+    note = ""
     fig, axes = subplots(len(names), 1, figsize=(9.5, 2.6 * len(names)), sharex=True, squeeze=False)
     for ax, name in zip(axes[:, 0], names, strict=True):
         e = est[est["parameter"] == name]
@@ -242,23 +257,25 @@ def _estimates_figure(est: pd.DataFrame, units: dict[str, str], truth: dict[str,
             ax.axhline(dss[name], color=_RED, lw=1.2, ls="-", label="DSS (fixed)")
         if name in truth:
             before, after = truth[name]
-            t0, t1 = e["issue_time"].min(), e["issue_time"].max()
             if change is not None and before is not None and after is not None:
-                ax.step([t0, change, t1], [before, after, after], where="post", color="k", lw=1, ls=":",
-                        label="truth")
+                if change <= t0:  # changed before the first cycle: the truth is its value after
+                    ax.plot([t0, t1], [after, after], color="k", lw=1, ls=":", label="truth")
+                elif change >= t1:
+                    ax.plot([t0, t1], [before, before], color="k", lw=1, ls=":", label="truth")
+                else:
+                    ax.step([t0, change, t1], [before, after, after], where="post", color="k", lw=1, ls=":",
+                            label="truth")
             elif before is not None:
                 ax.axhline(before, color="k", lw=1, ls=":", label="truth")
-        if change is not None:
-            ax.axvline(change, color="k", ls="--", lw=1)
+        note = mark_change(ax, change, lo, t1)
         ax.set_ylabel(f"{name} [{units.get(name, '')}]")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8, ncol=2, loc="best")
-    axes[-1, 0].set_xlabel("issue time (UTC)")
+    _time_label(axes[-1, 0], "issue time (UTC)", note)
     fig.suptitle("Estimates per cycle (window ending at the issue time)")
     fig.autofmt_xdate()
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
 
 
 def _scores_figure(scores: pd.DataFrame, path: Path) -> Path:
@@ -285,8 +302,8 @@ def _error_time_figure(errors: dict[str, pd.DataFrame], change: pd.Timestamp | N
     fig, ax = subplots(figsize=(9.5, 3.6))
     for key, colour, label in (("dss", _RED, "fixed DSS"), ("rivercal", _BLUE, "rivercal")):
         ax.plot(errors[key].index, errors[key].abs().mean(axis=1) * 100, color=colour, lw=1.3, label=label)
-    if change is not None:
-        ax.axvline(change, color="k", ls="--", lw=1, label="transition")
+    _time_label(ax, "time (UTC)", mark_change(ax, change, errors["rivercal"].index[0], errors["rivercal"].index[-1],
+                                               "transition"))
     ax.set_ylabel("mean |level error| over all points [cm]")
     ax.set_title("Level error over time, every calculation point")
     ax.legend()
@@ -477,7 +494,8 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
                                      + (f" (the scenario's values; the truth behind the observations, with "
                                         f"{' and '.join(perturbed)}, has no single value to draw)"
                                         if perturbed else "")
-                                     + ", red: the DSS; dashed: the transition."),
+                                     + ", red: the DSS; dashed: the transition (named under the time axis when it lies "
+                                       "outside the period shown)."),
                      table(wide.reset_index().set_index("cycle"), "Estimates per cycle", float_format=".4g"))
         ptable = _parameter_table(model, run, est, change)
         ptable.to_csv(out / "parameters.csv")
@@ -593,7 +611,8 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
     page.section("Levels at weir ZL1-5930 (thesis Fig. 5-4)",
                  figure(out / "weir_levels.png", f"Levels just up- and downstream of weir {LOCAL_WEIR}: the truth "
                                                  "(grey; no station there), the DSS (red) and rivercal (blue); "
-                                                 "dashed: the transition."))
+                                                 "dashed: the transition (named under the time axis when it lies "
+                                                 "outside the period shown)."))
     page.section("Errors over the network (thesis Figs 5-2, 5-3, 5-5 … 5-15)",
                  figure(fig_time, "Mean absolute level error over all calculation points, hourly."), *blocks,
                  bullets([f"DSS: the case's fixed parameters throughout (run {run.name}).",
