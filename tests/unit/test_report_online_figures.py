@@ -21,7 +21,8 @@ CHANGE = pd.Timestamp("2010-11-01", tz="UTC")
 def _axes_over(lo: pd.Timestamp, hi: pd.Timestamp, change: pd.Timestamp):
     ax = Figure().subplots()
     ax.plot([lo, hi], [20.0, 21.0], "o")
-    return ax, mark_change(ax, change, lo, hi, "transition")
+    mark_change(ax, change, lo, hi, axis_label="time (UTC)", label="transition")
+    return ax, ax.get_xlabel().removeprefix("time (UTC)").removeprefix("; ")  # the note, if any
 
 
 def _limits(ax) -> tuple[pd.Timestamp, pd.Timestamp]:

@@ -393,8 +393,6 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
 
     change = pd.Timestamp(change_time)
     shown = [frame.index for frame in (observed, dss, updated) if len(frame.index)]
-    lo, hi = min(i.min() for i in shown), max(i.max() for i in shown)
-    note = ""
     fig = new_figure(figsize=(11, 2.6 * len(series) + 0.8), layout="constrained")
     axes = fig.subplots(len(series), 1, sharex=True, squeeze=False)[:, 0]
     for ax, sid in zip(axes, series, strict=True):
@@ -402,30 +400,33 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
                 zorder=1)
         ax.plot(dss.index, dss[sid], "-", color="#c53030", lw=1.5, label=dss_label, zorder=2)
         ax.plot(updated.index, updated[sid], "-", color="#2b6cb0", lw=1.5, label=updated_label, zorder=3)
-        note = mark_change(ax, change, lo, hi, "transition")
         ax.set_ylabel(_axis_label(sid))
         ax.set_title(sid, fontsize=10, loc="left")
         ax.grid(alpha=0.3)
+    mark_change(axes, change, min(i.min() for i in shown), max(i.max() for i in shown), axis_label="time (UTC)",
+                label="transition")
     axes[0].legend(fontsize=8, loc="best", ncols=4)
     locator = AutoDateLocator()
     axes[-1].xaxis.set_major_locator(locator)
     axes[-1].xaxis.set_major_formatter(ConciseDateFormatter(locator))
-    axes[-1].set_xlabel(f"time (UTC); {note}" if note else "time (UTC)")
     fig.suptitle(title)
     return fig
 
 
-def mark_change(ax: Any, change: pd.Timestamp | None, lo: pd.Timestamp, hi: pd.Timestamp,
-                label: str | None = None) -> str:
-    """Draw a transition at ``change`` as a dashed line where it lies in ``lo`` .. ``hi`` (UTC times).
+def mark_change(axes: Any, change: pd.Timestamp | None, lo: pd.Timestamp, hi: pd.Timestamp, *, axis_label: str,
+                label: str | None = None) -> None:
+    """Mark a transition at ``change`` on panels that share a time axis from ``lo`` to ``hi`` (UTC times).
 
-    A line far outside the data would stretch the time axis to it and crowd the data at one edge (a replay
-    that begins weeks after the change). Outside, nothing is drawn and the words for the time axis's label
-    are returned; ``""`` when the line is drawn or there is no transition.
+    Where it lies in ``lo`` .. ``hi``, a dashed line on every panel of ``axes`` (one Axes or a sequence);
+    outside, nothing is drawn and the time axis's label of the last panel, ``axis_label``, names it. A line
+    far outside the data would stretch the time axis to it and crowd the data at one edge (a replay that
+    begins weeks after the change).
     """
-    if change is None:
-        return ""
-    if lo <= change <= hi:
-        ax.axvline(change, ls="--", color="black", lw=1.2, label=label, zorder=4)
-        return ""
-    return f"transition {change:%Y-%m-%d %H:%M} UTC, {'before' if change < lo else 'after'} this period"
+    panels = list(np.atleast_1d(axes))
+    note = ""
+    if change is not None and lo <= change <= hi:
+        for ax in panels:
+            ax.axvline(change, ls="--", color="black", lw=1.2, label=label, zorder=4)
+    elif change is not None:
+        note = f"; transition {change:%Y-%m-%d %H:%M} UTC, {'before' if change < lo else 'after'} this period"
+    panels[-1].set_xlabel(axis_label + note)

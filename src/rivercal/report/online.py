@@ -227,10 +227,6 @@ def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> d
 # -- figures -----------------------------------------------------------------------------------------------
 
 
-def _time_label(ax: Any, text: str, note: str) -> None:
-    ax.set_xlabel(f"{text}; {note}" if note else text)
-
-
 def _estimates_figure(est: pd.DataFrame, units: dict[str, str], truth: dict[str, tuple], dss: dict[str, float],
                       change: pd.Timestamp | None, path: Path) -> Path:
     _estimates_plot(est, units, truth, dss, change).savefig(path, dpi=110)
@@ -243,7 +239,6 @@ def _estimates_plot(est: pd.DataFrame, units: dict[str, str], truth: dict[str, t
     names = list(dict.fromkeys(est["parameter"]))
     # the period the estimates speak for: from the first window's start to the last issue time
     lo, t0, t1 = est["window_start"].min(), est["issue_time"].min(), est["issue_time"].max()
-    note = ""
     fig, axes = subplots(len(names), 1, figsize=(9.5, 2.6 * len(names)), sharex=True, squeeze=False)
     for ax, name in zip(axes[:, 0], names, strict=True):
         e = est[est["parameter"] == name]
@@ -267,11 +262,10 @@ def _estimates_plot(est: pd.DataFrame, units: dict[str, str], truth: dict[str, t
                             label="truth")
             elif before is not None:
                 ax.axhline(before, color="k", lw=1, ls=":", label="truth")
-        note = mark_change(ax, change, lo, t1)
         ax.set_ylabel(f"{name} [{units.get(name, '')}]")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8, ncol=2, loc="best")
-    _time_label(axes[-1, 0], "issue time (UTC)", note)
+    mark_change(axes[:, 0], change, lo, t1, axis_label="issue time (UTC)")
     fig.suptitle("Estimates per cycle (window ending at the issue time)")
     fig.autofmt_xdate()
     fig.tight_layout()
@@ -302,8 +296,8 @@ def _error_time_figure(errors: dict[str, pd.DataFrame], change: pd.Timestamp | N
     fig, ax = subplots(figsize=(9.5, 3.6))
     for key, colour, label in (("dss", _RED, "fixed DSS"), ("rivercal", _BLUE, "rivercal")):
         ax.plot(errors[key].index, errors[key].abs().mean(axis=1) * 100, color=colour, lw=1.3, label=label)
-    _time_label(ax, "time (UTC)", mark_change(ax, change, errors["rivercal"].index[0], errors["rivercal"].index[-1],
-                                               "transition"))
+    mark_change(ax, change, errors["rivercal"].index[0], errors["rivercal"].index[-1], axis_label="time (UTC)",
+                label="transition")
     ax.set_ylabel("mean |level error| over all points [cm]")
     ax.set_title("Level error over time, every calculation point")
     ax.legend()
