@@ -37,8 +37,8 @@ pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the process table in /proc")]
 
 SEED = 20101101
-KILLS = 6
-KILLS_POSTGRESQL = 3
+KILLS = 4
+KILLS_POSTGRESQL = 2
 #: Content of each table: columns compared, with the cycle index in place of internal row ids. Left out:
 #: wall-clock stamps (created, started, finished, ingested, scored, applied), owners, attempt counts and
 #: the cycles' wall time.

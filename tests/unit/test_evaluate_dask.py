@@ -252,7 +252,9 @@ def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed(role: str,
 
 
 @pytest.mark.slow
-def test_the_command_line_runs_on_a_dask_cluster_and_checks_the_address(tmp_path: Path) -> None:
+def test_the_command_line_runs_on_a_dask_cluster_quietly_and_checks_the_address(tmp_path: Path) -> None:
+    """On a cluster the calibration equals the serial one. Dask logs its cluster's start at INFO; the command
+    line shows warnings only, as for rivercal's own log, and Dask's INFO with --verbose."""
     import json
 
     from typer.testing import CliRunner
@@ -263,29 +265,21 @@ def test_the_command_line_runs_on_a_dask_cluster_and_checks_the_address(tmp_path
     base = ["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-09-28", "--twin", "FA=20",
             "--json"]
     serial = runner.invoke(app, [*base, "--workers", "1", "--out", str(tmp_path / "a")])
-    dask = runner.invoke(app, [*base, "--dask", "local:2", "--out", str(tmp_path / "b")])
-    assert serial.exit_code == 0 and dask.exit_code == 0, dask.output
-    a, b = json.loads(serial.stdout.splitlines()[-1]), json.loads(dask.stdout.splitlines()[-1])
-    assert a["estimates"] == b["estimates"] and a["model_runs"] == b["model_runs"]
-    for args, text in ((["--dask", "localhost"], "local:N"), (["--dask", "local:2", "--workers", "2"], "not both")):
-        bad = runner.invoke(app, [*base, *args, "--out", str(tmp_path / "c")])
-        assert bad.exit_code == 2 and "--dask" in bad.output and text in bad.output, bad.output
-
-
-@pytest.mark.slow
-def test_the_command_line_shows_no_dask_chatter_unless_verbose(tmp_path: Path) -> None:
-    """Dask logs its cluster's start at INFO; the command line shows warnings only, as for rivercal's own log."""
-    base = [sys.executable, "-m", "rivercal.cli"]
-    args = ["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-09-28", "--twin", "FA=20",
-            "--dask", "local:2", "--json", "--out"]
-    quiet = subprocess.run([*base, *args, str(tmp_path / "a")], cwd=ROOT, capture_output=True, text=True,
-                           timeout=600, check=False)
+    assert serial.exit_code == 0, serial.output
+    cli = [sys.executable, "-m", "rivercal.cli"]
+    quiet = subprocess.run([*cli, *base, "--dask", "local:2", "--out", str(tmp_path / "b")], cwd=ROOT,
+                           capture_output=True, text=True, timeout=600, check=False)
     assert quiet.returncode == 0, quiet.stderr[-2000:]
     assert not [line for line in quiet.stderr.splitlines() if line.startswith(("INFO", "DEBUG"))], quiet.stderr[-2000:]
-    verbose = subprocess.run([*base, "--verbose", *args, str(tmp_path / "b")], cwd=ROOT, capture_output=True,
-                             text=True, timeout=600, check=False)
+    a, b = json.loads(serial.stdout.splitlines()[-1]), json.loads(quiet.stdout.splitlines()[-1])
+    assert a["estimates"] == b["estimates"] and a["model_runs"] == b["model_runs"]
+    verbose = subprocess.run([*cli, "--verbose", *base, "--dask", "local:1", "--out", str(tmp_path / "c")], cwd=ROOT,
+                             capture_output=True, text=True, timeout=600, check=False)
     assert verbose.returncode == 0, verbose.stderr[-2000:]
     assert "INFO distributed.scheduler" in verbose.stderr
+    for args, text in ((["--dask", "localhost"], "local:N"), (["--dask", "local:2", "--workers", "2"], "not both")):
+        bad = runner.invoke(app, [*base, *args, "--out", str(tmp_path / "d")])
+        assert bad.exit_code == 2 and "--dask" in bad.output and text in bad.output, bad.output
 
 
 if __name__ == "__main__":

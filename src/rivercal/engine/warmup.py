@@ -19,6 +19,7 @@ import time
 import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
@@ -58,7 +59,8 @@ def compile_engine(processes: int | None = None) -> dict[str, Readiness]:
     ----------
     processes
         1 compiles the variants one after the other in this process; 2 or more compiles the first variant of
-        the extended loop (``structures``) in a second process meanwhile, and this process then loads it
+        the extended loop (``structures``) in a second process meanwhile (when numba's cache holds no
+        extended loop yet), and this process then loads it
         from the cache (or compiles it, if the cache does not hold it) before the variants that remain.
         None: 2 when this machine has two cores or more.
     """
@@ -66,7 +68,7 @@ def compile_engine(processes: int | None = None) -> dict[str, Readiness]:
         processes = min(2, os.cpu_count() or 1)
     if processes < 1:
         raise ValueError(f"processes must be at least 1, got {processes}")
-    if processes == 1:
+    if processes == 1 or _in_cache(timeloop.run_ext):  # nothing to compile: a second process would only load
         return {variant: _ready(variant) for variant in VARIANTS}
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         elsewhere = pool.submit(_ready, "structures")
@@ -76,6 +78,17 @@ def compile_engine(processes: int | None = None) -> dict[str, Readiness]:
     ready["structures"] = there if here.from_cache else here
     ready.update({variant: _ready(variant) for variant in VARIANTS if variant not in ready})
     return {variant: ready[variant] for variant in VARIANTS}
+
+
+def _in_cache(dispatcher: Any) -> bool:
+    """Whether numba's cache holds a compiled version of ``dispatcher`` for its current source.
+
+    Reads the cache's index through numba's internals; where they differ (another numba), False.
+    """
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except AttributeError:
+        return False
 
 
 def _ready(variant: str) -> Readiness:
