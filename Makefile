@@ -18,14 +18,14 @@ KERNEL_STAMP := $(VENV)/.kernels
 CHROMIUM := /usr/bin/chromium
 CHROMEDRIVER := /usr/bin/chromedriver
 
-# uv installs the packages in parallel (50 s for the dev extra on two cores, pip 115 s, the same versions);
+# uv installs the packages in parallel (58 s for the dev extra on two cores, pip 115 s; the same versions);
 # where uv cannot, pip does. Bytecode is compiled at install: with PYTHONDONTWRITEBYTECODE set, no import
 # would write it, and every process would compile the libraries' modules again.
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "rivercal needs Python >= 3.11 (found " + sys.version.split()[0] + "); set PYTHON=python3.11")'
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip uv
-	$(PY) -m uv pip install --quiet --python $(PY) --compile-bytecode -e ".[dev]" \
+	$(PY) -m pip install --quiet --upgrade pip
+	{ $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) --compile-bytecode -e ".[dev]"; } \
 		|| $(PY) -m pip install --quiet -e ".[dev]"
 	@touch $(STAMP)
 

@@ -1,7 +1,8 @@
 """SIGKILL ``rivercal online`` at random moments, resume it each time: the store ends as if never killed.
 
-A short PI-Fg replay of the dommel case (four daily cycles estimating the friction; one finds the change
-and dates it, so every table a cycle writes gets rows) runs once uninterrupted (the reference). Then the
+A short PI-Fg replay of the dommel case (four daily cycles estimating the friction over 3-day windows,
+half the model time of the default week; one finds the change and dates it, so every table a cycle
+writes gets rows) runs once uninterrupted (the reference). Then the
 same command is started, killed with SIGKILL after a random delay, and started again with the same
 arguments, over and over; the last start runs to its end. Each delay is drawn (seeded) uniformly over the time the start
 would take to finish, judged from the reference's timeline and the cycles already stored, so that kills
@@ -37,8 +38,8 @@ pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the process table in /proc")]
 
 SEED = 20101101
-KILLS = 4
-KILLS_POSTGRESQL = 2
+KILLS = 5
+KILLS_POSTGRESQL = 3
 #: Content of each table: columns compared, with the cycle index in place of internal row ids. Left out:
 #: wall-clock stamps (created, started, finished, ingested, scored, applied), owners, attempt counts and
 #: the cycles' wall time.
@@ -69,8 +70,8 @@ CONTENT = {
 
 
 def command(db: str) -> list[str]:
-    return [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-05",
-            "--to", "2010-11-08", "--params", "FA", "--db", db, "--workers", "2", "--quiet"]
+    return [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-02",
+            "--to", "2010-11-05", "--window", "3D", "--params", "FA", "--db", db, "--workers", "2", "--quiet"]
 
 
 @contextlib.contextmanager
