@@ -2,7 +2,8 @@
 
 The observations are the dommel case's own run (the DSS is the truth, as in scenario PI-0), delivered as
 two CSV files: the first reaches the issue time of cycle 0, the second, dropped into the folder while the
-service waits, that of cycle 1. A file that is not an observation file is reported and skipped.
+service waits, that of cycle 1. A file that is not an observation file is reported and skipped. The
+windows are 3 days long (the waiting does not depend on it; half the model time of the default week).
 """
 
 from __future__ import annotations
@@ -56,7 +57,8 @@ def test_follow_runs_each_cycle_when_its_data_arrive(tmp_path: Path) -> None:
     (inbox / "notes.csv").write_text("this is not an observation file\n", encoding="utf-8")
     proc = subprocess.Popen(
         [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--from", str(FIRST.date()), "--to",
-         str(LAST.date()), "--db", str(db), "--follow", str(inbox), "--poll", "0.5", "--workers", "2", "--json"],
+         str(LAST.date()), "--window", "3D", "--db", str(db), "--follow", str(inbox), "--poll", "0.5", "--workers", "2",
+         "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 240
