@@ -58,14 +58,15 @@ def compile_engine(processes: int | None = None) -> dict[str, Readiness]:
     Parameters
     ----------
     processes
-        1 compiles the variants one after the other in this process; 2 or more compiles the first variant of
-        the extended loop (``structures``) in a second process meanwhile (when numba's cache holds no
-        extended loop yet), and this process then loads it
-        from the cache (or compiles it, if the cache does not hold it) before the variants that remain.
-        None: 2 when this machine has two cores or more.
+        1 compiles the variants one after the other in this process. 2 or more, when numba's cache holds no
+        extended loop yet: a second process compiles the first variant of the extended loop
+        (``structures``) while this one compiles the plain loop; this process then loads it from the cache
+        (or compiles it, if the cache does not hold it) before the variants that remain. None: 2 when
+        this process may use two cores or more.
     """
     if processes is None:
-        processes = min(2, os.cpu_count() or 1)
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        processes = min(2, cores)
     if processes < 1:
         raise ValueError(f"processes must be at least 1, got {processes}")
     if processes == 1 or _in_cache(timeloop.run_ext):  # nothing to compile: a second process would only load
