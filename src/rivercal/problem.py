@@ -47,6 +47,7 @@ a parameter, scipy's default, measures that jitter rather than the derivative.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import time
@@ -57,7 +58,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from rivercal._time import interpolate_at, utc
+from rivercal._time import seconds_since, utc
 from rivercal.errors import ModelRunError
 from rivercal.evaluate import Evaluator
 from rivercal.models.contract import Model, check_parameters, spun_up
@@ -288,8 +289,14 @@ class CalibrationProblem:
     def predictions(self, result: Any) -> dict[str, np.ndarray]:
         """Simulated values at the observation times, by series id (linear interpolation in time)."""
         series = result.series
-        return {s.id: interpolate_at(series.index, series[s.id].to_numpy(), s.times, self.run_start)
-                for s in self.observations}
+        at = seconds_since(series.index, self.run_start)
+        return {s.id: np.interp(t, at, series[s.id].to_numpy(dtype=float))
+                for s, t in zip(self.observations, self._observation_seconds, strict=True)}
+
+    @functools.cached_property
+    def _observation_seconds(self) -> list[np.ndarray]:
+        """The observation times of each series (s after the run's start), converted once for all runs."""
+        return [seconds_since(s.times, self.run_start) for s in self.observations]
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Weighted residuals √W (y − ŷ(x)) (robust ones with a ``loss``), in the order of :attr:`observations`."""

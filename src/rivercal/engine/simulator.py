@@ -124,6 +124,7 @@ class Simulator:
                 raise KeyError(f"forcing for unknown boundaries/laterals: {sorted(unknown)}")
             self.forcing.update(forcing)
         self._forcing_cache: dict[tuple, np.ndarray] = {}
+        self._forcing_arrays: dict[str, tuple[pd.Series, np.ndarray, np.ndarray]] = {}
         self._work = make_work(self.compiled.arrays, self.compiled.structures)
         #: The case's controllers (``None`` without ``[[controllers]]``).
         self.controls: Controls | None = Controls(case.spec.controllers, self.compiled) if case.spec.controllers \
@@ -325,9 +326,15 @@ class Simulator:
     # -- forcing -------------------------------------------------------------------------------
 
     def _values_at(self, key: str, seconds: np.ndarray, start: pd.Timestamp) -> np.ndarray:
+        """Forcing series ``key`` at ``seconds`` (s after ``start``), linear in time."""
         series = self.forcing[key]
-        t = (series.index - start).total_seconds().to_numpy()
-        return np.interp(seconds, t, series.to_numpy(dtype=float))
+        cached = self._forcing_arrays.get(key)
+        if cached is None or cached[0] is not series:   # times as integer ns, values as floats: once per series
+            cached = (series, series.index.as_unit("ns").asi8, series.to_numpy(dtype=float))
+            self._forcing_arrays[key] = cached
+        _, ns, values = cached
+        t = (ns - pd.Timestamp(start).as_unit("ns").value) / 1e9   # as pandas' total_seconds, to the bit
+        return np.interp(seconds, t, values)
 
     def forcing_matrix(self, start: pd.Timestamp, n_steps: int, *, constant: bool = False) -> np.ndarray:
         """Per-step forcing: step-mean discharges (m³/s) and end-of-step levels (m AD).
