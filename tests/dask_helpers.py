@@ -73,6 +73,16 @@ class Logged:
         return [float(t) for t in self.path.read_text().split()] if self.path.exists() else []
 
 
+def started(path: Path, x: float, seconds: float) -> float:
+    """A task that appends ``x`` and its start (``time.monotonic``) to ``path``, waits ``seconds`` and returns ``x``."""
+    import time
+
+    with Path(path).open("a") as f:
+        f.write(f"{x!r} {time.monotonic()!r}\n")
+    time.sleep(seconds)
+    return x
+
+
 def hold_interpreter(additions: float) -> float:
     """Add ``additions`` times in one compiled call that keeps the interpreter lock (the worst case for a worker's
     own threads: Python code, or compiled code without ``nogil``, in the middle of a long task)."""

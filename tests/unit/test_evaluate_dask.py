@@ -159,6 +159,24 @@ def test_no_run_starts_on_the_cluster_after_the_deadline(cluster, tmp_path) -> N
     np.testing.assert_array_equal(np.concatenate(after), [0.0, 1.0, 4.0])
 
 
+def _started(obj: object, path: Path, x: float) -> float:
+    return dask_helpers.started(path, x, 0.2)
+
+
+def test_tasks_submitted_at_once_start_in_their_order_and_give_their_results(cluster, tmp_path) -> None:
+    """A batch goes to the scheduler as one graph; its tasks still start in the order given (the scenarios of a
+    suite go likely-longest first), two at a time on the two workers, and each result is its own."""
+    log = tmp_path / "starts.txt"
+    items = [float(i) for i in range(8)]
+    with Tasks(None, cluster) as tasks:
+        futures = tasks.submit_all(_started, [(log, x) for x in items])
+        assert [f.result() for f in futures] == items
+    starts = sorted((float(t), float(x)) for x, t in (line.split() for line in log.read_text().splitlines()))
+    order = [x for _, x in starts]
+    assert sorted(order) == items
+    assert [int(x) // 2 for x in order] == [i // 2 for i in range(8)], order
+
+
 def test_twin_scenarios_on_the_cluster_equal_the_serial_ones(cluster) -> None:
     from rivercal.model import load_model
     from rivercal.twin.suites import run_scenarios, suite_scenarios

@@ -6,10 +6,11 @@ thesis §4-4 in their moderate window: 12 two-parameter DuD calibrations, each a
 
 - the median wall time of each and the speed-up (target ≥ 1.8×); the cluster is started and the model
   installed and loaded on its workers (a first, untimed task) before the clock starts;
-- the scheduling overhead per task: the wall time of ``tasks`` no-op tasks through the same path
-  (:class:`rivercal.evaluate.Tasks`, all submitted at once) on one worker, divided by their number
-  (target ≤ 5 ms), the processor time they cost (this process, which holds the scheduler of a local
-  cluster, and the worker), and the median round trip of one no-op task submitted alone;
+- the scheduling overhead per task: the wall time of ``tasks`` no-op tasks through the same path as
+  the calibrations' batches and the scenarios (:class:`rivercal.evaluate.Tasks`, all submitted at once,
+  as one graph) on one worker, divided by their number (target ≤ 5 ms; the median of five such
+  batches), the processor time they cost (this process, which holds the scheduler of a local cluster,
+  and the worker), and the median round trip of one no-op task submitted alone;
 - the expected wall time on 64 workers, from the measured durations of the scenarios on one worker:
   :func:`rivercal.twin.suites.run_scenarios` submits them in the order of its cost rank (the likely longest
   first; for FaWc all rank equal, so in the suite's order), and the time is the makespan of that list
@@ -93,17 +94,23 @@ def _worker_cpu(cluster: Any) -> float:
     return sum(cluster.client.run(time.process_time).values())
 
 
-def _overhead(cluster: Any, tasks: int) -> tuple[float, float, float]:
-    """Per task of ``tasks`` no-op tasks submitted at once: (wall s, processor s); a lone round trip, s."""
+def _overhead(cluster: Any, tasks: int, repeats: int = 5) -> tuple[float, float, float]:
+    """Per no-op task, submitted ``tasks`` at once: (wall s, processor s), medians of ``repeats`` batches.
+
+    Third: the median round trip of a lone task, s.
+    """
     from rivercal.evaluate import Tasks
 
     with Tasks(None, cluster) as pool:
         pool.map(_noop, list(range(20)))  # warm
-        cpu0 = time.process_time() + _worker_cpu(cluster)
-        t0 = time.perf_counter()
-        pool.map(_noop, list(range(tasks)))
-        per_task = (time.perf_counter() - t0) / tasks
-        cpu_per_task = (time.process_time() + _worker_cpu(cluster) - cpu0) / tasks
+        walls, cpus = [], []
+        for _ in range(repeats):
+            cpu0 = time.process_time() + _worker_cpu(cluster)
+            t0 = time.perf_counter()
+            pool.map(_noop, list(range(tasks)))
+            walls.append((time.perf_counter() - t0) / tasks)
+            cpus.append((time.process_time() + _worker_cpu(cluster) - cpu0) / tasks)
+        per_task, cpu_per_task = statistics.median(walls), statistics.median(cpus)
         trips = []
         for i in range(30):
             t = time.perf_counter()

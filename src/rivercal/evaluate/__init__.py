@@ -111,9 +111,17 @@ class Tasks:
             future.set_exception(exc)
         return future
 
+    def submit_all(self, fn: Callable[..., Any], calls: Sequence[tuple]) -> list[Future]:
+        """``[submit(fn, *args) for args in calls]``; on a Dask cluster in one message to its scheduler."""
+        if self.cluster is not None and len(calls) > 1:
+            if self._token is None:
+                self._token = self.cluster.install(self.obj)
+            return self.cluster.submit_many(self._token, fn, calls)
+        return [self.submit(fn, *args) for args in calls]
+
     def map(self, fn: Callable[..., Any], items: Sequence[Any]) -> list[Any]:
         """``[fn(obj, item) for item in items]``, all submitted at once; the first failure is raised."""
-        futures = [self.submit(fn, item) for item in items]
+        futures = self.submit_all(fn, [(item,) for item in items])
         try:
             return [f.result() for f in futures]
         except BaseException:
@@ -190,7 +198,7 @@ class Evaluator:
             for i, x in enumerate(points):
                 yield i, self.fun(x)
             return
-        futures = {self._tasks.submit(_call, x): i for i, x in enumerate(points)}
+        futures = {f: i for i, f in enumerate(self._tasks.submit_all(_call, [(x,) for x in points]))}
         try:
             for future in as_completed(futures):
                 yield futures[future], future.result()
@@ -210,7 +218,7 @@ class Evaluator:
             return self._batched(points)
         if self.cluster is None and (self.workers == 1 or len(points) <= 1):
             return [self.fun(x) for x in points]
-        futures = [self._tasks.submit(_call, x) for x in points]
+        futures = self._tasks.submit_all(_call, [(x,) for x in points])
         try:
             return [future.result() for future in futures]
         finally:

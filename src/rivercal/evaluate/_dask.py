@@ -23,6 +23,7 @@ import os
 import pickle
 import re
 import uuid
+from collections.abc import Sequence
 from concurrent.futures import Future
 from typing import Any
 
@@ -158,6 +159,23 @@ class DaskCluster:
     def submit(self, token: str, fn: Any, *args: Any) -> Future:
         """Run ``fn(obj, *args)`` on a worker, ``obj`` the installed object ``token``; a concurrent future."""
         return self._executor.submit(_shipping.call_payload, token, fn, *args)
+
+    def submit_many(self, token: str, fn: Any, calls: Sequence[tuple]) -> list[Future]:
+        """:meth:`submit` of ``fn(obj, *args)`` for each ``args`` of ``calls``, sent to the scheduler as one graph.
+
+        One message for all the tasks instead of one per task: the client and the scheduler build and
+        read one graph (on one worker, no-op tasks cost about 0.8 ms less each). The tasks start in the
+        order of ``calls`` (their keys sort in that order), as when submitted one by one.
+        """
+        wrap = getattr(self._executor, "_wrap_future", None)   # how the executor makes its futures (distributed's own)
+        if wrap is None or len(calls) < 2:
+            return [self.submit(token, fn, *args) for args in calls]
+        n = len(calls)
+        batch = uuid.uuid4().hex
+        columns = [list(column) for column in zip(*calls, strict=True)]
+        futures = self.client.map(_shipping.call_payload, [token] * n, [fn] * n, *columns,
+                                  key=[f"rivercal-{batch}-{i:06d}" for i in range(n)])
+        return [wrap(f) for f in futures]
 
     def _close_cluster(self) -> None:
         if self._cluster is not None:

@@ -300,7 +300,8 @@ def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: Workers
         truths = dict(zip(order, tasks.map(_truth_on, [keys[k] for k in order]), strict=True))
         log.info("%d truths in %.1f s", len(truths), time.perf_counter() - t0)
         jobs = sorted(range(len(scenarios)), key=lambda i: -_expected_work(scenarios[i]))
-        futures = {tasks.submit(_calibrate_on, scenarios[i], truths[scenarios[i].truth_key]): i for i in jobs}
+        submitted = tasks.submit_all(_calibrate_on, [(scenarios[i], truths[scenarios[i].truth_key]) for i in jobs])
+        futures = dict(zip(submitted, jobs, strict=True))
         for future in as_completed(futures):
             result = future.result()
             out[futures[future]] = result
