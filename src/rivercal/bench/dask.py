@@ -155,6 +155,7 @@ def bench_dask(every: int = 3, repeats: int = 3, tasks: int = 400) -> DaskBenchm
                 cpus[n].append(_worker_cpu(cluster) - cpu0)
                 if n == 1:
                     durations = [r.wall_s for r in results]
+        clusters[2].close()  # the overhead of one cluster: the idle one's scheduler would share this process
         per_task, cpu_per_task, trip = _overhead(clusters[1], tasks)
     finally:
         for cluster in clusters.values():
