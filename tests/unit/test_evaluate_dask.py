@@ -159,6 +159,15 @@ def test_no_run_starts_on_the_cluster_after_the_deadline(cluster, tmp_path) -> N
     np.testing.assert_array_equal(np.concatenate(after), [0.0, 1.0, 4.0])
 
 
+def test_the_workers_of_a_local_cluster_run_without_dasks_profiler(cluster) -> None:
+    """Its sampling thread would take about 5 % of a core from each worker's model runs."""
+    import dask
+
+    enabled = cluster.client.run(lambda: dask.config.get("distributed.worker.profile.enabled"))
+    assert len(enabled) == 2 and not any(enabled.values()), enabled
+    assert dask.config.get("distributed.worker.profile.enabled")  # this process's own setting is left as it was
+
+
 def _started(obj: object, path: Path, x: float) -> float:
     return dask_helpers.started(path, x, 0.5)  # long enough that the pairs start in turn on a busy machine
 
