@@ -142,6 +142,7 @@ class Simulator:
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
         state["_spun"] = OrderedDict()   # the states of earlier spin-ups stay in this process
+        state["_forcing_arrays"] = {}    # derived from the forcing; each worker makes its own
         return state
 
     # -- facts -------------------------------------------------------------------------------

@@ -72,6 +72,7 @@ def read_engine_settings(folder: Path) -> dict | None:
                 int(text) if name == "max_iterations" else float(text))
     return out
 
+
 @functools.cache
 def _forcing_model():
     """hydrolib-core's ForcingModel, written once however many boundaries, laterals or structures refer to it.
