@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -10,6 +12,7 @@ from hypothesis import settings
 
 from rivercal.case import case_from_dict
 from rivercal.hydrology.hupsel import ENV_VAR as HUPSEL_ENV_VAR
+from rivercal.models.spinups import ENV_VAR as CACHE_ENV_VAR
 
 #: The repository's root folder.
 REPOSITORY = Path(__file__).resolve().parents[1]
@@ -41,6 +44,27 @@ def hupsel_missing() -> str | None:
     return (f"the Hupsel Brook data (WALRUS demo, GPL-3, never copied into the repository) are not at {path} "
             f"({origin}); put the shared data beside the repository (../shared/data/walrus-hupsel-hourly/"
             f"PEQ_Hupsel.dat from the repository root, as CI clones it) or set {HUPSEL_ENV_VAR} to the file")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """One spin-up cache for this run, fresh, shared by its workers and the processes they start.
+
+    Set in the first process (the workers and every command a test starts inherit it), never the user's own
+    cache: what one run computed never reaches another, and a test's result never depends on an earlier run.
+    """
+    if not hasattr(config, "workerinput"):
+        folder = tempfile.mkdtemp(prefix="rivercal-test-cache-")
+        config.stash[_CACHE_KEY] = folder
+        os.environ[CACHE_ENV_VAR] = folder
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    folder = config.stash.get(_CACHE_KEY, None)
+    if folder:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+_CACHE_KEY = pytest.StashKey[str]()
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:

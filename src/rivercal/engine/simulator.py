@@ -23,6 +23,7 @@ and carries the controllers' state in :class:`EngineState` (``ctl``).
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time as _time
 from collections import OrderedDict
@@ -138,11 +139,13 @@ class Simulator:
         #: What the withdrawals of the last compiled run asked and delivered (see :class:`Shortfall`).
         self.last_run_shortfalls: dict[str, Shortfall] = {}
         self._spun: OrderedDict[tuple[bytes, pd.Timestamp], EngineState] = OrderedDict()   # see state_at
+        self._fingerprint: tuple[tuple[pd.Series, ...], bytes] | None = None   # see spin_up_key
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
         state["_spun"] = OrderedDict()   # the states of earlier spin-ups stay in this process
         state["_forcing_arrays"] = {}    # derived from the forcing; each worker makes its own
+        state["_fingerprint"] = None
         return state
 
     # -- facts -------------------------------------------------------------------------------
@@ -314,6 +317,58 @@ class Simulator:
         while len(self._spun) > SPUN_UP_KEPT:
             self._spun.popitem(last=False)
         return state.copy()
+
+    def keep_state(self, parameters: Mapping[str, float] | None, state: EngineState) -> None:
+        """Take ``state`` as the state of :meth:`state_at` for ``parameters`` at ``state.time``.
+
+        For a state spun up before, by this model or another process (:func:`rivercal.models.spun_up`
+        reads them from its disk cache); later calls of :meth:`state_at` continue from it.
+
+        Raises
+        ------
+        ValueError
+            For a state of another grid.
+        """
+        if state.signature != (self.compiled.n_hpoints, self.compiled.n_links):
+            raise ValueError("the state belongs to another network")
+        key = (self._run_key(parameters), state.time)
+        self._spun[key] = state.copy()
+        self._spun.move_to_end(key)
+        while len(self._spun) > SPUN_UP_KEPT:
+            self._spun.popitem(last=False)
+
+    def spin_up_key(self, parameters: Mapping[str, float] | None) -> str:
+        """A name (hex) for the cold-started run of :meth:`state_at` with ``parameters``.
+
+        Two models whose names are equal compute the same states at every time, to the last bit: the
+        name digests what such a run depends on in the model: the case file, the compiled network, every
+        forcing series, the case's start, and the parameters as the kernels receive them. (The engine's
+        code and what compiles it are the caller's part: :mod:`rivercal.models.spinups`.)
+        """
+        series = tuple(self.forcing[k] for k in sorted(self.forcing))
+        if self._fingerprint is None or len(self._fingerprint[0]) != len(series) or \
+                any(a is not b for a, b in zip(self._fingerprint[0], series, strict=True)):
+            self._fingerprint = (series, self._model_digest())
+        digest = hashlib.sha256(self._fingerprint[1])
+        digest.update(self._run_key(parameters))
+        return digest.hexdigest()
+
+    def _model_digest(self) -> bytes:
+        """SHA-256 of the case, the compiled network and the forcing (:meth:`spin_up_key`)."""
+        digest = hashlib.sha256(self.case.spec.model_dump_json().encode())
+        digest.update(str(self.start.value).encode())
+        c = self.compiled
+        for group in (c.arrays, c.structures):
+            for name, value in zip(group._fields, group, strict=True):
+                array = np.ascontiguousarray(value)
+                digest.update(f"{name}:{array.dtype.str}:{array.shape}".encode())
+                digest.update(array.tobytes())
+        for key in sorted(self.forcing):
+            series = self.forcing[key]
+            digest.update(key.encode())
+            digest.update(series.index.as_unit("ns").asi8.tobytes())
+            digest.update(series.to_numpy(dtype=float).tobytes())
+        return digest.digest()
 
     def _run_key(self, parameters: Mapping[str, float] | None) -> bytes:
         """What a run's parameters come to in the kernels' arrays (two mappings that say the same are one key)."""

@@ -220,11 +220,12 @@ def spun_up(model: Any, parameters: Mapping[str, float] | None, at: Any) -> Any:
 
     That is ``model.simulate(parameters, end=at)[1]``; a model that offers ``state_at(parameters, at)`` (the
     embedded engine: :meth:`rivercal.engine.Simulator.state_at`) answers it from the spin-ups it ran
-    before.
+    before, and from those that this machine's processes kept on disk (:mod:`rivercal.models.spinups`).
     """
-    state_at = getattr(model, "state_at", None)
-    if state_at is not None:
-        return state_at(parameters, at)
+    if getattr(model, "state_at", None) is not None:
+        from rivercal.models.spinups import cached_state_at
+
+        return cached_state_at(model, parameters, at)
     return model.simulate(parameters, end=at)[1]
 
 
