@@ -1,18 +1,12 @@
 # rivercal — the two commands: `make demo` and `make test` (both set up .venv themselves).
 SHELL := /bin/bash
 PYTHON ?= python3
-# Python writes the bytecode of each module the first time a process imports it, and later processes load
-# it: the suite's some 270 processes would otherwise each compile the modules they import again (an
-# environment may set PYTHONDONTWRITEBYTECODE; it is not passed on here). Compiling every installed module
-# at install made the install 40 s instead of 10 s on two cores; the ~2,200 modules a run of rivercal and
-# its tests imports compile in about 14 s, once.
-unexport PYTHONDONTWRITEBYTECODE
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels
+.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels bytecode
 
 # numba's cache notices a change of a kernel's own file but not of a kernel it inlines from another file;
 # after a change anywhere in the engine the cached machine code is dropped (a fresh clone has none) and
@@ -25,12 +19,13 @@ CHROMIUM := /usr/bin/chromium
 CHROMEDRIVER := /usr/bin/chromedriver
 
 # uv installs the packages in parallel (58 s for the dev extra on two cores, pip 115 s; the same versions);
-# where uv cannot, pip does.
+# where uv cannot, pip does. Bytecode is compiled at install: with PYTHONDONTWRITEBYTECODE set, no import
+# would write it, and every process would compile the libraries' modules again.
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "rivercal needs Python >= 3.11 (found " + sys.version.split()[0] + "); set PYTHON=python3.11")'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	{ $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) -e ".[dev]"; } \
+	{ $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) --compile-bytecode -e ".[dev]"; } \
 		|| $(PY) -m pip install --quiet -e ".[dev]"
 	@touch $(STAMP)
 
@@ -44,7 +39,12 @@ $(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
 
 kernels: $(KERNEL_STAMP)
 
-demo: $(STAMP) kernels
+# rivercal's own modules as bytecode beside them: an environment with PYTHONDONTWRITEBYTECODE set never
+# writes it, and every process (each test's subprocess) would compile them again (0.3 s each, measured).
+bytecode: $(STAMP)
+	@$(PY) -m compileall -q src >/dev/null
+
+demo: $(STAMP) kernels bytecode
 	$(VENV)/bin/rivercal demo --out $(OUT)
 
 $(CHROMIUM) $(CHROMEDRIVER):
@@ -61,13 +61,13 @@ postgres:
 		command -v apt-get >/dev/null || { echo "make test needs Debian's postgresql package (apt-get)"; exit 1; }; \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
 
-test: $(STAMP) kernels browser postgres
+test: $(STAMP) kernels browser postgres bytecode
 	$(PY) -m pytest -n auto --dist worksteal -q --durations=25
 
-test-fast: $(STAMP) kernels browser postgres
+test-fast: $(STAMP) kernels browser postgres bytecode
 	$(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
 
-bench: $(STAMP) kernels browser
+bench: $(STAMP) kernels browser bytecode
 	@mkdir -p out/bench
 	$(PY) benchmarks/run_all.py --out out/bench
 
