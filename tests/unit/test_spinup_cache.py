@@ -70,6 +70,11 @@ def test_another_run_never_takes_a_kept_state(folder) -> None:
     qup = wetter.forcing["boundary:Qup"]
     wetter.forcing["boundary:Qup"] = qup * 1.01
     assert wetter.spin_up_key(PARAMS) != key
+    changed = load_model("synthetic")
+    changed.forcing["boundary:Qup"] = series = qup.copy()
+    assert changed.spin_up_key(PARAMS) == key
+    series.iloc[5] += 0.1                                          # changed in place
+    assert changed.spin_up_key(PARAMS) != key
     state = spun_up(wetter, PARAMS, T1)
     assert wetter.last_run_stats["steps"] > 0, "a model with other forcing took the kept state"
     assert not _same(state, spun_up(load_model("synthetic"), PARAMS, T1))
