@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 
 from rivercal.models import load_model, spun_up
-from rivercal.models.spinups import ENV_VAR, STALE_PART_S, SpinUpCache
+from rivercal.models.spinups import ENV_VAR, STALE_PART_S, SpinUpCache, spin_up_cache
 
 FIELDS = ("z", "dz", "vol", "u", "q", "pump_on", "ctl")
 PARAMS = {"friction:global": 31.0, "weir:W2.crest_level": 12.7}
@@ -136,3 +136,17 @@ def test_the_least_recently_used_states_go_beyond_the_limit(tmp_path) -> None:
     assert cache.latest(names[0], T1) is not None and cache.latest(names[2], T1) is not None
     assert cache.latest(names[1], T1) is None and not (tmp_path / "b2" / names[1]).exists()
     assert cache.latest(names[0], T1 - pd.Timedelta("1s")) is None   # nothing before the kept time
+
+
+def test_the_folder_follows_the_variable_then_xdg_then_home(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / "mine"))
+    assert spin_up_cache().root == tmp_path / "mine" / "spin-ups"
+    monkeypatch.delenv(ENV_VAR)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert spin_up_cache().root == tmp_path / "xdg" / "rivercal" / "spin-ups"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert spin_up_cache().root == tmp_path / "home" / ".cache" / "rivercal" / "spin-ups"
+    for off in ("off", "OFF", "0"):
+        monkeypatch.setenv(ENV_VAR, off)
+        assert spin_up_cache() is None

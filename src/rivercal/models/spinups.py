@@ -10,10 +10,10 @@ run from the start to the last bit (the engine's contract), so a state from the 
 spin-up computes.
 
 Where: ``$RIVERCAL_CACHE_DIR/spin-ups``; without that variable ``$XDG_CACHE_HOME/rivercal/spin-ups`` or
-``~/.cache/rivercal/spin-ups``. ``RIVERCAL_CACHE_DIR=off`` keeps nothing. A state's name digests the model's
-name of the run, the engine's source code and the versions of numpy, numba and llvmlite and the
-processor they compile for: a change of any of them names new states, and old ones age out. The folder
-keeps at most :data:`MAX_BYTES`; the least recently used states go first.
+``~/.cache/rivercal/spin-ups`` (nothing without a home folder). ``RIVERCAL_CACHE_DIR=off`` keeps nothing.
+A state's name digests the model's name of the run, the engine's source code and the versions of numpy,
+numba and llvmlite and the processor they compile for: a change of any of them names new states, and old
+ones age out. The folder keeps at most :data:`MAX_BYTES`; the least recently used states go first.
 
 Each state is written to a temporary file in its folder and renamed into place, so a process killed while
 writing leaves no half state under a state's name (the temporary file is removed later). A file that
@@ -162,7 +162,13 @@ def spin_up_cache() -> SpinUpCache | None:
             return None
         return _cache(Path(value.strip()).expanduser() / "spin-ups")
     base = os.environ.get("XDG_CACHE_HOME", "").strip()
-    return _cache((Path(base) if base else Path.home() / ".cache") / "rivercal" / "spin-ups")
+    if not base:
+        home = Path(os.path.expanduser("~"))
+        if not home.is_absolute():   # no home folder known (no HOME, no passwd entry): keep nothing
+            log.debug("spin-up cache: no home folder; set %s to keep spin-ups", ENV_VAR)
+            return None
+        base = str(home / ".cache")
+    return _cache(Path(base) / "rivercal" / "spin-ups")
 
 
 @functools.cache
