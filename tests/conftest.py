@@ -46,6 +46,10 @@ def hupsel_missing() -> str | None:
             f"PEQ_Hupsel.dat from the repository root, as CI clones it) or set {HUPSEL_ENV_VAR} to the file")
 
 
+#: Where this run's spin-up cache lies (set in the first process only).
+_CACHE_KEY = pytest.StashKey[str]()
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """One spin-up cache for this run, fresh, shared by its workers and the processes they start.
 
@@ -62,9 +66,6 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     folder = config.stash.get(_CACHE_KEY, None)
     if folder:
         shutil.rmtree(folder, ignore_errors=True)
-
-
-_CACHE_KEY = pytest.StashKey[str]()
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
