@@ -331,9 +331,13 @@ class Simulator:
         ValueError
             For a state of another grid.
         """
+        self._check_grid(state)
+        self._remember((self._run_key(parameters), state.time), state.copy())
+
+    def _check_grid(self, state: EngineState) -> None:
+        """ValueError for a state of another network (another number of points or links)."""
         if state.signature != (self.compiled.n_hpoints, self.compiled.n_links):
             raise ValueError("the state belongs to another network")
-        self._remember((self._run_key(parameters), state.time), state.copy())
 
     def spin_up_key(self, parameters: Mapping[str, float] | None) -> str:
         """A name (hex) for the cold-started run of :meth:`state_at` with ``parameters``.
@@ -464,8 +468,7 @@ class Simulator:
                 self._run(state, crest, fric, spin, n_spin, False, start - pd.Timedelta(seconds=n_spin * self.dt),
                           phase="spin-up", control=control)
         else:
-            if state.signature != (self.compiled.n_hpoints, self.compiled.n_links):
-                raise ValueError("the state belongs to another network")
+            self._check_grid(state)
             if state.ctl.shape[0] != len(self.controls or ()):
                 raise ValueError(f"the state holds {state.ctl.shape[0]} controllers, the case has "
                                  f"{len(self.controls or ())}")

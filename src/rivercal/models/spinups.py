@@ -209,25 +209,35 @@ def cached_state_at(model: Any, parameters: Mapping[str, float] | None, at: Any)
         return model.state_at(parameters, at)
     at = utc(at)
     name = hashlib.sha256(_code_digest() + model.spin_up_key(parameters).encode()).hexdigest()
-    found = cache.latest(name, at)
-    if found is not None:
-        when, path = found
-        data = cache.read(path)
-        if data is not None:
-            try:
-                state = model.load_state(data, model.state_format)
-                if state.time != when:
-                    raise ValueError(f"the state is at {state.time}, its file name says {when}")
-                model.keep_state(parameters, state)
-            except ValueError as exc:
-                log.warning("spin-up cache: %s is unusable (%s); spinning up again", path, exc)
-                cache.discard(path)
-                found = None
-        else:
-            found = None
+    handed = _hand_over(cache, name, model, parameters, at)
     state = model.state_at(parameters, at)
-    if found is None or found[0] != at:
+    if handed != at:
         cache.keep(name, at, model.save_state(state))
-    log.debug("spin-up to %s %s", at, "from the cache" if found is not None and found[0] == at else
-              f"continued from the cache's state at {found[0]}" if found is not None else "from the cold start")
+    log.debug("spin-up to %s %s", at, "from the cache" if handed == at else
+              f"continued from the cache's state at {handed}" if handed is not None else "from the cold start")
     return state
+
+
+def _hand_over(cache: SpinUpCache, name: str, model: Any, parameters: Mapping[str, float] | None,
+               at: pd.Timestamp) -> pd.Timestamp | None:
+    """Give ``model`` the latest kept state of run ``name`` at or before ``at``; its time, None without one.
+
+    A kept state that cannot be read or used is logged and removed.
+    """
+    found = cache.latest(name, at)
+    if found is None:
+        return None
+    when, path = found
+    data = cache.read(path)
+    if data is None:
+        return None
+    try:
+        state = model.load_state(data, model.state_format)
+        if state.time != when:
+            raise ValueError(f"the state is at {state.time}, its file name says {when}")
+        model.keep_state(parameters, state)
+    except ValueError as exc:
+        log.warning("spin-up cache: %s is unusable (%s); spinning up again", path, exc)
+        cache.discard(path)
+        return None
+    return when
