@@ -8,9 +8,11 @@ OUT ?= out/demo
 
 .PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels bytecode
 
-# numba's cache notices a change of a kernel's own file but not of a kernel it inlines from another file;
-# after a change anywhere in the engine the cached machine code is dropped (a fresh clone has none) and
-# the time loop is compiled again, once (about a minute), instead of in every process that runs the engine first.
+# The compiled time loop is kept in ~/.cache/rivercal/kernels, one folder per version of the engine's sources
+# (rivercal/_kernel_cache.py): after a change anywhere in the engine it is compiled again, once (about a
+# minute), instead of in every process that runs the engine first; a fresh clone of a version this machine has
+# compiled loads it in seconds. Machine code that numba kept beside the sources (where the user's cache could
+# not be written) notices only a change of a kernel's own file, not of one it inlines: it is dropped here.
 KERNEL_SOURCES := $(shell find src/rivercal/engine -name '*.py' | sort)
 KERNEL_STAMP := $(VENV)/.kernels
 
@@ -33,7 +35,7 @@ venv: $(STAMP)
 
 $(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
 	@find src -name '*.nbi' -delete -o -name '*.nbc' -delete
-	@echo "compiling the engine's time loop (after a change of the engine: about a minute, once)"
+	@echo "compiling the engine's time loop (for a version of the engine new to this machine: about a minute, once)"
 	$(VENV)/bin/rivercal compile
 	@touch $(KERNEL_STAMP)
 
@@ -82,6 +84,7 @@ lint: $(STAMP)
 
 clean-cache:
 	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+	rm -rf "$${XDG_CACHE_HOME:-$$HOME/.cache}/rivercal/kernels"
 
 clean: clean-cache
 	rm -rf $(VENV) out .pytest_cache .ruff_cache docs/_build docs/tutorial docs/reference/api docs/reference/generated

@@ -66,7 +66,7 @@ def simulate(
 
 
 def compile_engine(as_json: JsonOpt = False) -> None:
-    """Compile the engine into numba's cache now (about a minute, once per installation): later runs start at once."""
+    """Compile the engine now (about a minute, once per machine and engine version): later runs start at once."""
     from rivercal.engine.warmup import VARIANTS
     from rivercal.engine.warmup import compile_engine as compile_variants
 

@@ -32,7 +32,11 @@ import math
 import numpy as np
 from numba import njit
 
+from rivercal._kernel_cache import install
+
 __all__ = ["equilibrium_deficit", "et_reduction", "run_walrus", "wetness"]
+
+install()  # the compiled kernels are kept per user and version of these sources (rivercal._kernel_cache)
 
 NPAR = 15
 

@@ -1,7 +1,7 @@
 """The decorators for engine kernels: ``kernel`` (called from compiled code only) and ``entry`` (also from Python).
 
-Both compile with ``cache=True``, numpy's floating-point error model (a division by zero gives
-inf or NaN, which the time loop's divergence check reports as
+Both compile with ``cache=True`` (kept where :mod:`rivercal._kernel_cache` places them), numpy's
+floating-point error model (a division by zero gives inf or NaN, which the time loop's divergence check reports as
 :class:`~rivercal.errors.EngineDivergedError`, instead of raising ``ZeroDivisionError`` from inside
 compiled code), without numba's reference counting (``_nrt=False``), and releasing the interpreter lock
 while they run (``nogil=True``: the members of an ensemble run on Python threads, each in a compiled call).
@@ -24,7 +24,11 @@ from __future__ import annotations
 from numba import config, njit
 from numba.core.registry import CPUDispatcher
 
+from rivercal._kernel_cache import install
+
 __all__ = ["entry", "kernel"]
+
+install()  # the compiled kernels are kept per user and version of the engine's sources (rivercal._kernel_cache)
 
 _OPTIONS = {"error_model": "numpy", "_nrt": False, "nogil": True}
 

@@ -1,0 +1,180 @@
+"""Where numba keeps rivercal's compiled kernels: per user, one folder per version of their sources.
+
+numba keeps the machine code of a ``cache=True`` kernel beside its source file (``__pycache__``) and
+checks only that file. Two things follow for rivercal's time loop, which inlines kernels from a dozen
+files and takes about a minute to compile:
+
+- every new installation of the same version (a fresh clone, another virtual environment, a container
+  layer) compiles it again, although the machine code would be the same;
+- a change in one file leaves stale copies of it inlined in the kernels of other files.
+
+:func:`install` gives numba a locator of its own for the kernels of rivercal's subpackages (the engine,
+the rainfall-runoff model): they are kept in ``<cache>/rivercal/kernels/<subpackage>-<digest>/``, where
+the digest covers every source file of the subpackage and the versions of numpy, numba and llvmlite.
+Another installation of the same sources finds them there; a change of any file of the subpackage names
+a new folder. numba itself still checks each kernel's source file and the processor it was compiled
+for (its index), and writes each file under a temporary name before renaming it into place.
+
+Where: ``$XDG_CACHE_HOME/rivercal/kernels`` or ``~/.cache/rivercal/kernels``. Where ``NUMBA_CACHE_DIR``
+is set, numba's own locator is used (that setting wins); without a home folder, or where the folder cannot
+be written, numba keeps the kernels beside their sources as before. At most :data:`KEEP` versions of a
+subpackage are kept; making a new one removes the least recently used beyond that.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import logging
+import os
+import shutil
+from pathlib import Path
+
+__all__ = ["KEEP", "install", "kernel_folder"]
+
+log = logging.getLogger(__name__)
+
+#: Versions of a subpackage's kernels kept (about 15 MB each for the engine).
+KEEP = 4
+#: rivercal's package folder: the kernels of its subpackages are placed by this module.
+_PACKAGE = Path(__file__).resolve().parent
+
+
+def install() -> None:
+    """Put rivercal's locator first in numba's list of cache locators (once; kernels decorated later use it).
+
+    Call it before decorating kernels with ``cache=True``. Where numba's internals differ (another numba
+    version without the list), nothing changes and numba places the kernels itself.
+    """
+    from numba.core import caching
+
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    classes = getattr(impl, "_locator_classes", None)
+    if not isinstance(classes, list):
+        log.debug("numba %s has no list of cache locators: its kernels stay in its default places",
+                  getattr(caching, "__name__", "?"))
+        return
+    locator = _locator_class()
+    if locator not in classes:
+        classes.insert(0, locator)
+
+
+def kernel_folder(source: str | Path) -> Path | None:
+    """The folder where the kernels of rivercal source file ``source`` are kept; None where numba places them.
+
+    None for files outside rivercal's subpackages, with ``NUMBA_CACHE_DIR`` set, or without a home folder.
+    """
+    placed = _placement(source)
+    return None if placed is None else placed[0] / placed[1]
+
+
+def _placement(source: str | Path) -> tuple[Path, Path] | None:
+    """The version folder of a source file's subpackage and the file's folder within the subpackage's parent."""
+    try:
+        relative = Path(source).resolve().relative_to(_PACKAGE)
+    except ValueError:
+        return None
+    if len(relative.parts) < 2 or os.environ.get("NUMBA_CACHE_DIR", "").strip():
+        return None
+    root = _root()
+    if root is None:
+        return None
+    subpackage = relative.parts[0]
+    return root / f"{subpackage}-{_digest(subpackage)}", relative.parent
+
+
+def _root() -> Path | None:
+    """``$XDG_CACHE_HOME/rivercal/kernels`` or ``~/.cache/rivercal/kernels``; None without a home folder."""
+    base = os.environ.get("XDG_CACHE_HOME", "").strip()
+    if not base:
+        home = Path(os.path.expanduser("~"))
+        if not home.is_absolute():
+            return None
+        base = str(home / ".cache")
+    return Path(base) / "rivercal" / "kernels"
+
+
+@functools.cache
+def _digest(subpackage: str) -> str:
+    """Short SHA-256 of a subpackage's source files (paths, contents) and of numpy's, numba's, llvmlite's versions."""
+    import llvmlite
+    import numba
+    import numpy as np
+
+    digest = hashlib.sha256()
+    for part in (np.__version__, numba.__version__, llvmlite.__version__):
+        digest.update(f"{part}|".encode())
+    folder = _PACKAGE / subpackage
+    for path in sorted(folder.rglob("*.py")):
+        digest.update(path.relative_to(folder).as_posix().encode() + b"\0")
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+@functools.cache
+def _source_stamp(path: str) -> str:
+    """SHA-256 of a source file: numba's check that a kept kernel was compiled from this file."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@functools.cache
+def _in_use(version: Path) -> None:
+    """Mark a version folder as used now (its time) and remove the least recently used versions beyond KEEP."""
+    try:
+        os.utime(version)
+        versions = sorted((p for p in version.parent.glob(version.name.rsplit("-", 1)[0] + "-*") if p.is_dir()),
+                          key=lambda p: p.stat().st_mtime, reverse=True)
+    except OSError as exc:
+        log.debug("kernel cache: cannot look at %s: %s", version.parent, exc)
+        return
+    for old in versions[KEEP:]:
+        if old != version:
+            log.info("kernel cache: removing the compiled kernels of an older version, %s", old)
+            shutil.rmtree(old, ignore_errors=True)
+
+
+@functools.cache
+def _locator_class() -> type:
+    """The numba cache locator of rivercal's kernels (a class built on numba's, made when numba is imported)."""
+    from numba.core.caching import _CacheLocator
+
+    class KernelLocator(_CacheLocator):
+        """Places the kernels of a rivercal source file in :func:`kernel_folder`."""
+
+        def __init__(self, py_func, py_file: str, folder: Path):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._folder = folder
+
+        def get_cache_path(self) -> str:
+            return str(self._folder)
+
+        def get_source_stamp(self) -> str:
+            return _source_stamp(self._py_file)
+
+        def get_disambiguator(self) -> str:
+            return str(self._lineno)
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            placed = _placement(py_file)
+            if placed is None:
+                return None
+            version, within = placed
+            self = cls(py_func, py_file, version / within)
+            try:
+                self.ensure_cache_path()
+            except OSError as exc:
+                _unwritable(version, str(exc))
+                return None
+            _in_use(version)
+            return self
+
+    return KernelLocator
+
+
+@functools.cache
+def _unwritable(version: Path, reason: str) -> None:
+    """Report once per folder that kernels cannot be kept there."""
+    log.warning("the compiled kernels cannot be kept in %s (%s); numba keeps them in its default place",
+                version, reason)
