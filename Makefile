@@ -8,8 +8,8 @@ OUT ?= out/demo
 
 .PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels bytecode
 
-# The compiled time loop is kept in ~/.cache/rivercal/kernels, one folder per version of the engine's sources
-# (rivercal/_kernel_cache.py): after a change anywhere in the engine it is compiled again, once (about a
+# The compiled time loop is kept in ~/.cache/rivercal/kernels, one folder per version of the kernels' sources
+# (rivercal/_kernel_cache.py): after a change of a kernel it is compiled again, once (about a
 # minute), instead of in every process that runs the engine first; a fresh clone of a version this machine has
 # compiled loads it in seconds. Machine code that numba kept beside the sources (where the user's cache could
 # not be written) notices only a change of a kernel's own file, not of one it inlines: it is dropped here.

@@ -8,17 +8,18 @@ files and takes about a minute to compile:
   layer) compiles it again, although the machine code would be the same;
 - a change in one file leaves stale copies of it inlined in the kernels of other files.
 
-:func:`install` gives numba a locator of its own for the kernels of rivercal's subpackages (the engine,
-the rainfall-runoff model): they are kept in ``<cache>/rivercal/kernels/<subpackage>-<digest>/``, where
-the digest covers every source file of the subpackage and the versions of numpy, numba and llvmlite.
-Another installation of the same sources finds them there; a change of any file of the subpackage names
-a new folder. numba itself still checks each kernel's source file and the processor it was compiled
-for (its index), and writes each file under a temporary name before renaming it into place.
+:func:`install` gives numba a locator of its own for the kernels of rivercal's package: the kernels of the
+files in one folder (the engine's ``engine/kernels``, the rainfall-runoff model's ``hydrology``) are kept in
+``<cache>/rivercal/kernels/<folder>-<digest>/``, where the digest covers every source file in that folder
+and the versions of numpy, numba and llvmlite. Another installation of the same sources finds them there;
+a change of any file in the folder names a new one (kernels inline only kernels of their own folder).
+numba itself still checks each kernel's source file and the processor it was compiled for (its index), and
+writes each file under a temporary name before renaming it into place.
 
 Where: ``$XDG_CACHE_HOME/rivercal/kernels`` or ``~/.cache/rivercal/kernels``. Where ``NUMBA_CACHE_DIR``
 is set, numba's own locator is used (that setting wins); without a home folder, or where the folder cannot
 be written, numba keeps the kernels beside their sources as before. At most :data:`KEEP` versions of a
-subpackage are kept; making a new one removes the least recently used beyond that.
+folder's kernels are kept; using a new one removes the least recently used beyond that.
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ __all__ = ["KEEP", "install", "kernel_folder"]
 
 log = logging.getLogger(__name__)
 
-#: Versions of a subpackage's kernels kept (about 15 MB each for the engine).
+#: Versions of a folder's kernels kept (about 15 MB each for the engine).
 KEEP = 4
-#: rivercal's package folder: the kernels of its subpackages are placed by this module.
+#: rivercal's package folder: the kernels of the files in its folders are placed by this module.
 _PACKAGE = Path(__file__).resolve().parent
 
 
@@ -62,14 +63,10 @@ def install() -> None:
 def kernel_folder(source: str | Path) -> Path | None:
     """The folder where the kernels of rivercal source file ``source`` are kept; None where numba places them.
 
-    None for files outside rivercal's subpackages, with ``NUMBA_CACHE_DIR`` set, or without a home folder.
+    One folder per version of the source files beside ``source`` (and below it): for the engine's kernels,
+    ``<cache>/rivercal/kernels/engine.kernels-<digest>``. None for files outside a folder of rivercal's
+    package, with ``NUMBA_CACHE_DIR`` set, or without a home folder.
     """
-    placed = _placement(source)
-    return None if placed is None else placed[0] / placed[1]
-
-
-def _placement(source: str | Path) -> tuple[Path, Path] | None:
-    """The version folder of a source file's subpackage and the file's folder within the subpackage's parent."""
     try:
         relative = Path(source).resolve().relative_to(_PACKAGE)
     except ValueError:
@@ -79,8 +76,8 @@ def _placement(source: str | Path) -> tuple[Path, Path] | None:
     root = _root()
     if root is None:
         return None
-    subpackage = relative.parts[0]
-    return root / f"{subpackage}-{_digest(subpackage)}", relative.parent
+    folder = relative.parent
+    return root / f"{'.'.join(folder.parts)}-{_digest(folder.as_posix())}"
 
 
 def _root() -> Path | None:
@@ -95,8 +92,8 @@ def _root() -> Path | None:
 
 
 @functools.cache
-def _digest(subpackage: str) -> str:
-    """Short SHA-256 of a subpackage's source files (paths, contents) and of numpy's, numba's, llvmlite's versions."""
+def _digest(folder: str) -> str:
+    """Short SHA-256 of a package folder's sources (paths, contents) and of numpy's, numba's, llvmlite's versions."""
     import llvmlite
     import numba
     import numpy as np
@@ -104,9 +101,9 @@ def _digest(subpackage: str) -> str:
     digest = hashlib.sha256()
     for part in (np.__version__, numba.__version__, llvmlite.__version__):
         digest.update(f"{part}|".encode())
-    folder = _PACKAGE / subpackage
-    for path in sorted(folder.rglob("*.py")):
-        digest.update(path.relative_to(folder).as_posix().encode() + b"\0")
+    where = _PACKAGE / folder
+    for path in sorted(where.rglob("*.py")):
+        digest.update(path.relative_to(where).as_posix().encode() + b"\0")
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
@@ -157,11 +154,10 @@ def _locator_class() -> type:
 
         @classmethod
         def from_function(cls, py_func, py_file):
-            placed = _placement(py_file)
-            if placed is None:
+            version = kernel_folder(py_file)
+            if version is None:
                 return None
-            version, within = placed
-            self = cls(py_func, py_file, version / within)
+            self = cls(py_func, py_file, version)
             try:
                 self.ensure_cache_path()
             except OSError as exc:

@@ -3,7 +3,7 @@
 The end-to-end test copies rivercal's package to two folders, as two clones or virtual environments would
 hold it, and calls a small kernel of the rainfall-runoff model in a fresh process of each: the first
 compiles it, the second (other path, same sources) loads it from the user's folder, and a change in
-another file of the same subpackage names a new folder, compiled again. numba's own counters tell a
+another file of the same folder names a new version folder, compiled again. numba's own counters tell a
 compile from a load.
 """
 
@@ -57,8 +57,7 @@ def test_another_copy_of_the_same_sources_loads_the_kernels_and_a_changed_one_co
     first = _call(_clone(tmp_path / "a"), cache)
     assert (first["hits"], first["misses"]) == (0, 1)
     folder = Path(first["folder"])
-    assert folder.parent.parent == cache / "rivercal" / "kernels"
-    assert folder.parent.name.startswith("hydrology-") and folder.name == "hydrology"
+    assert folder.parent == cache / "rivercal" / "kernels" and folder.name.startswith("hydrology-")
     assert list(folder.glob("_kernels.wetness-*.nbi")), "nothing kept in the user's folder"
     assert not list((tmp_path / "a").rglob("*.nbi")), "the kernel was kept beside the copy's sources too"
 
@@ -68,19 +67,21 @@ def test_another_copy_of_the_same_sources_loads_the_kernels_and_a_changed_one_co
     assert second["folder"] == first["folder"] and second["value"] == first["value"]
 
     with (other / "rivercal" / "hydrology" / "metrics.py").open("a") as f:
-        f.write("\n# a change in another file of the subpackage\n")
+        f.write("\n# a change in another file of the folder\n")
     third = _call(other, cache)
     assert (third["hits"], third["misses"]) == (0, 1)
-    assert Path(third["folder"]).parent != folder.parent and Path(third["folder"]).parent.parent == folder.parent.parent
+    assert Path(third["folder"]) != folder and Path(third["folder"]).parent == folder.parent
 
 
-def test_numba_cache_dir_and_files_outside_the_subpackages_are_left_to_numba(monkeypatch, tmp_path) -> None:
+def test_numba_cache_dir_and_files_outside_the_package_folders_are_left_to_numba(monkeypatch, tmp_path) -> None:
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     engine_file = PACKAGE / "engine" / "kernels" / "timeloop.py"
-    version, *within = kernel_folder(engine_file).relative_to(tmp_path / "rivercal" / "kernels").parts
-    assert version.startswith("engine-") and within == ["engine", "kernels"]
-    assert kernel_folder(PACKAGE / "_time.py") is None          # not in a subpackage
+    folder = kernel_folder(engine_file)
+    assert folder.parent == tmp_path / "rivercal" / "kernels" and folder.name.startswith("engine.kernels-")
+    assert kernel_folder(PACKAGE / "engine" / "kernels" / "solver.py") == folder
+    assert kernel_folder(PACKAGE / "engine" / "simulator.py").name.startswith("engine-")  # another folder
+    assert kernel_folder(PACKAGE / "_time.py") is None          # not in a folder of the package
     assert kernel_folder(tmp_path / "elsewhere.py") is None     # not rivercal's
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))
     assert kernel_folder(engine_file) is None
@@ -88,18 +89,18 @@ def test_numba_cache_dir_and_files_outside_the_subpackages_are_left_to_numba(mon
 
 def test_only_the_most_recently_used_versions_are_kept(tmp_path) -> None:
     now = time.time()
-    versions = [tmp_path / f"engine-{i:016x}" for i in range(KEEP + 2)]
+    versions = [tmp_path / f"engine.kernels-{i:016x}" for i in range(KEEP + 2)]
     for age, version in enumerate(versions):
-        (version / "engine" / "kernels").mkdir(parents=True)
+        version.mkdir()
         os.utime(version, (now - 3600 * (age + 1), now - 3600 * (age + 1)))
     hydrology = tmp_path / "hydrology-0000000000000000"
     hydrology.mkdir()
     os.utime(hydrology, (now - 10**6, now - 10**6))
     oldest = versions[-1]
     _kernel_cache._in_use.__wrapped__(oldest)      # used now: it becomes the most recent
-    kept = sorted(p.name for p in tmp_path.glob("engine-*"))
+    kept = sorted(p.name for p in tmp_path.glob("engine.kernels-*"))
     assert kept == sorted(v.name for v in [oldest, *versions[: KEEP - 1]])
-    assert hydrology.is_dir(), "another subpackage's version was removed"
+    assert hydrology.is_dir(), "another folder's version was removed"
 
 
 def test_a_folder_that_cannot_be_written_is_reported_once_and_numba_places_the_kernels(monkeypatch, tmp_path,

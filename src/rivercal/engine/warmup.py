@@ -1,7 +1,7 @@
 """Compile the time loop ahead of use.
 
 numba compiles a kernel at its first call and keeps the machine code in the user's cache, one folder per
-version of the engine's sources (:mod:`rivercal._kernel_cache`); later processes, of this installation or
+version of the kernels' sources (:mod:`rivercal._kernel_cache`); later processes, of this installation or
 of another with the same sources, load it in about a second. The first compile of the time loop takes
 over a minute (measured on one core: 44 s for the plain loop, 19 s for the extended loop, 11 s more for
 the extended loop with controllers), and a process that pays it looks hung and times everything it does
