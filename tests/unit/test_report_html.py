@@ -81,6 +81,13 @@ def test_table_cells_formats_and_escaping() -> None:
     assert "<td>a&lt;b&gt;</td>" in markup
 
 
+def test_table_shows_times_to_the_minute_in_utc() -> None:
+    df = pd.DataFrame({"issue_time": [pd.Timestamp("2010-10-18T00:00Z"), pd.Timestamp("2010-10-18T02:00+01:00")],
+                       "seen": [pd.Timestamp("2010-10-18 06:30:15"), pd.NaT]})
+    parsed = _parse(table(df, index=False).render(None))
+    assert parsed.cells == ["issue_time", "seen", "2010-10-18 00:00", "2010-10-18 06:30:15", "2010-10-18 01:00", "–"]
+
+
 def test_table_without_index_and_with_multiindex_columns() -> None:
     df = pd.DataFrame([[1.5, 2.5]], columns=pd.MultiIndex.from_tuples([("FA", "ours"), ("FA", "thesis")]))
     parsed = _parse(table(df, index=False).render(None))

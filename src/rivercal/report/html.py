@@ -75,11 +75,20 @@ def _cell(value: Any, float_format: str) -> tuple[str, bool]:
         return ("yes" if value else "no"), False
     if value is None or (not isinstance(value, str) and np.ndim(value) == 0 and pd.isna(value)):
         return "–", False
+    if isinstance(value, _dt.datetime):  # pandas Timestamps too
+        return _time(value), False
     if isinstance(value, numbers.Integral):
         return str(int(value)), True
     if isinstance(value, numbers.Real):
         return format(float(value), float_format), True
     return str(value), False
+
+
+def _time(value: _dt.datetime) -> str:
+    """A time as a table shows it: in UTC when it has a zone, to the minute (seconds only when there are some)."""
+    if value.tzinfo is not None:
+        value = value.astimezone(_dt.UTC)
+    return value.strftime("%Y-%m-%d %H:%M:%S" if value.second or value.microsecond else "%Y-%m-%d %H:%M")
 
 
 def _label(value: Any) -> str:
@@ -99,7 +108,8 @@ def table(df: pd.DataFrame, caption: str = "", *, index: bool = True, float_form
         Whether to show the index as the first column.
     float_format
         Format spec for floats (``format(value, float_format)``); NaN and None show as "–", booleans as
-        yes/no, integers as they are.
+        yes/no, integers as they are, times as ``YYYY-MM-DD HH:MM`` (in UTC when they have a zone: state
+        the zone in the caption or the page).
 
     Raises
     ------
