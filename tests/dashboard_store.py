@@ -30,7 +30,8 @@ def observed(series: str, times: pd.DatetimeIndex) -> np.ndarray:
 
 
 def record(k: int) -> CycleRecord:
-    """Cycle ``k``: FA 16 → 25 at cycle 10, a held Wd every 7th cycle, a jump alert at cycle 10, forecasts."""
+    """Cycle ``k``: FA 16 → 25 at cycle 10, a held Wd every 7th cycle, a jump alert at cycle 10, forecasts; every
+    4th cycle from the fourth on issues the DSS's forecast (a fallback), the others the updated one."""
     t0 = FIRST + pd.Timedelta(days=k)
     fa = 16.0 + (9.0 if k >= 10 else 0.0) + 0.01 * k
     held = k % 7 == 3
@@ -45,7 +46,15 @@ def record(k: int) -> CycleRecord:
     forecasts = {"updated": truth + 0.01 + 0.02 * lead, "dss": truth + 0.05 + 0.10 * lead}
     return CycleRecord(k, t0 - pd.Timedelta("7D"), t0, t0, algorithm="dud", model_runs=8 + k % 4,
                        wall_time_s=0.5 + 0.01 * k, cost_before=100.0 / (k + 1), cost_after=1.0 / (k + 1),
-                       message="converged", estimates=estimates, alerts=alerts, forecasts=forecasts)
+                       message="converged", estimates=estimates, alerts=alerts, forecasts=forecasts,
+                       issued="dss" if k % 4 == 3 else "updated", issued_reason=issued_reason(k))
+
+
+def issued_reason(k: int) -> str:
+    """Why cycle ``k`` issued its forecast (see :func:`record`)."""
+    if k % 4 == 3:
+        return f"fallback to the DSS's parameters: the updated ones forecast worse recently (cycle {k})"
+    return f"the updated parameters' forecast (cycle {k})"
 
 
 def build_store(path: Path, n_cycles: int, *, run: str = "dash", case: str = "dommel") -> Path:

@@ -80,6 +80,13 @@ def test_the_numbers_on_the_pages_are_the_stores(served) -> None:
         assert cells[0].text == f"{row['value']:.4g}"
         assert float(cells[1].get_attribute("data-raw")) == row["std"]
     assert driver.find_element(By.CSS_SELECTOR, "div.alert").get_attribute("data-cycle") == "10"
+    # the forecast the latest cycle issued, and why (the DSS's, as a fallback, unless a cycle was added)
+    latest = cycles.iloc[-1]
+    issued = driver.find_element(By.ID, "issued")
+    kind = latest["issued_forecast"]
+    assert issued.get_attribute("data-kind") == kind
+    whose = "the DSS's" if kind == "dss" else "the updated parameters'"
+    assert issued.text == f"Forecast issued: {whose} — {latest['issued_reason']}."
     # the cycle log: one row per cycle, newest first, model runs and wall time as stored
     _open(driver, url + "/cycles")
     rows = driver.find_elements(By.CSS_SELECTOR, "#cycles tbody tr")
@@ -130,6 +137,7 @@ def test_a_cycle_committed_while_the_page_is_open_appears_without_a_reload(serve
         est = store.estimates(store.get_run("dash"))
     fa = est[(est["cycle"] == new) & (est["parameter"] == "FA")]["value"].iloc[0]
     assert _raw(driver, 'tr[data-parameter="FA"] td:nth-of-type(1)') == [fa]
+    assert driver.find_element(By.ID, "issued").get_attribute("data-kind") == "updated"  # the new cycle's
     assert _errors(driver) == []
 
 

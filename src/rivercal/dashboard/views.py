@@ -60,7 +60,9 @@ def run_version(store: Any, run: Any) -> str:
 
 
 def now_view(store: Any, run: Any) -> dict[str, Any]:
-    """The latest estimates with σ and whether they are in use (and why not), and the open alerts.
+    """The latest estimates with σ and whether they are in use (and why not), the issued forecast, the open alerts.
+
+    The issued forecast is the latest cycle's: the updated parameters' or, as a fallback, the DSS's, and why.
 
     An estimate is *accepted* (the forecast uses it), *held* (the service kept the previous value: the
     window cannot see the parameter, or the change is too large) or a *fallback* (the cycle's
@@ -77,9 +79,12 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
     if final.empty:
         return out
     last = final.iloc[-1]
+    issued = last.get("issued_forecast")
     out["latest"] = {"cycle": int(last["cycle"]), "issue_time": _t(last["issue_time"]), "status": str(last["status"]),
                      "message": str(last["message"] or ""), "model_runs": _cell(last["model_runs"], 6),
-                     "wall_time_s": _cell(last["wall_time_s"], 3)}
+                     "wall_time_s": _cell(last["wall_time_s"], 3),
+                     "issued": str(issued) if isinstance(issued, str) else "",
+                     "issued_reason": str(last.get("issued_reason") or "")}
     est = store.estimates(run)
     in_use = store.last_accepted(run)
     for r in est[est["cycle"] == last["cycle"]].itertuples():
