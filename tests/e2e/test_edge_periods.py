@@ -88,6 +88,13 @@ def test_a_replay_shorter_than_the_horizon_up_to_the_case_end(tmp_path: Path) ->
     assert summary["cycles"] == 2 and summary["status"] == {"done": 2}
     assert summary["forecast_errors"]["n"] > 0  # the first cycle's first day is observed
     assert [round(e["FA"]) for e in summary["estimates"]] == [25, 25]
+    # one cycle issued at the case's end: no model time follows it, so the report has no levels to compare
+    last = rivercal("online", "dommel", "--scenario", "PI-Fg", "--params", "FA", "--no-transition", "--from",
+                    "2010-12-01", "--to", "2010-12-01", "--db", str(tmp_path / "last.sqlite"), "--out",
+                    str(tmp_path / "last"), "--workers", "2", "--quiet")
+    assert last.returncode == 0, last.stderr
+    page = html.unescape((tmp_path / "last" / "index.html").read_text(encoding="utf-8"))
+    assert "the replayed cycles are issued at the end of the case (2010-12-01 00:00)" in page
     late = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01T01:00",
                     "--db", str(tmp_path / "late.sqlite"))
     assert late.returncode == 2 and "--to 2010-12-01T01:00: after the end of the case" in late.stderr

@@ -549,6 +549,11 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
 
     period = pd.Timedelta(run.config["period"])
     start, end = cycles["issue_time"].min(), min(cycles["issue_time"].max() + period, utc(model.end))
+    if not end > start:  # the only cycle is issued at the case's end: no model time follows it
+        page.section("Errors over the network (thesis Figs 5-2, 5-3, 5-5 … 5-15)", paragraph(
+            f"Not shown: the replayed cycles are issued at the end of the case ({end:%Y-%m-%d %H:%M}), so no model "
+            "time follows them in which to compare the levels of the truth, the DSS and rivercal."))
+        return
     runs = continuous_runs(model, store, run, start, end)
     errors = {k: runs[k] - runs["truth"] for k in ("dss", "rivercal")}
     fig_time = _error_time_figure(errors, change, out / "error_over_time.png")
