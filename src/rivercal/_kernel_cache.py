@@ -47,13 +47,14 @@ def install() -> None:
     Call it before decorating kernels with ``cache=True``. Where numba's internals differ (another numba
     version without the list), nothing changes and numba places the kernels itself.
     """
+    import numba
     from numba.core import caching
 
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
     classes = getattr(impl, "_locator_classes", None)
     if not isinstance(classes, list):
         log.debug("numba %s has no list of cache locators: its kernels stay in its default places",
-                  getattr(caching, "__name__", "?"))
+                  numba.__version__)
         return
     locator = _locator_class()
     if locator not in classes:
@@ -108,9 +109,15 @@ def _digest(folder: str) -> str:
     return digest.hexdigest()[:16]
 
 
-@functools.cache
 def _source_stamp(path: str) -> str:
     """SHA-256 of a source file: numba's check that a kept kernel was compiled from this file."""
+    st = os.stat(path)
+    return _file_digest(path, st.st_mtime_ns, st.st_size)
+
+
+@functools.cache
+def _file_digest(path: str, mtime_ns: int, size: int) -> str:
+    """SHA-256 of a file's content (read again when its time or size changes)."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
@@ -169,8 +176,13 @@ def _locator_class() -> type:
     return KernelLocator
 
 
-@functools.cache
+_REPORTED: set[Path] = set()
+
+
 def _unwritable(version: Path, reason: str) -> None:
     """Report once per folder that kernels cannot be kept there."""
+    if version in _REPORTED:
+        return
+    _REPORTED.add(version)
     log.warning("the compiled kernels cannot be kept in %s (%s); numba keeps them in its default place",
                 version, reason)
