@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["new_figure", "save_figure", "subplots"]
+__all__ = ["iteration_axis", "new_figure", "save_figure", "subplots"]
 
 _FIGURE_KEYWORDS = ("figsize", "dpi", "layout", "facecolor")
 
@@ -40,3 +40,11 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = 110) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi)
     return path
+
+
+def iteration_axis(ax: Any) -> None:
+    """Label ``ax``'s horizontal axis "iteration", with ticks at whole iterations only."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_xlabel("iteration")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))

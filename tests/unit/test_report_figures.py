@@ -108,3 +108,16 @@ def test_transition_figure_names_a_missing_series():
                                title="t")
     with pytest.raises(ValueError, match="series is empty"):
         plot_transition_levels(frame, frame, frame, series=[], change_time="2010-11-01", title="t")
+
+
+def test_iteration_axes_tick_whole_iterations_only():
+    from rivercal._figure import iteration_axis, subplots
+
+    fig, ax = subplots(figsize=(7, 3))
+    ax.plot(range(5), [1e4, 16.0, 0.4, 5e-3, 1e-6], "o-")  # five iterations: matplotlib alone ticks 0.5, 1.5 …
+    iteration_axis(ax)
+    fig.canvas.draw()
+    lo, hi = ax.get_xlim()
+    ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+    assert len(ticks) >= 3 and all(float(t).is_integer() for t in ticks), ticks
+    assert ax.get_xlabel() == "iteration"

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal._figure import new_figure, subplots
+from rivercal._figure import iteration_axis, new_figure, subplots
 from rivercal.network import Network
 from rivercal.network.coordinates import branch_polylines, point_along, station_coordinates
 
@@ -153,7 +153,7 @@ def plot_convergence(history: list[dict], names: list[str], path: str | Path, *,
             ax.legend(fontsize=8)
         ax.set_ylabel(f"{name} ({(units or {}).get(name, '')})".replace(" ()", ""))
         ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("iteration")
+    iteration_axis(axes[-1, 0])
     fig.suptitle(title or "parameter convergence")
     fig.tight_layout()
     path = Path(path)
@@ -170,7 +170,7 @@ def plot_cost(history: list[dict], path: str | Path, *, title: str = "") -> Path
     if np.isfinite(lin).any():
         ax.semilogy(it, [max(v, 1e-16) if np.isfinite(v) else np.nan for v in lin], "x--", color="#dd6b20",
                     label="linearised cost")
-    ax.set_xlabel("iteration")
+    iteration_axis(ax)
     ax.set_ylabel("cost (Eq. 2-3, -)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal._figure import subplots
+from rivercal._figure import iteration_axis, subplots
 from rivercal.analysis import bias_significance, errors, moving_bias
 from rivercal.report.identifiability import verdict_table
 from rivercal.twin.reference import THESIS_FIGURES, thesis_row
@@ -206,7 +206,7 @@ def _convergence(suite: str, results: list[ScenarioResult], path: Path) -> Path:
             ax.axhline(value, ls="--", color="0.4", lw=0.8)
         ax.set_ylabel(name)
         ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("iteration")
+    iteration_axis(axes[-1, 0])
     fig.suptitle(f"{suite}: parameter convergence (true values dashed; cf. thesis {_fig(suite, 'convergence')})")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -219,7 +219,7 @@ def _cost(suite: str, results: list[ScenarioResult], path: Path) -> Path:
         colour, marker = _style(r)
         ax.semilogy([h["iteration"] for h in r.history], [max(h["cost"], 1e-25) for h in r.history], marker=marker,
                     color=colour, lw=0.9, ms=4, alpha=0.8, label=r.id)
-    ax.set_xlabel("iteration")
+    iteration_axis(ax)
     ax.set_ylabel("cost (-)")
     ax.grid(alpha=0.3, which="both")
     if len(results) <= 16:
