@@ -68,6 +68,11 @@ def test_simulate_writes_csv_and_cf_netcdf(tmp_path: Path) -> None:
      "outside its bounds"),
     (["calibrate", "dommel", "--params", "FA", "--window", "2011-01-01/2011-01-08", "--twin", "FA=20"],
      "outside the case period"),
+    # one weir's crest and the shift of all crests set the same quantity
+    (["analyse", "dommel", "--params", "FA,W1,Wc", "--window", "moderate"],
+     "--params: W1 and Wc both set weir:ZL1-5.crest_level; give only one of them"),
+    (["online", "dommel", "--scenario", "PI-Fg", "--params", "Wc,W1", "--from", "2010-11-02", "--to", "2010-11-02"],
+     "--params: Wc and W1 both set weir:ZL1-5.crest_level; give only one of them"),
 ])
 def test_bad_input_exits_2_with_a_message(args: list[str], message: str) -> None:
     run = rivercal(*args)

@@ -15,6 +15,7 @@ from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, e
 from rivercal.cli.options import (
     check_choice,
     check_number,
+    check_overlap,
     dask_address,
     open_model,
     output_dir,
@@ -164,6 +165,8 @@ def online(
     if unknown:
         raise OptionError(f"--params: unknown parameter {unknown[0]!r}; {model.name!r} defines {', '.join(known)}",
                           option="--params")
+    by_name = {p.name: p for p in model.calibration.parameters}
+    check_overlap(by_name[n] for n in names)
     earliest = model.start + durations["--window"] + spin
     if first < earliest:
         raise OptionError(f"--from {date_from}: the first window ({window}) and its warm-up ({warmup}) need the model "

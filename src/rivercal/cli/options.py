@@ -290,7 +290,19 @@ def select_parameters(model: Any, names: str, start: Mapping[str, float], bounds
         except ValueError as exc:  # the parameter's own rules, e.g. a cluster lives in [0, 1]
             option = "--bounds" if "min" in updates[n] else "--start"
             raise OptionError(f"{option}: parameter {n}: {_first_problem(exc)}", option=option) from None
+    check_overlap(chosen)
     return ParameterSet(chosen)
+
+
+def check_overlap(parameters: Iterable[Any]) -> None:
+    """The parameters of ``--params`` set different model quantities (e.g. not a weir's crest and all crests)."""
+    owner: dict[str, str] = {}
+    for p in parameters:
+        for target in p.quantities(p.initial):
+            if target in owner:
+                raise OptionError(f"--params: {owner[target]} and {p.name} both set {target}; give only one of them",
+                                  option="--params")
+            owner[target] = p.name
 
 
 def check_truth(parameters: Any, truth: Mapping[str, float], option: str = "--twin") -> None:
