@@ -17,6 +17,7 @@ from rich.table import Table
 from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
 from rivercal.cli.options import (
     check_number,
+    check_overlap,
     dask_address,
     open_model,
     output_dir,
@@ -159,6 +160,8 @@ def _check_case(model, names: list[str], params: list[str], window: str | None) 
     if unknown:
         raise OptionError(f"--params: unknown parameter {unknown[0]!r}; the case defines {', '.join(sorted(defined))}",
                           option="--params")
+    by_name = {p.name: p for p in model.calibration.parameters}
+    check_overlap(by_name[n] for n in params)
     if window is None and "moderate" not in known and SENSITIVITY in names:
         raise OptionError(f"--window: case {model.name!r} has no 'moderate' window for the sensitivity; give one",
                           option="--window")
