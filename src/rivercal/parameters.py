@@ -41,7 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["TARGET_PATTERN", "ClusterTarget", "Parameter", "ParameterSet"]
+__all__ = ["TARGET_PATTERN", "ClusterTarget", "Parameter", "ParameterSet", "shared_quantity"]
 
 #: The form of a model quantity's name: a letter or _, then letters, digits and ``_ . : - /`` (no spaces,
 #: no braces, no quotes), at most 200 characters.
@@ -165,6 +165,21 @@ class Parameter(_Model):
         return dict.fromkeys(self.targets, float(value))
 
 
+def shared_quantity(parameters: Iterable[Parameter]) -> tuple[str, str, str] | None:
+    """The first model quantity that two of ``parameters`` set: (first parameter, second parameter, quantity).
+
+    None when each quantity has one parameter at most (e.g. a weir's crest level and the shift of all
+    crests both set that weir's crest).
+    """
+    owner: dict[str, str] = {}
+    for p in parameters:
+        for target in p.quantities(p.initial):
+            if target in owner:
+                return owner[target], p.name, target
+            owner[target] = p.name
+    return None
+
+
 class ParameterSet:
     """An ordered set of parameters: the flat vector of the optimiser ↔ names ↔ model quantities.
 
@@ -180,12 +195,9 @@ class ParameterSet:
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
             raise ValueError(f"duplicate parameter names in {names}")
-        owner: dict[str, str] = {}
-        for p in self.parameters:
-            for target in p.quantities(p.initial):
-                if target in owner:
-                    raise ValueError(f"{target} is set by both {owner[target]!r} and {p.name!r}")
-                owner[target] = p.name
+        shared = shared_quantity(self.parameters)
+        if shared is not None:
+            raise ValueError(f"{shared[2]} is set by both {shared[0]!r} and {shared[1]!r}")
 
     def __len__(self) -> int:
         return len(self.parameters)

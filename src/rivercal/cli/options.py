@@ -296,13 +296,13 @@ def select_parameters(model: Any, names: str, start: Mapping[str, float], bounds
 
 def check_overlap(parameters: Iterable[Any]) -> None:
     """The parameters of ``--params`` set different model quantities (e.g. not a weir's crest and all crests)."""
-    owner: dict[str, str] = {}
-    for p in parameters:
-        for target in p.quantities(p.initial):
-            if target in owner:
-                raise OptionError(f"--params: {owner[target]} and {p.name} both set {target}; give only one of them",
-                                  option="--params")
-            owner[target] = p.name
+    from rivercal.parameters import shared_quantity
+
+    shared = shared_quantity(parameters)
+    if shared is not None:
+        first, second, quantity = shared
+        raise OptionError(f"--params: {first} and {second} both set {quantity}; give only one of them",
+                          option="--params")
 
 
 def check_truth(parameters: Any, truth: Mapping[str, float], option: str = "--twin") -> None:

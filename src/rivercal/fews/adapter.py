@@ -52,6 +52,7 @@ from rivercal.fews.pi import (
 from rivercal.fews.properties import PROPERTIES, AdapterError, duration, number, prop
 from rivercal.io.pixml import EXPECTED_UNITS, PiSeries, read_pixml, read_pixml_series, write_pixml_series
 from rivercal.observations import ObservationSet
+from rivercal.parameters import shared_quantity
 
 __all__ = ["PROPERTIES", "AdapterError", "FewsOutcome", "run_module"]
 
@@ -121,6 +122,11 @@ def _config(run: RunFile, model: Any) -> Any:
         what = f"unknown parameter {unknown[0]!r}" if unknown else "no parameter named"
         raise AdapterError(f"property 'parameters': {what}; the case defines {', '.join(known)}", file=str(run.path),
                            field="properties")
+    by_name = {p.name: p for p in model.calibration.parameters}
+    shared = shared_quantity(by_name[n] for n in names)
+    if shared is not None:
+        raise AdapterError(f"property 'parameters': {shared[0]} and {shared[1]} both set {shared[2]}; give only one of "
+                           "them", file=str(run.path), field="properties")
     algorithm = prop(run, "algorithm")
     if algorithm not in OPTIMISERS:
         raise AdapterError(f"property 'algorithm': unknown optimiser {algorithm!r}; choose one of "
