@@ -165,8 +165,7 @@ def online(
     if unknown:
         raise OptionError(f"--params: unknown parameter {unknown[0]!r}; {model.name!r} defines {', '.join(known)}",
                           option="--params")
-    by_name = {p.name: p for p in model.calibration.parameters}
-    check_overlap(by_name[n] for n in names)
+    check_overlap(model, names)
     earliest = model.start + durations["--window"] + spin
     if first < earliest:
         raise OptionError(f"--from {date_from}: the first window ({window}) and its warm-up ({warmup}) need the model "

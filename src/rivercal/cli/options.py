@@ -290,15 +290,19 @@ def select_parameters(model: Any, names: str, start: Mapping[str, float], bounds
         except ValueError as exc:  # the parameter's own rules, e.g. a cluster lives in [0, 1]
             option = "--bounds" if "min" in updates[n] else "--start"
             raise OptionError(f"{option}: parameter {n}: {_first_problem(exc)}", option=option) from None
-    check_overlap(chosen)
+    check_overlap(model, wanted)
     return ParameterSet(chosen)
 
 
-def check_overlap(parameters: Iterable[Any]) -> None:
-    """The parameters of ``--params`` set different model quantities (e.g. not a weir's crest and all crests)."""
+def check_overlap(model: Any, names: Iterable[str]) -> None:
+    """The parameters ``names`` of ``--params`` (all defined by the model) set different model quantities.
+
+    Refused, for instance: a weir's crest level and the shift of all crests, which both set that weir's crest.
+    """
     from rivercal.parameters import shared_quantity
 
-    shared = shared_quantity(parameters)
+    known = {p.name: p for p in model.calibration.parameters}
+    shared = shared_quantity(known[n] for n in names)
     if shared is not None:
         first, second, quantity = shared
         raise OptionError(f"--params: {first} and {second} both set {quantity}; give only one of them",

@@ -160,8 +160,7 @@ def _check_case(model, names: list[str], params: list[str], window: str | None) 
     if unknown:
         raise OptionError(f"--params: unknown parameter {unknown[0]!r}; the case defines {', '.join(sorted(defined))}",
                           option="--params")
-    by_name = {p.name: p for p in model.calibration.parameters}
-    check_overlap(by_name[n] for n in params)
+    check_overlap(model, params)
     if window is None and "moderate" not in known and SENSITIVITY in names:
         raise OptionError(f"--window: case {model.name!r} has no 'moderate' window for the sensitivity; give one",
                           option="--window")
