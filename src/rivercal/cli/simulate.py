@@ -52,7 +52,7 @@ def simulate(
         emit_json(summary)
     elif not quiet:
         balance = summary["volume_balance_relative_error"]
-        out_console.print(f"simulated [bold]{summary['case']}[/] {summary['start']} .. {summary['end']} in "
+        out_console.print(f"simulated [bold]{summary['case']}[/] {a:%Y-%m-%d %H:%M} .. {b:%Y-%m-%d %H:%M} UTC in "
                           f"{summary['wall_s']:.2f} s"
                           + (f" (volume balance error {balance:.1e})" if balance is not None else ""))
         for key, short in summary["shortfalls"].items():
