@@ -97,6 +97,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     if network.culverts:
         handles.append(Line2D([], [], ls="", marker="s", color="#805ad5", label="culvert"))
     ax.legend(handles=handles, loc="best", fontsize=8)
+    ax.margins(0.07)  # room inside the frame for the labels of points at its edges
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
