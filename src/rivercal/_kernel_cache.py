@@ -31,6 +31,8 @@ import os
 import shutil
 from pathlib import Path
 
+from rivercal._cache_dirs import user_cache
+
 __all__ = ["KEEP", "install", "kernel_folder"]
 
 log = logging.getLogger(__name__)
@@ -74,22 +76,11 @@ def kernel_folder(source: str | Path) -> Path | None:
         return None
     if len(relative.parts) < 2 or os.environ.get("NUMBA_CACHE_DIR", "").strip():
         return None
-    root = _root()
+    root = user_cache("kernels")
     if root is None:
         return None
     folder = relative.parent
     return root / f"{'.'.join(folder.parts)}-{_digest(folder.as_posix())}"
-
-
-def _root() -> Path | None:
-    """``$XDG_CACHE_HOME/rivercal/kernels`` or ``~/.cache/rivercal/kernels``; None without a home folder."""
-    base = os.environ.get("XDG_CACHE_HOME", "").strip()
-    if not base:
-        home = Path(os.path.expanduser("~"))
-        if not home.is_absolute():
-            return None
-        base = str(home / ".cache")
-    return Path(base) / "rivercal" / "kernels"
 
 
 @functools.cache

@@ -37,6 +37,7 @@ from typing import Any
 
 import pandas as pd
 
+from rivercal._cache_dirs import user_cache
 from rivercal._time import utc
 
 __all__ = ["ENV_VAR", "MAX_BYTES", "SpinUpCache", "cached_state_at", "spin_up_cache"]
@@ -161,14 +162,11 @@ def spin_up_cache() -> SpinUpCache | None:
         if value.strip().lower() in ("off", "none", "0", "false", "no"):
             return None
         return _cache(Path(value.strip()).expanduser() / "spin-ups")
-    base = os.environ.get("XDG_CACHE_HOME", "").strip()
-    if not base:
-        home = Path(os.path.expanduser("~"))
-        if not home.is_absolute():   # no home folder known (no HOME, no passwd entry): keep nothing
-            log.debug("spin-up cache: no home folder; set %s to keep spin-ups", ENV_VAR)
-            return None
-        base = str(home / ".cache")
-    return _cache(Path(base) / "rivercal" / "spin-ups")
+    root = user_cache("spin-ups")
+    if root is None:   # no home folder known (no HOME, no passwd entry): keep nothing
+        log.debug("spin-up cache: no home folder; set %s to keep spin-ups", ENV_VAR)
+        return None
+    return _cache(root)
 
 
 @functools.cache
