@@ -9,8 +9,11 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli import rivercal
 
-def rivercal(*args: str) -> subprocess.CompletedProcess:
+
+def process(*args: str) -> subprocess.CompletedProcess:
+    """``python -m rivercal.cli ARGS`` in a process of its own (what the compiled-kernel cache is for)."""
     return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
 
 
@@ -33,9 +36,9 @@ def test_case_schema_is_json_schema() -> None:
 
 def test_compile_fills_the_cache_that_the_next_process_loads() -> None:
     """``rivercal compile`` leaves each variant of the time loop in numba's cache: a second process compiles nothing."""
-    first = rivercal("compile", "--json")
+    first = process("compile", "--json")
     assert first.returncode == 0, first.stderr
-    second = rivercal("compile", "--json")
+    second = process("compile", "--json")
     assert second.returncode == 0, second.stderr
     ready = json.loads(second.stdout)
     assert set(ready) == {"plain", "structures", "controlled"}
@@ -97,7 +100,7 @@ def test_calibrate_twin_json_and_files(tmp_path: Path) -> None:
 def test_bench_engine_reports_the_network_and_a_second_call_does_not_compile() -> None:
     """Issue 2: the bench network has >= 400 points, >= 9 weirs and 10 laterals; a second CLI call loads
     every kernel from numba's cache (the first may compile, if nothing ran the engine before)."""
-    runs = [rivercal("bench", "engine", "--days", "0.25", "--repeats", "1", "--json") for _ in range(2)]
+    runs = [process("bench", "engine", "--days", "0.25", "--repeats", "1", "--json") for _ in range(2)]
     assert all(r.returncode == 0 for r in runs), runs[-1].stderr
     first, second = (json.loads(r.stdout) for r in runs)
     assert first["points"] >= 400 and first["weirs"] >= 9 and first["laterals"] == 10 and first["dt_s"] == 60.0

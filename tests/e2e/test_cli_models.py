@@ -9,16 +9,12 @@ from __future__ import annotations
 
 import json
 import sqlite3
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
-
-def rivercal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
+from tests.cli import rivercal
 
 
 def test_model_schema_and_check() -> None:

@@ -3,20 +3,15 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rivercal.model import load_model
+from tests.cli import rivercal
 from tests.dhydro_models import write_model
 from tests.shared_data import shared_model
-
-
-def rivercal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
 
 
 def test_import_prints_the_summary_as_json(tmp_path: Path) -> None:

@@ -4,7 +4,10 @@ Per page (the landing page, the how-to guides, the explanations), the fenced blo
 of the page, as a reader would type them, in a fresh folder where ``docs`` is the repository's docs/
 (the pages name their example folders as ``docs/howto/...``, relative to a clone): each ``$`` line of a
 ``console`` block through bash (continuation lines joined; a ``<<'TOML'`` here-document with its lines),
-each ``python`` block with this interpreter. A command that fails fails the test with its output.
+each ``python`` block with this interpreter. A ``rivercal`` command with nothing for a shell to expand or
+redirect runs on the real app in this process (:mod:`tests.cli`), which saves each one the start of a
+process with the numerical stack; its words are split as bash splits them. A command that fails fails the
+test with its output.
 
 Two kinds of lines are not run as written: ``pip install`` (the ``dev`` extra that ``make test`` installs
 already holds every extra), and ``rivercal dashboard``, a server that runs until stopped: it is started
@@ -25,9 +28,13 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli import rivercal
+
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 FENCE = re.compile(r"^```(\w+)[^\n]*\n(.*?)^```", re.M | re.S)
+#: What bash would expand, redirect or chain on a command line (a command with any of them goes to bash).
+SHELL_SYNTAX = re.compile(r"[|&;<>()$`*?\[\]{}~\\\n]")
 
 pytestmark = pytest.mark.slow
 
@@ -95,8 +102,9 @@ def _serve_and_probe(cmd: str, cwd: Path, env: dict[str, str]) -> None:
 
 
 @pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(DOCS)) for p in PAGES])
-def test_every_block_of_the_page_runs(page: Path, tmp_path: Path) -> None:
+def test_every_block_of_the_page_runs(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     (tmp_path / "docs").symlink_to(DOCS)
+    monkeypatch.chdir(tmp_path)  # for the commands run in this process
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
            "MPLBACKEND": "Agg", "PYTHONWARNINGS": "ignore"}
     ran = 0  # PAGES holds only pages with blocks; a page of pip lines alone would be a test that cannot fail
@@ -114,6 +122,11 @@ def test_every_block_of_the_page_runs(page: Path, tmp_path: Path) -> None:
                 continue
             if cmd.startswith("rivercal dashboard"):
                 _serve_and_probe(cmd, tmp_path, env)
+                ran += 1
+                continue
+            if cmd.startswith("rivercal ") and not SHELL_SYNTAX.search(cmd.split("#")[0]):
+                own = rivercal(*shlex.split(cmd, comments=True)[1:], env={"MPLBACKEND": "Agg"})
+                assert own.returncode == 0, f"{page.name}: {cmd}\n{own.stdout[-2000:]}\n{own.stderr[-4000:]}"
                 ran += 1
                 continue
             run = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", cmd], cwd=tmp_path, env=env,

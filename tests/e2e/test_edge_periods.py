@@ -17,17 +17,13 @@ from __future__ import annotations
 
 import html
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from tests.cli import rivercal
+
 pytestmark = pytest.mark.slow
-
-
-def rivercal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
 
 
 def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:

@@ -3,16 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import pytest
 
+from tests.cli import rivercal
+
 pytestmark = pytest.mark.slow
-
-
-def rivercal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
 
 
 def test_online_assimilate_states_prints_the_error_by_lead_and_the_band_coverage(tmp_path) -> None:

@@ -7,18 +7,14 @@ the DSS at 16: the estimate must find 25 and its forecasts must beat the DSS's a
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
+from tests.cli import rivercal
+
 pytestmark = pytest.mark.slow
-
-
-def rivercal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
 
 
 @pytest.fixture(scope="module")

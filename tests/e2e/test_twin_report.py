@@ -7,18 +7,14 @@ spin-up) and the initial analysis of two parameters: ~30 model runs, well under 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
 
+from tests.cli import rivercal
+
 WINDOW = "2010-09-03/2010-09-04"
-
-
-def rivercal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
 
 
 class _Images(HTMLParser):

@@ -1,23 +1,18 @@
 """``rivercal analyse``: exit codes and messages for bad input, and one run on the dommel case (slow).
 
-The quick checks run in-process on the real app, the dommel run in a subprocess (``python -m rivercal.cli``).
+Both run in-process on the real app (see :mod:`tests.cli`).
 """
 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 from rivercal.cli.main import app
-
-
-def rivercal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rivercal.cli", *args], capture_output=True, text=True)
+from tests.cli import rivercal
 
 
 @pytest.mark.parametrize(("args", "message"), [

@@ -162,8 +162,7 @@ def plot_correlation(result: Identifiability, path: str | Path, *, title: str = 
     fig, ax = subplots(figsize=(0.62 * p + 2.8, 0.55 * p + 1.8))
     from matplotlib import colormaps
 
-    cmap = colormaps["RdBu_r"].copy()
-    cmap.set_bad("#d9d9d9")
+    cmap = colormaps["RdBu_r"].with_extremes(bad="#d9d9d9")
     image = ax.imshow(np.ma.masked_invalid(corr), cmap=cmap, vmin=-1, vmax=1)
     for i in range(p):
         for j in range(p):
