@@ -1,11 +1,15 @@
 """The chapter-5 figures: values on the network map, two maps on one scale, levels around a transition."""
 
+import io
+
 import numpy as np
 import pandas as pd
 import pytest
 from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
+from matplotlib.text import Text
 
+from rivercal._figure import subplots
 from rivercal.case import load_case
 from rivercal.engine.compile import compile_network
 from rivercal.report.figures import plot_network_pair, plot_network_values, plot_transition_levels
@@ -121,3 +125,39 @@ def test_iteration_axes_tick_whole_iterations_only():
     ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
     assert len(ticks) >= 3 and all(float(t).is_integer() for t in ticks), ticks
     assert ax.get_xlabel() == "iteration"
+
+
+def test_schematic_labels_are_placed_apart_inside_the_frame_with_leaders_when_far():
+    """Labels of points that lie together (a station at its weir, a branch's middle near both) are placed so that
+    no two overlap and none leaves the frame; one placed in the outer ring is joined to its point by a line."""
+    from rivercal.report.figures import _place_labels
+
+    _, ax = subplots(figsize=(6, 4))
+    ax.plot([0, 1000], [0, 500], lw=2)
+    ax.set_xlim(-100, 1100)
+    ax.set_ylim(-100, 600)
+    names = ["ZL1_0030_3990", "W2 ZL1-3014", "W5 ZL12-4536", "ZL1-4018", "0028", "0040"]  # as at dommel's 0040
+    labels = [(400.0 + 60 * (k % 2), 200.0 + 30 * (k % 2), name, {"fontsize": 9}) for k, name in enumerate(names)]
+    _place_labels(ax, labels, np.array([[0.0, 0.0], [1000.0, 500.0]]))
+    assert [t.get_text() for t in ax.texts] == names
+    ax.get_figure().savefig(io.BytesIO(), format="png")  # drawn as written: the labels' positions are final
+    boxes = [Text.get_window_extent(t) for t in ax.texts]  # the texts' (not their leaders'), in pixels
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b), (a, b)
+    frame = ax.get_window_extent()
+    assert all(frame.x0 <= b.x0 and b.x1 <= frame.x1 and frame.y0 <= b.y0 and b.y1 <= frame.y1 for b in boxes)
+    far = [t for t in ax.texts if max(abs(v) for v in t.xyann) > 10]
+    assert far and all(t.arrow_patch is not None for t in far)
+    assert all(t.arrow_patch is None for t in ax.texts if t not in far)
+
+
+def test_schematic_labels_beyond_the_limit_keep_fixed_offsets():
+    """Many labels (a board-size network) are written at fixed offsets, at once, not moved apart."""
+    from rivercal.report.figures import MAX_PLACED_LABELS, _place_labels
+
+    _, ax = subplots()
+    n = MAX_PLACED_LABELS + 1
+    _place_labels(ax, [(float(k), 0.0, f"L{k}", {}) for k in range(n)], np.empty((0, 2)))
+    offsets = {t.xyann for t in ax.texts}
+    assert len(ax.texts) == n and offsets == {(5, 7), (5, -12)}

@@ -46,11 +46,11 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     xy = branch_polylines(network)
     lengths = {b.id: b.length for b in network.branches}
     fig, ax = subplots(figsize=(11, 7.5))
+    labels: list[tuple[float, float, str, dict[str, Any]]] = []  # anchor (m), text, style; placed at the end
     for bid, pts in xy.items():
         ax.plot(pts[:, 0], pts[:, 1], color="#2b6cb0", lw=2.2, zorder=1)
         mx, my = point_along(pts, 0.5)
-        ax.annotate(bid, (mx, my), xytext=(4, 4), textcoords="offset points", color="#2b6cb0", fontsize=8,
-                    style="italic")
+        labels.append((mx, my, bid, {"color": "#2b6cb0", "fontsize": 8, "style": "italic"}))
     for n in network.nodes:
         ax.plot(n.x, n.y, "o", color="white", mec="#1a365d", ms=5, zorder=3)
     bnd_nodes = {b.node: b.type for b in network.boundaries}
@@ -59,7 +59,6 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
             marker = {"discharge": ">", "level": "s", "rating": "D", "critical": "v"}[bnd_nodes[n.id]]
             ax.plot(n.x, n.y, marker, color="#2f855a", ms=9, zorder=4)
     struct_xy = {}
-    flip = 0
     for kind, items, marker, colour in (("weir", network.weirs, "|", "#c53030"),
                                         ("culvert", network.culverts, "s", "#805ad5"),
                                         ("pump", network.pumps, "^", "#dd6b20")):
@@ -68,17 +67,14 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
             struct_xy[s.id] = (px, py)
             ax.plot(px, py, marker, color=colour, ms=12 if kind == "weir" else 7, mew=3, zorder=5)
             if label_weirs or kind != "weir":
-                label = (weir_labels or {}).get(s.id, s.id)
-                flip += 1  # alternate below/above so that neighbouring labels do not overlap
-                ax.annotate(label, (px, py), xytext=(5, -12 if flip % 2 else 7), textcoords="offset points",
-                            fontsize=7, color=colour)
+                labels.append((px, py, (weir_labels or {}).get(s.id, s.id), {"fontsize": 7, "color": colour}))
     for st in network.stations:
         if st.structure is not None:
             px, py = struct_xy[st.structure]
         else:
             px, py = point_along(xy[st.branch], st.chainage / lengths[st.branch])
         ax.plot(px, py, "o", mfc="none", mec="black", ms=15, mew=1.6, zorder=6)
-        ax.annotate(st.id, (px, py), xytext=(6, 8), textcoords="offset points", fontsize=9, weight="bold")
+        labels.append((px, py, st.id, {"fontsize": 9, "weight": "bold"}))
     node_xy = {n.id: (n.x, n.y) for n in network.nodes}
     for lat in network.laterals:
         if lat.node is not None:
@@ -96,7 +92,6 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     ]
     if network.culverts:
         handles.append(Line2D([], [], ls="", marker="s", color="#805ad5", label="culvert"))
-    ax.legend(handles=handles, loc="best", fontsize=8)
     ax.margins(0.07)  # room inside the frame for the labels of points at its edges
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
@@ -104,10 +99,69 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     ax.set_title(title or "network")
     ax.grid(alpha=0.25)
     fig.tight_layout()
+    avoid = [pts[np.linspace(0, len(pts) - 1, 12).astype(int)] for pts in xy.values()]  # along the lines
+    avoid.append(np.array([(n.x, n.y) for n in network.nodes], dtype=float))
+    _place_labels(ax, labels, np.vstack(avoid))
+    ax.legend(handles=handles, loc="best", fontsize=8)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=130)
     return path
+
+
+#: Up to this many labels are placed clear of one another; more (a board-size network) are written at fixed
+#: offsets, alternately below and above (the search costs the number of labels squared).
+MAX_PLACED_LABELS = 300
+#: Where a label may go, offset from its point (points) with its alignment, nearest first; the outer two
+#: rings get a leader line to the point.
+_SPOTS = [((dx * r, dy * r), ha, va, r > 1) for r in (1, 2.6, 4.5) for dx, dy, ha, va in (
+    (5, 5, "left", "bottom"), (5, -5, "left", "top"), (-5, 5, "right", "bottom"), (-5, -5, "right", "top"),
+    (0, 9, "center", "bottom"), (0, -9, "center", "top"), (9, 0, "left", "center"), (-9, 0, "right", "center"))]
+
+
+def _place_labels(ax: Any, labels: list[tuple[float, float, str, dict[str, Any]]], avoid: np.ndarray) -> None:
+    """Write each label beside its point where it overlaps no label placed before it and covers no point.
+
+    ``labels`` (anchor in m, text, style) are placed in their order, each at the first free spot of
+    :data:`_SPOTS` inside the frame (the outer ones with a leader line), else where it overlaps least. ``avoid`` are
+    further points a label should not cover (along the branches, markers; m). Beyond
+    :data:`MAX_PLACED_LABELS` the labels keep fixed offsets.
+    """
+    if len(labels) > MAX_PLACED_LABELS:
+        for k, (x, y, text, style) in enumerate(labels):
+            ax.annotate(text, (x, y), xytext=(5, -12 if k % 2 else 7), textcoords="offset points", zorder=7, **style)
+        return
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.text import Text
+
+    fig = ax.get_figure()
+    renderer = FigureCanvasAgg(fig).get_renderer()  # this figure's own canvas: no pyplot, no backend change
+    ax.apply_aspect()
+    anchors = np.array([(x, y) for x, y, *_ in labels], dtype=float).reshape(-1, 2)
+    points = ax.transData.transform(np.vstack([anchors, avoid]))  # pixels
+    frame = ax.get_window_extent(renderer)
+    placed: list[Any] = []
+    for (x, y, text, style), own in zip(labels, points, strict=False):
+        best = None
+        for offset, ha, va, leader in _SPOTS:
+            label = ax.annotate(text, (x, y), xytext=offset, textcoords="offset points", ha=ha, va=va, zorder=7,
+                                arrowprops={"arrowstyle": "-", "color": "#718096", "lw": 0.5} if leader else None,
+                                **style)
+            label.update_positions(renderer)
+            box = Text.get_window_extent(label, renderer).expanded(1.04, 1.1)  # the text's, without its leader
+            inside = (points[:, 0] >= box.x0) & (points[:, 0] <= box.x1) & (points[:, 1] >= box.y0) \
+                & (points[:, 1] <= box.y1)
+            outside = not (frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1)
+            clash = (sum(box.overlaps(b) for b in placed) + outside) * 10 + int(inside.sum()) - int(box.contains(*own))
+            if best is not None and clash >= best[0]:
+                label.remove()
+                continue
+            if best is not None:
+                best[1].remove()
+            best = (clash, label, box)
+            if clash == 0:
+                break
+        placed.append(best[2])
 
 
 def plot_series(series: pd.DataFrame, path: str | Path, *, title: str = "") -> Path:
