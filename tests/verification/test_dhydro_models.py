@@ -3,7 +3,7 @@
 - Dellen: driven by the lateral inflows and structure settings of the coupled D-HYDRO run, the levels at the
   144 locations D-HYDRO computed must lie within a median RMSE of 5 cm, and 10 cm at 90 % of them.
 - Korte Woerden (an urban sewer network): every object accounted for, and with a constant inflow of 1 l/s on
-  each of its 72 realtime laterals it runs its two hours without diverging.
+  each of its 72 realtime laterals it runs its two hours without diverging, and its schematic is drawn.
 - Every imported model closes its water balance to 1e-6 with finite levels.
 """
 
@@ -15,6 +15,7 @@ import pytest
 from rivercal.bench.dhydro import compare_dellen
 from rivercal.io.dhydro import ImportOptions, import_dhydro
 from rivercal.model import load_model
+from rivercal.report.figures import plot_network
 from tests.dhydro_models import write_model
 from tests.shared_data import shared_model
 
@@ -50,6 +51,9 @@ def test_korte_woerden_runs_two_hours_with_a_constant_inflow(tmp_path) -> None:
     assert out.balance.relative_error < 1e-6
     # the sewer fills: 72 l/s enter, and less leaves through the free outfalls and pumps than enters
     assert out.balance.laterals == pytest.approx(72 * KORTE_WOERDEN_INFLOW * 7200.0, rel=1e-9)
+    # its schematic draws every structure kind it holds, with the stations at the orifice and the pumps
+    written = plot_network(sim.case.network, tmp_path / "network.png")
+    assert written.stat().st_size > 10_000
 
 
 @pytest.mark.parametrize("model", ["dellen", "steady", "korte-woerden", "hydrolib-built"])

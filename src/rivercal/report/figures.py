@@ -59,9 +59,10 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
             marker = {"discharge": ">", "level": "s", "rating": "D", "critical": "v"}[bnd_nodes[n.id]]
             ax.plot(n.x, n.y, marker, color="#2f855a", ms=9, zorder=4)
     struct_xy = {}
-    for kind, items, marker, colour in (("weir", network.weirs, "|", "#c53030"),
-                                        ("culvert", network.culverts, "s", "#805ad5"),
-                                        ("pump", network.pumps, "^", "#dd6b20")):
+    kinds = (("weir", network.weirs, "|", "#c53030"), ("culvert", network.culverts, "s", "#805ad5"),
+             ("pump", network.pumps, "^", "#dd6b20"), ("orifice", network.orifices, "|", "#975a16"),
+             ("universal weir", network.universal_weirs, "|", "#9b2c2c"), ("bridge", network.bridges, "H", "#4a5568"))
+    for kind, items, marker, colour in kinds:
         for s in items:
             px, py = point_along(xy[s.branch], s.chainage / lengths[s.branch])
             struct_xy[s.id] = (px, py)
@@ -90,8 +91,8 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
         Line2D([], [], ls="", marker=">", color="#2f855a", label="Q boundary"),
         Line2D([], [], ls="", marker="D", color="#2f855a", label="Q(h) / level boundary"),
     ]
-    if network.culverts:
-        handles.append(Line2D([], [], ls="", marker="s", color="#805ad5", label="culvert"))
+    handles += [Line2D([], [], ls="", marker=marker, color=colour, ms=7, mew=2, label=kind)
+                for kind, items, marker, colour in kinds[1:] if items]
     ax.margins(0.07)  # room inside the frame for the labels of points at its edges
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
