@@ -34,6 +34,9 @@ def test_a_refusal_is_an_error_naming_the_objects_and_the_way_out(tmp_path: Path
     run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"))
     assert run.returncode == 2
     assert "lateral 'lat_node'" in run.stderr and "--allow-partial" in run.stderr and "import.md" in run.stderr
+    assert "no case was written" in run.stderr
+    # only the report: no case folder that would run without the refused objects
+    assert sorted(p.name for p in (tmp_path / "case").iterdir()) == ["import.md"]
     run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--allow-partial")
     assert run.returncode == 0, run.stderr
     assert "refused" in run.stdout

@@ -102,10 +102,9 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     for key in unused:
         ledger.warn(f"exchange series {key} matches no object of the model and was not used")
     out.mkdir(parents=True, exist_ok=True)
-    _write(ctx, out)
     (out / "import.md").write_text(ledger.markdown(model=str(mdu), case_folder=str(out),
                                                    partial=options.allow_partial), encoding="utf-8")
-    if ledger.blocking and not options.allow_partial:
+    if ledger.blocking and not options.allow_partial:  # no case that would run without these objects
         groups: dict[tuple[str, str], list[str]] = {}
         for e in ledger.blocking:
             groups.setdefault((e.kind, e.note), []).append(e.id)
@@ -113,8 +112,9 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
                           for (kind, note), ids in list(groups.items())[:4])
         more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
         raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "
-                        f"{shown}{more}"
+                        f"{shown}{more}; no case was written"
                         f"; see {out / 'import.md'}, or import with --allow-partial to leave them out", file=str(mdu))
+    _write(ctx, out)
     try:
         case = load_case(out)
     except CaseError as exc:
