@@ -36,7 +36,9 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
                  weir_labels: dict[str, str] | None = None) -> Path:
     """Draw branches, nodes, weirs (labelled), culverts, pumps, stations and laterals.
 
-    Needs node coordinates (``x``, ``y`` in m) or branch polylines. Returns the written path.
+    Needs node coordinates (``x``, ``y`` in m) or branch polylines. Returns the written path. Labels are
+    placed clear of one another; where there would be more than :data:`MAX_PLACED_LABELS`, the branches'
+    names are left out, then the structures'.
     """
     missing = [n.id for n in network.nodes if n.x is None or n.y is None]
     if missing:
@@ -47,6 +49,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     lengths = {b.id: b.length for b in network.branches}
     fig, ax = subplots(figsize=(11, 7.5))
     labels: list[tuple[float, float, str, dict[str, Any]]] = []  # anchor (m), text, style; placed at the end
+    n_branch_labels = len(xy)
     for bid, pts in xy.items():
         ax.plot(pts[:, 0], pts[:, 1], color="#2b6cb0", lw=2.2, zorder=1)
         mx, my = point_along(pts, 0.5)
@@ -102,6 +105,11 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     fig.tight_layout()
     avoid = [pts[np.linspace(0, len(pts) - 1, 12).astype(int)] for pts in xy.values()]  # along the lines
     avoid.append(np.array([(n.x, n.y) for n in network.nodes], dtype=float))
+    if len(labels) > MAX_PLACED_LABELS:  # a dense network: the branches' names go first, then the structures'
+        labels = labels[n_branch_labels:]
+        stations = len(network.stations)
+        if len(labels) > MAX_PLACED_LABELS and stations:
+            labels = labels[-stations:]
     _place_labels(ax, labels, np.vstack(avoid))
     ax.legend(handles=handles, loc="best", fontsize=8)
     path = Path(path)
