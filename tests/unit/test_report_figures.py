@@ -161,3 +161,19 @@ def test_schematic_labels_beyond_the_limit_keep_fixed_offsets():
     _place_labels(ax, [(float(k), 0.0, f"L{k}", {}) for k in range(n)], np.empty((0, 2)))
     offsets = {t.xyann for t in ax.texts}
     assert len(ax.texts) == n and offsets == {(5, 7), (5, -12)}
+
+
+def test_a_dense_schematic_leaves_out_branch_names_then_structure_names_but_never_station_names():
+    from rivercal.report.figures import MAX_PLACED_LABELS, _fewer_labels
+
+    def labels(branches: int, structures: int, stations: int) -> list[str]:
+        return [f"B{k}" for k in range(branches)] + [f"W{k}" for k in range(structures)] + \
+            [f"S{k}" for k in range(stations)]
+
+    few = labels(10, 20, 5)
+    assert _fewer_labels(few, 10, 5) == few
+    room = MAX_PLACED_LABELS - 5
+    assert _fewer_labels(labels(50, room, 5), 50, 5) == labels(0, room, 5)
+    assert _fewer_labels(labels(50, room + 1, 5), 50, 5) == labels(0, 0, 5)
+    assert _fewer_labels(labels(0, 10, MAX_PLACED_LABELS + 1), 0, MAX_PLACED_LABELS + 1) == \
+        labels(0, 0, MAX_PLACED_LABELS + 1)  # then all at fixed offsets (see _place_labels)

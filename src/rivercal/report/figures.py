@@ -49,7 +49,6 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     lengths = {b.id: b.length for b in network.branches}
     fig, ax = subplots(figsize=(11, 7.5))
     labels: list[tuple[float, float, str, dict[str, Any]]] = []  # anchor (m), text, style; placed at the end
-    n_branch_labels = len(xy)
     for bid, pts in xy.items():
         ax.plot(pts[:, 0], pts[:, 1], color="#2b6cb0", lw=2.2, zorder=1)
         mx, my = point_along(pts, 0.5)
@@ -105,12 +104,7 @@ def plot_network(network: Network, path: str | Path, *, title: str = "", label_w
     fig.tight_layout()
     avoid = [pts[np.linspace(0, len(pts) - 1, 12).astype(int)] for pts in xy.values()]  # along the lines
     avoid.append(np.array([(n.x, n.y) for n in network.nodes], dtype=float))
-    if len(labels) > MAX_PLACED_LABELS:  # a dense network: the branches' names go first, then the structures'
-        labels = labels[n_branch_labels:]
-        stations = len(network.stations)
-        if len(labels) > MAX_PLACED_LABELS and stations:
-            labels = labels[-stations:]
-    _place_labels(ax, labels, np.vstack(avoid))
+    _place_labels(ax, _fewer_labels(labels, len(xy), len(network.stations)), np.vstack(avoid))
     ax.legend(handles=handles, loc="best", fontsize=8)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -126,6 +120,18 @@ MAX_PLACED_LABELS = 300
 _SPOTS = [((dx * r, dy * r), ha, va, r > 1) for r in (1, 2.6, 4.5) for dx, dy, ha, va in (
     (5, 5, "left", "bottom"), (5, -5, "left", "top"), (-5, 5, "right", "bottom"), (-5, -5, "right", "top"),
     (0, 9, "center", "bottom"), (0, -9, "center", "top"), (9, 0, "left", "center"), (-9, 0, "right", "center"))]
+
+
+def _fewer_labels(labels: list, branches: int, stations: int) -> list:
+    """``labels`` (the branches' first, the stations' last) cut to at most :data:`MAX_PLACED_LABELS` where they can be.
+
+    The branches' names are left out first, then the structures'; the stations' names always stay.
+    """
+    if len(labels) > MAX_PLACED_LABELS:
+        labels = labels[branches:]
+    if len(labels) > MAX_PLACED_LABELS and stations:
+        labels = labels[-stations:]
+    return labels
 
 
 def _place_labels(ax: Any, labels: list[tuple[float, float, str, dict[str, Any]]], avoid: np.ndarray) -> None:
