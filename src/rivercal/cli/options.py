@@ -301,8 +301,7 @@ def check_overlap(model: Any, names: Iterable[str]) -> None:
     """
     from rivercal.parameters import shared_quantity
 
-    known = {p.name: p for p in model.calibration.parameters}
-    shared = shared_quantity(known[n] for n in names)
+    shared = shared_quantity(model.calibration.parameter(n) for n in names)
     if shared is not None:
         first, second, quantity = shared
         raise OptionError(f"--params: {first} and {second} both set {quantity}; give only one of them",

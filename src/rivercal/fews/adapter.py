@@ -122,8 +122,7 @@ def _config(run: RunFile, model: Any) -> Any:
         what = f"unknown parameter {unknown[0]!r}" if unknown else "no parameter named"
         raise AdapterError(f"property 'parameters': {what}; the case defines {', '.join(known)}", file=str(run.path),
                            field="properties")
-    by_name = {p.name: p for p in model.calibration.parameters}
-    shared = shared_quantity(by_name[n] for n in names)
+    shared = shared_quantity(model.calibration.parameter(n) for n in names)
     if shared is not None:
         raise AdapterError(f"property 'parameters': {shared[0]} and {shared[1]} both set {shared[2]}; give only one of "
                            "them", file=str(run.path), field="properties")

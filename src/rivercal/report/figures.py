@@ -156,7 +156,7 @@ def _place_labels(ax: Any, labels: list[tuple[float, float, str, dict[str, Any]]
     points = ax.transData.transform(np.vstack([anchors, avoid]))  # pixels
     frame = ax.get_window_extent(renderer)
     placed: list[Any] = []
-    for (x, y, text, style), own in zip(labels, points, strict=False):
+    for (x, y, text, style), own in zip(labels, points[: len(labels)], strict=True):
         best = None
         for offset, ha, va, leader in _SPOTS:
             label = ax.annotate(text, (x, y), xytext=offset, textcoords="offset points", ha=ha, va=va, zorder=7,
