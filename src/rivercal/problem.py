@@ -574,9 +574,17 @@ def calibrate(problem: CalibrationProblem, algorithm: str = "dud", options: Mapp
     max_nfev, deadline, callback
         Budget of model runs, wall-clock seconds, abort callback (see :mod:`rivercal.optimise`).
     extra
-        Further keyword arguments of the optimiser (e.g. ``restart`` for DuD).
+        Further keyword arguments of the optimiser (e.g. ``restart`` for DuD). Sparse DuD's ``dependency`` may
+        also be a map by series and parameter names with a ``rows(problem)`` method (a
+        :class:`~rivercal.analysis.dependency.DependencyMap`), turned here into the problem's residual rows.
     """
     optimiser = get_optimiser(algorithm)
+    if extra.get("dependency") is not None and optimiser.__name__ != "sparse_dud":
+        raise ValueError(f"a dependency map serves Sparse DuD only, not {algorithm!r}")
+    if hasattr(extra.get("dependency"), "rows"):
+        extra["dependency"] = extra["dependency"].rows(problem)
+        log.info("Sparse DuD with a dependency map: at most %d of %d parameters per residual",
+                 int(extra["dependency"].sum(axis=1).max()), len(problem.parameters))
     opts = _default_options(problem, OPTIONS[optimiser.__name__], dict(options or {}))
     lb, ub = problem.bounds
     x0 = problem.x0

@@ -104,3 +104,35 @@ def test_realistic_crest_lowering_is_dated_once_and_its_value_taken(tmp_path: Pa
     assert summary["observations_flagged"].get("outlier", 0) > 0 and summary["observations_flagged"]["ok"] > 1000
     # the first cycle had nothing scored and issued the DSS's forecast; none fell back since
     assert summary["unscored_cycles"] == 1 and summary["fallbacks"] == 0
+
+
+def test_sparse_dud_with_the_dependency_map_of_analyse_finds_the_local_friction(tmp_path: Path) -> None:
+    """PI-Fl (the friction of one reach 16 → 25 m^(1/3)/s): Sparse DuD on the map ``rivercal analyse`` measured."""
+    analysed = rivercal("analyse", "dommel", "--params", "FA,F1,FL,W2", "--what", "identifiability", "--workers", "2",
+                        "--out", str(tmp_path / "analyse"), "--quiet")
+    assert analysed.returncode == 0, analysed.stderr
+    dependency = tmp_path / "analyse" / "dependency.csv"
+    run = rivercal("online", "dommel", "--scenario", "PI-Fl", "--from", "2010-11-09", "--to", "2010-11-10",
+                   "--params", "FA,F1,FL,W2", "--algorithm", "sparse_dud", "--dependency", str(dependency),
+                   "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--json")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["status"] == {"done": 2}
+    last = summary["estimates"][-1]
+    assert last["FL"] == pytest.approx(25.0, abs=0.5) and last["FA"] == pytest.approx(16.0, abs=0.5)
+
+
+def test_a_dependency_map_is_checked_before_any_run(tmp_path: Path) -> None:
+    good = tmp_path / "dependency.csv"
+    good.write_text("series,W2\n0028.h_up,1.0\n", encoding="utf-8")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("station,FA\n0028.h_up,1.0\n", encoding="utf-8")
+    base = ["online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
+            "--db", str(tmp_path / "x.sqlite")]
+    for args, message in ((["--dependency", str(good)], "serves --algorithm sparse_dud only, not dud"),
+                          (["--algorithm", "sparse_dud", "--dependency", str(bad)], f"{bad}: a dependency map has"),
+                          (["--algorithm", "sparse_dud", "--dependency", str(good), "--params", "FA"],
+                           "names none of --params (FA); it names W2")):
+        run = rivercal(*base, *args)
+        assert run.returncode == 2, run.stderr
+        assert message in run.stderr and "Traceback" not in run.stderr

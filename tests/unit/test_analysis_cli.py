@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
@@ -48,3 +49,29 @@ def test_analyse_dommel_json_and_files(tmp_path: Path) -> None:
                  "bias_figure", "summary"):
         assert Path(summary["files"][name]).is_file(), name
     assert json.loads((tmp_path / "analysis.json").read_text()) == summary
+    # the dependency map is the Jacobian's: per series the largest |∂r/∂x| times the first DuD step (σ)
+    jac = pd.read_csv(summary["files"]["jacobian"]).drop(columns="row")
+    steps = {"W2": 0.1, "FA": 1.5}  # the first DuD steps (perturbations) of dommel's case.toml
+    expected = jac.groupby("series", sort=False).agg(lambda col: col.abs().max()) * pd.Series(steps)
+    dependency = pd.read_csv(summary["files"]["dependency"], index_col="series")
+    pd.testing.assert_frame_equal(dependency, expected[dependency.columns], rtol=1e-5)
+    assert ident["dependency"]["threshold_sigma"] == 0.1
+    seen = (dependency > 0.1).sum(axis=1)
+    assert ident["dependency"]["parameters_per_series"] == {s: int(n) for s, n in seen.items()}
+    assert next(iter(ident["dependency"]["widest"].values())) == ident["dependency"]["most_parameters_per_series"]
+
+
+@pytest.mark.slow
+def test_calibrate_with_the_dependency_map_of_analyse(tmp_path: Path) -> None:
+    analysed = rivercal("analyse", "dommel", "--params", "FA,F1,FL,W2", "--what", "identifiability", "--workers", "2",
+                        "--out", str(tmp_path / "analyse"), "--quiet")
+    assert analysed.returncode == 0, analysed.stderr
+    run = rivercal("calibrate", "dommel", "--params", "FA,F1,FL,W2", "--window", "moderate", "--twin", "FL=20",
+                   "--algorithm", "sparse_dud", "--dependency", str(tmp_path / "analyse" / "dependency.csv"),
+                   "--workers", "2", "--out", str(tmp_path / "calibrate"), "--json")
+    assert run.returncode == 0, run.stderr
+    estimates = json.loads(run.stdout)["estimates"]
+    assert estimates["FL"] == pytest.approx(20.0, abs=0.05) and estimates["FA"] == pytest.approx(16.0, abs=0.05)
+    refused = rivercal("calibrate", "dommel", "--params", "FA", "--window", "moderate", "--twin", "FA=20",
+                       "--dependency", str(tmp_path / "analyse" / "dependency.csv"), "--out", str(tmp_path / "x"))
+    assert refused.returncode == 2 and "serves --algorithm sparse_dud only, not dud" in refused.stderr

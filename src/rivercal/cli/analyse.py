@@ -159,6 +159,12 @@ def _print(summary: dict, console) -> None:
             console.print(f"- {ident['explanations'][n]}", highlight=False)
         for c in ident["clusters"]:
             console.print(f"[bold]suggestion[/]: {c['explanation']}", highlight=False)
+        dep = ident["dependency"]
+        widest = ", ".join(f"{s} {n}" for s, n in dep["widest"].items())
+        console.print(f"dependency map (for --algorithm sparse_dud --dependency): each series depends on at most "
+                      f"{dep['most_parameters_per_series']} of the {len(ident['parameters'])} parameters (those whose "
+                      f"first step moves it by more than {dep['threshold_sigma']:g} σ; most: {widest})",
+                      highlight=False)
     if "residuals" in summary:
         total = summary["residuals"]["weighted"]["total"]
         console.print(f"residuals (weighted): cost {total['cost']:.4g}, RMSE {total['rmse']:.3g}, "

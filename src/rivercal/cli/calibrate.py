@@ -8,7 +8,17 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.common import (
+    CaseArg,
+    DaskOpt,
+    DependencyOpt,
+    DependencyThresholdOpt,
+    JsonOpt,
+    QuietOpt,
+    Reporter,
+    emit_json,
+    out_console,
+)
 from rivercal.cli.options import (
     check_choice,
     check_number,
@@ -19,6 +29,7 @@ from rivercal.cli.options import (
     output_dir,
     parse_assignments,
     parse_window,
+    read_dependency,
     select_parameters,
     window_observations,
     workers_for,
@@ -44,6 +55,8 @@ def calibrate(
     warmup: Annotated[float, typer.Option(help="Hours simulated before the window in every run.")] = 24.0,
     workers: Annotated[int | None, typer.Option(help="Worker processes (default: all cores).")] = None,
     dask: DaskOpt = None,
+    dependency: DependencyOpt = None,
+    dependency_threshold: DependencyThresholdOpt = 0.1,
     max_nfev: Annotated[int | None, typer.Option("--max-nfev", help="Cap on model runs.")] = None,
     deadline: Annotated[float | None, typer.Option(help="Wall-clock limit, s.")] = None,
     on_failure: Annotated[str, typer.Option(help="Failed model run: raise or penalty.")] = "raise",
@@ -84,6 +97,7 @@ def calibrate(
     pset = select_parameters(model, params, start_values, bounds)
     defaults = dict(setup.options) if algo == setup.algorithm else {}
     opts = optimiser_options(algo, option, defaults, pset)
+    dependency_map = read_dependency(dependency, dependency_threshold, algo, pset.names)
     hours = pd.Timedelta(hours=warmup)
     win = parse_window(model, window, warmup=hours)
     check_truth(pset, truth or {})
@@ -94,7 +108,7 @@ def calibrate(
         summary, cal = calibrate_window(model, pset, win, out, observations=obs, truth=truth, noise=noise, seed=seed,
                                         warmup=hours, algorithm=algo, options=opts, workers=where,
                                         max_nfev=max_nfev, deadline=deadline, on_failure=on_failure,
-                                        progress=reporter)
+                                        dependency=dependency_map, progress=reporter)
     if as_json:
         emit_json(summary)
     elif not quiet:

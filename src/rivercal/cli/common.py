@@ -13,6 +13,7 @@ import functools
 import os
 import sys
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Annotated, Any
 
 import typer
@@ -33,6 +34,12 @@ QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress or su
 DaskOpt = Annotated[str | None, typer.Option(
     "--dask", help="Run the model runs on a Dask cluster: local:N (N worker processes here) or tcp://HOST:PORT "
                    "(a running scheduler; see docs/cluster.md).")]
+DependencyOpt = Annotated[Path | None, typer.Option(
+    help="With --algorithm sparse_dud: the dependency map that 'rivercal analyse' writes (dependency.csv), which "
+         "series each parameter moves.")]
+DependencyThresholdOpt = Annotated[float, typer.Option(
+    "--dependency-threshold", help="With --dependency: the effect of a first step, in σ of a series, above which "
+                                   "the series depends on the parameter.")]
 
 _DEBUG = {"on": False}
 

@@ -11,7 +11,17 @@ from typing import Annotated, Any
 
 import typer
 
-from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
+from rivercal.cli.common import (
+    CaseArg,
+    DaskOpt,
+    DependencyOpt,
+    DependencyThresholdOpt,
+    JsonOpt,
+    QuietOpt,
+    Reporter,
+    emit_json,
+    out_console,
+)
 from rivercal.cli.options import (
     check_choice,
     check_number,
@@ -24,6 +34,7 @@ from rivercal.cli.options import (
     parse_duration,
     parse_names,
     parse_time,
+    read_dependency,
     read_observations,
     workers_for,
 )
@@ -56,6 +67,8 @@ def online(
         help="Simulated time before each window whose residuals do not count, e.g. 24h.")] = "24h",
     algorithm: Annotated[str, typer.Option(help="Optimiser.")] = "dud",
     deadline: Annotated[float, typer.Option(help="Wall-clock limit of one calibration, s.")] = 60.0,
+    dependency: DependencyOpt = None,
+    dependency_threshold: DependencyThresholdOpt = 0.1,
     max_change: Annotated[str | None, typer.Option(
         "--max-change", help="Largest change per cycle, e.g. 'FA=5,Wd=0.1' (default: none).")] = None,
     alert_k: Annotated[float, typer.Option(
@@ -134,6 +147,7 @@ def online(
     spin = parse_duration(warmup, "--warmup", allow_zero=True)
     check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
     check_number(deadline, "--deadline", low=0, low_open=True)
+    read_dependency(dependency, dependency_threshold, algorithm, names)
     change = parse_assignments(max_change, "--max-change", example="FA=5,Wd=0.1")
     for name, value in change.items():
         if name not in names:
@@ -178,7 +192,9 @@ def online(
     with reporter.running("starting"), workers_for(workers, address) as where:
         config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
                               algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
-                              loss=loss, transition=transition, skill_cycles=skill_cycles, workers=where)
+                              loss=loss, transition=transition, skill_cycles=skill_cycles, workers=where,
+                              dependency=str(dependency) if dependency is not None else None,
+                              dependency_threshold=dependency_threshold)
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -467,3 +467,24 @@ def _typed(item: str, text: str, kind: Any) -> Any:
         return text
     raise OptionError(f"--option {item!r}: this option takes an array or a function and cannot be set on the "
                       "command line", option="--option")
+
+
+def read_dependency(path: Path | None, threshold: float, algorithm: str, names: Sequence[str]) -> Any:
+    """``--dependency FILE``, a map as ``rivercal analyse`` writes it, checked against the run (None without)."""
+    check_number(threshold, "--dependency-threshold", low=0)
+    if path is None:
+        return None
+    from rivercal.analysis.dependency import DependencyMap
+
+    if algorithm != "sparse_dud":
+        raise OptionError(f"--dependency: a dependency map serves --algorithm sparse_dud only, not {algorithm}",
+                          option="--dependency")
+    try:
+        dependency = DependencyMap.from_csv(path, threshold)
+    except ValueError as exc:
+        raise OptionError(f"--dependency: {exc}", option="--dependency") from None
+    named = list(dependency.effects.columns)
+    if not set(named) & set(names):
+        raise OptionError(f"--dependency {path}: the map names none of --params ({', '.join(names)}); it names "
+                          f"{', '.join(named)}", option="--dependency")
+    return dependency

@@ -86,6 +86,10 @@ class OnlineConfig:
         ``raise`` (the cycle fails and keeps the last estimate).
     workers
         Worker processes of one calibration (None: all cores), or a :class:`~rivercal.evaluate.DaskCluster`.
+    dependency, dependency_threshold
+        With ``algorithm = "sparse_dud"``: a dependency map, the ``dependency.csv`` that ``rivercal analyse``
+        writes (which series each parameter moves, in σ; :mod:`rivercal.analysis.dependency`), and the
+        effect above which a dependency counts (σ). None: every series depends on every parameter.
     """
 
     parameters: tuple[str, ...] = ("FA", "Wd")
@@ -118,6 +122,8 @@ class OnlineConfig:
     dss: dict[str, float] = field(default_factory=dict)
     on_failure: Literal["raise", "penalty"] = "penalty"
     workers: Workers = None
+    dependency: str | None = None
+    dependency_threshold: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("window", "period", "horizon"):
@@ -146,6 +152,11 @@ class OnlineConfig:
             raise ValueError("online: transition_alpha must be in (0, 1) and transition_min_reduction in [0, 1)")
         if not self.transition_min_after_h >= 0:
             raise ValueError(f"online: transition_min_after_h must be >= 0, got {self.transition_min_after_h}")
+        if self.dependency is not None and self.algorithm != "sparse_dud":
+            raise ValueError(f"online: a dependency map serves Sparse DuD only; the algorithm is {self.algorithm!r} "
+                             "(use 'sparse_dud', or no map)")
+        if not self.dependency_threshold >= 0:
+            raise ValueError(f"online dependency_threshold must be >= 0 (σ), got {self.dependency_threshold}")
         if self.skill_cycles < 0 or not self.skill_lead_h > 0 or self.skill_tolerance < 0:
             raise ValueError("online: skill_cycles must be >= 0, skill_lead_h > 0 and skill_tolerance >= 0")
 
@@ -161,4 +172,6 @@ class OnlineConfig:
         out["parameters"] = list(self.parameters)
         out["series"] = list(self.series) if self.series is not None else None
         out["sources"] = list(self.sources) if self.sources is not None else None
+        if self.dependency is None:  # as runs stored before the map existed: they resume unchanged
+            del out["dependency"], out["dependency_threshold"]
         return out

@@ -40,6 +40,7 @@ from typing import Any
 import pandas as pd
 
 from rivercal._time import utc
+from rivercal.analysis.dependency import DependencyMap
 from rivercal.analysis.forecast import score_forecasts
 from rivercal.errors import ModelRunError
 from rivercal.models.contract import spun_up
@@ -163,6 +164,13 @@ class OnlineService:
         setup = model.calibration  # e.g. the case's stopping rules are DuD's (thesis Table 4-3)
         case_options = setup.options if config.algorithm == setup.algorithm else {}
         self.options = dict(config.options if config.options is not None else case_options)
+        self.dependency = None
+        if config.dependency is not None:
+            self.dependency = DependencyMap.from_csv(config.dependency, config.dependency_threshold)
+            if not set(self.dependency.effects.columns) & set(config.parameters):
+                raise ValueError(f"online: the dependency map {config.dependency} names none of the parameters "
+                                 f"estimated ({', '.join(config.parameters)}); it names "
+                                 f"{', '.join(self.dependency.effects.columns)}")
         stored = {**config.stored(), "first_issue": self.schedule.first_issue.isoformat(), "meta": dict(meta or {})}
         self.filter = None  # state updating (rivercal.online.assimilation), for modes 'states' and 'both'
         if assimilation is not None and assimilation.mode != "parameters":
@@ -388,8 +396,9 @@ class OnlineService:
         problem = CalibrationProblem(model, box, obs, (spec.window_start, spec.window_end), state=state,
                                      warmup=self.warmup, fixed=fixed, on_failure=self.config.on_failure,
                                      loss=self.config.loss, loss_scale=self.config.loss_scale)
+        extra = {"dependency": self.dependency} if self.dependency is not None else {}
         cal = calibrate(problem, self.config.algorithm, self.options, workers=self.config.workers,
-                        deadline=self.config.deadline_s)
+                        deadline=self.config.deadline_s, **extra)
         return problem, cal
 
     def _retry(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any,

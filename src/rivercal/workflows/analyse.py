@@ -8,7 +8,9 @@ counts the runs of the analyses (not the twin truth or the spin-up to the start 
 Files under ``out``: ``sensitivity_scenarios.csv`` (thesis Table 4-4), ``sensitivity_costs.csv`` (total and
 per station), ``sensitivity_costs_series.csv``, ``sensitivity_long.csv`` (tidy), ``jacobian.csv``,
 ``singular_values.csv``, ``singular_vectors.csv``, ``covariance.csv``, ``correlation.csv``,
-``identifiability.csv`` (the verdict), ``residual_statistics.csv`` (weighted) and
+``identifiability.csv`` (the verdict), ``dependency.csv`` (from the same Jacobian: the effect of each
+parameter's first DuD step on each series, in σ, the dependency map of Sparse DuD;
+:mod:`rivercal.analysis.dependency`), ``residual_statistics.csv`` (weighted) and
 ``residual_statistics_units.csv``, ``moving_bias.csv``, ``bias_significance.csv``, the figures
 ``sensitivity.png``, ``sensitivity_stations.png``, ``svd.png``, ``correlation.png``, ``bias.png``, and
 ``analysis.json`` (the summary).
@@ -155,6 +157,7 @@ def _sensitivity(problem, batch, out: Path, files: dict, case_name: str) -> tupl
 def _identifiability(problem, batch, out: Path, files: dict, case_name: str, rel_step: float, scheme: str,
                      options) -> tuple[dict, int]:
     from rivercal.analysis import identifiability
+    from rivercal.analysis.dependency import DependencyMap, effects_of
     from rivercal.analysis.figures import plot_correlation, plot_svd
     from rivercal.report.identifiability import summary as explained
     from rivercal.report.identifiability import verdict_table
@@ -167,7 +170,10 @@ def _identifiability(problem, batch, out: Path, files: dict, case_name: str, rel
     result.covariance_frame().to_csv(out / "covariance.csv")
     result.correlation_frame().to_csv(out / "correlation.csv")
     verdict_table(result).to_csv(out / "identifiability.csv")
-    for name in ("jacobian", "singular_values", "singular_vectors", "covariance", "correlation", "identifiability"):
+    dependency = DependencyMap(effects_of(jac, problem.parameters.initial_steps()))
+    dependency.to_csv(out / "dependency.csv")
+    for name in ("jacobian", "singular_values", "singular_vectors", "covariance", "correlation", "identifiability",
+                 "dependency"):
         files[name] = str(out / f"{name}.csv")
     files["svd_figure"] = str(plot_svd(result, out / "svd.png",
                                        title=f"{case_name}: singular value decomposition (Fig. 4-6)"))
@@ -178,6 +184,10 @@ def _identifiability(problem, batch, out: Path, files: dict, case_name: str, rel
     summary["rel_step"] = rel_step
     summary["scheme"] = scheme
     summary["model_runs"] = jac.nfev
+    per_series = dependency.seen.sum(axis=1).astype(int)
+    summary["dependency"] = {"threshold_sigma": dependency.threshold, "most_parameters_per_series": dependency.k,
+                             "parameters_per_series": per_series.to_dict(),
+                             "widest": per_series.sort_values(ascending=False, kind="stable").head(3).to_dict()}
     return summary, jac.nfev
 
 

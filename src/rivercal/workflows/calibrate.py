@@ -23,7 +23,7 @@ def calibrate_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd
                      seed: int = 0, warmup: pd.Timedelta | str = "24h", algorithm: str = "dud",
                      options: Mapping[str, Any] | None = None, workers: int | None = None,
                      max_nfev: int | None = None, deadline: float | None = None, on_failure: str = "raise",
-                     progress: Progress = NO_PROGRESS) -> tuple[dict[str, Any], Any]:
+                     dependency: Any = None, progress: Progress = NO_PROGRESS) -> tuple[dict[str, Any], Any]:
     """Estimate ``parameters`` over ``window`` and write the files of the module docstring.
 
     Parameters
@@ -43,6 +43,8 @@ def calibrate_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd
         the observations are the model's own series at the truth, with ``noise`` (seeded by ``seed``).
     algorithm, options, workers, max_nfev, deadline, on_failure
         As :func:`rivercal.problem.calibrate` and :class:`~rivercal.problem.CalibrationProblem`.
+    dependency
+        Sparse DuD's dependency map (:class:`~rivercal.analysis.dependency.DependencyMap`); None: dense.
     progress
         Where to say what happens (one step per iteration).
 
@@ -73,8 +75,9 @@ def calibrate_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd
         values = ", ".join(f"{k}={v:.4g}" for k, v in parameters.values(record.x).items())
         progress.step(record.nfev, max_nfev, f"iteration {record.nit}: cost {record.cost:.4g}, {values}; model runs")
 
+    extra = {"dependency": dependency} if dependency is not None else {}
     cal = calibrate(problem, algorithm, dict(options or {}), workers=workers, max_nfev=max_nfev, deadline=deadline,
-                    callback=callback)
+                    callback=callback, **extra)
     progress.stage("writing the files")
     out.mkdir(parents=True, exist_ok=True)
     pd.DataFrame(cal.history).to_csv(out / "history.csv", index=False)
