@@ -100,3 +100,29 @@ def test_prior_rows_are_exact():
                      options={**TIGHT, "prior_mean": 0.0, "prior_std": 1.0})
     np.testing.assert_allclose(res.x, [0.5, 0.5], atol=1e-8)
     np.testing.assert_allclose(res.jac[2:], np.eye(2))
+
+
+def _analytic_jacobian(x):
+    """∂r/∂x of :func:`stations`: −T e^{−x_i T} on station i's rows, 0.2 on station i + 1's rows."""
+    jac = np.zeros((6 * N, N))
+    for i in range(N):
+        jac[6 * i:6 * i + 6, i] = -T * np.exp(-x[i] * T)
+        if i + 1 < N:
+            jac[6 * i + 6:6 * i + 12, i] = 0.2
+    return jac
+
+
+@pytest.mark.parametrize(("dependency", "final_batch"), [(DEPENDENCY, 6), (None, N)])
+def test_the_fresh_jacobian_takes_the_cheaper_way(dependency, final_batch):
+    """k = 2 of p = 8: central differences along 3 mixed directions (6 runs); a dense map: p forward runs."""
+    sizes = []
+
+    def batch(xs):
+        sizes.append(len(xs))
+        return [stations(x) for x in xs]
+
+    res = sparse_dud(stations, np.ones(N), 0.01, 5.0, dependency=dependency, batch=batch,
+                     options={**TIGHT, "final_jacobian": "fresh", "jacobian_step": 1e-6})
+    np.testing.assert_allclose(res.x, TRUE, rtol=1e-6)
+    assert final_batch in sizes[1:] and (2 * N) not in sizes[1:]  # never 2 p runs for one Jacobian
+    np.testing.assert_allclose(res.jac, _analytic_jacobian(res.x), atol=1e-5)

@@ -1,7 +1,8 @@
 """Which observed series each parameter moves: the dependency map of Sparse DuD, measured.
 
 Sparse DuD (:mod:`rivercal.optimise.sparse_dud`) starts from k + 1 perturbed runs instead of p + 1, k the
-most parameters one residual depends on, and takes its final Jacobian from 2(k + 1) runs instead of p.
+most parameters one residual depends on, and its final Jacobian takes 2(k + 1) runs where that is fewer
+than p.
 In a lowland network nearly every station depends a little on every parameter (a level change travels
 upstream past drowned weirs, a discharge sums its catchment), so the map cannot come from the network's
 topology alone: it has to say which dependencies are too weak to count.

@@ -118,11 +118,12 @@ class DudOptions:
         model when the run stopped on its initial set (e.g. a warm start already at the answer), and with
         OpenDA's rules; otherwise from a fresh finite-difference Jacobian at the best point with steps
         ``jacobian_step`` (DuD: forward differences, p runs; Sparse DuD: central differences along its
-        k + 1 mixed directions, 2(k + 1) runs), followed by a Gauss-Newton step with it (1 run) that is
-        kept if it lowers the cost; while such a step lowers the cost by more than T1 or T2 allow, the
-        Jacobian is taken again there and another step follows (at most 3 rounds; none after a
-        negligible cost). ``"fresh"``: always so; ``"secant"``: never (the aged secant Jacobian can be far
-        off near convergence, and the point the secant iterations stop at depends on their path).
+        k + 1 mixed directions, 2(k + 1) runs, or DuD's p runs where that is no more), followed by a
+        Gauss-Newton step with it (1 run) that is kept if it lowers the cost; while such a step lowers the
+        cost by more than T1 or T2 allow, the Jacobian is taken again there and another step follows (at
+        most 3 rounds; none after a negligible cost). ``"fresh"``: always so; ``"secant"``: never (the aged
+        secant Jacobian can be far off near convergence, and the point the secant iterations stop at
+        depends on their path).
     jacobian_step
         Difference steps of that Jacobian (optimiser coordinates; default 10⁻³ · ``initial_step``).
         Choose them above the model's numerical noise; see ``noise``.

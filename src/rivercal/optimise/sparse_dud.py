@@ -15,7 +15,8 @@ squares over all stored secants (OpenDA's SparseDud, reference note §2). Differ
   and are redrawn until every block is well-conditioned; the generator's state is part of the restart state;
 - the fresh Jacobian at the end (see ``DudOptions.final_jacobian``) comes from central differences along
   n_dir mixed directions (2 n_dir runs): a forward difference along a direction that moves every parameter
-  carries the curvature of the strongly seen parameters into the column of a weakly seen one;
+  carries the curvature of the strongly seen parameters into the column of a weakly seen one; where p
+  forward differences along the axes take no more runs (p ≤ 2 n_dir), from those, as DuD's;
 - everything else (line search, stopping rules, re-initialisation, restart, statuses) is DuD's,
   see :mod:`rivercal.optimise.dud`.
 
@@ -43,6 +44,7 @@ from rivercal.optimise._core import (
 )
 from rivercal.optimise._dud_engine import default_steps, run_dud, validate_restart
 from rivercal.optimise._dud_options import TERMINATION_MESSAGES, DudOptions, DudState
+from rivercal.optimise.jacobian import fd_jacobian
 from rivercal.optimise.result import OptimiseResult
 
 __all__ = ["TERMINATION_MESSAGES", "Dependency", "SparseDudOptions", "sparse_dud"]
@@ -226,16 +228,21 @@ class SparseSecant:
 
     def fresh_jacobian(self, run: Run, x: np.ndarray, r: np.ndarray, h: np.ndarray,
                        noise: np.ndarray | None) -> np.ndarray | None:
-        """The block Jacobian from n_dir mixed directions of size ``h``, by central differences (one batch).
+        """A fresh Jacobian at ``x`` in one batch, by whichever of two ways takes fewer runs.
 
-        Every mixed direction moves all parameters, so a forward difference carries the curvature of the
-        strongly seen parameters into the column of a weakly seen one (8 % on a damped oscillator);
-        the central difference (r(x + d) − r(x − d))/2 cancels it. 2 n_dir runs, still independent of p.
+        - 2 n_dir < p: the block Jacobian from n_dir mixed directions of size ``h``, by central differences.
+          Every mixed direction moves all parameters, so a forward difference carries the curvature of the
+          strongly seen parameters into the column of a weakly seen one (8 % on a damped oscillator); the
+          central difference (r(x + d) − r(x − d))/2 cancels it.
+        - otherwise (a dense map, or k close to p): DuD's forward differences along the axes, p runs, every
+          column measured on its own and the weak dependencies the map leaves out included.
         """
-        steps = [p - x for p in self.initial_points(x, h, run.lb, run.ub)]
-        plus, minus = [project(x + d, run.lb, run.ub) for d in steps], [project(x - d, run.lb, run.ub) for d in steps]
-        if any(not np.array_equal(p - x, x - m) for p, m in zip(plus, minus, strict=True)):
-            residuals = run.evaluate_many(plus)   # a bound within a step: one-sided
+        if run.lb.size <= 2 * self.n_dir:
+            return fd_jacobian(run.evaluate_many, x, run.lb, run.ub, h, r0=r, noise=noise).jacobian
+        plus = self.initial_points(x, h, run.lb, run.ub)  # inside the box: the steps point inwards
+        minus = [x - (p - x) for p in plus]
+        if any(np.any(m < run.lb) or np.any(m > run.ub) for m in minus):
+            residuals = run.evaluate_many(plus)   # a bound within a step: one-sided (the steps point inwards)
             return self.jacobian(np.array([x, *plus]), np.array([r, *residuals]))
         residuals = run.evaluate_many(plus + minus)
         half = [r + 0.5 * (rp - rm) for rp, rm in zip(residuals[: len(plus)], residuals[len(plus):], strict=True)]
