@@ -9,6 +9,11 @@ cores they got.
 
 The observations are a twin: the generated network run with the friction of region F5 raised from 25 to
 32 m^(1/3)/s; the service starts from 25 everywhere (the DSS), 7-day window, 24 h warm-up, 48 h horizon.
+
+``--dependency-threshold T`` first measures Sparse DuD's dependency map over the cycle's window (p + 1 runs
+on the cluster, timed apart: ``dependency_map_s``; a service measures it once, not every cycle) and gives
+it to the cycle; ``--catchments-only`` leaves the trunk canal's stations out of the calibration (their
+discharge sums every catchment upstream, so it sees every region).
 """
 
 from __future__ import annotations
@@ -21,17 +26,22 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
+from rivercal.analysis.dependency import dependency_map
 from rivercal.case.generate import generate_case
 from rivercal.evaluate import DaskCluster
 from rivercal.model import load_model
-from rivercal.observations import ObservationSet
+from rivercal.observations import ObservationSet, measurable
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.optimise._core import Run
 from rivercal.optimise._dud_engine import DudEngine
+from rivercal.parameters import ParameterSet
+from rivercal.problem import CalibrationProblem
 from rivercal.store import Store
 
 PARAMS = tuple(f"F{k}" for k in range(1, 21))
@@ -116,9 +126,13 @@ def main() -> None:
     parser.add_argument("--dask", default="local:2")
     parser.add_argument("--deadline", type=float, default=None,
                         help="wall-clock limit of the calibration, s (the service's guardrail; default none)")
+    parser.add_argument("--dependency-threshold", type=float, default=None,
+                        help="measure a dependency map first and use it, with this threshold (σ; default: no map)")
+    parser.add_argument("--catchments-only", action="store_true", help="leave the trunk canal's stations out")
     args = parser.parse_args()
     out: dict = {"points_asked": args.points, "dask": args.dask, "parameters": len(PARAMS), "algorithm": "sparse_dud",
-                 "deadline_s": args.deadline}
+                 "deadline_s": args.deadline, "dependency_threshold": args.dependency_threshold,
+                 "catchments_only": args.catchments_only}
     with tempfile.TemporaryDirectory(prefix="rivercal-online-scale-") as folder:
         t = time.perf_counter()
         generate_case(Path(folder) / "case", args.points, args.seed)
@@ -136,12 +150,28 @@ def main() -> None:
         truth, _ = model.simulate(truth_q, end=issue + pd.Timedelta(hours=48))
         out["truth_run_s"] = round(time.perf_counter() - t, 2)
         out["series"] = truth.series.shape[1]
-        observations = ObservationSet.from_frame(truth.series.loc[model.start + pd.Timedelta(days=1):])
+        columns = [c for c in measurable(truth.series.columns) if not (args.catchments_only and c.startswith("ST"))]
+        observations = ObservationSet.from_frame(truth.series.loc[model.start + pd.Timedelta(days=1):, columns])
+        config = replace(config, series=tuple(columns))
         t = time.perf_counter()
         cluster = DaskCluster(args.dask)
         workers = cluster.n_workers
         cluster.share(model)
         out["cluster_start_and_model_install_s"] = round(time.perf_counter() - t, 2)
+        if args.dependency_threshold is not None:
+            window = (issue - pd.Timedelta(config.window), issue)
+            problem = CalibrationProblem(model, ParameterSet(known[n] for n in PARAMS), observations, window,
+                                         warmup=config.warmup, loss=config.loss)
+            t = time.perf_counter()
+            measured = dependency_map(problem, threshold=args.dependency_threshold, workers=cluster)
+            out["dependency_map_s"] = round(time.perf_counter() - t, 2)
+            out["dependency_map_runs"] = len(PARAMS) + 1
+            out["dependency_k"] = measured.k
+            counts = measured.seen.sum(axis=1)
+            out["dependency_parameters_per_series"] = np.bincount(counts, minlength=len(PARAMS) + 1).tolist()
+            out["dependency_most_seen_by"] = counts.sort_values(ascending=False).head(8).to_dict()
+            path = measured.to_csv(Path(folder) / "dependency.csv")
+            config = replace(config, dependency=str(path), dependency_threshold=args.dependency_threshold)
         timeline = Timeline()
         phases = Phases()
         for owner, name, label in ((OnlineService, "_state", "cold start (spin-up)"),
@@ -160,7 +190,7 @@ def main() -> None:
             logging.getLogger(name).addHandler(timeline)
             logging.getLogger(name).setLevel(logging.DEBUG if name == "rivercal.optimise" else logging.INFO)
         try:
-            config = OnlineConfig(**{**config.__dict__, "workers": cluster})
+            config = replace(config, workers=cluster)
             with Store(Path(folder) / "online.sqlite") as store:
                 store.ingest(observations, source="twin")
                 service = OnlineService(model, store, "scale", config, issue)
@@ -176,7 +206,9 @@ def main() -> None:
                 out["cycle_status"] = str(cycle["status"])
                 out["calibration_model_runs"] = int(cycle["model_runs"])
                 out["estimates"] = {k: round(v, 3) for k, v in outcomes[-1].accepted.items()}
-                out["held"] = sorted(outcomes[-1].held)
+                out["held"] = {k: v for k, v in sorted(outcomes[-1].held.items())}
+                out["calibrated"] = {k: round(v, 3) for k, v in outcomes[-1].estimates.items()}
+                out["cost_before_after"] = [outcomes[-1].cost_before, outcomes[-1].cost_after]
         finally:
             cluster.close()
         run_start = issue - pd.Timedelta(days=8)

@@ -27,7 +27,9 @@ BENCHMARKS = {
     "blackbox": ["bench", "blackbox", "--json"],
     "dask": ["bench", "dask", "--json"],
     "engine-points-40000": ["bench", "engine", "--points", "40000", "--repeats", "3", "--json"],
-    "online-scale": ["benchmarks/online_scale.py", "--points", "40000", "--dask", "local:2"],
+    "sparse-dependency": ["benchmarks/sparse_dependency.py", "--points", "4000"],
+    "online-scale": ["benchmarks/online_scale.py", "--points", "40000", "--dask", "local:2", "--dependency-threshold",
+                     "0.2", "--catchments-only"],
 }
 
 
