@@ -2,8 +2,7 @@
 
 Sparse DuD (:mod:`rivercal.optimise.sparse_dud`) starts from k + 1 perturbed runs instead of p + 1, k the
 most parameters one residual depends on, and its final Jacobian takes 2(k + 1) runs where that is fewer
-than p.
-In a lowland network nearly every station depends a little on every parameter (a level change travels
+than p. In a lowland network nearly every station depends a little on every parameter (a level change travels
 upstream past drowned weirs, a discharge sums its catchment), so the map cannot come from the network's
 topology alone: it has to say which dependencies are too weak to count.
 
@@ -18,9 +17,10 @@ in units of the series' σ (the residuals are weighted by 1/σ). Series i depend
 e_ij exceeds a threshold, 0.1 σ by default: a change ten times smaller than the measurement error. A
 parameter that moves no series by that much keeps its strongest series, so that its block can be fitted.
 
-The map belongs to the network, the stations and the parameters, not to one window: measure it once,
-look at it (``dependency.csv`` of ``rivercal analyse``), and give it to every calibration and cycle. A
-series the map does not name depends on every parameter, and a parameter it does not name is seen by
+The map belongs to the network, its stations and its parameters, and a little to the flow: a drowned weir
+passes a level change that a weir in free flow stops. Measure it once over a window with high water, look
+at it (``dependency.csv`` of ``rivercal analyse``), and give it to every calibration and cycle. A series
+the map does not name depends on every parameter, and a parameter it does not name is seen by
 every series: a map never makes a dependency disappear that it did not measure.
 """
 
