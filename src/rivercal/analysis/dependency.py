@@ -99,7 +99,8 @@ class DependencyMap:
         matrix = np.concatenate(blocks)
         for j in np.flatnonzero(~matrix.any(axis=0)):  # seen only by series this window does not observe
             matrix[:, j] = True
-            log.info("dependency map: no series observed in this window depends on %s; it counts for all", names[j])
+            log.warning("dependency map: no series observed in this window depends on %s, so every series counts as "
+                        "depending on it (Sparse DuD then needs one more direction for every series)", names[j])
         return matrix
 
     def to_csv(self, path: str | Path) -> Path:
