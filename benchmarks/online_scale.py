@@ -13,7 +13,10 @@ The observations are a twin: the generated network run with the friction of regi
 ``--dependency-threshold T`` first measures Sparse DuD's dependency map over the cycle's window (p + 1 runs
 on the cluster, timed apart: ``dependency_map_s``; a service measures it once, not every cycle) and gives
 it to the cycle; ``--catchments-only`` leaves the trunk canal's stations out of the calibration (their
-discharge sums every catchment upstream, so it sees every region).
+discharge sums every catchment upstream, so it sees every region). ``--dt 300`` generates the network with
+a five-minute time step (the generator's default is 60 s); ``--final-jacobian secant`` keeps the Jacobian
+of Sparse DuD's last secant model for the cycle's uncertainty instead of taking a fresh one at the end;
+``--parallel-line-search`` evaluates a failed full step's shorter trials as one batch (DuD's option).
 """
 
 from __future__ import annotations
@@ -129,21 +132,28 @@ def main() -> None:
     parser.add_argument("--dependency-threshold", type=float, default=None,
                         help="measure a dependency map first and use it, with this threshold (σ; default: no map)")
     parser.add_argument("--catchments-only", action="store_true", help="leave the trunk canal's stations out")
+    parser.add_argument("--dt", type=float, default=60.0, help="the generated network's time step, s (default 60)")
+    parser.add_argument("--final-jacobian", choices=("auto", "fresh", "secant"), default="auto",
+                        help="Sparse DuD's final Jacobian (default auto: a fresh one)")
+    parser.add_argument("--parallel-line-search", action="store_true",
+                        help="evaluate the shorter trials of a failed step as one batch")
     args = parser.parse_args()
     out: dict = {"points_asked": args.points, "dask": args.dask, "parameters": len(PARAMS), "algorithm": "sparse_dud",
                  "deadline_s": args.deadline, "dependency_threshold": args.dependency_threshold,
-                 "catchments_only": args.catchments_only}
+                 "catchments_only": args.catchments_only, "dt_s": args.dt, "final_jacobian": args.final_jacobian,
+                 "parallel_line_search": args.parallel_line_search}
     with tempfile.TemporaryDirectory(prefix="rivercal-online-scale-") as folder:
         t = time.perf_counter()
-        generate_case(Path(folder) / "case", args.points, args.seed)
+        generate_case(Path(folder) / "case", args.points, args.seed, dt=args.dt)
         out["generate_s"] = round(time.perf_counter() - t, 2)
         t = time.perf_counter()
         model = load_model(str(Path(folder) / "case"))
         out["load_s"] = round(time.perf_counter() - t, 2)
         out["points"] = model.compiled.n_hpoints
         issue = model.start + pd.Timedelta(days=9)
+        options = {"final_jacobian": args.final_jacobian, "parallel_line_search": args.parallel_line_search}
         config = OnlineConfig(parameters=PARAMS, algorithm="sparse_dud", deadline_s=args.deadline, window="7D",
-                              warmup="24h", horizon="48h")
+                              warmup="24h", horizon="48h", options=options)
         known = {p.name: p for p in model.case.spec.parameters}
         truth_q = {**known["F5"].quantities(32.0)}
         t = time.perf_counter()

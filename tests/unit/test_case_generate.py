@@ -88,3 +88,29 @@ def test_the_command_writes_a_case_and_refuses_bad_sizes(tmp_path: Path) -> None
     assert kept.exit_code == 2 and "did not write" in kept.output and "--out" in kept.output
     assert (mine / "case.toml").read_text(encoding="utf-8") == '[case]\nname = "dommel"\n'
     assert not (mine / "forcing.csv").exists()
+
+
+def test_a_five_minute_step_gives_the_levels_of_the_one_minute_step_to_centimetres(tmp_path: Path) -> None:
+    fine = generate_case(tmp_path / "fine", 1500, seed=3)
+    coarse = generate_case(tmp_path / "coarse", 1500, seed=3, dt=300.0)
+    text = (coarse.path / "case.toml").read_text(encoding="utf-8")
+    assert text.splitlines()[0].endswith("--dt 300") and "--dt 300`" in (coarse.path / "README.md").read_text()
+    assert text.replace("dt = 300.0", "dt = 60.0").splitlines()[1:] == \
+        (fine.path / "case.toml").read_text(encoding="utf-8").splitlines()[1:]  # the same network
+    series = {}
+    for made in (fine, coarse):
+        model = build_model(load_case(made.path))
+        series[model.dt], _ = model.simulate(None, end=model.start + pd.Timedelta(days=9))
+    assert set(series) == {60.0, 300.0}
+    levels = [r.series.filter(regex=r"\.h(_up|_down)?$") for r in (series[60.0], series[300.0])]
+    diff = (levels[1] - levels[0]).abs().to_numpy()
+    rise = float((levels[0].max() - levels[0].min()).median())
+    assert rise > 0.1  # the storm moves the levels by decimetres
+    assert np.percentile(diff, 99) < 0.005 and diff.max() < 0.05  # mm mostly; cm where a weir changes regime
+
+
+def test_the_time_step_must_divide_the_output_interval(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="dt must be a divisor of 3600"):
+        generate_case(tmp_path / "c", 500, dt=700.0)
+    bad = CliRunner().invoke(app, ["case", "generate", "--points", "500", "--dt", "0", "--out", str(tmp_path / "d")])
+    assert bad.exit_code == 2 and "--dt 0" in bad.output and not (tmp_path / "d").exists()

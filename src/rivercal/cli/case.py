@@ -32,6 +32,7 @@ def generate(
     out: Annotated[Path, typer.Option("--out", help="The case folder to write.")],
     seed: Annotated[int, typer.Option(help="Seed of the random network (≥ 0).")] = 0,
     name: Annotated[str | None, typer.Option(help="Case name (default generated-POINTS-SEED).")] = None,
+    dt: Annotated[float, typer.Option(help="The engine's time step, s (a divisor of 3600).")] = 60.0,
     as_json: JsonOpt = False,
 ) -> None:
     """Write a realistic lowland network of about POINTS points: catchments of weir-controlled streams, loops."""
@@ -41,9 +42,12 @@ def generate(
 
     check_number(points, "--points", low=100, high=10_000_000)
     check_number(seed, "--seed", low=0)
+    if not (0 < dt <= 3600.0 and abs(3600.0 / dt - round(3600.0 / dt)) < 1e-9):
+        raise OptionError(f"--dt {dt:g}: must divide 3600 s, the hourly output interval (e.g. 60, 300, 600)",
+                          option="--dt")
     output_dir(out)
     try:
-        made = generate_case(out, points, seed, name=name)
+        made = generate_case(out, points, seed, name=name, dt=dt)
     except FileExistsError as exc:
         raise OptionError(f"--out {out}: holds a case.toml that the generator did not write; give another folder "
                           "(nothing was written)", option="--out") from exc
