@@ -6,6 +6,7 @@ the way a programming error does (a KeyError, a ValueError), in-process on the r
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from importlib.metadata import version
@@ -116,3 +117,23 @@ def test_the_compile_notice_follows_numba_compilations(capsys: pytest.CaptureFix
     assert kernel(2.5) == 3.5  # a second signature compiles again: still one notice
     err = capsys.readouterr().err
     assert err.count("compiling the engine (first run only") == 1
+
+
+def test_the_cases_calibration_options_take_words_and_a_bad_one_is_named_with_its_table(tmp_path: Path) -> None:
+    from rivercal.case.generate import generate_case
+
+    case = generate_case(tmp_path / "case", 500).path / "case.toml"
+    text = case.read_text(encoding="utf-8")
+    assert '[calibration]\nalgorithm = "dud"\n' in text
+    args = ["calibrate", str(case.parent), "--params", "F1", "--window", "week", "--twin", "F1=28", "--json"]
+    for word, code in (("secnt", 2), ("secant", 0)):
+        case.write_text(text.replace('[calibration]\nalgorithm = "dud"\n', '[calibration]\nalgorithm = "sparse_dud"\n'
+                                     f'options = {{final_jacobian = "{word}", parallel_line_search = true}}\n'),
+                        encoding="utf-8")
+        run = CliRunner().invoke(app, args)
+        assert run.exit_code == code, run.output
+        if code == 2:  # the message keeps "[calibration]" (console markup once ate it)
+            assert ("the case's [calibration] options: sparse_dud refuses its options: final_jacobian must be one of "
+                    "'auto', 'fresh', 'secant'; got 'secnt'") in run.stderr
+    fit = json.loads(run.stdout)
+    assert abs(fit["estimates"]["F1"] - 28.0) < 3 * fit["std"]["F1"] < 1.0  # the twin's noise: within 3 σ

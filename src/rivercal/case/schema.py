@@ -300,12 +300,13 @@ class CalibrationSettings(_Model):
         Name of an optimiser of :mod:`rivercal.optimise` (``dud``, ``trf``, ``sce_ua``, ...).
     options
         Options of that algorithm (for DuD the stopping criteria of thesis Table 4-3: ``max_outer``,
-        ``max_inner``, ``abs_tol`` (T1), ``rel_tol`` (T2), ``rel_tol_linear`` (T3), ``max_rel_step``);
+        ``max_inner``, ``abs_tol`` (T1), ``rel_tol`` (T2), ``rel_tol_linear`` (T3), ``max_rel_step``; and
+        e.g. ``final_jacobian = "secant"``, ``parallel_line_search = true``);
         checked against the algorithm when a calibration is set up.
     """
 
     algorithm: str = Field(default="dud", description="optimiser name (rivercal.optimise)")
-    options: dict[str, float | int | bool] = Field(default_factory=dict, description="options of the algorithm")
+    options: dict[str, float | int | bool | str] = Field(default_factory=dict, description="options of the algorithm")
 
 
 class CaseFile(Network):

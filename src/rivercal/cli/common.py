@@ -67,7 +67,9 @@ def _fail(label: str, text: str, code: int, hint: str = "") -> None:
 
         sys.stderr.write(traceback.format_exc())
         hint = ""
-    err_console.print(f"[bold red]{label}[/] {text}" + (f"\n{hint}" if hint else ""), highlight=False)
+    from rich.markup import escape  # a message quotes files and tables, e.g. "[calibration]": not markup
+
+    err_console.print(f"[bold red]{label}[/] {escape(text)}" + (f"\n{escape(hint)}" if hint else ""), highlight=False)
     raise typer.Exit(code)
 
 
@@ -177,4 +179,4 @@ class Reporter:
     def note(self, text: str) -> None:
         """A line that stays (a finished cycle, a skipped file)."""
         if self.show:
-            err_console.print(text, highlight=False)
+            err_console.print(text, highlight=False, markup=False)
