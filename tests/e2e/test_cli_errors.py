@@ -122,13 +122,14 @@ def test_the_compile_notice_follows_numba_compilations(capsys: pytest.CaptureFix
 def test_the_cases_calibration_options_take_words_and_a_bad_one_is_named_with_its_table(tmp_path: Path) -> None:
     from rivercal.case.generate import generate_case
 
-    case = generate_case(tmp_path / "case", 500).path / "case.toml"
+    case = generate_case(tmp_path / "case", 500, dt=300.0).path / "case.toml"
     text = case.read_text(encoding="utf-8")
     assert '[calibration]\nalgorithm = "dud"\n' in text
-    args = ["calibrate", str(case.parent), "--params", "F1", "--window", "week", "--twin", "F1=28", "--json"]
+    args = ["calibrate", str(case.parent), "--params", "F1", "--window", "2020-01-04/2020-01-07", "--twin", "F1=28",
+            "--workers", "1", "--json"]
     for word, code in (("secnt", 2), ("secant", 0)):
         case.write_text(text.replace('[calibration]\nalgorithm = "dud"\n', '[calibration]\nalgorithm = "sparse_dud"\n'
-                                     f'options = {{final_jacobian = "{word}", parallel_line_search = true}}\n'),
+                                     f'options = {{final_jacobian = "{word}"}}\n'),
                         encoding="utf-8")
         run = CliRunner().invoke(app, args)
         assert run.exit_code == code, run.output
