@@ -118,6 +118,11 @@ def _event(hours: np.ndarray, peak: float, width: float) -> np.ndarray:
     return x**2 * np.exp(2.0 * (1.0 - x))
 
 
+def divides_the_hour(dt: float) -> bool:
+    """Whether a time step ``dt`` (s) fits a whole number of times into the hourly output interval."""
+    return 0 < dt <= 3600.0 and math.isclose(3600.0 / dt, round(3600.0 / dt))
+
+
 def generate_case(out: str | Path, points: int, seed: int = 0, name: str | None = None,
                   dt: float = 60.0) -> GeneratedCase:
     """Write a generated lowland network of about ``points`` calculation points as a case folder.
@@ -150,7 +155,7 @@ def generate_case(out: str | Path, points: int, seed: int = 0, name: str | None 
         raise ValueError(f"points must be at least 100, got {points}")
     if seed < 0:
         raise ValueError(f"seed must not be negative, got {seed}")
-    if not (0 < dt <= 3600.0 and math.isclose(3600.0 / dt, round(3600.0 / dt))):
+    if not divides_the_hour(dt):
         raise ValueError(f"dt must be a divisor of 3600 s (the output interval), got {dt}")
     existing = Path(out) / "case.toml"
     if existing.is_file() and not existing.read_text(encoding="utf-8", errors="replace").startswith(_HEADER):

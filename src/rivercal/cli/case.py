@@ -36,13 +36,13 @@ def generate(
     as_json: JsonOpt = False,
 ) -> None:
     """Write a realistic lowland network of about POINTS points: catchments of weir-controlled streams, loops."""
-    from rivercal.case.generate import generate_case
+    from rivercal.case.generate import divides_the_hour, generate_case
     from rivercal.cli.options import check_number, output_dir
     from rivercal.errors import OptionError
 
     check_number(points, "--points", low=100, high=10_000_000)
     check_number(seed, "--seed", low=0)
-    if not (0 < dt <= 3600.0 and abs(3600.0 / dt - round(3600.0 / dt)) < 1e-9):
+    if not divides_the_hour(dt):
         raise OptionError(f"--dt {dt:g}: must divide 3600 s, the hourly output interval (e.g. 60, 300, 600)",
                           option="--dt")
     output_dir(out)
