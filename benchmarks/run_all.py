@@ -30,6 +30,9 @@ BENCHMARKS = {
     "sparse-dependency": ["benchmarks/sparse_dependency.py", "--points", "4000"],
     "online-scale": ["benchmarks/online_scale.py", "--points", "40000", "--dask", "local:2", "--dependency-threshold",
                      "0.2", "--catchments-only"],
+    "online-scale-dt300": ["benchmarks/online_scale.py", "--points", "40000", "--dask", "local:2",
+                           "--dependency-threshold", "0.2", "--catchments-only", "--dt", "300", "--final-jacobian",
+                           "secant", "--parallel-line-search"],
 }
 
 
