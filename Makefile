@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels bytecode
+.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels
 
 # The compiled time loop is kept in ~/.cache/rivercal/kernels, one folder per version of the kernels' sources
 # (rivercal/_kernel_cache.py): after a change of a kernel it is compiled again, once (about a
@@ -20,14 +20,20 @@ KERNEL_STAMP := $(VENV)/.kernels
 CHROMIUM := /usr/bin/chromium
 CHROMEDRIVER := /usr/bin/chromedriver
 
-# uv installs the packages in parallel (58 s for the dev extra on two cores, pip 115 s; the same versions);
-# where uv cannot, pip does. Bytecode is compiled at install: with PYTHONDONTWRITEBYTECODE set, no import
-# would write it, and every process would compile the libraries' modules again.
+# uv installs the packages in parallel (the dev extra in 9 s on two cores once its cache holds them); where
+# uv cannot, pip does.
+# Bytecode: an environment with PYTHONDONTWRITEBYTECODE set would have every process (each test's subprocess,
+# each evaluation worker) compile the libraries' modules and rivercal's own again (0.3 s for rivercal alone,
+# measured). The commands below run without it, so the first import of a module writes its bytecode and
+# later processes load it; compiling the whole environment at install instead took 37 s, mostly for modules
+# no command imports.
+WRITE_BYTECODE := env -u PYTHONDONTWRITEBYTECODE
+
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "rivercal needs Python >= 3.11 (found " + sys.version.split()[0] + "); set PYTHON=python3.11")'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	{ $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) --compile-bytecode -e ".[dev]"; } \
+	{ $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) -e ".[dev]"; } \
 		|| $(PY) -m pip install --quiet -e ".[dev]"
 	@touch $(STAMP)
 
@@ -36,18 +42,13 @@ venv: $(STAMP)
 $(KERNEL_STAMP): $(KERNEL_SOURCES) | $(STAMP)
 	@find src -name '*.nbi' -delete -o -name '*.nbc' -delete
 	@echo "compiling the engine's time loop (for a version of the engine new to this machine: about a minute, once)"
-	$(VENV)/bin/rivercal compile
+	$(WRITE_BYTECODE) $(VENV)/bin/rivercal compile
 	@touch $(KERNEL_STAMP)
 
 kernels: $(KERNEL_STAMP)
 
-# rivercal's own modules as bytecode beside them: an environment with PYTHONDONTWRITEBYTECODE set never
-# writes it, and every process (each test's subprocess) would compile them again (0.3 s each, measured).
-bytecode: $(STAMP)
-	@$(PY) -m compileall -q src >/dev/null
-
-demo: $(STAMP) kernels bytecode
-	$(VENV)/bin/rivercal demo --out $(OUT)
+demo: $(STAMP) kernels
+	$(WRITE_BYTECODE) $(VENV)/bin/rivercal demo --out $(OUT)
 
 $(CHROMIUM) $(CHROMEDRIVER):
 	@command -v apt-get >/dev/null || { echo "make test needs Debian's chromium and chromium-driver (apt-get)"; exit 1; }
@@ -63,19 +64,19 @@ postgres:
 		command -v apt-get >/dev/null || { echo "make test needs Debian's postgresql package (apt-get)"; exit 1; }; \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
 
-test: $(STAMP) kernels browser postgres bytecode
-	$(PY) -m pytest -n auto --dist worksteal -q --durations=25
+test: $(STAMP) kernels browser postgres
+	$(WRITE_BYTECODE) $(PY) -m pytest -n auto --dist worksteal -q --durations=25
 
-test-fast: $(STAMP) kernels browser postgres bytecode
-	$(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
+test-fast: $(STAMP) kernels browser postgres
+	$(WRITE_BYTECODE) $(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
 
-bench: $(STAMP) kernels browser bytecode
+bench: $(STAMP) kernels browser
 	@mkdir -p out/bench
-	$(PY) benchmarks/run_all.py --out out/bench
+	$(WRITE_BYTECODE) $(PY) benchmarks/run_all.py --out out/bench
 
 # The documentation site: docs/ -> docs/_build/html (warnings are errors; the tutorial is executed).
 docs: $(STAMP) kernels
-	$(VENV)/bin/sphinx-build -b html -E -W --keep-going -q docs docs/_build/html
+	$(WRITE_BYTECODE) $(VENV)/bin/sphinx-build -b html -E -W --keep-going -q docs docs/_build/html
 	@echo "the documentation: docs/_build/html/index.html"
 
 lint: $(STAMP)
