@@ -78,6 +78,7 @@ def cases():
 def step(**kw):
     base = {"s_old": 10.0, "s_new": 9.0, "linear": 8.0, "first_trial": 9.0, "shortened": False,
             "second_best": 10.0, "dof": 20}
+    kw.setdefault("predicted", kw.get("linear", base["linear"]))
     return AcceptedStep(**{**base, **kw})
 
 
@@ -108,6 +109,18 @@ def test_t1_and_t2_never_fire_after_a_shortened_step():
     # T3 judges the full step's prediction and may still fire
     assert rivercal_rules(opts, step(s_old=9.0 + 1e-9, linear=9.0 + 1e-9 - 1e-6, shortened=True), None) == \
         (STATUS_LINEAR, False)
+
+
+def test_a_shortened_step_that_gains_little_of_its_prediction_refreshes_the_secant_set():
+    """The cost fell 6.0 → 5.99 (too much for T2) where the model predicted 6.0 → 1.5 for the shortened step."""
+    opts = DudOptions(stall_ratio=0.01)
+    stalled = {"s_old": 6.0, "s_new": 5.99, "linear": 0.0, "predicted": 1.5, "shortened": True}
+    assert rivercal_rules(opts, step(**stalled), None) == (None, True)             # 0.01 < 1 % of 4.5
+    assert rivercal_rules(opts, step(**{**stalled, "s_new": 5.9}), None) == (None, False)  # 0.1 > 1 % of 4.5
+    reversed_step = {**stalled, "s_new": 5.0, "predicted": 6.2}                   # the model predicted a rise
+    assert rivercal_rules(opts, step(**reversed_step), None) == (None, True)
+    assert rivercal_rules(DudOptions(), step(**stalled), None) == (None, False)  # off by default
+    assert rivercal_rules(opts, step(**{**stalled, "shortened": False, "predicted": 0.0}), None) == (None, False)
 
 
 def test_openda_rules():

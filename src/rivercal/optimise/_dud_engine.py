@@ -210,6 +210,7 @@ class DudEngine:
             self.reinit(opts.reinit_shrink, "no predicted decrease", fresh=True)
             return None
         from_fresh = self.fresh
+        r_b, j_delta = self.R[0], jac @ delta
         accepted = self.line_search(delta)
         if accepted is not None:
             x, r, cost, t, first = accepted
@@ -221,8 +222,11 @@ class DudEngine:
                 return STATUS_LINE_SEARCH
             self.reinit(opts.reinit_shrink, "line search failed", fresh=True)
             return None
+        predicted = linear if t == 1.0 else float(run.cost_of(r_b + t * j_delta))
         step = AcceptedStep(s_old=s_b, s_new=float(self.costs[0]), linear=linear, first_trial=first,
-                            shortened=t != 1.0, second_best=float(self.costs[1]), dof=self.dof)
+                            shortened=t != 1.0, second_best=float(self.costs[1]), dof=self.dof, predicted=predicted)
+        log.debug("%s: took %g of the step: cost %.6g -> %.6g, the secant model predicted %.6g (%.6g for the whole "
+                  "step, which cost %.6g)", self.method, t, s_b, step.s_new, predicted, linear, first)
         if opts.stopping == "openda":
             return openda_rules(opts, step)
         status, refresh = rivercal_rules(opts, step, self.step_cost)

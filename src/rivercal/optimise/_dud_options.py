@@ -96,6 +96,14 @@ class DudOptions:
     max_condition
         The interpolation set counts as degenerate when its (scaled, column-normalised) secant matrix has
         a condition number above this; it is then re-initialised around the best point.
+    stall_ratio
+        After a line search that had to shorten its step, re-initialise the set around the best point
+        when the cost fell by at most this fraction of the decrease the secant model predicted for the
+        shortened step, or when the model predicted no decrease for it (a reversed step): the model no
+        longer describes the cost along its own step. 0 (default) disables it; e.g. 0.01 for a model
+        whose runs are so expensive that a re-initialisation's batch (p runs, Sparse DuD's k + 1) on
+        parallel workers costs less than more shortened steps in a row (``stopping="rivercal"`` only). It may stop a hard problem early: on the NIST
+        problems it saved 28 % of the runs, but ended ENSO from start 1 at 3.2 correct digits (5.7 without).
     reinit_shrink
         After a failed line search the set is re-initialised with perturbations of
         ``reinit_shrink · min(initial_step, current spread)``.
@@ -150,6 +158,7 @@ class DudOptions:
     negative_look_after: int = 4
     max_condition: float = 1e7
     reinit_shrink: float = 0.3
+    stall_ratio: float = 0.0
     confirm_convergence: bool = True
     stopping: str = "rivercal"
     final_jacobian: str = "auto"
@@ -167,6 +176,7 @@ class DudOptions:
         check_real("shortening_factor", self.shortening_factor, strict=True, maximum=1.0 - 1e-12)
         check_real("max_condition", self.max_condition, 1.0, strict=True)
         check_real("reinit_shrink", self.reinit_shrink, strict=True, maximum=1.0)
+        check_real("stall_ratio", self.stall_ratio, maximum=1.0)
         check_choice("stopping", self.stopping, STOPPING)
         check_choice("final_jacobian", self.final_jacobian, ("auto", "fresh", "secant"))
         optional_array(self, "initial_step", positive=True)

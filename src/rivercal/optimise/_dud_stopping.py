@@ -33,6 +33,8 @@ class AcceptedStep:
         Best cost before and after the step.
     linear
         Linearised cost of the full step (the secant model's prediction).
+    predicted
+        Linearised cost of the accepted step (equal to ``linear`` unless the step was shortened).
     first_trial
         Cost at the full step (t = 1), the first trial of the line search.
     shortened
@@ -50,6 +52,7 @@ class AcceptedStep:
     shortened: bool
     second_best: float
     dof: int
+    predicted: float
 
 
 def negligible(opts: DudOptions, cost: float, step_cost: float | None) -> bool:
@@ -61,8 +64,10 @@ def rivercal_rules(opts: DudOptions, step: AcceptedStep, step_cost: float | None
     """Zero or negligible cost, T1 (drop ≤ abs_tol · s²), T2, T3; and whether the secant model needs refreshing.
 
     After a shortened step T1 and T2 do not fire: the cost dropped little because the step was cut
-    short, not because the minimum is near. The second value is then True when they would have fired:
-    the secant model predicted a step the cost did not follow, so it should be re-initialised.
+    short, not because the minimum is near. The second value is then True when they would have fired,
+    or (with ``stall_ratio`` > 0) when the cost fell by at most ``stall_ratio`` times what the secant
+    model predicted for the shortened step, or the model predicted no decrease for it (a reversed step):
+    the model predicted a step the cost did not follow, so it should be re-initialised.
     """
     if step.s_new == 0.0:
         return STATUS_ZERO_COST, False
@@ -74,7 +79,9 @@ def rivercal_rules(opts: DudOptions, step: AcceptedStep, step_cost: float | None
         return (STATUS_ABS if drop <= opts.abs_tol * step.s_new / step.dof else STATUS_REL), False
     if step.s_old - step.linear <= opts.rel_tol_linear * step.s_old:
         return STATUS_LINEAR, False
-    return None, small
+    gain = step.s_old - step.predicted  # the decrease the secant model predicted for the step taken
+    stalled = step.shortened and opts.stall_ratio > 0 and (gain <= 0 or drop <= opts.stall_ratio * gain)
+    return None, small or stalled
 
 
 def openda_rules(opts: DudOptions, step: AcceptedStep) -> int | None:

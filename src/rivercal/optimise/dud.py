@@ -17,7 +17,9 @@ without OpenDA's quirks:
   OpenDA maintainers recommend by hand;
 - every stopping rule is invariant to a common scale of the weights (T1 measures the drop of the cost
   in units of the residual variance s² = S/(m − p), the near-zero-cost rule against the cost change of
-  one initial perturbation), and T1/T2 never fire right after a line search that shortened its step;
+  one initial perturbation), and T1/T2 never fire right after a line search that shortened its step:
+  such a step re-initialises the set instead when it gained what would have fired them (and, with
+  ``stall_ratio``, when it gained little of what the secant model predicted for it);
   OpenDA's own rules are available as ``stopping="openda"`` (see :class:`DudOptions`);
 - ``std`` and ``correlation`` come from a fresh finite-difference Jacobian at the end when the secant
   one has aged (p more runs, then one Gauss-Newton step with it);
