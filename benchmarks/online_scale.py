@@ -16,7 +16,9 @@ it to the cycle; ``--catchments-only`` leaves the trunk canal's stations out of 
 discharge sums every catchment upstream, so it sees every region). ``--dt 300`` generates the network with
 a five-minute time step (the generator's default is 60 s); ``--final-jacobian secant`` keeps the Jacobian
 of Sparse DuD's last secant model for the cycle's uncertainty instead of taking a fresh one at the end;
-``--parallel-line-search`` evaluates a failed full step's shorter trials as one batch (DuD's option).
+``--parallel-line-search`` evaluates a failed full step's shorter trials as one batch, and ``--stall-ratio 0.01``
+re-initialises the interpolation set after a shortened step that gained little of what the secant model
+predicted (both DuD options).
 """
 
 from __future__ import annotations
@@ -137,11 +139,14 @@ def main() -> None:
                         help="Sparse DuD's final Jacobian (default auto: a fresh one)")
     parser.add_argument("--parallel-line-search", action="store_true",
                         help="evaluate the shorter trials of a failed step as one batch")
+    parser.add_argument("--stall-ratio", type=float, default=0.0,
+                        help="re-initialise after a shortened step that gains at most this fraction of its "
+                             "predicted decrease (DuD's stall_ratio; default 0: off)")
     args = parser.parse_args()
     out: dict = {"points_asked": args.points, "dask": args.dask, "parameters": len(PARAMS), "algorithm": "sparse_dud",
                  "deadline_s": args.deadline, "dependency_threshold": args.dependency_threshold,
                  "catchments_only": args.catchments_only, "dt_s": args.dt, "final_jacobian": args.final_jacobian,
-                 "parallel_line_search": args.parallel_line_search}
+                 "parallel_line_search": args.parallel_line_search, "stall_ratio": args.stall_ratio}
     with tempfile.TemporaryDirectory(prefix="rivercal-online-scale-") as folder:
         t = time.perf_counter()
         generate_case(Path(folder) / "case", args.points, args.seed, dt=args.dt)
@@ -151,7 +156,8 @@ def main() -> None:
         out["load_s"] = round(time.perf_counter() - t, 2)
         out["points"] = model.compiled.n_hpoints
         issue = model.start + pd.Timedelta(days=9)
-        options = {"final_jacobian": args.final_jacobian, "parallel_line_search": args.parallel_line_search}
+        options = {"final_jacobian": args.final_jacobian, "parallel_line_search": args.parallel_line_search,
+                   "stall_ratio": args.stall_ratio}
         config = OnlineConfig(parameters=PARAMS, algorithm="sparse_dud", deadline_s=args.deadline, window="7D",
                               warmup="24h", horizon="48h", options=options)
         known = {p.name: p for p in model.case.spec.parameters}

@@ -32,7 +32,7 @@ BENCHMARKS = {
                      "0.2", "--catchments-only"],
     "online-scale-dt300": ["benchmarks/online_scale.py", "--points", "40000", "--dask", "local:2",
                            "--dependency-threshold", "0.2", "--catchments-only", "--dt", "300", "--final-jacobian",
-                           "secant", "--parallel-line-search"],
+                           "secant", "--parallel-line-search", "--stall-ratio", "0.01"],
 }
 
 
