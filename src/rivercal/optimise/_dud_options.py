@@ -102,8 +102,9 @@ class DudOptions:
         shortened step, or when the model predicted no decrease for it (a reversed step): the model no
         longer describes the cost along its own step. 0 (default) disables it; e.g. 0.01 for a model
         whose runs are so expensive that a re-initialisation's batch (p runs, Sparse DuD's k + 1) on
-        parallel workers costs less than more shortened steps in a row (``stopping="rivercal"`` only). It may stop a hard problem early: on the NIST
-        problems it saved 28 % of the runs, but ended ENSO from start 1 at 3.2 correct digits (5.7 without).
+        parallel workers costs less than more shortened steps in a row (``stopping="rivercal"`` only). It
+        may stop a hard problem early: on the NIST problems it saved 28 % of the runs, but ended ENSO from
+        start 1 at 3.2 correct digits (5.7 without).
     reinit_shrink
         After a failed line search the set is re-initialised with perturbations of
         ``reinit_shrink · min(initial_step, current spread)``.
