@@ -203,14 +203,14 @@ class DudEngine:
             self.reinit(1.0, "degenerate interpolation set", fresh=False)
             return None
         self.degenerate_streak = 0
-        delta, linear = self.step(jac)
+        delta, j_delta, linear = self.step(jac)
         if not s_b - linear > 1e-14 * s_b:
             if self.fresh:
                 return STATUS_NO_DECREASE
             self.reinit(opts.reinit_shrink, "no predicted decrease", fresh=True)
             return None
         from_fresh = self.fresh
-        r_b, j_delta = self.R[0], jac @ delta
+        r_b = self.R[0]
         accepted = self.line_search(delta)
         if accepted is not None:
             x, r, cost, t, first = accepted
@@ -239,13 +239,14 @@ class DudEngine:
         self.reinit(1.0, "confirming convergence", fresh=True)
         return None
 
-    def step(self, jac: np.ndarray) -> tuple[np.ndarray, float]:
-        """Bounded Gauss-Newton step of the secant model, capped; and its linearised cost."""
+    def step(self, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Bounded Gauss-Newton step δ of the secant model, capped; J δ; and the step's linearised cost."""
         delta = self.gauss_newton(jac, self.spread())
         size = self.model.step_size(self.X, delta)
         if size > self.opts.max_rel_step:
             delta *= self.opts.max_rel_step / size
-        return delta, self.run.cost_of(self.R[0] + jac @ delta)
+        j_delta = jac @ delta
+        return delta, j_delta, self.run.cost_of(self.R[0] + j_delta)
 
     def gauss_newton(self, jac: np.ndarray, scale: np.ndarray) -> np.ndarray:
         """Argmin ‖r_b + J δ‖² subject to lb ≤ x_b + δ ≤ ub (solved in units of ``scale``)."""
