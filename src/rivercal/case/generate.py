@@ -34,6 +34,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from pydantic import ValidationError
+
+from rivercal.case.schema import EngineSettings
 
 __all__ = ["CATCHMENT_KM", "GeneratedCase", "generate_case"]
 
@@ -121,10 +124,6 @@ def _event(hours: np.ndarray, peak: float, width: float) -> np.ndarray:
 
 def divides_the_hour(dt: float) -> bool:
     """Whether a time step ``dt`` (s) suits the generated case's hourly output (the case schema's own rule)."""
-    from pydantic import ValidationError
-
-    from rivercal.case.schema import EngineSettings
-
     try:
         EngineSettings(dt=dt, output_interval=_OUTPUT_INTERVAL)
     except ValidationError:

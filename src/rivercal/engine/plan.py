@@ -98,7 +98,7 @@ class SolverPlan:
     symbolic
         The elimination order and fill pattern of the level matrix.
     schedule
-        :func:`solver_schedule` of it (``uint64``).
+        :func:`solver_schedule` of it (``uint32``).
     link_edge
         Solver edge of each link (-1 for a pump, which does not couple its points).
     link_runs
@@ -313,7 +313,8 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        ``uint64`` array of ``2 * SCHED_WIDTH`` entries per step.
+        ``uint32`` array of ``2 * SCHED_WIDTH`` entries per step (half the bytes of ``uint64``: at board size the
+        solve streams it from memory every step).
     """
     n = sym.order.size
     touches: list[set[tuple[str, int]]] = []
@@ -359,7 +360,7 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
                 lanes[lanes.index(None)] = p
         step = []
         for lane, p in enumerate(lanes):
-            rec = np.zeros(SCHED_WIDTH, dtype=np.uint64)
+            rec = np.zeros(SCHED_WIDTH, dtype=np.uint32)
             rec[0], rec[7] = n, 2
             carried[lane] = n
             if p is not None:
@@ -382,7 +383,7 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
                 waits[s] -= 1
                 if waits[s] == 0:
                     heapq.heappush(ready, (-int(chain[s]), s))
-    return np.array(steps, dtype=np.uint64).ravel()
+    return np.array(steps, dtype=np.uint32).ravel()
 
 
 def link_runs(lk_k1: np.ndarray, lk_k2: np.ndarray, lk_edge: np.ndarray, general: np.ndarray) -> np.ndarray:
