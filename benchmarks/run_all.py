@@ -26,7 +26,11 @@ BENCHMARKS = {
     "engines": ["bench", "engines", "--json"],
     "blackbox": ["bench", "blackbox", "--json"],
     "dask": ["bench", "dask", "--json"],
+    # the cost per point and step as the network grows (a week of 400 points takes 0.2 s: more repeats)
+    "engine-points-400": ["bench", "engine", "--points", "400", "--repeats", "21", "--json"],
+    "engine-points-4000": ["bench", "engine", "--points", "4000", "--json"],
     "engine-points-40000": ["bench", "engine", "--points", "40000", "--repeats", "3", "--json"],
+    "engine-points-100000": ["bench", "engine", "--points", "100000", "--repeats", "3", "--json"],
     "sparse-dependency": ["benchmarks/sparse_dependency.py", "--points", "4000"],
     "online-scale": ["benchmarks/online_scale.py", "--points", "40000", "--dask", "local:2", "--dependency-threshold",
                      "0.2", "--catchments-only"],
