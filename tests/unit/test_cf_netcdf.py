@@ -88,3 +88,30 @@ def test_a_bad_crs_is_refused_at_load_naming_the_field(tmp_path: Path, value: st
     with pytest.raises(CaseError, match=words) as info:
         rd_case(tmp_path, crs=value)
     assert "case.crs" in str(info.value)
+
+
+def test_stations_at_every_kind_of_structure_are_placed_and_a_network_without_map_coordinates_writes_ids(
+        tmp_path: Path) -> None:
+    from rivercal.network.coordinates import MissingCoordinates, station_coordinates
+
+    data = channel_case(stations=[{"id": "at_orifice", "structure": "O1", "quantities": ["h_up", "Q"]},
+                                  {"id": "at_bridge", "structure": "BR1"},
+                                  {"id": "mid", "branch": "B", "chainage": 2500.0, "quantities": ["h"]}])
+    data["profiles"].append({"id": "opening", "type": "rectangular", "width": 8.0, "height": 4.0, "closed": False})
+    data["orifices"] = [{"id": "O1", "branch": "B", "chainage": 1000.0, "crest_level": 0.5, "crest_width": 5.0,
+                         "gate_lower_edge_level": 2.0}]
+    data["bridges"] = [{"id": "BR1", "branch": "B", "chainage": 4000.0, "profile": "opening", "bed_level": 0.1,
+                        "length": 10.0}]
+    case = case_from_dict(data, tmp_path)
+    where = station_coordinates(case.network)
+    assert where == {"at_orifice": (1000.0, 0.0), "at_bridge": (4000.0, 0.0), "mid": (2500.0, 0.0)}
+
+    data["nodes"] = [{"id": "up"}, {"id": "down"}]  # map coordinates are optional in a case
+    bare = case_from_dict(data, tmp_path / "bare")
+    with pytest.raises(MissingCoordinates, match=r"'down'|'up'"):
+        station_coordinates(bare.network)
+    sim = Simulator(bare)
+    result, _ = sim.simulate({}, end=sim.start + pd.Timedelta("1h"))
+    ds = xr.open_dataset(write_netcdf(add_stations(result.to_dataset(), bare), tmp_path / "bare.nc"))
+    assert ds["level_station_id"].values.tolist() == ["at_orifice", "at_bridge", "at_bridge", "mid"]
+    assert "level_x" not in ds and "level_lat" not in ds

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rivercal.network.coordinates import station_coordinates
+from rivercal.network.coordinates import MissingCoordinates, station_coordinates
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -57,12 +57,16 @@ def add_stations(ds: xr.Dataset, case: Any, dims: Sequence[str] = SERIES_DIMS) -
     Raises
     ------
     ValueError
-        When a series names a station the network does not have, or a station cannot be placed.
+        When a series names a station the network does not have. A network without map coordinates (they
+        are optional) gets station ids without x and y.
     """
     meta = case.spec.case
     crs_text = getattr(meta, "crs", None)
     datum = getattr(meta, "vertical_datum", None)
-    where = station_coordinates(case.network)
+    try:
+        where: dict[str, tuple[float, float]] | None = station_coordinates(case.network)
+    except MissingCoordinates:  # map coordinates are optional in a case: the ids are written without x/y
+        where = None
     ds = ds.copy()
     crs = _crs(crs_text) if crs_text else None
     to_wgs84 = None
@@ -81,14 +85,17 @@ def add_stations(ds: xr.Dataset, case: Any, dims: Sequence[str] = SERIES_DIMS) -
             continue
         ids = [str(v) for v in ds[dim].values]
         stations = [i.rpartition(".")[0] for i in ids]
-        unknown = [s for s in stations if s not in where]
+        known = {st.id for st in case.network.stations}
+        unknown = [s for s in stations if s not in known]
         if unknown:
             raise ValueError(f"series {ids[stations.index(unknown[0])]!r}: no station {unknown[0]!r} in the network")
-        x = np.array([where[s][0] for s in stations])
-        y = np.array([where[s][1] for s in stations])
         prefix = dim.removesuffix("_series")
         names = [f"{prefix}_station_id", f"{prefix}_x", f"{prefix}_y"]
         ds[names[0]] = (dim, np.array(stations, dtype=object), {"long_name": "station id", "cf_role": "timeseries_id"})
+        if where is None:
+            continue
+        x = np.array([where[s][0] for s in stations])
+        y = np.array([where[s][1] for s in stations])
         xy_text = f"in {crs.name}" if crs is not None else "of the case (no coordinate reference system declared)"
         ds[names[1]] = (dim, x, {"units": "m", "long_name": f"station x coordinate {xy_text}"})
         ds[names[2]] = (dim, y, {"units": "m", "long_name": f"station y coordinate {xy_text}"})

@@ -11,7 +11,15 @@ import numpy as np
 
 from rivercal.network.topology import Network
 
-__all__ = ["branch_polylines", "point_along", "station_coordinates"]
+__all__ = ["MissingCoordinates", "branch_polylines", "point_along", "station_coordinates"]
+
+
+class MissingCoordinates(ValueError):
+    """The network cannot be placed on a map: a branch without geometry has an end node without x/y.
+
+    Map coordinates are optional in a case; what needs them (a map, station coordinates in a NetCDF file)
+    catches this and does without.
+    """
 
 
 def branch_polylines(network: Network) -> dict[str, np.ndarray]:
@@ -37,20 +45,22 @@ def point_along(xy: np.ndarray, frac: float) -> tuple[float, float]:
 def station_coordinates(network: Network) -> dict[str, tuple[float, float]]:
     """Map coordinates (m) of every station: at its structure, or at its chainage on its branch.
 
+    Every kind of structure places its station (weirs, culverts, pumps, orifices, universal weirs, bridges).
+
     Raises
     ------
-    ValueError
+    MissingCoordinates
         When a branch has no geometry and an end node has no coordinates.
     """
     missing = [n.id for n in network.nodes if n.x is None or n.y is None]
     polylines = {b.id for b in network.branches if b.geometry}
     needed = {end for b in network.branches if b.id not in polylines for end in (b.from_node, b.to_node)}
     if needed & set(missing):
-        raise ValueError(f"node {sorted(needed & set(missing))[0]!r} has no x/y coordinates; the station positions "
-                         "need them (or a geometry for its branches)")
+        raise MissingCoordinates(f"node {sorted(needed & set(missing))[0]!r} has no x/y coordinates; the station "
+                                 "positions need them (or a geometry for its branches)")
     xy = branch_polylines(network)
     lengths = {b.id: b.length for b in network.branches}
-    structures = {s.id: s for s in (*network.weirs, *network.culverts, *network.pumps)}
+    structures = {s.id: s for s in network.structures}
     out = {}
     for st in network.stations:
         where = structures[st.structure] if st.structure is not None else st
