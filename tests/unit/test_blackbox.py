@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import textwrap
 import time
@@ -130,6 +131,10 @@ def test_a_spinup_runs_before_a_cold_start(tmp_path) -> None:
     ("nan", r"non-finite value of S\.h at 2020-01-01 12:00:00\+00:00"),
     ("nothing", r"the program wrote no out\.csv"),
     ("truncated", r"no value of S\.h at 2020-01-01 12:00:00\+00:00: the output covers .* \(truncated\?\)"),
+    ("text", r"out\.csv line 14: column 'level' holds 'high', not a number"),
+    ("duplicate", r"out\.csv: the time 2020-01-01T12:00:00\+00:00 is written more than once"),
+    ("fifo", r"out\.csv is a FIFO \(named pipe\), not a file"),
+    ("selfkill", r"the program was ended by signal SIGKILL"),
 ])
 def test_a_failed_run_names_the_kept_run_folder_and_the_cause(tmp_path, mode, cause) -> None:
     model = make_model(tmp_path, mode=mode, runs_dir="runs")
@@ -138,7 +143,19 @@ def test_a_failed_run_names_the_kept_run_folder_and_the_cause(tmp_path, mode, ca
     kept = Path(info.value.run_dir)
     assert kept.is_dir() and kept.name.startswith("failed-") and kept.parent == tmp_path / "runs"
     assert (kept / "input.json").is_file() and (kept / "stderr.txt").is_file()
-    assert str(kept) in str(info.value)
+    # the message names the kept folder, and files relative to it (never the folder's name before the rename)
+    assert str(info.value).startswith(f"external model run in {kept} failed: ")
+    assert str(tmp_path / "runs") not in info.value.cause
+
+
+def test_an_output_that_links_outside_the_run_folder_is_not_read(tmp_path) -> None:
+    secret = tmp_path / "secret.csv"
+    secret.write_text("time,level,flow\n2020-01-01T00:00:00Z,1,1\n")
+    model = make_model(tmp_path, runs_dir="runs")
+    model.spec = model.spec.model_copy(update={"env": {"TOY_MODE": "link", "TOY_LINK": str(secret)}})
+    with pytest.raises(BlackBoxRunError, match=r"failed: out\.csv leads outside the run folder \(a link to "
+                                               + re.escape(str(secret)) + r"\)"):
+        model.simulate({}, end=START + pd.Timedelta("1D"))
 
 
 def test_a_hanging_program_is_stopped_with_its_children(tmp_path) -> None:

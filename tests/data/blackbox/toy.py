@@ -4,8 +4,14 @@ Reads ``input.json`` (rendered from a template: k, crest, run_start, end, hot), 
 levels ``h`` and discharges ``q``; a hot start omits its first row, as SWMM does) and ``restart.txt``
 (the level at the end); ``restart_in.txt`` holds the level of a hot start. ``TOY_MODE`` in the
 environment makes it misbehave: ``fail`` (exit 3), ``hang`` (sleeps, with a child that sleeps too),
-``nan``, ``nothing``, ``truncated`` (half the rows), ``argv`` (writes its arguments to argv.json);
-``TOY_FAIL_ABOVE`` makes it exit 4 for a larger k.
+``nan``, ``nothing``, ``truncated`` (half the rows), ``argv`` (writes its arguments to argv.json),
+``escape`` (hangs, with a grandchild that starts a session of its own and a child in its process group),
+``background`` (the same helpers, but the run itself succeeds and leaves them running), ``text`` (a value
+that is text), ``duplicate`` (a time written twice), ``fifo`` (out.csv is a FIFO), ``link`` (out.csv is a
+link to a file outside the run folder, named by ``TOY_LINK``), ``selfkill`` (ends by SIGKILL);
+``TOY_FAIL_ABOVE`` makes it exit 4 for a larger k; ``TOY_DAEMON=1`` makes every run leave ``sleep 120``
+running in a session of its own (as a daemon would). The helpers write their pids, one a line, to
+``pids.txt`` (the program's own first) once they all run.
 """
 
 import json
@@ -17,6 +23,9 @@ import time
 from datetime import datetime, timedelta
 
 mode = os.environ.get("TOY_MODE", "")
+if os.environ.get("TOY_DAEMON") == "1":
+    subprocess.Popen(["sleep", "120"], start_new_session=True, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                     stderr=subprocess.DEVNULL)
 if mode == "argv":
     with open("argv.json", "w") as f:
         json.dump(sys.argv[1:], f)
@@ -29,6 +38,28 @@ if mode == "hang":
     time.sleep(60)
 if mode == "nothing":
     sys.exit(0)
+if mode in ("escape", "background"):
+    # a helper in the program's process group, and a grandchild that leaves the group (a session of its own)
+    helper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    leaver = "import os, time; os.setsid(); print(os.getpid(), flush=True); time.sleep(120)"
+    escaper = subprocess.Popen([sys.executable, "-c", "import subprocess, sys, time\n"
+                                f"p = subprocess.Popen([sys.executable, '-c', {leaver!r}], stdout=subprocess.PIPE)\n"
+                                "sys.stdout.write(p.stdout.readline().decode()); sys.stdout.flush()\n"
+                                "time.sleep(120)"], stdout=subprocess.PIPE, text=True)
+    grandchild = int(escaper.stdout.readline())
+    with open("pids.tmp", "w") as f:
+        f.write(f"{os.getpid()}\n{helper.pid}\n{escaper.pid}\n{grandchild}\n")
+    os.replace("pids.tmp", "pids.txt")
+    if mode == "escape":
+        time.sleep(120)
+if mode == "fifo":
+    os.mkfifo("out.csv")
+    sys.exit(0)
+if mode == "link":
+    os.symlink(os.environ["TOY_LINK"], "out.csv")
+    sys.exit(0)
+if mode == "selfkill":
+    os.kill(os.getpid(), 9)
 
 with open("input.json") as f:
     p = json.load(f)
@@ -59,7 +90,10 @@ if mode == "truncated":
 with open("out.csv", "w") as f:
     f.write("time,level,flow\n")
     for t, zz, q in rows:
-        value = "nan" if mode == "nan" and t == rows[len(rows) // 2][0] else f"{zz:.9f}"
+        middle = t == rows[len(rows) // 2][0]
+        value = {"nan": "nan", "text": "high"}.get(mode, f"{zz:.9f}") if middle else f"{zz:.9f}"
         f.write(f"{t.isoformat()},{value},{q:.9f}\n")
+        if mode == "duplicate" and middle:
+            f.write(f"{t.isoformat()},{zz + 1:.9f},{q:.9f}\n")
 with open("restart.txt", "w") as f:
     f.write(repr(z))

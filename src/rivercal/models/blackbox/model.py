@@ -8,14 +8,21 @@ Per run, :class:`BlackBoxModel`
    with the run's quantities and times (:mod:`~rivercal.models.blackbox.templates`);
 3. runs the command as an argv list (never a shell; parameter values reach the program only through
    files and argv items, literally) in the run folder, with the model's environment added to rivercal's,
-   stdout and stderr to ``stdout.txt`` / ``stderr.txt``, and stops it (its whole process group) after
-   ``timeout`` seconds;
+   stdout and stderr to ``stdout.txt`` / ``stderr.txt``, under a supervisor
+   (:mod:`~rivercal.models.blackbox.supervisor`) that stops the program and everything it started when it
+   ends, after ``timeout`` seconds, and when rivercal stops (Ctrl-C, SIGTERM, SIGKILL);
 4. reads the outputs (:mod:`~rivercal.models.blackbox.readers`), keeps the rows on the output grid of
    [start, end], and keeps the ``restart_out`` files as the state at ``end``.
 
+Files stay in their place: every file a ``model.toml`` names is checked at load to lie in the model
+folder (template sources) or the run folder (targets, restart files, outputs), and the model folder to
+hold no link that leads outside it (:mod:`~rivercal.models.blackbox.paths`); a bad one is a
+:class:`~rivercal.models.config.ModelFileError` naming the field.
+
 A run that exits non-zero, times out, writes nothing, a truncated file or a non-finite value raises
 :class:`BlackBoxRunError` naming the run folder (kept: the newest ``keep_failed`` failed folders) and the
-cause; the calibration then follows its failure policy (``raise`` or ``penalty``).
+cause, files named relative to the run folder; the calibration then follows its failure policy
+(``raise`` or ``penalty``).
 
 The row at ``start``: a cold start runs from ``spinup`` hours before ``start`` and takes the row from the
 output; a hot start takes it from the state (its last row), since programs that report after their first
@@ -24,12 +31,18 @@ step (SWMM) do not write it.
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
 import json
 import logging
 import os
+import re
+import select
 import signal
+import stat
 import subprocess
 import sys
+import tempfile
 import time as _time
 from collections.abc import Mapping
 from pathlib import Path
@@ -39,13 +52,14 @@ import numpy as np
 import pandas as pd
 
 from rivercal.engine.state import SimulationResult
-from rivercal.models.blackbox.readers import read_output
-from rivercal.models.blackbox.runs import RunFolders
+from rivercal.models.blackbox.paths import check_tree, inside, kind_of, relative_path
+from rivercal.models.blackbox.readers import excerpt, read_output
+from rivercal.models.blackbox.runs import MARKER, RunFolders, default_base
 from rivercal.models.blackbox.templates import Template, render_argv
 from rivercal.models.config import ModelFile, ModelFileError
 from rivercal.models.contract import CalibrationSetup, ExternalRunError, FileState, Quantity, check_run, utc
 
-__all__ = ["BUILTINS", "BlackBoxModel", "BlackBoxRunError"]
+__all__ = ["BUILTINS", "MAX_STATE_BYTES", "MAX_TEMPLATE_BYTES", "BlackBoxModel", "BlackBoxRunError"]
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +67,16 @@ log = logging.getLogger(__name__)
 BUILTINS = ("start", "end", "run_start", "run_dir", "hot", "cold", "dt", "output_interval", "python")
 #: File of a black-box state that holds the last row of the run (the next hot-started run's first row).
 LAST_ROW = "rivercal-last-row.json"
+#: Most output times of a run (the model's period and spin-up over its output interval).
+MAX_ROWS = 10_000_000
+#: Largest template read, bytes (64 MiB).
+MAX_TEMPLATE_BYTES = 64 << 20
+#: Largest restart file kept as (part of) a state, bytes (1 GiB).
+MAX_STATE_BYTES = 1 << 30
+#: The supervisor script that starts each run's program (run by path: it imports nothing of rivercal).
+SUPERVISOR = Path(__file__).with_name("supervisor.py")
+#: Seconds the supervisor gets to stop a program's processes before it is killed itself.
+_STOP_GRACE_S = 30.0
 
 
 class BlackBoxRunError(ExternalRunError):
@@ -76,8 +100,9 @@ class BlackBoxModel:
     Raises
     ------
     ModelFileError
-        For a missing model folder or template, a placeholder that is no quantity, an output series
-        named twice, naming the field.
+        For a model folder, template, restart file or output that is missing or lies outside its folder, a
+        link in the model folder that leads outside it, a placeholder that is no quantity, an output series
+        named twice, a runs folder that cannot be written, naming the field.
     """
 
     def __init__(self, spec: ModelFile, root: str | Path, calibration: CalibrationSetup | None = None):
@@ -89,40 +114,117 @@ class BlackBoxModel:
         self.name = spec.model.name
         root = Path(root)
         label = str(root / "model.toml")
-        self.folder = (root / bb.folder).resolve()
-        if not self.folder.is_dir():
-            raise ModelFileError(f"no such folder {self.folder}", file=label, field="blackbox.folder")
+
+        def error(field: str, message: str) -> ModelFileError:
+            return ModelFileError(message, file=label, field=field)
+
+        self.folder = _model_folder(bb.folder, root, error)
+        interval = float(self.meta.output_interval)
+        rows = ((self.meta.end - self.meta.start).total_seconds() + 3600.0 * self.meta.spinup) / interval
+        if interval < 1.0 or rows > MAX_ROWS:
+            raise error("model.output_interval", f"{interval:g} s gives {rows:,.0f} output times over the model's "
+                        f"period and spin-up: a black box reads at most {MAX_ROWS:,}, at least 1 s apart")
         self._calibration = calibration or CalibrationSetup()
         self._formats = {name: q.format for name, q in bb.quantities.items()}
+        for name, q in bb.quantities.items():
+            if _too_wide(q.format):
+                raise error(f"blackbox.quantities.{name}.format", f"{q.format!r}: a width or precision above 999")
+        runs_dir = _runs_dir(bb.runs_dir, root, self.folder, self.name, error)
         self.templates: list[tuple[Template, str]] = []
+        sources: list[str] = []
         for i, t in enumerate(bb.templates):
-            source = self.folder / t.source
-            if not source.is_file():
-                raise ModelFileError(f"no such template {source}", file=label, field=f"blackbox.templates[{i}].source")
-            try:
-                template = Template(source.read_text(encoding="utf-8"), source=str(source))
-                template.check(bb.quantities, BUILTINS)
-                target = t.target_name
-            except (ValueError, UnicodeDecodeError) as exc:
-                raise ModelFileError(str(exc), file=label, field=f"blackbox.templates[{i}]") from None
-            self.templates.append((template, target))
+            field = f"blackbox.templates[{i}]"
+            self.templates.append((self._template(t.source, field, error), _target(t, field, error)))
+            sources.append(relative_path(t.source, "the model folder"))
+        targets = [target for _, target in self.templates]
+        for i, target in enumerate(targets):
+            if target in targets[:i]:
+                raise error(f"blackbox.templates[{i}].target", f"{target!r} is the target of two templates")
         epoch = pd.Timestamp(0, tz="UTC")
         dummy = {**dict.fromkeys(bb.quantities, 1.0), **self._builtins(epoch, epoch, epoch, Path("."), False)}
+        for i, (template, _) in enumerate(self.templates):
+            try:
+                template.render(dummy, self._formats)
+            except (ValueError, TypeError, OverflowError) as exc:
+                raise error(f"blackbox.templates[{i}]", f"{template.source}: cannot be rendered ({exc})") from None
+        for i, item in enumerate(bb.command):
+            if "\0" in item:
+                raise error(f"blackbox.command[{i}]", f"{excerpt(item)} holds a NUL character")
         try:
             render_argv(bb.command, dummy, self._formats)
         except KeyError as exc:
-            raise ModelFileError(exc.args[0], file=label, field="blackbox.command") from None
+            raise error("blackbox.command", exc.args[0]) from None
+        except (ValueError, TypeError, OverflowError) as exc:
+            raise error("blackbox.command", f"an item cannot be rendered ({exc})") from None
+        for key, value in bb.env.items():
+            if not key or "=" in key or "\0" in key or "\0" in value:
+                raise error(f"blackbox.env.{key}", f"{excerpt(key)} = {excerpt(value)} is not an environment "
+                            "variable (a name without '=' and NUL, a value without NUL)")
+        self.outputs: list[str] = []
         self.observables: list[str] = []
         for i, out in enumerate(bb.outputs):
+            self.outputs.append(_in_run_folder(out.file, f"blackbox.outputs[{i}].file", error))
+            if out.reader == "swmm":
+                _check_swmm_output(out.series, f"blackbox.outputs[{i}]", error)
             for name in out.series:
                 if name in self.observables:
-                    raise ModelFileError(f"series {name} is read from two outputs", file=label,
-                                         field=f"blackbox.outputs[{i}].series")
+                    raise error(f"blackbox.outputs[{i}].series", f"series {name} is read from two outputs")
                 self.observables.append(name)
-        runs_dir = (root / bb.runs_dir).resolve() if bb.runs_dir else None
-        self.runs = RunFolders(self.name, base=runs_dir, keep_failed=bb.keep_failed, keep=bb.keep,
-                               exclude={t.source for t in bb.templates})
+        self.restart_out: list[str] = []
+        self.restart_in: list[str] = []
+        if bb.state is not None:
+            for key, names, kept in (("restart_out", bb.state.restart_out, self.restart_out),
+                                     ("restart_in", bb.state.restart_in, self.restart_in)):
+                for i, name in enumerate(names):
+                    kept.append(_in_run_folder(name, f"blackbox.state.{key}[{i}]", error))
+                    if Path(kept[-1]).name in [Path(k).name for k in kept[:-1]]:
+                        raise error(f"blackbox.state.{key}[{i}]", f"{Path(kept[-1]).name!r} is named twice (a "
+                                    "state holds its files by name)")
+        for i, name in enumerate(self.restart_in):
+            if name in targets:
+                raise error(f"blackbox.state.restart_in[{i}]", f"{name!r} is also a template's target (the rendered "
+                            "template would overwrite the restart file)")
+        self.runs = RunFolders(self.name, base=runs_dir, keep_failed=bb.keep_failed, keep=bb.keep, exclude=sources)
+        try:
+            check_tree(self.folder, skip=[runs_dir])
+        except ValueError as exc:
+            raise error("blackbox.folder", str(exc)) from None
+        with contextlib.suppress(OSError):
+            self.runs.sweep()  # the run folders of processes that were killed
         self._origin = f"blackbox:{self.name}"
+
+    def _template(self, source: str, field: str, error: Any) -> Template:
+        """The template ``source`` (a file in the model folder), parsed and checked."""
+        try:
+            rel = relative_path(source, "the model folder")
+        except ValueError as exc:
+            raise error(f"{field}.source", str(exc)) from None
+        path = self.folder / rel
+        if not inside(path, self.folder):
+            raise error(f"{field}.source", f"{path} leads outside the model folder {self.folder}")
+        try:
+            info = os.stat(path)
+        except OSError:
+            what = kind_of(path)
+            raise error(f"{field}.source", f"no such template {path}" if what == "missing" else
+                        f"the template {path} is {what}") from None
+        if not stat.S_ISREG(info.st_mode):
+            raise error(f"{field}.source", f"the template {path} is {kind_of(path)}, not a file")
+        if info.st_size > MAX_TEMPLATE_BYTES:
+            raise error(f"{field}.source", f"the template {path} holds {info.st_size:,} bytes, more than the "
+                        f"{MAX_TEMPLATE_BYTES:,} rivercal reads")
+        try:
+            with open(path, "rb") as f:
+                text = f.read(MAX_TEMPLATE_BYTES + 1).decode("utf-8")
+            template = Template(text, source=str(path))
+            template.check(self.spec.quantities, BUILTINS)
+        except UnicodeDecodeError:
+            raise error(field, f"{path}: not UTF-8 text") from None
+        except OSError as exc:
+            raise error(f"{field}.source", f"{path} cannot be read ({exc.strerror})") from None
+        except ValueError as exc:
+            raise error(field, str(exc)) from None
+        return template
 
     # -- contract facts ---------------------------------------------------------------------------
 
@@ -221,16 +323,22 @@ class BlackBoxModel:
         run = check_run(self, parameters, start, end, state, None)
         values, start, end = self._values(run.parameters), run.start, run.end
         run_start = start - pd.Timedelta(hours=self.meta.spinup) if state is None else start
-        run_dir = self.runs.new(self.folder)
+        try:
+            run_dir = self.runs.new(self.folder)
+        except (OSError, ValueError) as exc:
+            raise BlackBoxRunError(str(self.runs.base), f"cannot make a run folder: {_cause(exc)}") from None
         t0 = _time.perf_counter()
         try:
             series, files = self._run(run_dir, values, start, end, run_start, state)
         except BlackBoxRunError as exc:
             kept = self.runs.failed(run_dir)
-            raise BlackBoxRunError(str(kept), exc.cause) from None
+            raise BlackBoxRunError(str(kept), _cause(exc.cause, run_dir)) from None
         except (OSError, ValueError) as exc:  # writing inputs or restart files
             kept = self.runs.failed(run_dir)
-            raise BlackBoxRunError(str(kept), " ".join(str(exc).split())) from None
+            raise BlackBoxRunError(str(kept), _cause(exc, run_dir)) from None
+        except BaseException:  # interrupted (Ctrl-C): the program is stopped, its folder tells nothing
+            self.runs.discard(run_dir)
+            raise
         wall = _time.perf_counter() - t0
         self.runs.done(run_dir)
         new_state = None
@@ -256,36 +364,36 @@ class BlackBoxModel:
         fail = lambda cause: BlackBoxRunError(str(run_dir), cause)  # noqa: E731
         hot = state is not None
         if hot:
-            for target in self.spec.state.restart_in:  # type: ignore[union-attr]
+            for target in self.restart_in:
                 name = Path(target).name
                 if name not in state.files:
-                    raise ValueError(f"the state has no restart file {name} (has {', '.join(state.files)})")
-                (run_dir / target).parent.mkdir(parents=True, exist_ok=True)
-                (run_dir / target).write_bytes(state.files[name])
+                    raise ValueError(f"the state has no restart file {name} (has {', '.join(sorted(state.files))})")
+                _write(run_dir, target, state.files[name])
         placeholders = {**values, **self._builtins(start, end, run_start, run_dir, hot)}
         for template, target in self.templates:
-            (run_dir / target).parent.mkdir(parents=True, exist_ok=True)
-            (run_dir / target).write_text(template.render(placeholders, self._formats), encoding="utf-8")
+            _write(run_dir, target, template.render(placeholders, self._formats).encode("utf-8"))
         argv = render_argv(self.spec.command, placeholders, self._formats)
-        env = {**os.environ, **self.spec.env}
-        with open(run_dir / "stdout.txt", "wb") as out, open(run_dir / "stderr.txt", "wb") as err:
-            try:
-                proc = subprocess.Popen(argv, cwd=run_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env,
-                                        start_new_session=True)
-            except OSError as exc:
-                raise fail(f"cannot start {argv[0]!r}: {exc.strerror or exc}") from None
-            try:
-                code = proc.wait(timeout=self.spec.timeout)
-            except subprocess.TimeoutExpired:
-                _stop(proc)
-                raise fail(f"the program did not finish within its timeout of {self.spec.timeout:g} s and was "
-                           "stopped") from None
-        if code != 0:
-            raise fail(f"the program exited with status {code}" + _tail(run_dir / "stderr.txt"))
+        env = {**os.environ, **self.spec.env, MARKER: str(run_dir)}
+        outcome = _supervised(argv, run_dir, env, self.spec.timeout)
+        if outcome == "timeout":
+            raise fail(f"the program did not finish within its timeout of {self.spec.timeout:g} s and was stopped "
+                       "(with every process it started)")
+        kind, _, number = outcome.partition(" ")
+        if kind == "error":
+            raise fail(f"cannot start {excerpt(argv[0], 200)}: {os.strerror(int(number))}")
+        if kind == "signal":
+            raise fail(f"the program was ended by signal {_signal_name(int(number))}" + _tail(run_dir / "stderr.txt"))
+        if kind != "exit":
+            raise fail("the program was stopped before it finished")
+        if int(number) != 0:
+            raise fail(f"the program exited with status {int(number)}" + _tail(run_dir / "stderr.txt"))
         frames = []
-        for out in self.spec.outputs:
+        for out, name in zip(self.spec.outputs, self.outputs, strict=True):
+            path = run_dir / name
+            if not inside(path, run_dir):
+                raise fail(f"{name} leads outside the run folder (a link to {os.path.realpath(path)})")
             try:
-                frames.append(read_output(out.reader, run_dir / out.file, out.series, out.time_column))
+                frames.append(read_output(out.reader, path, out.series, out.time_column, label=name))
             except ValueError as exc:
                 raise fail(str(exc)) from None
         series = pd.concat(frames, axis=1) if len(frames) > 1 else frames[0]
@@ -297,6 +405,7 @@ class BlackBoxModel:
             if last is not None:
                 row = pd.DataFrame([last["values"]], index=pd.DatetimeIndex([start]))
                 series = pd.concat([row[self.observables], series])
+        present = times.isin(series.index)
         series = series.reindex(times)
         series.index.name = "time"
         bad = ~np.isfinite(series.to_numpy())
@@ -306,30 +415,214 @@ class BlackBoxModel:
             if len(written) == 0 or when > written.max() or when < written.min():
                 span = f"{written.min()} .. {written.max()}" if len(written) else "nothing"
                 raise fail(f"no value of {what} at {when}: the output covers {span} (truncated?)")
+            if not present[row]:
+                raise fail(f"no value of {what} at {when}: the output has no row at that time (the run's series are "
+                           f"every {self.output_interval:g} s, model.output_interval)")
             raise fail(f"non-finite value of {what} at {when}")
         files = None
         if self.spec.state is not None:
             files = {}
-            for produced, target in zip(self.spec.state.restart_out, self.spec.state.restart_in, strict=True):
-                path = run_dir / produced
-                if not path.is_file():
-                    raise fail(f"the program wrote no restart file {produced}")
-                files[Path(target).name] = path.read_bytes()
+            for produced, target in zip(self.restart_out, self.restart_in, strict=True):
+                files[Path(target).name] = _read_restart(run_dir, produced, fail)
         return series, files
 
 
+def _model_folder(folder: str, root: Path, error: Any) -> Path:
+    """The model folder: ``folder`` relative to the folder of ``model.toml`` and inside it."""
+    try:
+        rel = relative_path(folder, "the folder of model.toml") if folder.strip() not in (".", "./", "") else "."
+    except ValueError as exc:
+        raise error("blackbox.folder", str(exc)) from None
+    path = root / rel
+    try:
+        resolved = Path(os.path.realpath(path, strict=True))
+    except OSError:
+        raise error("blackbox.folder", f"no such folder {path}" if kind_of(path) == "missing" else
+                    f"{path} is {kind_of(path)}") from None
+    if not inside(resolved, root):
+        raise error("blackbox.folder", f"{path} leads outside the folder of model.toml ({resolved})")
+    if not resolved.is_dir():
+        raise error("blackbox.folder", f"{path} is {kind_of(resolved)}, not a folder")
+    return resolved
+
+
+def _runs_dir(runs_dir: str | None, root: Path, folder: Path, name: str, error: Any) -> Path:
+    """Where the run folders go (``runs_dir`` relative to ``model.toml``, or the default), checked writable."""
+    field = "blackbox.runs_dir"
+    if runs_dir is not None and ("\0" in runs_dir or not runs_dir.strip()):
+        raise error(field, f"{excerpt(runs_dir)} is not a folder name")
+    base = Path(os.path.abspath(root / runs_dir)) if runs_dir is not None else default_base(name)
+    if os.path.lexists(base) and not os.path.isdir(base):
+        raise error(field, f"cannot hold run folders in {base}: it is {kind_of(base)}, not a folder")
+    if Path(os.path.realpath(base)) == folder:
+        raise error(field, f"{base} is the model folder: the run folders go elsewhere (they would be copied into "
+                    "each other)")
+    try:  # made now, and written to once, so that a folder that cannot be written fails the load
+        base.mkdir(parents=True, exist_ok=True)
+        os.rmdir(tempfile.mkdtemp(prefix=".rivercal-probe-", dir=base))
+    except OSError as exc:
+        where = f" ({exc.filename})" if exc.filename and str(exc.filename) != str(base) else ""
+        raise error(field, f"cannot hold run folders in {base}: {exc.strerror or exc}{where}") from None
+    return base
+
+
+def _target(spec: Any, field: str, error: Any) -> str:
+    """The file a template becomes, relative to the run folder."""
+    try:
+        name = spec.target_name
+    except ValueError as exc:
+        raise error(f"{field}.target", str(exc)) from None
+    return _in_run_folder(name, f"{field}.target", error)
+
+
+def _in_run_folder(name: str, field: str, error: Any) -> str:
+    """``name`` normalised as a file in the run folder, or a ModelFileError naming ``field``."""
+    try:
+        rel = relative_path(name, "the run folder")
+    except ValueError as exc:
+        raise error(field, str(exc)) from None
+    if rel in ("stdout.txt", "stderr.txt"):
+        raise error(field, f"{rel!r} is where the program's output goes: name another file")
+    return rel
+
+
+def _check_swmm_output(series: Mapping[str, str], field: str, error: Any) -> None:
+    from rivercal.models.swmm.output import parse_element
+
+    for name, spec in series.items():
+        try:
+            parse_element(spec)
+        except ValueError as exc:
+            raise error(f"{field}.series", f"{name}: {exc}") from None
+    if importlib.util.find_spec("swmm") is None:
+        raise error(f"{field}.reader", "reading SWMM output needs swmm-toolkit: install rivercal[swmm]")
+
+
+_WIDTH = re.compile(r"\d{4,}")
+
+
+def _too_wide(spec: str | None) -> bool:
+    """Whether a number format asks for a width or precision above 999 (it would render megabytes)."""
+    return bool(spec) and bool(_WIDTH.search(spec))  # type: ignore[arg-type]
+
+
+def _write(run_dir: Path, target: str, data: bytes) -> None:
+    """Write ``data`` to ``target`` in the run folder (its folders made), never through a link outside."""
+    path = run_dir / target
+    if not inside(path.parent, run_dir):
+        raise ValueError(f"{target} leads outside the run folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_symlink() or not inside(path, run_dir):
+        path.unlink()
+    path.write_bytes(data)
+
+
+def _read_restart(run_dir: Path, produced: str, fail: Any) -> bytes:
+    """The bytes of a restart file the program wrote (a regular file in the run folder, bounded)."""
+    path = run_dir / produced
+    if not inside(path, run_dir):
+        raise fail(f"the restart file {produced} leads outside the run folder (a link to {os.path.realpath(path)})")
+    try:
+        info = os.stat(path)
+    except OSError:
+        what = kind_of(path)
+        raise fail(f"the program wrote no restart file {produced}" if what == "missing" else
+                   f"the restart file {produced} is {what}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise fail(f"the restart file {produced} is {kind_of(path)}, not a file")
+    if info.st_size > MAX_STATE_BYTES:
+        raise fail(f"the restart file {produced} holds {info.st_size:,} bytes, more than the {MAX_STATE_BYTES:,} "
+                   "rivercal keeps as a state")
+    return path.read_bytes()
+
+
+def _supervised(argv: list[str], run_dir: Path, env: Mapping[str, str], timeout: float) -> str:
+    """Run ``argv`` in ``run_dir`` under the supervisor; its report, or ``timeout``.
+
+    The report is ``exit N``, ``signal N``, ``error ERRNO`` or ``stopped``. Whatever ends this call (a
+    timeout, Ctrl-C), the program and everything it started are stopped first. The wait is on the pipe
+    the supervisor reports through (it closes when the supervisor ends), so the run ends when it ends.
+    """
+    status_r, status_w = os.pipe()
+    try:
+        with open(run_dir / "stdout.txt", "wb") as out, open(run_dir / "stderr.txt", "wb") as err:
+            try:
+                proc = subprocess.Popen([sys.executable, "-I", "-S", str(SUPERVISOR), str(os.getpid()), str(status_w),
+                                         "--", *argv], cwd=run_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
+                                        env=dict(env), start_new_session=True, pass_fds=(status_w,))
+            finally:
+                os.close(status_w)
+                status_w = -1
+        report = b""
+        deadline = _time.monotonic() + timeout
+        try:
+            while True:
+                left = deadline - _time.monotonic()
+                if left <= 0:
+                    _stop(proc)
+                    return "timeout"
+                ready, _, _ = select.select([status_r], [], [], min(left, 3600.0))
+                if ready:
+                    chunk = os.read(status_r, 256)
+                    if not chunk:  # the supervisor ended
+                        break
+                    report += chunk[: max(0, 256 - len(report))]
+            proc.wait()
+        except BaseException:
+            _stop(proc)
+            raise
+        return report.decode("ascii", "replace").strip() or "stopped"
+    finally:
+        os.close(status_r)
+        if status_w >= 0:
+            os.close(status_w)
+
+
 def _stop(proc: subprocess.Popen) -> None:
-    """Stop a program and everything it started (its process group), then reap it."""
+    """Tell the supervisor to stop the program and everything it started, and wait; kill it if it hangs."""
+    with contextlib.suppress(ProcessLookupError):
+        proc.send_signal(signal.SIGTERM)
     try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
+        proc.wait(timeout=_STOP_GRACE_S)
+    except subprocess.TimeoutExpired:
+        log.warning("the supervisor of a black-box run did not stop within %g s; killing it", _STOP_GRACE_S)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(proc.pid, signal.SIGKILL)
         proc.kill()
-    proc.wait()
+        proc.wait()
 
 
-def _tail(path: Path, lines: int = 3) -> str:
+def _signal_name(number: int) -> str:
     try:
-        text = path.read_text(encoding="utf-8", errors="replace").strip().splitlines()
+        return signal.Signals(number).name
+    except ValueError:
+        return str(number)
+
+
+def _cause(cause: BaseException | str, run_dir: Path | None = None) -> str:
+    """A failure's cause on one line, short, files named relative to the run folder (which may be renamed)."""
+    if isinstance(cause, OSError) and cause.filename is not None:
+        name = str(cause.filename)
+        if run_dir is not None and name.startswith(str(run_dir) + os.sep):
+            name = name[len(str(run_dir)) + 1:]
+        text = f"{name}: {cause.strerror or cause}"
+    else:
+        text = str(cause)
+    if run_dir is not None:
+        text = text.replace(str(run_dir) + os.sep, "").replace(str(run_dir), "the run folder")
+    text = " ".join(text.split())
+    return text if len(text) <= 600 else text[:600] + "…"
+
+
+def _tail(path: Path, lines: int = 3, width: int = 200) -> str:
+    """``; stderr: …`` with the last lines of the program's stderr (the last 4 KiB read, lines shortened)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            f.seek(max(0, f.tell() - 4096))
+            text = f.read().decode("utf-8", errors="replace")
     except OSError:
         return ""
-    return ("; stderr: " + " | ".join(line.strip() for line in text[-lines:])) if text else ""
+    kept = [line.strip() for line in text.strip().splitlines() if line.strip()][-lines:]
+    kept = [line if len(line) <= width else line[:width] + "…" for line in kept]
+    return ("; stderr: " + " | ".join(kept)) if kept else ""

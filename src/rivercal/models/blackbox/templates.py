@@ -106,11 +106,17 @@ def render_argv(argv: Iterable[str], values: Mapping[str, Any], formats: Mapping
     return [pattern.sub(sub, item) for item in argv]
 
 
+#: A width or precision of four digits or more: a number rendered as megabytes of text.
+_WIDE = re.compile(r"[0-9]{4,}")
+
+
 def _format(name: str, value: Any, spec: str | None) -> str:
     if isinstance(value, bool):
         return (spec if value else "") if spec is not None else str(int(value))
     if isinstance(value, pd.Timestamp):
         return value.strftime(spec) if spec else value.isoformat()
     if isinstance(value, float | int) and not isinstance(value, bool):
+        if spec and _WIDE.search(spec):
+            raise ValueError(f"{name}: the format {spec[:40]!r} asks for a width or precision above 999")
         return format(value, spec) if spec else repr(float(value)) if isinstance(value, float) else str(value)
     return str(value)
