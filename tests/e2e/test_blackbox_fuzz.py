@@ -39,7 +39,7 @@ from tests.unit.test_blackbox import TEMPLATE, TOY
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the process table in /proc")
 
 SEED = 52
-CASES = 140
+CASES = 100
 START = pd.Timestamp("2020-01-01", tz="UTC")
 
 #: Paths under watch: any open() of a file below one of them is recorded (the canaries).

@@ -37,7 +37,7 @@ import json
 import logging
 import os
 import re
-import select
+import selectors
 import signal
 import stat
 import subprocess
@@ -147,6 +147,8 @@ class BlackBoxModel:
                 template.render(dummy, self._formats)
             except (ValueError, TypeError, OverflowError) as exc:
                 raise error(f"blackbox.templates[{i}]", f"{template.source}: cannot be rendered ({exc})") from None
+        if not bb.command[0].strip():
+            raise error("blackbox.command[0]", "the program is empty: give its path or name")
         for i, item in enumerate(bb.command):
             if "\0" in item:
                 raise error(f"blackbox.command[{i}]", f"{excerpt(item)} holds a NUL character")
@@ -556,17 +558,18 @@ def _supervised(argv: list[str], run_dir: Path, env: Mapping[str, str], timeout:
         report = b""
         deadline = _time.monotonic() + timeout
         try:
-            while True:
-                left = deadline - _time.monotonic()
-                if left <= 0:
-                    _stop(proc)
-                    return "timeout"
-                ready, _, _ = select.select([status_r], [], [], min(left, 3600.0))
-                if ready:
-                    chunk = os.read(status_r, 256)
-                    if not chunk:  # the supervisor ended
-                        break
-                    report += chunk[: max(0, 256 - len(report))]
+            with selectors.DefaultSelector() as waiting:  # epoll/kqueue: any descriptor number
+                waiting.register(status_r, selectors.EVENT_READ)
+                while True:
+                    left = deadline - _time.monotonic()
+                    if left <= 0:
+                        _stop(proc)
+                        return "timeout"
+                    if waiting.select(min(left, 3600.0)):
+                        chunk = os.read(status_r, 256)
+                        if not chunk:  # the supervisor ended
+                            break
+                        report += chunk[: max(0, 256 - len(report))]
             proc.wait()
         except BaseException:
             _stop(proc)

@@ -13,7 +13,8 @@
 What is read is bounded: a text output (CSV, PI-XML) holds at most :data:`MAX_TEXT_BYTES` and a CSV line
 at most :data:`MAX_LINE_BYTES`; anything larger is refused before it is parsed. A CSV cell in a column of
 numbers that is text is refused naming its line and column (a text longer than :data:`MAX_FIELD_CHARS`
-characters without being parsed), and every message quotes at most :data:`EXCERPT` characters of a file. A time written twice in one output is refused (naming the file and the time): which of the two
+characters without being parsed), and every message quotes at most :data:`EXCERPT` characters of a
+file. A time written twice in one output is refused (naming the file and the time): which of the two
 rows the program meant cannot be told.
 
 Every reader raises ValueError naming the file (by the label it is given: its name in the run folder)
@@ -134,14 +135,14 @@ def _csv(path: Path, series: Mapping[str, str], time_column: str, label: str) ->
     names = [h.strip() for h in header]
     if time_column not in names:
         shown = ", ".join(excerpt(n) for n in names[:20]) + (", …" if len(names) > 20 else "")
-        raise ValueError(f"{label}: no time column {time_column!r} (columns: {shown or 'none'})")
+        raise ValueError(f"{label}: no time column {excerpt(time_column, 80)} (columns: {shown or 'none'})")
     wanted = {time_column, *series.values()}
     for name, column in series.items():
         if column not in names:
-            raise ValueError(f"{label}: no column {column!r} for {name}")
+            raise ValueError(f"{label}: no column {excerpt(column, 80)} for {name}")
     for column in wanted:
         if names.count(column) > 1:
-            raise ValueError(f"{label}: column {column!r} appears {names.count(column)} times")
+            raise ValueError(f"{label}: column {excerpt(column, 80)} appears {names.count(column)} times")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", pd.errors.ParserWarning)  # the first row longer than the header
@@ -180,8 +181,10 @@ def _netcdf(path: Path, series: Mapping[str, str], time_column: str, label: str)
 
     try:
         ds = xr.open_dataset(path)
-    except (OSError, ValueError, TypeError, KeyError) as exc:
-        raise ValueError(f"{label}: not a readable NetCDF file ({_clip(str(exc), 120)})") from None
+    except OSError as exc:
+        raise ValueError(f"{label}: not a readable NetCDF file ({exc.strerror or 'the file is damaged'})") from None
+    except (ValueError, TypeError, KeyError):  # xarray's own words speak to a Python user (engine=...)
+        raise ValueError(f"{label}: not a readable NetCDF file (not NetCDF, or damaged)") from None
     with ds:
         if "time" not in ds.coords:
             raise ValueError(f"{label}: no time coordinate")
@@ -193,24 +196,24 @@ def _netcdf(path: Path, series: Mapping[str, str], time_column: str, label: str)
         for name, spec in series.items():
             var, _, ident = spec.partition("@")
             if var not in ds.data_vars:
-                raise ValueError(f"{label}: no variable {var!r} for {name}")
+                raise ValueError(f"{label}: no variable {excerpt(var, 80)} for {name}")
             da = ds[var]
             if ident:
                 dims = [d for d in da.dims if d != "time"]
                 coord = next((ds[d] for d in dims if d in ds and ds[d].attrs.get("cf_role") == "timeseries_id"), None)
                 if coord is None:
-                    raise ValueError(f"{label}: variable {var!r} has no timeseries_id coordinate for {spec!r}")
+                    raise ValueError(f"{label}: variable {excerpt(var, 80)} has no timeseries_id coordinate")
                 ids = [str(v) for v in coord.values]
                 if ident not in ids:
                     shown = ", ".join(excerpt(i) for i in ids[:20]) + (", …" if len(ids) > 20 else "")
-                    raise ValueError(f"{label}: {var!r} has no series {ident!r} (has {shown})")
+                    raise ValueError(f"{label}: {excerpt(var, 80)} has no series {excerpt(ident, 80)} (has {shown})")
                 da = da.isel({coord.name: ids.index(ident)})
             if da.dims != ("time",):
-                raise ValueError(f"{label}: {spec!r} is not one series over time (dimensions {da.dims})")
+                raise ValueError(f"{label}: {excerpt(spec, 80)} is not one series over time (dimensions {da.dims})")
             try:
                 out[name] = np.asarray(da.values, dtype=float)
             except (ValueError, TypeError):
-                raise ValueError(f"{label}: variable {var!r} does not hold numbers") from None
+                raise ValueError(f"{label}: variable {excerpt(var, 80)} does not hold numbers") from None
     return pd.DataFrame(out, index=index)
 
 
@@ -227,7 +230,8 @@ def _pixml(path: Path, series: Mapping[str, str], time_column: str, label: str) 
         s = found.get(key)
         if s is None:
             shown = ", ".join(excerpt(k) for k in list(found)[:20]) + (", …" if len(found) > 20 else "")
-            raise ValueError(f"{label}: no series {key!r} (locationId/parameterId) for {name}; has {shown or 'none'}")
+            raise ValueError(f"{label}: no series {excerpt(key, 80)} (locationId/parameterId) for {name}; has "
+                             f"{shown or 'none'}")
         values = np.where(s.values == s.miss_val, np.nan, s.values.astype(float))
         parts.append(pd.Series(values, index=pd.DatetimeIndex(s.times), name=name))
         if parts[-1].index.has_duplicates:

@@ -10,8 +10,8 @@ A process that was killed (SIGKILL, a power cut) cannot remove its run folder. T
 which process made it: its pid and its start time (``<started>``, clock ticks since boot from
 ``/proc/<pid>/stat``, so that a reused pid does not pass for the old owner). When a model is loaded, and
 before a process's first run, the base folder is swept: the ``run-`` folders of a process that no longer
-lives are removed, after their programs, if any still runs, are killed (a program carries its run folder
-in the environment variable :data:`MARKER`; found through ``/proc``).
+lives are removed (kept with ``keep``), after their programs, if any still runs, are killed (a program
+carries its run folder in the environment variable :data:`MARKER`; found through ``/proc``).
 """
 
 from __future__ import annotations
@@ -122,11 +122,14 @@ class RunFolders:
             m = _RUN.match(entry.name)
             if m and not _alive(int(m.group(1)), int(m.group(2))) and entry.is_dir() and not entry.is_symlink():
                 stale.append(entry)
-        if stale:
-            stop_marked({str(p) for p in stale})
-            for path in stale:
-                shutil.rmtree(path, ignore_errors=True)
-            log.info("removed %d run folders of ended processes in %s", len(stale), self.base)
+        if not stale:
+            return []
+        stop_marked({str(p) for p in stale})
+        if self.keep:  # every run folder is kept, a killed run's too (its processes are stopped)
+            return []
+        for path in stale:
+            shutil.rmtree(path, ignore_errors=True)
+        log.info("removed %d run folders of ended processes in %s", len(stale), self.base)
         return stale
 
     # -- runs -------------------------------------------------------------------------------------

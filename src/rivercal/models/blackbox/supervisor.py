@@ -31,6 +31,8 @@ _LINUX = sys.platform.startswith("linux")
 _PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
+#: Whether this process became a child subreaper (every descendant then stays below it).
+_SUBREAPER = False
 
 
 class _Stop(Exception):
@@ -86,6 +88,9 @@ def _kill_all(program, deadline_s=30.0):
     ended = {}
     stop = time.monotonic() + deadline_s
     while True:
+        ended.update(_reap())
+        if _SUBREAPER and not _has_children():  # a subreaper without children has no descendants at all
+            return ended
         if _LINUX:
             left = _below(os.getpid())
         else:  # no /proc: the program's process group is what can be reached
@@ -105,6 +110,15 @@ def _kill_all(program, deadline_s=30.0):
         time.sleep(0.005)
 
 
+def _has_children():
+    """Whether this process has a child, live or ended but not yet reaped."""
+    try:
+        os.waitid(os.P_ALL, 0, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+    except ChildProcessError:
+        return False
+    return True
+
+
 def _report(fd, text):
     try:
         os.write(fd, (text + "\n").encode())
@@ -121,8 +135,9 @@ def main(args):
 
     for sig in _STOP_SIGNALS:
         signal.signal(sig, stop)
+    global _SUBREAPER
     if _LINUX:
-        _prctl(_PR_SET_CHILD_SUBREAPER, 1)
+        _SUBREAPER = _prctl(_PR_SET_CHILD_SUBREAPER, 1)
         _prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM))
     if os.getppid() != parent:  # rivercal ended before the parent-death signal was armed
         _report(fd, "stopped")
@@ -145,7 +160,9 @@ def main(args):
                 os.close(fd)
                 os.execvp(argv[0], argv)
             except OSError as exc:
-                os.write(errors_w, str(exc.errno or 0).encode())
+                os.write(errors_w, str(exc.errno or 22).encode())
+            except BaseException:  # an argument the system refuses (ValueError): "invalid argument"
+                os.write(errors_w, b"22")
             finally:
                 os._exit(127)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
