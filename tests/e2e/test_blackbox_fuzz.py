@@ -45,6 +45,7 @@ START = pd.Timestamp("2020-01-01", tz="UTC")
 #: Paths under watch: any open() of a file below one of them is recorded (the canaries).
 _WATCHED: list[str] = []
 _OPENED: list[str] = []
+_HOOKED: list[bool] = []
 
 
 def _audit(event: str, args: tuple) -> None:
@@ -55,7 +56,12 @@ def _audit(event: str, args: tuple) -> None:
             _OPENED.append(path)
 
 
-sys.addaudithook(_audit)
+def _watch(folder: Path) -> None:
+    """Record every open() below ``folder`` from now on (an audit hook, installed once: it cannot be removed)."""
+    if not _HOOKED:
+        sys.addaudithook(_audit)
+        _HOOKED.append(True)
+    _WATCHED[:] = [str(folder.resolve())]
 
 PATHS = ["../outside/canary.txt", "../../outside/canary.txt", "{canary}", "/etc/passwd", "", " ", ".", "..",
          "a/../../x", "sub/./x.txt", "x\0y", "n" * 300, "ü.txt", "stdout.txt", "toy.py", "input.json",
@@ -210,7 +216,7 @@ def test_fuzzed_model_toml_fields_end_in_a_result_or_a_clean_error(tmp_path: Pat
     canary = outside / "canary.txt"
     canary.write_text("time,level,flow\n2020-01-01T00:00:00Z,1,1\n")
     before_outside = sorted(p.name for p in outside.iterdir())
-    _WATCHED[:] = [str(outside.resolve())]
+    _watch(outside)
     outcomes: dict[str, int] = {}
     try:
         for i in range(CASES):
