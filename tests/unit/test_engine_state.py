@@ -16,7 +16,7 @@ def test_state_bytes_round_trip_continues_the_run_exactly() -> None:
     _, state = model.simulate(None, end=mid)
     back = EngineState.from_bytes(state.to_bytes())
     assert back.time == state.time and back.signature == state.signature
-    for name in ("z", "dz", "vol", "u", "q", "pump_on"):
+    for name in ("z", "dz", "vol", "u", "q", "pump_on", "control", "flicker", "swing"):
         assert np.array_equal(getattr(back, name), getattr(state, name)), name
     end = mid + (model.end - mid) / 8
     end = end.floor("h")

@@ -82,10 +82,18 @@ def test_every_time_step_is_right_or_stops_with_a_clear_error(tmp_path: Path, dx
             assert sim.last_run_stats["divided_steps"] > 0
 
 
+def test_an_hour_long_step_on_a_10_m_grid_is_divided_until_it_is_right(tmp_path: Path) -> None:
+    sim, reference = _run(tmp_path / "dt5", 10.0, 5.0, hours=24.0)
+    sim, result = _run(tmp_path / "dt3600", 10.0, 3600.0, hours=24.0)  # Courant number ~1000
+    worst = float(np.abs(result.levels.iloc[-1].to_numpy() - reference.levels.iloc[-1].to_numpy()).max())
+    assert worst < 0.01
+    assert sim.last_run_stats["max_division"] >= 256
+
+
 def test_a_step_that_no_division_can_save_stops_with_the_place_and_what_to_change(tmp_path: Path) -> None:
     with pytest.raises(EngineDivergedError) as info:
-        _run(tmp_path, 10.0, 3600.0, hours=24.0)  # Courant number ~1000; 56 s sub-steps still cross 15 links
+        _run(tmp_path, 2.0, 3600.0, hours=2.0)  # 3.5 s sub-steps still cross a 2 m link four times
     exc = info.value
     assert exc.location.startswith(("A@", "node:"))
     assert "reduce engine.dt" in exc.detail
-    assert "sub-steps of 56.2 s" in exc.detail
+    assert "sub-steps of 3.52 s" in exc.detail

@@ -38,15 +38,20 @@ from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_net
 from rivercal.engine.controllers import Controls, ControlValues
 from rivercal.engine.kernels.codes import (
     BOUNDARY_LEVEL,
+    CONTROL_STATS,
     DRY_TOLERANCE,
+    FLICKER_DZ,
     MAX_HALVINGS,
     STAT_DRYING,
+    STAT_FLICKERS,
     STAT_MAX_LEVEL,
+    STAT_REDONE,
     STAT_REFINED,
     STAT_SOLVES,
     STAT_STEPS,
     STAT_SUBSTEPS,
     STATUS_DRY,
+    STATUS_FLICKER,
     STATUS_OK,
     STATUS_VELOCITY,
 )
@@ -520,6 +525,9 @@ class Simulator:
         balance = np.zeros(a.b_hp.size + 1)
         initial_volume = self._domain_volume(state)
         self._work.stats[:] = 0
+        self._work.stats[list(CONTROL_STATS)] = state.control  # the step control continues where it stopped
+        self._work.flick[:] = state.flicker
+        self._work.swing[:] = state.swing
         self._work.wreq_sum[:] = 0.0
         self._work.wshort_sum[:] = 0.0
         status, step, index = time_loop(self, self._work, cx, crest, fric,
@@ -527,6 +535,9 @@ class Simulator:
                                         out_every, (obs, zs, qs, balance))
         if cx is not None:
             obs[:, n_obs:] = cx.out
+        state.control = self._work.stats[list(CONTROL_STATS)].copy()
+        state.flicker = self._work.flick.copy()
+        state.swing = self._work.swing.copy()
         self.last_run_stats = run_stats(self._work.stats)
         log.debug("%s%s", phase + ": " if phase else "", self.last_run_stats)
         self.last_run_shortfalls = self._shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
@@ -574,17 +585,29 @@ class Simulator:
             return when, where, (
                 f"the level falls {-depth:.3g} m below the bed (more than {DRY_TOLERANCE:g} m) even with the time "
                 f"step divided into {2**MAX_HALVINGS} sub-steps of {smallest:.3g} s{courant}; the point loses more "
-                "water per step than it holds: reduce engine.dt, or check the withdrawals and pumps there")
+                "water per sub-step than it holds: reduce engine.dt (the longest step), or check the withdrawals and "
+                "pumps there")
+        if status == STATUS_FLICKER:
+            return when, where, (
+                f"the level there goes up and down by more than {FLICKER_DZ * 100:g} cm again and again, every few "
+                f"steps, even with the time step divided into {2**MAX_HALVINGS} sub-steps "
+                f"of {smallest:.3g} s{courant}: the flow there cannot be resolved; reduce engine.dt (the longest "
+                "step), or check the structures and the cross-sections at that point (a structure on a nearly dry "
+                "bed, a profile narrower than its "
+                "neighbours)")
         return when, where, f"level {float(z[index]):.6g} m AD"
 
     def _courant_near(self, point: int, u: np.ndarray) -> str:
-        """``", Courant number u·dt/dx up to C at the links of this point"`` (empty without flow), for messages."""
+        """``" (Courant number u·dt/dx up to C at the links there)"`` at the smallest sub-step, for messages.
+
+        Empty without flow.
+        """
         a = self.compiled.arrays
         links = np.flatnonzero((a.lk_k1 == point) | (a.lk_k2 == point))
         if links.size == 0:
             return ""
-        courant = float(np.max(np.abs(u[links]) * self.dt * a.lk_ilen[links]))
-        return f", Courant number u·dt/dx up to {courant:.3g} at the links there" if courant > 0 else ""
+        courant = float(np.max(np.abs(u[links]) * self.dt / 2**MAX_HALVINGS * a.lk_ilen[links]))
+        return f" (Courant number u·dt/dx up to {courant:.3g} at the links there)" if courant > 0 else ""
 
     # -- views ---------------------------------------------------------------------------------------
 
@@ -645,7 +668,8 @@ def run_stats(stats: np.ndarray) -> dict[str, int]:
     """The counters of a run (``Work.stats``) by name: steps, solves, drying re-solves and the step control's."""
     return {"steps": int(stats[STAT_STEPS]), "solves": int(stats[STAT_SOLVES]),
             "drying_resolves": int(stats[STAT_DRYING]), "divided_steps": int(stats[STAT_REFINED]),
-            "substeps": int(stats[STAT_SUBSTEPS]), "max_division": 2 ** int(stats[STAT_MAX_LEVEL])}
+            "substeps": int(stats[STAT_SUBSTEPS]), "max_division": 2 ** int(stats[STAT_MAX_LEVEL]),
+            "redone": int(stats[STAT_REDONE]), "flickers": int(stats[STAT_FLICKERS])}
 
 
 def _ratio(a: float, b: float, what_a: str, what_b: str) -> int:

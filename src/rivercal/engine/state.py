@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rivercal.engine.kernels.codes import CONTROL_STATS
 from rivercal.observations import CF_VARIABLES
 
 __all__ = ["EngineState", "Shortfall", "SimulationResult", "VolumeBalance"]
@@ -40,6 +41,12 @@ class EngineState:
         The controllers' state, one row per controller (:mod:`rivercal.engine.kernels.control`: integral in
         m·s, last error in m, crest in m AD, time since the last action in s, target crest in m AD, started);
         no rows for a network without controllers.
+    control
+        The step control's state (:data:`rivercal.engine.kernels.codes.CONTROL_STATS`: sub-step levels and their
+        counters), so that a run continued from the state divides its steps as the whole run would; zeros for a
+        cold start.
+    flicker, swing
+        Per h-point, the flicker detector's count and the level's change since it last turned, m.
     """
 
     time: pd.Timestamp
@@ -51,6 +58,15 @@ class EngineState:
     pump_on: np.ndarray
     signature: tuple[int, int]
     ctl: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    control: np.ndarray = field(default_factory=lambda: np.zeros(len(CONTROL_STATS), dtype=np.int64))
+    flicker: np.ndarray | None = None
+    swing: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.flicker is None:
+            self.flicker = np.zeros(np.shape(self.z), dtype=np.int32)
+        if self.swing is None:
+            self.swing = np.zeros(np.shape(self.z))
 
     def copy(self) -> EngineState:
         """A deep copy (the engine updates states in place)."""
@@ -64,6 +80,9 @@ class EngineState:
             pump_on=self.pump_on.copy(),
             signature=self.signature,
             ctl=self.ctl.copy(),
+            control=self.control.copy(),
+            flicker=self.flicker.copy(),
+            swing=self.swing.copy(),
         )
 
     #: Format tag of :meth:`to_bytes` (stored with the bytes so a later rivercal can tell what it reads).
@@ -73,7 +92,8 @@ class EngineState:
         """The state as bytes (an ``.npz`` archive of plain arrays; no pickle), for the on-line store."""
         buffer = io.BytesIO()
         np.savez(buffer, time_ns=np.int64(self.time.value), z=self.z, dz=self.dz, vol=self.vol, u=self.u, q=self.q,
-                 pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64), ctl=self.ctl)
+                 pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64), ctl=self.ctl,
+                 control=self.control, flicker=self.flicker, swing=self.swing)
         return buffer.getvalue()
 
     @classmethod
@@ -92,7 +112,11 @@ class EngineState:
                 return cls(time=pd.Timestamp(int(f["time_ns"]), tz="UTC"), z=f["z"], dz=f["dz"], vol=f["vol"],
                            u=f["u"], q=f["q"], pump_on=f["pump_on"],
                            signature=tuple(int(v) for v in f["signature"]),  # type: ignore[arg-type]
-                           ctl=f["ctl"] if "ctl" in f.files else np.zeros((0, 6)))
+                           ctl=f["ctl"] if "ctl" in f.files else np.zeros((0, 6)),
+                           control=f["control"] if "control" in f.files else np.zeros(len(CONTROL_STATS),
+                                                                                        dtype=np.int64),
+                           flicker=f["flicker"] if "flicker" in f.files else None,
+                           swing=f["swing"] if "swing" in f.files else None)
         except (OSError, KeyError, ValueError) as exc:
             raise ValueError(f"not an engine state archive ({exc})") from None
 

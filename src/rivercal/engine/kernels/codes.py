@@ -79,6 +79,7 @@ STATUS_OK = 0
 STATUS_LEVEL = 1  # a level left the plausible range (the index is an h-point)
 STATUS_VELOCITY = 2  # a velocity exceeded engine.max_velocity (the index is a link)
 STATUS_DRY = 3  # a level fell below its bed by more than DRY_TOLERANCE at the smallest sub-step (h-point)
+STATUS_FLICKER = 4  # a level alternated up and down from step to step at the smallest sub-step (h-point)
 
 # -- counters of a run (``Work.stats``) -----------------------------------------------------------
 STAT_STEPS = 0
@@ -92,7 +93,16 @@ STAT_CALM = 7  # steps since the level last rose or fell
 STAT_RELAX = 8  # calm steps after which the level falls by one (doubles when a fall is undone at once)
 STAT_FELL = 9  # 1 while the last change of the level was a fall
 STAT_AMP = 10  # the last explicit-depth amplification of the step control, in millionths (kernels.stability)
-N_STATS = 11
+STAT_ACC = 11  # the sub-step level the accuracy control asks for this step (state of the step control)
+STAT_FLICKERS = 12  # times a point's level flickered (FLICKER_LIMIT)
+STAT_FLICKER_AT = 13  # the point of the last such flicker (-1: none)
+STAT_REDONE = 14  # (sub-)steps computed again, shorter, because the screen refused them
+STAT_ACC_NEXT = 15  # the accuracy level the last committed sub-step asks of the next step
+STAT_LAST = 16  # the sub-step level of the last committed (sub-)step
+N_STATS = 17
+#: The entries of ``Work.stats`` that are the step control's state, carried from run to run in the engine state
+#: (a run split in two then computes what the whole run computes).
+CONTROL_STATS = (STAT_LEVEL, STAT_CALM, STAT_RELAX, STAT_FELL, STAT_AMP, STAT_ACC, STAT_ACC_NEXT, STAT_LAST)
 
 #: Relative difference of the depths at a channel link's two ends, the downstream one the smaller, above
 #: which its friction moves from the upwind depth towards their mean
@@ -103,7 +113,7 @@ FRICTION_GRADUAL = 0.3
 
 # -- the step control (:mod:`rivercal.engine.kernels.timeloop`) -----------------------------------
 #: Most halvings of a step: a step is divided into at most 2^MAX_HALVINGS sub-steps.
-MAX_HALVINGS = 6
+MAX_HALVINGS = 10
 #: A level this far below its bed (m) is not accepted: the (sub-)step is divided, or the run stops.
 DRY_TOLERANCE = 0.05
 #: Calm steps after which the sub-step level first falls by one again.
@@ -112,6 +122,21 @@ RELAX_STEPS = 16
 AMP_RISE = 1.0
 #: ... and below which the sub-step level may fall again (a doubled step roughly doubles it).
 AMP_FALL = 0.4
+#: The accuracy control. Its error estimate of a (sub-)step is the largest difference at a point (not a level
+#: boundary) between the solved level and the level extrapolated from the last (sub-)step's change at the same rate
+#: (:func:`.fluxes.check_levels`): about half the curvature of the level's path times the step squared, the local
+#: error of the scheme's first-order time integration. A step is sized for an estimate of ERR_TARGET (m) ...
+ERR_TARGET = 0.01
+#: ... and computed again, halved, above ERR_REDO (m).
+ERR_REDO = 0.05
+#: Flicker: a level that turns (from rising to falling, or back) after moving more than FLICKER_DZ (m) since its
+#: last turn adds FLICKER_TURN to its point's count, and every (sub-)step takes one off; at FLICKER_LIMIT the point
+#: flickers (:func:`.fluxes.finish_step`). Turns every step reach it at the fourth, turns every fourth step at the
+#: sixth; turns FLICKER_TURN or more steps apart never do: an oscillation with a period under about twice that many
+#: steps is not resolved by the step, whether the scheme or the flow started it.
+FLICKER_DZ = 0.01
+FLICKER_TURN = 8
+FLICKER_LIMIT = 24
 
 # -- columns of a row of ``lk_runs`` (:func:`rivercal.engine.plan.link_runs`) ---------------------
 RUN_LINK = 0

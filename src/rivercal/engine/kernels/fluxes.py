@@ -19,6 +19,9 @@ from rivercal.engine.kernels.assemble import in_pieces
 from rivercal.engine.kernels.codes import (
     BOUNDARY_DISCHARGE,
     BOUNDARY_RATING,
+    FLICKER_DZ,
+    FLICKER_LIMIT,
+    FLICKER_TURN,
     LINK_CHANNEL,
     LINK_PUMP,
     RUN_COUNT,
@@ -26,6 +29,9 @@ from rivercal.engine.kernels.codes import (
     RUN_K2,
     RUN_LINK,
     STAT_DRYING,
+    STAT_FLICKER_AT,
+    STAT_FLICKERS,
+    STATUS_FLICKER,
     STATUS_LEVEL,
     STATUS_OK,
     STATUS_VELOCITY,
@@ -41,6 +47,7 @@ __all__ = [
     "gross_outflow",
     "level_of_volume",
     "limit_draining_links",
+    "too_fast",
 ]
 
 
@@ -121,9 +128,12 @@ def limit_draining_links(net, work, vol, dt, qn):
 
     With the fluxes ``qn`` (m³/s) of :func:`compute_fluxes` (and their gross outflow per point,
     :func:`gross_outflow`), a point that would lose more water than it holds plus receives (its
-    volume would become negative, the level below the lowest bed) has the flux area of
-    every link carrying water out of it scaled by ``0.9 × available / outflow``; a pump drawing from it
-    is throttled likewise. Returns the number of points limited; the caller solves again.
+    volume would become negative, the level below the lowest bed) has the flux of every link carrying water
+    out of it scaled by ``0.9 × available / outflow``: a channel link's flux area, a structure's (and a pump's)
+    coefficients r and f. A structure's law is fully implicit (its flux is A u^{n+1}), so both scale its flux
+    alike; scaling its velocity keeps u = Q / A, where a vanishing area would leave a velocity that no
+    level answers and that the next step's law starts from (a culvert below a point that ran dry
+    accelerated to 20 m/s that way). Returns the number of points limited; the caller solves again.
     """
     netq, outflow, fixed = work.netq, work.rhs, work.fixed
     drains = False
@@ -141,33 +151,54 @@ def limit_draining_links(net, work, vol, dt, qn):
         for c in range(net.nl_ptr[i], net.nl_ptr[i + 1]):
             link = net.nl_link[c]
             if -net.nl_sign[c] * qn[link] > 0.0:  # water leaves i through this link
-                if net.lk_type[link] == LINK_PUMP:
-                    work.rco[link] *= factor
-                else:
+                if net.lk_type[link] == LINK_CHANNEL:
                     work.area[link] *= factor
+                else:  # a structure (or pump): its velocity, not its flow area, so that u stays Q / A
+                    work.rco[link] *= factor
+                    work.fco[link] *= factor
         limited += 1
     return limited
 
 
 @kernel
-def check_levels(net, work):
+def check_levels(net, work, z, dz, shorter, small):
     """Screen the solved levels ``work.zk`` (m AD) of a (sub-)step before :func:`finish_step` commits them.
 
-    Returns the first point whose level lies below ``work.floor``, more than ``DRY_TOLERANCE`` below its bed (a
-    NaN counts as below), or -1 when there is none. Level-boundary points are not checked (their floor is
-    -inf: their level is imposed). Runs before the commit, so that the time loop can divide the step instead.
-    One count over the points first, so that it vectorises; the search runs only when a point fails.
+    Returns (dry, error): the first point whose level lies below ``work.floor``, more than ``DRY_TOLERANCE``
+    below its bed (a NaN counts as below), or -1 when there is none (level-boundary points are not checked: their
+    floor is -inf); the step control's error estimate, the largest difference (m) at a point that is not a level
+    boundary between the solved level and its extrapolation ``z + dz / shorter`` from ``z`` (m AD), the level at
+    the (sub-)step's start, and ``dz`` (m), the change of the last (sub-)step, which was ``shorter`` times as long
+    (0 when no point differs by more than ``small``, m). One pass over the points that vectorises (counts, no
+    floating-point maximum); the error and the dry point are searched only when some point calls for them.
     """
-    zk, floor = work.zk, work.floor
+    zk, floor, fixed = work.zk, work.floor, work.fixed
+    back = 1.0 / shorter
     low = 0
+    off = 0
     for i in range(zk.size):
         low += not zk[i] >= floor[i]
+        off += (math.fabs(zk[i] - z[i] - dz[i] * back) > small) & (not fixed[i])
+    error = 0.0
+    if off > 0:
+        for i in range(zk.size):
+            if not fixed[i]:
+                error = max(error, math.fabs(zk[i] - z[i] - dz[i] * back))
     if low == 0:
-        return -1
+        return -1, error
     for i in range(zk.size):
         if not zk[i] >= floor[i]:
-            return i
-    return -1
+            return i, error
+    return -1, error
+
+
+@kernel
+def too_fast(un, vmax):
+    """Whether a velocity of ``un`` (m/s) exceeds ``vmax`` (m/s), or is NaN (a pass that vectorises)."""
+    fast = False
+    for link in range(un.size):
+        fast |= not math.fabs(un[link]) <= vmax
+    return fast
 
 
 @kernel
@@ -179,6 +210,12 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
     check: ``STATUS_OK`` or the h-point / link at fault (the first one). Adds what the withdrawals asked and
     what they lacked (:func:`.forcing.apply_forcing`) to their run totals (``work.wreq_sum``,
     ``work.wshort_sum``, m³).
+
+    Flicker: per point, ``work.swing`` holds the change (m) since its level last turned (from rising to falling or
+    back), and a turn after a swing of more than ``FLICKER_DZ`` adds to its count ``work.flick`` (see
+    ``FLICKER_LIMIT``). A point that turns too often within a few (sub-)steps makes it return ``STATUS_FLICKER``
+    with that point (its count starts again; the step is committed): an oscillation of a few steps' period is not
+    resolved by the step.
 
     The loops over all points and links have no branches (their checks are conjunctions), so that they
     vectorise; the rare cases (a level outside its linearised piece, a divergence) are handled after them.
@@ -193,10 +230,18 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
             if not work.fixed[i] and not zlo[i] <= zk[i] <= zhi[i]:
                 zk[i] = level_of_volume(net, i, vol[i] + dt * netq[i], zk[i])
     finite = True
+    flick, swing = work.flick, work.swing
+    worst = 0
     for i in range(zk.size):
         zi = zk[i]
         vol[i] += dt * netq[i]
-        dz[i] = zi - z[i]
+        d = zi - z[i]
+        onward = d * swing[i] >= 0.0
+        turned = (not onward) & (math.fabs(swing[i]) > FLICKER_DZ)
+        swing[i] = swing[i] + d if onward else d
+        flick[i] = flick[i] - (flick[i] > 0) + FLICKER_TURN * turned
+        worst = max(worst, flick[i])
+        dz[i] = d
         z[i] = zi
         finite &= math.fabs(zi - net.hp_bed[i]) <= 1.0e4  # also NaN
     for bnd in range(net.b_hp.size):
@@ -222,12 +267,20 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
             if not math.fabs(z[i] - net.hp_bed[i]) <= 1.0e4:
                 return STATUS_LEVEL, i
     calm = True
-    for link in range(un.size):
-        calm &= math.fabs(un[link]) <= vmax  # also NaN
+    if vmax < math.inf:  # otherwise the step control has checked them (:func:`.too_fast`)
+        for link in range(un.size):
+            calm &= math.fabs(un[link]) <= vmax  # also NaN
     if not calm:
         for link in range(un.size):
             if not math.fabs(un[link]) <= vmax:
                 return STATUS_VELOCITY, link
+    if worst >= FLICKER_LIMIT:
+        for i in range(flick.size):
+            if flick[i] >= FLICKER_LIMIT:
+                flick[i] = 0
+                work.stats[STAT_FLICKERS] += 1
+                work.stats[STAT_FLICKER_AT] = i
+                return STATUS_FLICKER, i
     return STATUS_OK, -1
 
 

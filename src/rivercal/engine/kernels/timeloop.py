@@ -15,16 +15,28 @@ Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003), each phase 
    divergence checks.
 5. :mod:`.record` — the station series at the output times.
 
-**Step control.** A step is divided into two half steps (the way SOBEK halves a failing step), down to
-2^``MAX_HALVINGS`` sub-steps, when the flow is forecast to be too fast for it — the explicit upwind depth
-would amplify level errors from step to step by more than ``AMP_RISE`` (:mod:`.stability`), which at
-Courant numbers above about 2 on a steep reach makes the solution alternate between two states or
-diverge — and when its solved levels fail the screen (then it is not committed but computed again): a
-level more than ``DRY_TOLERANCE`` below its bed. The sub-step level carries over to the next steps and
-falls by one after ``RELAX_STEPS`` calm steps (twice as many each time a fall is undone at once). Sub-steps
-share the step's discharges; a level boundary moves linearly to its level for the step's end. When the
-smallest sub-step fails too, the run stops with ``STATUS_DRY`` and the point. A run that never needs it
-computes exactly what it computed before.
+**Step control.** ``engine.dt`` is the longest step; a step is divided into 2^level sub-steps (down to
+2^``MAX_HALVINGS``, the way SOBEK halves a failing step) by two controls, the finer of whose levels is used:
+
+- *stability*: when the flow is forecast to be too fast for the step — the explicit upwind depth would amplify
+  level errors from step to step by more than ``AMP_RISE`` (:mod:`.stability`), which at Courant numbers above
+  about 2 on a steep reach makes the solution alternate between two states or diverge — and when a solved
+  (sub-)step fails the screen before it is committed (then it is computed again, shorter): a level more than
+  ``DRY_TOLERANCE`` below its bed or NaN, a velocity above ``engine.max_velocity``. A level that flickers (turns up and
+  down by more than ``FLICKER_DZ`` again and again within a few steps, :func:`.fluxes.finish_step`) makes the
+  coming sub-steps finer. This level carries over to the next steps and falls by one after ``RELAX_STEPS``
+  calm steps (twice as many each time a fall is undone at once);
+- *accuracy*: the error estimate of a solved (sub-)step, the largest difference between a solved level and
+  its extrapolation from the last (sub-)step's change (about half the curvature of the level's path times the
+  step squared: the local error of the first-order time integration), must stay below ``ERR_REDO``, or the
+  (sub-)step is computed again, halved; each step is sized for ``ERR_TARGET`` from the last one's estimate,
+  and may become coarser by one level per step.
+
+Sub-steps share the step's discharges; a level boundary moves linearly to its level for the step's end. When the
+smallest sub-step still fails, the run stops with ``STATUS_DRY`` or ``STATUS_FLICKER`` and the point (or the
+divergence's status and place). The control's state is part of the engine state, so that a run continued from a
+state divides its steps as the whole run would. A run that never needs a division computes exactly what it
+computed without the control.
 
 Each phase is its own compiled function taking the network arrays (``net``) and the scratch arrays
 (``work``, :func:`make_work`): LLVM optimises these small functions much better than one large loop
@@ -33,6 +45,7 @@ body. The per-point look-ups take explicit arrays (see :mod:`.lookup`).
 
 from __future__ import annotations
 
+import math
 from collections import namedtuple
 
 import numpy as np
@@ -43,26 +56,33 @@ from rivercal.engine.kernels.codes import (
     AMP_RISE,
     BOUNDARY_LEVEL,
     DRY_TOLERANCE,
+    ERR_REDO,
+    ERR_TARGET,
     LINK_CULVERT,
     LINK_PUMP,
     LINK_WEIR,
     MAX_HALVINGS,
     N_STATS,
     RELAX_STEPS,
+    STAT_ACC,
+    STAT_ACC_NEXT,
     STAT_AMP,
     STAT_CALM,
     STAT_FELL,
+    STAT_LAST,
     STAT_LEVEL,
     STAT_MAX_LEVEL,
+    STAT_REDONE,
     STAT_REFINED,
     STAT_RELAX,
     STAT_STEPS,
     STAT_SUBSTEPS,
     STATUS_DRY,
+    STATUS_FLICKER,
     STATUS_OK,
 )
 from rivercal.engine.kernels.control import control_step, record_controls, start_controls
-from rivercal.engine.kernels.fluxes import check_levels, finish_step, fluxes_within_volume
+from rivercal.engine.kernels.fluxes import check_levels, finish_step, fluxes_within_volume, too_fast
 from rivercal.engine.kernels.forcing import apply_forcing
 from rivercal.engine.kernels.momentum import channel_coefficients
 from rivercal.engine.kernels.picard import picard_iterations, picard_iterations_ext
@@ -89,13 +109,14 @@ SCREEN_REDO = -1
 #: its friction type); per discharge boundary its delivered discharge (m³/s), and per boundary then lateral the
 #: withdrawal asked and not delivered in the (sub-)step (m³/s) and over the run (m³); the channel coefficients
 #: (area, f, r) of the links that may become free overfalls (:mod:`.overfall`); per point the sums of the step
-#: control's forecast (:mod:`.stability`, m²/s); per point the lowest level a step may leave (m AD).
+#: control's forecast (:mod:`.stability`, m²/s); per point the lowest level a step may leave (m AD); per point the
+#: flicker count and the level's change since it last turned (m) (:func:`.fluxes.finish_step`).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
      "cb", "cs", "cc2r", "cdz", "cam", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum",
-     "ovf", "anum", "aden", "floor"],
+     "ovf", "anum", "aden", "floor", "flick", "swing"],
 )
 
 
@@ -122,7 +143,7 @@ def make_work(net, sx=None) -> Work:
         bq=np.zeros(n_b), wreq=np.zeros(n_b + net.lat_hp.size), wshort=np.zeros(n_b + net.lat_hp.size),
         wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
         ovf=np.zeros((3, net.dl_link.size)), anum=np.zeros(n_h), aden=np.zeros(n_h),
-        floor=_floor(net),
+        floor=_floor(net), flick=np.zeros(n_h, dtype=np.int32), swing=np.zeros(n_h),
     )
 
 
@@ -283,15 +304,19 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
     ``u1``, ``q1`` after an odd number of sub-steps (the caller swaps its arrays then).
     """
     n_b = net.b_hp.size
+    stats = work.stats
     swapped = False
     done = 0
+    taken = 0
     status, index = STATUS_OK, -1
+    _accuracy_level(stats)
     while done < FULL and status == STATUS_OK:  # one way in and one way out: a smaller compiled loop
-        span = FULL >> work.stats[STAT_LEVEL]
+        level = _level(stats)
+        span = FULL >> level
         h = dt * span / FULL
         lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
         fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
-        if _too_fast(net, work, z, u0, h, theta, min_depth, fastest):
+        if _too_fast(net, work, z, u0, h, theta, min_depth, fastest, level):
             continue
         switch_pumps(net, work, z, pump_on)
         if sx is None:
@@ -301,16 +326,38 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
         else:
             picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
         fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
-        status, index = _screen(net, work)
+        status, index = _screen(net, work, z, dz, u1, vmax, level)
         if status == STATUS_OK:
             balance[n_b] += h * lateral
-            status, index = finish_step(net, work, h, vmax, z, dz, vol, u1, q1, balance)
+            checked = vmax if level >= MAX_HALVINGS else math.inf  # the screen checked the velocities
+            status, index = finish_step(net, work, h, checked, z, dz, vol, u1, q1, balance)
             u0, q0, u1, q1 = u1, q1, u0, q0
             swapped = not swapped
             done += span
+            taken += 1
+            if status == STATUS_FLICKER and level < MAX_HALVINGS:
+                _rise(stats, level)  # the coming (sub-)steps shorter; this one stands
+                status, index = STATUS_OK, -1
         elif status == SCREEN_REDO:
+            stats[STAT_REDONE] += 1
             status = STATUS_OK
+    if taken > 1:
+        stats[STAT_REFINED] += 1
+        stats[STAT_SUBSTEPS] += taken
     return status, index, swapped
+
+
+@kernel
+def _level(stats):
+    """The sub-step level of the coming (sub-)step: the finer of the stability's and the accuracy's."""
+    return max(stats[STAT_LEVEL], stats[STAT_ACC])
+
+
+@kernel
+def _accuracy_level(stats):
+    """At a step's start: the accuracy's sub-step level, as the last step forecast it (falling by one at most)."""
+    stats[STAT_ACC] = max(stats[STAT_ACC_NEXT], stats[STAT_ACC] - 1, 0)
+    stats[STAT_ACC_NEXT] = 0
 
 
 @kernel
@@ -326,7 +373,7 @@ def _start(net, work, fric):
 
 
 @kernel
-def _too_fast(net, work, z, u, dt, theta, min_depth, fastest):
+def _too_fast(net, work, z, u, dt, theta, min_depth, fastest, level):
     """Whether a (sub-)step of ``dt`` s is too long for the explicit upwind depth; if so, raise the sub-step level.
 
     The forecast of the step control (:mod:`.stability`), from the state at the step's start: the
@@ -339,48 +386,80 @@ def _too_fast(net, work, z, u, dt, theta, min_depth, fastest):
     if fastest * dt > 1.0:
         amp = explicit_amplification(net, work, z, u, dt, theta, min_depth)
     stats[STAT_AMP] = int(min(amp, 1.0e6) * 1.0e6)
-    if amp <= AMP_RISE or stats[STAT_LEVEL] >= MAX_HALVINGS:
+    if amp <= AMP_RISE or level >= MAX_HALVINGS:
         return False
-    _rise(stats)
+    _rise(stats, level)
     return True
 
 
 @kernel
-def _rise(stats):
-    """Raise the sub-step level by one (a fall that is undone before its calm period ends doubles that period)."""
+def _rise(stats, level):
+    """Make the stability's sub-step level one finer than ``level``, the current one.
+
+    A fall that is undone before its calm period ends doubles that period.
+    """
     if stats[STAT_FELL] == 1 and stats[STAT_CALM] < stats[STAT_RELAX]:
         stats[STAT_RELAX] = min(2 * stats[STAT_RELAX], RELAX_STEPS << 8)  # the fall was too early
-    stats[STAT_LEVEL] += 1
-    stats[STAT_MAX_LEVEL] = max(stats[STAT_MAX_LEVEL], stats[STAT_LEVEL])
+    stats[STAT_LEVEL] = level + 1
+    stats[STAT_MAX_LEVEL] = max(stats[STAT_MAX_LEVEL], level + 1)
     stats[STAT_CALM] = 0
     stats[STAT_FELL] = 0
 
 
 @kernel
-def _screen(net, work):
-    """The step control's verdict on the solved levels of a (sub-)step (:func:`.fluxes.check_levels`).
+def _screen(net, work, z, dz, un, vmax, level):
+    """The step control's verdict on a solved (sub-)step at sub-step ``level``, before it is committed.
 
-    Returns (``STATUS_OK``, -1) to commit, (``SCREEN_REDO``, -1) after raising the sub-step level (the
-    sub-step is computed again, shorter), or (``STATUS_DRY``, point) when the smallest sub-step fails.
+    Returns (``STATUS_OK``, -1) to commit, (``SCREEN_REDO``, -1) after making the sub-step finer (it is computed
+    again, shorter), or (``STATUS_DRY``, point) when the smallest sub-step fails. A (sub-)step is computed again,
+    shorter, when a level falls more than ``DRY_TOLERANCE`` below its bed or is NaN (:func:`.fluxes.check_levels`);
+    when a velocity ``un`` (m/s) exceeds ``vmax`` (a divergence, which :func:`.fluxes.finish_step` reports at the
+    smallest sub-step); and when a level ``z`` (m AD) moves more than
+    ``ERR_REDO`` from its extrapolation (accuracy, :func:`.fluxes.check_levels`). A committed (sub-)step sets the
+    accuracy's forecast for the next step: the sub-step level at which that error, growing with the step squared,
+    stays within ``ERR_TARGET``.
     """
-    dry = check_levels(net, work)
-    if dry < 0:
+    stats = work.stats
+    last = stats[STAT_LAST]
+    shorter = (1 << (level - last)) if level >= last else 1.0 / (1 << (last - level))
+    dry, error = check_levels(net, work, z, dz, shorter, 0.25 * ERR_TARGET)
+    if dry >= 0:
+        if level >= MAX_HALVINGS:
+            return STATUS_DRY, dry
+        _rise(stats, level)
+        return SCREEN_REDO, -1
+    if level >= MAX_HALVINGS:
+        stats[STAT_LAST] = level
         return STATUS_OK, -1
-    if work.stats[STAT_LEVEL] >= MAX_HALVINGS:
-        return STATUS_DRY, dry
-    _rise(work.stats)
-    return SCREEN_REDO, -1
+    if too_fast(un, vmax):
+        _rise(stats, level)
+        return SCREEN_REDO, -1
+    if error > ERR_REDO:
+        stats[STAT_ACC] = level + 1
+        stats[STAT_MAX_LEVEL] = max(stats[STAT_MAX_LEVEL], level + 1)
+        return SCREEN_REDO, -1
+    wanted = level  # the error grows with the step squared: a level coarser quadruples it
+    scaled = error
+    if scaled > ERR_TARGET:
+        while scaled > ERR_TARGET and wanted < MAX_HALVINGS:
+            wanted += 1
+            scaled *= 0.25
+    else:
+        while wanted > 0 and 4.0 * scaled <= ERR_TARGET:
+            wanted -= 1
+            scaled *= 4.0
+    stats[STAT_ACC_NEXT] = max(stats[STAT_ACC_NEXT], wanted)
+    stats[STAT_LAST] = level
+    return STATUS_OK, -1
 
 
 @kernel
 def _step_done(work):
-    """Book a finished step in the step control; let the sub-step level fall after enough calm steps."""
+    """Book a finished step in the step control; let the stability's sub-step level fall after enough calm steps."""
     stats = work.stats
     level = stats[STAT_LEVEL]
     if level == 0:
         return
-    stats[STAT_REFINED] += 1
-    stats[STAT_SUBSTEPS] += 1 << level
     stats[STAT_CALM] += 1
     if stats[STAT_CALM] >= stats[STAT_RELAX] and stats[STAT_AMP] < AMP_FALL * 1.0e6:
         stats[STAT_LEVEL] = level - 1
