@@ -5,7 +5,7 @@ Every kind of object the import reads appears: a network of five nodes and four 
 cross-section types tabulated (main channel, floodplain, a summer dike, a flow width that narrows), rectangle,
 trapezium, circle, yz and egg, roughness of every function type (constant along a branch in a law of its own,
 a water-level table, a discharge table), every structure type, boundaries of each kind (a discharge series, a
-constant level, a Q(h) table with SOBEK 3's negative outflow), laterals, observation points, an initial level
+constant level, a Q(h) table with SOBEK 3's negative outflow), laterals on branches and a node, observation points, an initial level
 field and a retention area. The numbers written here are the reference the tests compare the case with.
 
 ``write_model(folder, **replace)`` writes the files; ``replace`` maps a file name to ``(old, new)`` text
@@ -430,6 +430,10 @@ LAT_LOCS = """[General]
     branchid              = b2
     chainage              = 600.000
     length                = 200.000
+
+[LateralDischarge]
+    id                    = lat3
+    nodeId                = C
 """
 
 BC = """[General]
@@ -484,6 +488,13 @@ BC = """[General]
     unit                  = m³/s
     0 0.1
     12 0.3
+
+[LateralDischarge]
+    name                  = lat3
+    function              = constant
+    quantity              = water_discharge
+    unit                  = m³/s
+    -0.05
 
 [Boundary]
     name                  = model_wide

@@ -119,6 +119,7 @@ def test_structures_boundaries_laterals_stations_and_initial_state(imported) -> 
     lats = _by_id(data["laterals"])
     assert (lats["lat1"]["branch"], lats["lat1"]["chainage"], lats["lat1"]["value"]) == ("b1", 300.0, 0.2)
     assert lats["lat2"]["chainage"] == 700.0  # spread over 200 m from 600 m: at its middle
+    assert (lats["lat3"]["node"], lats["lat3"]["value"]) == ("C", -0.05)
     stations = _by_id(data["stations"])
     assert stations["obs1"] == {"id": "obs1", "branch": "b1", "chainage": 200.0, "quantities": ["h", "Q"]}
     assert "obs_2" in stations and "weir1" in stations
@@ -210,12 +211,17 @@ def test_a_bad_value_names_its_file_line_and_key(tmp_path, file, old, new, key, 
 def test_a_discharge_table_of_both_signs_and_an_unknown_law_are_refused(tmp_path) -> None:
     md1d = write_model(tmp_path / "model", BoundaryConditions_bc=("    -1.0 -4.0", "    -1.0 4.0"),
                        roughness_Main_ini=("roughnessType         = 4", "roughnessType         = 8"))
+    text = (tmp_path / "model" / "BoundaryConditions.bc").read_text(encoding="utf-8")
+    (tmp_path / "model" / "BoundaryConditions.bc").write_text(text.replace(
+        "name                  = E\n    function              = constant",
+        "name                  = E\n    function              = astronomic"), encoding="utf-8")
     with pytest.raises(CaseError) as info:
         import_sobek3(md1d, tmp_path / "case")
     text = (tmp_path / "case" / "import.md").read_text(encoding="utf-8")
     assert "boundary 'D'" in str(info.value) or "`D`" in text
     assert "change sign" in text
     assert "roughness type engelund has no counterpart" in text
+    assert "a boundary given as 'astronomic'" in text
 
 
 # -- the INI reader and the laws ---------------------------------------------------------------------------------

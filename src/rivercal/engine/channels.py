@@ -309,10 +309,15 @@ def extended_cross_sections(network) -> dict[str, list[tuple[float, int, float]]
            for br in network.branches}
     out = {bid: list(items) for bid, items in own.items()}
     ordered = [br for br in network.branches if br.order is not None and br.order > 0]
+    at_node: dict[str, list] = {}  # node → the ordered branches that end there, in the network's order
+    for br in ordered:
+        at_node.setdefault(br.from_node, []).append(br)
+        if br.to_node != br.from_node:
+            at_node.setdefault(br.to_node, []).append(br)
 
     def push(branch, item: tuple[float, int, float], distance: float, at_start: bool, seen: set[str]) -> None:
         node = branch.from_node if at_start else branch.to_node
-        for other in ordered:
+        for other in at_node.get(node, []):
             if other.id == branch.id or other.order != branch.order:
                 continue
             if other.to_node == node:

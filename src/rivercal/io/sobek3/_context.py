@@ -86,19 +86,23 @@ class Model:
     files: dict[str, list[Path]] = field(default_factory=dict)
     sections: dict[str, list[list[Section]]] = field(default_factory=dict)
 
+    def _settings(self) -> list[Section]:
+        """The md1d's sections, then those of the SobekSim.ini it names (SOBEK 3 reads both)."""
+        return [*self.md, *self.blocks("sobekSimIniFile")]
+
+    def setting_section(self, section: str, key: str) -> Section | None:
+        """The first md1d (or SobekSim.ini) section of that name that has the key."""
+        return next((s for s in self._settings() if s.kind == section.lower() and s.has(key)), None)
+
     def setting(self, section: str, key: str, default=None):
-        """The text of a key of an md1d section (the first of the sections of that name that has it)."""
-        for s in self.md:
-            if s.kind == section.lower() and s.has(key):
-                return s.text(key)
-        return default
+        """The text of a key of an md1d section (or, failing that, of SobekSim.ini)."""
+        s = self.setting_section(section, key)
+        return s.text(key) if s is not None else default
 
     def number(self, section: str, key: str, default=None):
-        """A number of an md1d section (``default`` when absent)."""
-        for s in self.md:
-            if s.kind == section.lower() and s.has(key):
-                return s.number(key)
-        return default
+        """A number of an md1d section (or, failing that, of SobekSim.ini); ``default`` when absent."""
+        s = self.setting_section(section, key)
+        return s.number(key) if s is not None else default
 
     def blocks(self, key: str, kind: str | None = None) -> list[Section]:
         """The sections of the files of ``key`` (all files), optionally only those named ``kind``."""

@@ -184,28 +184,40 @@ def convert_forcing(ctx: Context) -> None:
     laterals = []
     for s in ctx.model.blocks("latDischargeLocFile", "lateraldischarge"):
         lid = s.text("id")
-        bid = s.text("branchId", "branchid")
-        if not ctx.known("branch", bid) or ctx.id("branch", bid) not in ctx.branches:
-            ctx.ledger.refused("lateral", lid, f"its branch {bid!r} is not in the network")
-            continue
-        branch = ctx.branches[ctx.id("branch", bid)]
-        chainage = s.number("chainage")
         notes = []
-        length = s.number("length", default=0.0)
-        if length > 0:
-            chainage += 0.5 * length
-            notes.append(f"spread over {length:g} m in SOBEK 3; the case puts it at the middle")
-        if chainage < -1e-6 or chainage > branch["length"] + 1e-3:
-            raise s.error("chainage", f"chainage {chainage:g} m lies outside branch {bid!r} "
-                                      f"(0-{branch['length']:g} m)")
+        nid = s.text("nodeId", "nodeid", default=None)
+        if nid is not None:
+            if not ctx.known("node", nid) or degree.get(ctx.id("node", nid), 0) == 0:
+                ctx.ledger.refused("lateral", lid, f"its node {nid!r} is not in the network")
+                continue
+            lat = {"id": ctx.id("lateral", lid), "node": ctx.id("node", nid)}
+        else:
+            bid = s.text("branchId", "branchid")
+            if not ctx.known("branch", bid) or ctx.id("branch", bid) not in ctx.branches:
+                ctx.ledger.refused("lateral", lid, f"its branch {bid!r} is not in the network")
+                continue
+            branch = ctx.branches[ctx.id("branch", bid)]
+            chainage = s.number("chainage")
+            length = s.number("length", default=0.0)
+            if length > 0:
+                chainage += 0.5 * length
+                notes.append(f"spread over {length:g} m in SOBEK 3; the case puts it at the middle")
+            if chainage < -1e-6 or chainage > branch["length"] + 1e-3:
+                raise s.error("chainage", f"chainage {chainage:g} m lies outside branch {bid!r} "
+                                          f"(0-{branch['length']:g} m)")
+            lat = {"id": ctx.id("lateral", lid), "branch": branch["id"],
+                   "chainage": min(max(chainage, 0.0), branch["length"])}
         found = blocks.get(lid.lower(), [])
         used.add(lid.lower())
         if not found:
             ctx.ledger.refused("lateral", lid, "no block of this name in the boundary-condition file")
             continue
+        function = found[0].text("function", default="timeseries").lower()
+        if function not in ("timeseries", "constant"):
+            ctx.ledger.refused("lateral", lid, f"a lateral given as {function!r} (a case takes a time series or a "
+                               "constant)")
+            continue
         value, note = bc_series(ctx, found[0], "water_discharge")
-        lat = {"id": ctx.id("lateral", lid), "branch": branch["id"],
-               "chainage": min(max(chainage, 0.0), branch["length"])}
         if isinstance(value, float):
             lat["value"] = value
         else:
@@ -227,6 +239,8 @@ def convert_forcing(ctx: Context) -> None:
 
 def _boundary(ctx: Context, bc: Section, node: str, code: int | None) -> tuple[dict | None, str]:
     function = bc.text("function", default="timeseries").lower()
+    if function not in ("timeseries", "constant", "qhtable"):
+        return None, f"a boundary given as {function!r} (a case takes a time series, a constant or a Q(h) table)"
     names = [q for q, _, _ in _quantities(bc)]
     if function == "qhtable":
         if code not in (None, 1):

@@ -125,7 +125,7 @@ def _model_name(md1d: Path) -> str:
 def _period(model) -> tuple[pd.Timestamp, pd.Timestamp]:
     times = {}
     for key in ("StartTime", "StopTime"):
-        section = next((s for s in model.md if s.kind == "time" and s.has(key)), None)
+        section = model.setting_section("Time", key)
         if section is None:
             raise CaseError(f"the model has no [Time] {key}", file=str(model.md1d), field=key)
         try:
@@ -134,7 +134,7 @@ def _period(model) -> tuple[pd.Timestamp, pd.Timestamp]:
             raise section.error(key, f"{section.text(key)!r} is not a date and time (yyyy-MM-dd HH:mm:ss)") from None
         times[key] = stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
     if times["StopTime"] <= times["StartTime"]:
-        section = next(s for s in model.md if s.kind == "time")
+        section = model.setting_section("Time", "StopTime")
         raise section.error("StopTime", f"the stop time {times['StopTime']} is not after the start time "
                                         f"{times['StartTime']}")
     return times["StartTime"], times["StopTime"]
@@ -255,7 +255,9 @@ def _fit_the_grid(ctx: Context) -> None:
                                         f"{seg.structure.id!r}; moved to the nearer grid point ({end:g} m)")
                 st["chainage"] = end
     ctx.case["stations"] = [st for st in ctx.case["stations"] if "structure" in st or st["branch"] in branches]
-    ctx.case["laterals"] = [lat for lat in ctx.case["laterals"] if lat["branch"] in branches]
+    nodes = {n for b in branches.values() for n in (b["from_node"], b["to_node"])}
+    ctx.case["laterals"] = [lat for lat in ctx.case["laterals"]
+                            if lat.get("branch") in branches or lat.get("node") in nodes]
 
 
 def _settings(ctx: Context) -> None:
