@@ -5,8 +5,8 @@ Every kind of object the import reads appears: a network of five nodes and four 
 cross-section types tabulated (main channel, floodplain, a summer dike, a flow width that narrows), rectangle,
 trapezium, circle, yz and egg, roughness of every function type (constant along a branch in a law of its own,
 a water-level table, a discharge table), every structure type, boundaries of each kind (a discharge series, a
-constant level, a Q(h) table with SOBEK 3's negative outflow), laterals on branches and a node, observation points, an initial level
-field and a retention area. The numbers written here are the reference the tests compare the case with.
+constant level, a Q(h) table with SOBEK 3's negative outflow), laterals on branches and a node, observation
+points, an initial level field and a retention area. The numbers written here are the reference the tests compare the case with.
 
 ``write_model(folder, **replace)`` writes the files; ``replace`` maps a file name to ``(old, new)`` text
 replacements, so that a test can break one value and check the error names its file, line and key.
