@@ -4,9 +4,10 @@ Every kind of object the import reads appears: a network of five nodes and four 
 -(b3)- D`` with a side branch ``B -(b4)- E``, 1 km each, grid points every 100 m; b1 and b2 of order 1), the
 cross-section types tabulated (main channel, floodplain, a summer dike, a flow width that narrows), rectangle,
 trapezium, circle, yz and egg, roughness of every function type (constant along a branch in a law of its own,
-a water-level table, a discharge table), every structure type, boundaries of each kind (a discharge series, a
-constant level, a Q(h) table with SOBEK 3's negative outflow), laterals on branches and a node, observation
-points, an initial level field and a retention area. The numbers written here are the reference the tests compare the case with.
+a water-level table, a discharge table), every structure type, boundaries of each kind (a discharge series,
+a constant level, a Q(h) table with SOBEK 3's negative outflow), laterals on branches and a node,
+observation points, an initial level field and a retention area. The numbers written here are the reference
+the tests compare the case with.
 
 ``write_model(folder, **replace)`` writes the files; ``replace`` maps a file name to ``(old, new)`` text
 replacements, so that a test can break one value and check the error names its file, line and key.
