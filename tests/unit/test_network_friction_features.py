@@ -228,3 +228,26 @@ def test_a_table_in_the_wrong_unit_is_caught_by_its_largest_value() -> None:
     group = FrictionGroup.model_validate({"id": "g", "type": "chezy", "value": 40.0, "branches": [
         {"branch": "B", "function": "waterlevel", "levels": [0.0, 1.0], "table": [[0.02, 35.0]]}]})
     assert group.entry("B").coefficient_at(0.0)[1].tolist() == [0.02, 35.0]  # a dry floodplain's low values stay
+
+
+def test_a_white_colebrook_table_gives_the_conveyance_of_its_law() -> None:
+    levels, kn = [0.0, 4.0], [0.2, 0.02]  # m AD, m: smoother as the water rises
+    profiles = [{"id": "r", "type": "rectangular", "width": 10.0, "friction": ["g"]}]
+    groups = [{"id": "g", "type": "white-colebrook", "value": 0.05,
+               "branches": [{"branch": "B", "function": "waterlevel", "levels": levels, "table": [kn]}]}]
+    nodes = [{"id": "u"}, {"id": "d"}]
+    branches = [{"id": "B", "from_node": "u", "to_node": "d", "length": 1000.0, "dx": 500.0,
+                 "cross_sections": [{"chainage": 0.0, "profile": "r", "bed_level": 1.0}]}]
+    c = compile_network(*(lambda k: (k.network, k.spec.engine))(case_from_dict(
+        _case(profiles, branches, nodes, groups), Path("."))))
+    a = c.arrays
+    for h in (0.5, 1.5, 2.5):
+        area, per, _ = flow_geometry.py_func(a.tab_off, a.tab_n, a.tab_idd, a.tab_top, a.tab_wf_top, a.tab_af,
+                                             a.tab_pf, a.tab_flow, a.lk_p1[0], h)
+        k_slot = c.friction_values[a.lk_fric[0]]
+        radius = area / per  # the kernels' White-Colebrook: C = 18 log10(12 R / k_n) with the slot's k_n
+        engine = area * 18.0 * math.log10(12.0 * radius / k_slot) * math.sqrt(radius)
+        r_true = 10.0 * h / (10.0 + 2.0 * h)
+        k_true = np.interp(float(a.lk_b1[0]) + h, levels, kn)
+        expected = 10.0 * h * 18.0 * math.log10(12.0 * r_true / k_true) * math.sqrt(r_true)
+        assert engine == pytest.approx(expected, rel=1e-5), h  # the table: linear between its 2000 depths
