@@ -321,9 +321,21 @@ def test_non_monotone_zw_heights(tmp_path: Path) -> None:
 
 def test_zw_widths_narrowing_upward(tmp_path: Path) -> None:
     data = mini_case()
+    data["profiles"][2]["total_widths"] = [1.0, 4.0, 3.0, 10.0]
+    expect(load_error(tmp_path, data), "case.toml", "profiles[2].total_widths[2]", "must not decrease",
+           "cannot narrow upward")
+    data = mini_case()
+    del data["profiles"][2]["total_widths"]
     data["profiles"][2]["flow_widths"] = [1.0, 3.0, 2.0, 6.0]
     expect(load_error(tmp_path, data), "case.toml", "profiles[2].flow_widths[2]", "must not decrease",
            "cannot narrow upward")
+
+
+def test_zw_flow_widths_may_narrow_below_the_total_widths(tmp_path: Path) -> None:
+    data = mini_case()
+    data["profiles"][2]["flow_widths"] = [1.0, 3.0, 2.0, 6.0]  # part of the width stops conveying, and stores
+    write_case(tmp_path, data)
+    assert load_case(tmp_path).network.profiles[2].flow_widths[2] == 2.0
 
 
 def test_negative_width(tmp_path: Path) -> None:

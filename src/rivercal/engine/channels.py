@@ -6,17 +6,23 @@ Two ways to place the cross-sections on the grid (``engine.cross_sections``):
   interpolated there; a channel link conveys with the profile of its upwind point;
 - ``interpolated`` (D-Flow FM's way): each link takes the cross-section interpolated between the two around
   its middle (table by table at equal depth, :func:`rivercal.engine.sections.interpolate_tables`), at the bed
-  level there, and conveys with it at the upwind level; each point stores the water of its half-links.
+  level there, and conveys with it at the upwind level; each point stores the water of its half-links. A branch
+  with a positive ``order`` continues its cross-sections across a connection node into the next branch of the
+  same order (:func:`extended_cross_sections`), as D-Flow FM 1D does with its branch orders.
 
-A profile of a plain shape (open rectangular, trapezoidal, zw without sections) is tabulated as before
-(:func:`rivercal.engine.geometry.zw_of`); the others (yz, circular, closed, zw with sections) through
-:mod:`rivercal.engine.sections`, whose conveyance shapes enter the kernels' R^(4/3) (Strickler, Manning)
-and perimeter (Chézy) columns.
+A profile of a plain shape (open rectangular, trapezoidal, zw without sections or summer dike) whose friction is
+the link's own coefficient is tabulated as before (:func:`rivercal.engine.geometry.zw_of`); every other link
+conveys with a table of :mod:`rivercal.engine.sections` whose conveyance K(h) holds the friction of each section
+— its own law, a value along the branch, a value that depends on the water level — relative to the link's
+friction slot (:func:`rivercal.engine.sections.kernel_columns`).
 
 Friction *slots*: the kernels read each link's friction value from ``fric[lk_fric[link]]``. The slots are
-the branches (their own friction, or the global one), then the friction groups, then the groups' values
-on particular branches. A link whose profile names friction groups takes the slot of the profile's first
-section (the other sections' coefficients enter its table relative to it); otherwise its branch's slot.
+the branches (their own friction, or the global one), then the friction groups, each followed by its constant
+values on particular branches (in their own law when they have one). A link whose profile names friction groups
+takes the slot of the first section's group on its branch: the group's constant value there, or the group's own
+value when the group has none there or varies along the branch or with the level (that variation is held in the
+link's table relative to the group's value, so ``friction:group:<id>`` scales it); a link whose profile names none
+takes its branch's slot.
 """
 
 from __future__ import annotations
@@ -25,24 +31,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rivercal.engine.geometry import CELLS, MIN_TOP, ProfileTables, build_tables, storage_zw, zw_of
+from rivercal.engine.geometry import ProfileTables, build_tables, flow_records, storage_zw, zw_of
 from rivercal.engine.kernels.codes import (
     FRICTION_CHEZY,
     FRICTION_MANNING,
     FRICTION_STRICKLER,
     FRICTION_WHITE_COLEBROOK,
 )
-from rivercal.engine.sections import SectionTable, interpolate_tables, section_table
-from rivercal.network import RectangularProfile, TrapezoidalProfile, ZWProfile
+from rivercal.engine.sections import SectionTable, interpolate_tables, kernel_columns, section_table
+from rivercal.network import RectangularProfile, TrapezoidalProfile, ZWProfile, profile_sections
 from rivercal.network.grid import Grid
 
-__all__ = ["FRICTION_CODES", "Channels", "channel_geometry"]
+__all__ = ["FRICTION_CODES", "Channels", "channel_geometry", "extended_cross_sections", "initial_levels"]
 
 #: Friction type names of the case → codes of the kernel arrays.
 FRICTION_CODES = {"strickler": FRICTION_STRICKLER, "manning": FRICTION_MANNING, "chezy": FRICTION_CHEZY,
                   "white-colebrook": FRICTION_WHITE_COLEBROOK}
 #: Steps of the interpolation weight between two cross-sections (a link between them gets the table of
-#: the nearest step: at most 1/(2 STEPS) off in weight, so that a branch does not need a table per link).
+#: the nearest step: at most 1/(2 STEPS) off in weight, so that a branch does not need a table per link). A
+#: link whose friction varies with the level has a table of its own, at its exact weight.
 STEPS = 20
 
 
@@ -78,9 +85,28 @@ class Channels:
     profile_table: dict[str, int] = field(default_factory=dict)
 
 
-def _k_coefficient(kind: str, value: float) -> float:
-    """The coefficient that the conveyance is proportional to: k_s, 1/n or C (1 for White-Colebrook)."""
-    return {"strickler": value, "manning": 1.0 / value, "chezy": value}.get(kind, 1.0)
+@dataclass(frozen=True)
+class _Friction:
+    """The friction of one section of a profile at one place: a law and a constant or level-dependent coefficient.
+
+    ``levels`` (m AD) and ``values`` give the coefficient as a function of the water level (linear between the
+    levels, constant beyond them); otherwise ``value`` holds it.
+    """
+
+    law: str
+    value: float | None = None
+    levels: np.ndarray | None = field(default=None, compare=False)
+    values: np.ndarray | None = field(default=None, compare=False)
+
+    @property
+    def constant(self) -> bool:
+        return self.levels is None
+
+    def on(self, depth: np.ndarray, bed: float):
+        """The coefficient at the water levels ``bed + depth`` (a number when constant)."""
+        if self.levels is None:
+            return self.value
+        return np.interp(bed + depth, self.levels, self.values)
 
 
 def _plain(profile) -> bool:
@@ -88,7 +114,8 @@ def _plain(profile) -> bool:
         return not profile.closed
     if isinstance(profile, TrapezoidalProfile):
         return True
-    return isinstance(profile, ZWProfile) and not profile.closed and profile.section_widths is None
+    return (isinstance(profile, ZWProfile) and not profile.closed and profile.section_widths is None
+            and profile.summer_dike is None)
 
 
 class _Builder:
@@ -107,7 +134,8 @@ class _Builder:
         for g in network.friction_groups:
             self._slot(("group", g.id), g.type, g.value)
             for bf in g.branches:
-                self._slot(("group", g.id, bf.branch), g.type, bf.value)
+                if not bf.varies:
+                    self._slot(("group", g.id, bf.branch), bf.type or g.type, bf.value)
 
     def _slot(self, key: tuple, kind: str, value: float) -> int:
         if key not in self.slot_of:
@@ -117,74 +145,83 @@ class _Builder:
             self.slot_value.append(value)
         return self.slot_of[key]
 
-    def context(self, p: int, branch) -> tuple[str, tuple[float, ...] | None, int]:
-        """Friction law, section weights and slot of profile index ``p`` on ``branch``."""
+    def slot_law(self, slot: int) -> tuple[str, float]:
+        """Friction law and coefficient of a slot."""
+        names = {code: name for name, code in FRICTION_CODES.items()}
+        return names[self.slot_type[slot]], self.slot_value[slot]
+
+    def friction(self, p: int, branch, chainage: float) -> tuple[list[_Friction], int]:
+        """The friction of each section of profile ``p`` on ``branch`` at ``chainage`` (m), and the link's slot."""
         profile = self.network.profiles[p]
+        n = profile_sections(profile)
         if not profile.friction:
-            law = (branch.friction or self.network.friction).type
-            return law, None, self.slot_of[("branch", branch.id)]
-        first = self.groups[profile.friction[0]]
-        base = _k_coefficient(first.type, first.value_on(branch.id))
-        weights = tuple(_k_coefficient(self.groups[g].type, self.groups[g].value_on(branch.id)) / base
-                        if self.groups[g].type == first.type else 1.0 for g in profile.friction)
-        key = ("group", first.id, branch.id) if ("group", first.id, branch.id) in self.slot_of else ("group", first.id)
-        return first.type, weights, self.slot_of[key]
+            own = branch.friction or self.network.friction
+            return [_Friction(own.type, own.value)] * n, self.slot_of[("branch", branch.id)]
+        out = []
+        for gid in profile.friction:
+            group = self.groups[gid]
+            entry = group.entry(branch.id)
+            if entry is None:
+                out.append(_Friction(group.type, group.value))
+                continue
+            law = entry.type or group.type
+            levels, values = entry.coefficient_at(chainage)
+            out.append(_Friction(law, float(values[0])) if levels is None
+                       else _Friction(law, levels=levels, values=values))
+        first = self.groups[profile.friction[0]].entry(branch.id)
+        key = ("group", profile.friction[0], branch.id)
+        slot = self.slot_of[key] if first is not None and not first.varies else self.slot_of[("group",
+                                                                                             profile.friction[0])]
+        return out, slot
 
-    def section(self, p: int, weights) -> SectionTable:
-        key = (p, weights)
-        if key not in self.sections:
-            self.sections[key] = section_table(self.network.profiles[p], list(weights) if weights else None)
-        return self.sections[key]
+    def section(self, geometry: tuple) -> SectionTable:
+        """The section table of ``("profile", p)`` or ``("between", pa, pb, weight)``."""
+        if geometry not in self.sections:
+            if geometry[0] == "profile":
+                table = section_table(self.network.profiles[geometry[1]])
+            else:
+                _, pa, pb, weight = geometry
+                table = interpolate_tables(self.section(("profile", pa)), self.section(("profile", pb)), weight)
+            self.sections[geometry] = table
+        return self.sections[geometry]
 
-    def table(self, p: int, branch) -> int:
-        """The table of profile ``p`` on ``branch`` (plain shapes share one table whatever the law)."""
-        law, weights, _ = self.context(p, branch)
-        if _plain(self.network.profiles[p]):
-            key: tuple = ("plain", p)
+    def table(self, geometry: tuple, frictions: list[_Friction], slot: int, bed: float) -> int:
+        """The kernel table of a geometry conveying with ``frictions`` relative to ``slot``, at bed ``bed`` (m AD)."""
+        law, value = self.slot_law(slot)
+        if geometry[0] == "profile" and _plain(self.network.profiles[geometry[1]]) and len(frictions) == 1 \
+                and frictions[0] == _Friction(law, value):
+            key: tuple = ("plain", geometry[1])
             if key not in self.index:
-                self._add(key, zw_of(self.network.profiles[p]))
+                self._add(key, zw_of(self.network.profiles[geometry[1]]))
             return self.index[key]
-        key = ("section", p, law, weights)
-        if key not in self.index:
-            self._add(key, _kernel_columns(self.section(p, weights), law))
+        level_dependent = not all(f.constant for f in frictions)
+        key = ("section", geometry, tuple(frictions), law, value, bed if level_dependent else None)
+        if key not in self.index or level_dependent:
+            t = self.section(geometry)
+            n = t.sections
+            frictions = (frictions + [frictions[-1]] * n)[:n]
+            conveyance = t.conveyance([f.law for f in frictions], [f.on(t.depth, bed) for f in frictions])
+            plain_wc = law == "white-colebrook" and all(f == _Friction(law, value) for f in frictions)
+            self._add(key, kernel_columns(t, conveyance, law, value, plain_white_colebrook=plain_wc))
         return self.index[key]
 
-    def between(self, pa: int, pb: int, weight: float, branch) -> int:
-        """The table of the cross-section ``weight`` of the way from profile ``pa`` to ``pb`` on ``branch``."""
-        near = pa if weight < 0.5 else pb
-        law, _, _ = self.context(near, branch)
-        _, wa, _ = self.context(pa, branch)
-        _, wb, _ = self.context(pb, branch)
-        key = ("between", pa, pb, weight, law, wa, wb)
+    def storage_table(self, p: int) -> int:
+        """A table of profile ``p`` for storage only (its flow columns are never read)."""
+        profile = self.network.profiles[p]
+        if _plain(profile):
+            key: tuple = ("plain", p)
+            if key not in self.index:
+                self._add(key, zw_of(profile))
+            return self.index[key]
+        key = ("storage", p)
         if key not in self.index:
-            mixed = interpolate_tables(self.section(pa, wa), self.section(pb, wb), weight)
-            self._add(key, _kernel_columns(mixed, law))
+            t = self.section(("profile", p))
+            self._add(key, kernel_columns(t, t.s23, "strickler", 1.0))
         return self.index[key]
 
     def _add(self, key: tuple, entry) -> None:
         self.index[key] = len(self.entries)
         self.entries.append(entry)
-
-
-def _kernel_columns(t: SectionTable, law: str) -> tuple:
-    """A section table as the kernels' columns (af, pf, at, r43, flow width above, total width above, top).
-
-    Strickler and Manning read R^(4/3) = (S23/A)²; Chézy reads R = A/pf, so pf = A / (S12/A)²;
-    White-Colebrook reads the plain R = A/P.
-    """
-    area = t.area
-    pf = t.perimeter.copy()
-    if law == "chezy":
-        radius = t.radius_chezy()
-        pf = np.where(radius > 0, np.divide(area, radius, out=np.zeros_like(area), where=radius > 0), pf)
-    r43 = t.r43()
-    if law == "white-colebrook":
-        radius = np.divide(area, t.perimeter, out=np.zeros_like(area), where=t.perimeter > 0)
-        r43 = radius ** (4.0 / 3.0)
-    top = t.top
-    if t.depth.size != CELLS + 1 or top < MIN_TOP - 1e-9:
-        raise ValueError("a section table must have the engine's depth grid")
-    return (area, pf, t.total, r43, t.flow_width_top, t.total_width_top, top)
 
 
 def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) -> Channels:
@@ -202,9 +239,10 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
         if _plain(p):
             b._add(("plain", k), zw_of(p))
     if mode == "interpolated":
+        extended = extended_cross_sections(network)
         for li in range(n_l):
             br = branches[grid.link_branch_id[li]]
-            table, bed, slot = _interpolated(b, br, float(grid.link_chainage[li]))
+            table, bed, slot = _interpolated(b, br, float(grid.link_chainage[li]), extended[br.id])
             link_p1[li] = link_p2[li] = table
             link_b1[li] = link_b2[li] = bed
             link_slot[li] = slot
@@ -214,22 +252,29 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
     else:
         for li in range(n_l):
             br = branches[grid.link_branch_id[li]]
+            chainage = float(grid.link_chainage[li])
             p1, p2 = int(grid.link_p1[li]), int(grid.link_p2[li])
-            link_p1[li] = b.table(p1, br)
-            link_p2[li] = b.table(p2, br)
             owner = p1 if network.profiles[p1].friction else p2
-            link_slot[li] = b.context(owner, br)[2]
+            _, slot = b.friction(owner, br, chainage)
+            link_slot[li] = slot
+            for p, bed, out in ((p1, link_b1[li], link_p1), (p2, link_b2[li], link_p2)):
+                frictions, _ = b.friction(p, br, chainage)
+                out[li] = b.table(("profile", p), frictions, slot, float(bed))
         point_branch = _point_branches(grid)
         for i, sections in enumerate(grid.sections):
-            for (p, bed, half), bid in zip(sections, point_branch[i], strict=True):
-                contributions[i].append((b.table(p, branches[bid]), bed, half))
+            for (p, bed, half), _bid in zip(sections, point_branch[i], strict=True):
+                contributions[i].append((b.storage_table(p), bed, half))
     profile_table = {}
     barrels = {c.profile for c in [*network.culverts, *network.bridges] if getattr(c, "profile", None)}
     for k, p in enumerate(network.profiles):
         if p.id not in barrels:
             continue
         key = ("barrel", k)
-        b._add(key, zw_of(p) if _plain(p) else _kernel_columns(section_table(p), "strickler"))
+        if _plain(p):
+            b._add(key, zw_of(p))
+        else:
+            t = b.section(("profile", k))
+            b._add(key, kernel_columns(t, t.s23, "strickler", 1.0))
         profile_table[p.id] = b.index[key]
     storage = _storage(network, grid, b, contributions, min_storage_area)
     return Channels(storage=storage, link_p1=link_p1, link_b1=link_b1, link_p2=link_p2, link_b2=link_b2,
@@ -247,28 +292,105 @@ def _point_branches(grid: Grid) -> list[list[str]]:
     return out
 
 
-def _interpolated(b: _Builder, branch, chainage: float) -> tuple[int, float, int]:
+def extended_cross_sections(network) -> dict[str, list[tuple[float, int, float]]]:
+    """Per branch, its cross-sections as (chainage m, profile index, bed level m AD), with those borrowed across nodes.
+
+    D-Flow FM 1D's rule for branch orders (Deltares, D-Flow FM 1D, ``useBranchOrdersCrs`` in the flow1d library's
+    CrossSections.f90, read in the Delft3D 4 source tree): the first and the last cross-section of every branch of a
+    positive order is copied onto the first other branch of the same order (in the network's order) that meets it
+    at that end node, at the chainage it has seen from that branch — before its start (a negative chainage) or
+    beyond its end (more than its length). A branch without cross-sections of its own passes it on, with its length
+    added, to the next branch of the same order at its other end. A link between a branch's last cross-section and
+    the node is then interpolated towards the cross-section beyond the node instead of holding the last one.
+    Branches without an order (or of order 0 or below) keep their own cross-sections only.
+    """
+    profiles = {p.id: k for k, p in enumerate(network.profiles)}
+    own = {br.id: [(cs.chainage, profiles[cs.profile], cs.bed_level) for cs in br.cross_sections]
+           for br in network.branches}
+    out = {bid: list(items) for bid, items in own.items()}
+    ordered = [br for br in network.branches if br.order is not None and br.order > 0]
+    at_node: dict[str, list] = {}  # node → the ordered branches that end there, in the network's order
+    for br in ordered:
+        at_node.setdefault(br.from_node, []).append(br)
+        if br.to_node != br.from_node:
+            at_node.setdefault(br.to_node, []).append(br)
+
+    def push(branch, item: tuple[float, int, float], distance: float, at_start: bool, seen: set[str]) -> None:
+        node = branch.from_node if at_start else branch.to_node
+        for other in at_node.get(node, []):
+            if other.id == branch.id or other.order != branch.order:
+                continue
+            if other.to_node == node:
+                chainage, further_at_start = other.length + distance, True
+            elif other.from_node == node:
+                chainage, further_at_start = -distance, False
+            else:
+                continue
+            out[other.id].append((chainage, item[1], item[2]))
+            if not own[other.id] and other.id not in seen:  # no cross-section of its own: pass it on
+                push(other, item, distance + other.length, further_at_start, seen | {other.id})
+            return
+
+    for br in ordered:
+        items = own[br.id]
+        if not items:
+            continue
+        push(br, items[0], items[0][0], True, {br.id})
+        push(br, items[-1], br.length - items[-1][0], False, {br.id})
+    return {bid: sorted(items, key=lambda c: c[0]) for bid, items in out.items()}
+
+
+def _interpolated(b: _Builder, branch, chainage: float, sections: list[tuple[float, int, float]]) -> tuple[int, float,
+                                                                                                            int]:
     """Table, bed level (m AD) and friction slot of the cross-section at ``chainage`` of ``branch``."""
-    profiles = {p.id: k for k, p in enumerate(b.network.profiles)}
-    ch = np.array([cs.chainage for cs in branch.cross_sections])
-    bed = float(np.interp(chainage, ch, [cs.bed_level for cs in branch.cross_sections]))
+    ch = np.array([c[0] for c in sections])
+    bed = float(np.interp(chainage, ch, [c[2] for c in sections]))
     j = int(np.clip(np.searchsorted(ch, chainage, side="right") - 1, 0, ch.size - 1))
     if j == ch.size - 1 or chainage <= ch[0]:
-        p = profiles[branch.cross_sections[0 if chainage <= ch[0] else -1].profile]
-        return b.table(p, branch), bed, b.context(p, branch)[2]
-    pa = profiles[branch.cross_sections[j].profile]
-    pb = profiles[branch.cross_sections[j + 1].profile]
-    weight = round((chainage - ch[j]) / (ch[j + 1] - ch[j]) * STEPS) / STEPS
+        p = sections[0 if chainage <= ch[0] else -1][1]
+        frictions, slot = b.friction(p, branch, chainage)
+        return b.table(("profile", p), frictions, slot, bed), bed, slot
+    pa, pb = sections[j][1], sections[j + 1][1]
+    exact = (chainage - ch[j]) / (ch[j + 1] - ch[j])
+    near = pa if exact < 0.5 else pb
+    frictions, slot = b.friction(near, branch, chainage)
+    if not all(f.constant for f in frictions):
+        weight = exact  # a table of its own anyway
+    else:
+        weight = round(exact * STEPS) / STEPS
     if pa == pb or weight in (0.0, 1.0) or _same_shape(b.network.profiles[pa], b.network.profiles[pb]):
         p = pa if weight < 0.5 else pb
-        return b.table(p, branch), bed, b.context(p, branch)[2]
-    near = pa if weight < 0.5 else pb
-    return b.between(pa, pb, weight, branch), bed, b.context(near, branch)[2]
+        frictions, slot = b.friction(p, branch, chainage)
+        return b.table(("profile", p), frictions, slot, bed), bed, slot
+    return b.table(("between", pa, pb, weight), frictions, slot, bed), bed, slot
 
 
 def _same_shape(a, c) -> bool:
     """Whether two profiles are the same shape with the same friction (ids aside)."""
     return a.model_dump(exclude={"id"}) == c.model_dump(exclude={"id"})
+
+
+def initial_levels(network, hp_label: list[str], hp_branch: list[str], hp_chainage: np.ndarray) -> np.ndarray:
+    """The initial water level (m AD) of every h-point that a branch's ``initial_levels`` covers, NaN elsewhere.
+
+    A calculation point takes the level of its branch at its chainage; a node the mean of the levels of the
+    branches that end at it and have initial levels.
+    """
+    by_id = {br.id: br for br in network.branches}
+    out = np.full(len(hp_label), np.nan)
+    for i, (bid, chainage) in enumerate(zip(hp_branch, hp_chainage, strict=True)):
+        if bid and by_id[bid].initial_levels is not None:
+            out[i] = float(by_id[bid].initial_levels.level_at(chainage))
+    at_node: dict[str, list[float]] = {}
+    for br in network.branches:
+        if br.initial_levels is None:
+            continue
+        at_node.setdefault(br.from_node, []).append(float(br.initial_levels.level_at(0.0)))
+        at_node.setdefault(br.to_node, []).append(float(br.initial_levels.level_at(br.length)))
+    for i, label in enumerate(hp_label):
+        if label.startswith("node:") and label[5:] in at_node:
+            out[i] = float(np.mean(at_node[label[5:]]))
+    return out
 
 
 def _storage(network, grid: Grid, b: _Builder, contributions, min_storage_area: float) -> dict[str, np.ndarray]:
@@ -286,8 +408,6 @@ def _storage(network, grid: Grid, b: _Builder, contributions, min_storage_area: 
             b._add(("node", node.id), (np.array([0.0, 1.0]), np.zeros(2), np.full(2, node.storage_area)))
             contributions[i].append((b.index[("node", node.id)], float(hp_bed[i]), 1.0))
     tables: ProfileTables = build_tables(b.entries)
-    from rivercal.engine.geometry import flow_records
-
     sc_ptr = np.zeros(n_hp + 1, dtype=np.int64)
     sc_ptr[1:] = np.cumsum([len(c) for c in contributions])
     flat = [entry for c in contributions for entry in c]

@@ -34,6 +34,7 @@ import pandas as pd
 
 from rivercal._time import utc
 from rivercal.case.load import Case
+from rivercal.engine.channels import initial_levels
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network
 from rivercal.engine.controllers import Controls, ControlValues
 from rivercal.engine.kernels.codes import (
@@ -269,13 +270,16 @@ class Simulator:
     # -- state ---------------------------------------------------------------------------------
 
     def initial_state(self, start: pd.Timestamp | None = None) -> EngineState:
-        """The cold-start state at ``start``: level max(bed + depth, level) at rest."""
+        """The cold-start state at ``start``: level max(bed + depth, level), or a branch's initial levels, at rest."""
         start = self.start if start is None else pd.Timestamp(start)
         a = self.compiled.arrays
         init = self.case.spec.initial
         z = a.hp_bed + init.depth
         if init.level is not None:
             z = np.maximum(z, init.level)
+        along = initial_levels(self.case.network, self.compiled.hp_label, self.compiled.hp_branch,
+                               self.compiled.hp_chainage)  # branches' own initial levels, never below the bed
+        z = np.where(np.isnan(along), z, np.maximum(along, a.hp_bed))
         for bnd in range(a.b_hp.size):
             if a.b_type[bnd] == BOUNDARY_LEVEL:
                 key = self.compiled.forcing_keys[a.b_col[bnd]]

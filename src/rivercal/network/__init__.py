@@ -40,7 +40,7 @@ from rivercal.network._base import (
     Real,
     Size,
 )
-from rivercal.network.branches import MAX_POINTS_PER_BRANCH, Branch, CrossSection
+from rivercal.network.branches import MAX_POINTS_PER_BRANCH, Branch, CrossSection, InitialLevels
 from rivercal.network.forcing import Boundary, Lateral, RatingTable, SeriesRef
 from rivercal.network.friction import FRICTION_RANGES, BranchFriction, Friction, FrictionGroup
 from rivercal.network.nodes import Node, StorageTable
@@ -48,6 +48,7 @@ from rivercal.network.profiles import (
     CircularProfile,
     Profile,
     RectangularProfile,
+    SummerDike,
     TrapezoidalProfile,
     YZProfile,
     ZWProfile,
@@ -77,6 +78,7 @@ __all__ = [
     "Friction",
     "FrictionGroup",
     "Identifier",
+    "InitialLevels",
     "Lateral",
     "Level",
     "Network",
@@ -91,6 +93,7 @@ __all__ = [
     "Size",
     "Station",
     "StorageTable",
+    "SummerDike",
     "TrapezoidalProfile",
     "UniversalWeir",
     "Weir",

@@ -8,10 +8,10 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from rivercal.errors import FieldProblem
-from rivercal.network._base import Identifier, Level, NetworkModel, Real, num
+from rivercal.network._base import Identifier, Level, NetworkModel, Real, num, same_length, strictly_increasing
 from rivercal.network.friction import Friction
 
-__all__ = ["MAX_POINTS_PER_BRANCH", "Branch", "CrossSection"]
+__all__ = ["MAX_POINTS_PER_BRANCH", "Branch", "CrossSection", "InitialLevels"]
 
 #: Most calculation points one branch may get (length / dx); more is a unit mistake, not a model.
 MAX_POINTS_PER_BRANCH = 100_000
@@ -36,6 +36,35 @@ class CrossSection(NetworkModel):
     bed_level: Level = Field(description="level of the lowest point of the profile, m AD")
 
 
+class InitialLevels(NetworkModel):
+    """Initial water levels along a branch (a cold start from a surveyed or computed water line).
+
+    Attributes
+    ----------
+    chainages
+        Chainages, m from the start of the branch, strictly increasing.
+    levels
+        Water level at each chainage, m AD; linear between the chainages and constant beyond the first and
+        the last. A level below the bed leaves the point dry.
+    """
+
+    chainages: list[Real] = Field(min_length=1, description="chainages, m from the start of the branch, increasing")
+    levels: list[Level] = Field(min_length=1, description="initial water level at each chainage, m AD")
+
+    @model_validator(mode="after")
+    def _check(self) -> InitialLevels:
+        same_length(self.chainages, "chainages", self.levels, "levels")
+        strictly_increasing(self.chainages, "chainages", "m")
+        if self.chainages[0] < 0:
+            raise FieldProblem("chainages[0]", f"chainages are m from the start of the branch, got "
+                                               f"{num(self.chainages[0])} m")
+        return self
+
+    def level_at(self, chainage: np.ndarray | float) -> np.ndarray:
+        """Initial level at chainages (m), m AD."""
+        return np.interp(chainage, self.chainages, self.levels)
+
+
 class Branch(NetworkModel):
     """A channel reach between two connection nodes.
 
@@ -57,6 +86,13 @@ class Branch(NetworkModel):
         Optional chainages of the calculation points, m, from 0 to ``length`` (as a D-Flow FM grid
         gives them). Then ``dx`` is not used, and a structure occupies the stretch between the two
         points around it instead of a segment of ``engine.structure_length``.
+    order
+        Optional order number (D-Flow FM's ``branchOrder``, SOBEK 3's ``order``). With
+        ``engine.cross_sections = "interpolated"``, cross-sections are interpolated across a connection node
+        into the next branch of the same positive order, as D-Flow FM does, instead of being held constant from
+        the last cross-section to the branch end.
+    initial_levels
+        Optional initial water levels along the branch (cold start), instead of the case's ``[initial]``.
     """
 
     id: Identifier = Field(description="branch id (its own friction is the parameter friction:branch:<id>)")
@@ -76,6 +112,14 @@ class Branch(NetworkModel):
     points: list[Real] | None = Field(
         default=None, min_length=2,
         description="chainages of the calculation points, m, from 0 to length (optional; then dx is not used)",
+    )
+    order: int | None = Field(
+        default=None, ge=-1000000, le=1000000,
+        description="order number: cross-sections are interpolated across a node into the next branch of the same "
+                    "positive order (D-Flow FM branchOrder; with cross_sections = 'interpolated')",
+    )
+    initial_levels: InitialLevels | None = Field(
+        default=None, description="initial water levels along the branch, m AD (cold start; instead of [initial])"
     )
 
     @model_validator(mode="after")

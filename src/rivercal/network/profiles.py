@@ -30,6 +30,7 @@ __all__ = [
     "CircularProfile",
     "Profile",
     "RectangularProfile",
+    "SummerDike",
     "TrapezoidalProfile",
     "YZProfile",
     "ZWProfile",
@@ -118,6 +119,40 @@ class TrapezoidalProfile(NetworkModel):
         return self
 
 
+class SummerDike(NetworkModel):
+    """A summer dike on a floodplain of a zw profile (SOBEK 3 ``sd_*``, D-Flow FM ``levee*``).
+
+    The area behind the dike takes part in the flow and stores water only once the water tops the crest:
+    both areas grow from 0 at the crest to their full value at ``transition`` above it (smoothly, two
+    parabolas; SOBEK 3's summer dike, whose storage the engine fills and drains by the same curve). The flow
+    area adds no wetted perimeter.
+
+    Attributes
+    ----------
+    crest
+        Height of the crest above the profile's lowest point, m.
+    flow_area
+        Flow area behind the dike when it is full, m².
+    total_area
+        Total (storage) area behind the dike when it is full, m² (at least the flow area).
+    transition
+        Height over which the areas fill above the crest, m (SOBEK 3's TransitionHeightSD, 0.5 m).
+    """
+
+    crest: Size = Field(ge=0, description="height of the crest above the profile's lowest point, m")
+    flow_area: Size = Field(ge=0, description="flow area behind the dike when full, m²")
+    total_area: Size = Field(ge=0, description="total (storage) area behind the dike when full, m²")
+    transition: Size = Field(default=0.5, ge=MIN_SIZE, description="height over which the areas fill above "
+                                                                     "the crest, m")
+
+    @model_validator(mode="after")
+    def _check(self) -> SummerDike:
+        if self.total_area < self.flow_area:
+            raise FieldProblem("total_area", f"the total area {num(self.total_area)} m² is smaller than the flow "
+                                             f"area {num(self.flow_area)} m²")
+        return self
+
+
 class ZWProfile(NetworkModel):
     """Tabulated level-width ("ZW") cross-section, relative to its own lowest point.
 
@@ -135,12 +170,15 @@ class ZWProfile(NetworkModel):
         spreads over the floodplain part of the table.
     closed
         A closed conduit (a sewer pipe): the widths may narrow upward, and above the last height
-        the conduit is closed.
+        the conduit is closed. In an open profile with ``total_widths`` the flow widths may narrow
+        (part of the width stops conveying and only stores); the total widths may not.
     section_widths
         Widths of the main channel and of up to two floodplains (m) that split the flow width into
         friction sections (D-Flow FM "zwRiver"): the flow width is filled main channel first.
     friction
         Friction group of each section (one id per section); default: the branch's friction.
+    summer_dike
+        A summer dike on the floodplain (:class:`SummerDike`).
     """
 
     id: Identifier
@@ -164,6 +202,7 @@ class ZWProfile(NetworkModel):
         description="flow widths of the main channel and up to two floodplains, m (friction sections)",
     )
     friction: list[Identifier] | None = Field(default=None, min_length=1, description=_FRICTION)
+    summer_dike: SummerDike | None = Field(default=None, description="a summer dike on the floodplain (optional)")
 
     @model_validator(mode="after")
     def _check_table(self) -> ZWProfile:
@@ -184,8 +223,9 @@ class ZWProfile(NetworkModel):
             for i, w in enumerate(widths):
                 if 0 < w < MIN_SIZE:
                     raise FieldProblem(f"{name}[{i}]", tiny(w, "m", MIN_SIZE))
-            if not self.closed:
-                non_decreasing(widths, name, "m", "an open profile cannot narrow upward (set closed = true for a pipe)")
+            if not self.closed and (name == "total_widths" or self.total_widths is None):
+                non_decreasing(widths, name, "m", "an open profile cannot narrow upward (set closed = true for a pipe"
+                                                  "; give total_widths for a flow width that narrows)")
         if not self.closed and self.flow_widths[-1] <= 0:
             raise FieldProblem(
                 f"flow_widths[{len(self.flow_widths) - 1}]",

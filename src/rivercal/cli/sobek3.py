@@ -1,0 +1,44 @@
+"""``rivercal import sobek3``: a SOBEK 3 model (``Flow1D.md1d``) into a case."""
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from rivercal.cli.common import JsonOpt, emit_json, guard, out_console
+
+__all__ = ["import_sobek3_cmd"]
+
+
+def _require_tomli_w() -> None:
+    try:
+        import tomli_w  # noqa: F401
+    except ImportError:
+        raise ValueError("writing the imported case needs tomli-w: pip install 'rivercal[sobek3]'") from None
+
+
+@guard
+def import_sobek3_cmd(
+    model: Annotated[Path, typer.Argument(help="The SOBEK 3 model definition file (Flow1D.md1d).")],
+    out: Annotated[Path, typer.Option("--out", help="Case folder to write (case.toml, series, import.md).")],
+    allow_partial: Annotated[bool, typer.Option(
+        "--allow-partial", help="Write the case even when objects that change the hydraulics were refused "
+                                "(they are left out; import.md lists them).")] = False,
+    dt: Annotated[float | None, typer.Option(help="Time step of the case, s (default: the model's own "
+                                                  "TimeStep).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Convert a SOBEK 3 1D model into a case folder, accounting for every object in import.md."""
+    _require_tomli_w()
+    from rivercal.io.sobek3 import ImportOptions, import_sobek3
+
+    result = import_sobek3(model, out, ImportOptions(allow_partial=allow_partial, dt=dt))
+    if as_json:
+        emit_json(result.summary)
+        return
+    s = result.summary
+    kinds = ", ".join(f"{n} {k}" for k, n in s["structures"].items()) or "no structures"
+    out_console.print(f"imported [bold]{model.name}[/] into {out}: {s['branches']} branches, {s['points']} points, "
+                      f"{s['profiles']} profiles, {kinds}, {s['boundaries']} boundaries, {s['laterals']} laterals, "
+                      f"{s['stations']} stations, time step {s['dt_s']:g} s; {s['approximated']} approximated, "
+                      f"{s['refused']} refused (see {out / 'import.md'})")

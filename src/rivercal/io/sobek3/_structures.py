@@ -1,0 +1,239 @@
+"""Structures of a SOBEK 3 model (``Structures.ini``) as case tables.
+
+SOBEK 3 → case (key names of SOBEK 3's structure file, flow1d's readStructures of the Delft3D 4 source tree):
+
+- ``weir`` (crestLevel, crestWidth, dischargeCoeff, latDisCoeff, allowedFlowDir) → ``[[weirs]]``: the same
+  simple-weir formula with its free/submerged switch at two thirds of the upstream head;
+- ``universalWeir`` (levelsCount, yValues, zValues as levels, crestLevel, dischargeCoeff) → ``[[universal_weirs]]``;
+- ``orifice``/``gate`` (crestLevel, crestWidth, openLevel, contractionCoeff, latContrCoeff, flow limits) →
+  ``[[orifices]]`` with the coefficient μ c_w;
+- ``culvert`` and ``invertedSiphon`` (csDefId, leftLevel, rightLevel, length, loss coefficients, bed friction) →
+  ``[[culverts]]`` with the definition as their profile;
+- ``bridge`` (csDefId, bedLevel, length, loss coefficients, bed friction) → ``[[bridges]]``;
+- ``pump`` with one stage controlled on its suction side → ``[[pumps]]``;
+- ``siphon`` (with its own switch-on levels), ``bridgePillar``, ``riverWeir``, ``advancedWeir``,
+  ``generalStructure``, ``extraResistance`` and a valve in a culvert are refused: a case has no counterpart.
+
+``allowedFlowDir`` is 0 (both), 1 (positive), 2 (negative) or 3 (none). Every structure gets a station with the
+levels either side and its discharge, as SOBEK 3 reports them.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+from rivercal.io.sobek3._context import Context
+from rivercal.io.sobek3._ini import Section
+from rivercal.io.sobek3._network import add_profile, convert_value, law_of
+from rivercal.network import FRICTION_RANGES
+
+__all__ = ["convert_structures"]
+
+_DIRECTIONS = {0: "both", 1: "positive", 2: "negative", 3: "none"}
+_TABLES = ("weirs", "universal_weirs", "orifices", "culverts", "bridges", "pumps")
+
+
+def _direction(s: Section) -> str:
+    item = s.find("allowedFlowDir")
+    if item is None or not item.value:
+        return "both"
+    text = item.value.strip().lower()
+    if text in _DIRECTIONS.values():
+        return text
+    try:
+        return _DIRECTIONS[int(float(text))]
+    except (ValueError, KeyError):
+        raise s.error("allowedFlowDir", f"{item.value!r} is none of 0 (both), 1 (positive), 2 (negative), "
+                                        "3 (none)", item) from None
+
+
+def _friction(s: Section, type_key: str, value_key: str) -> tuple[dict, str]:
+    code = s.text(type_key, default="1")
+    law = law_of(code)
+    if law is None or law in ("engelund", "bosbijkerk"):
+        raise s.error(type_key, f"roughness type {code!r} has no counterpart in a case")
+    law, value = convert_value(law, s.number(value_key))
+    low, high, unit = FRICTION_RANGES[law]
+    if not low <= value <= high:
+        return {"type": law, "value": min(max(value, low), high)}, (
+            f"{law} {value:g} {unit} outside the plausible range, clamped to it")
+    return {"type": law, "value": value}, ""
+
+
+def convert_structures(ctx: Context) -> None:
+    """Fill the structure tables of ``ctx.case`` from the model's structure file."""
+    tables: dict[str, list[dict]] = {t: [] for t in _TABLES}
+    for s in ctx.model.blocks("structureFile", "structure"):
+        sid = s.text("id")
+        kind = s.text("type").strip()
+        bid = s.text("branchId", "branchid", default=None)
+        if bid is None or not ctx.known("branch", bid) or ctx.id("branch", bid) not in ctx.branches:
+            ctx.ledger.refused(kind, sid, f"its branch {bid!r} is not in the network")
+            continue
+        branch = ctx.branches[ctx.id("branch", bid)]
+        chainage = s.number("chainage")
+        if chainage < -1e-6 or chainage > branch["length"] + 1e-3:
+            raise s.error("chainage", f"chainage {chainage:g} m lies outside branch {bid!r} (0-{branch['length']:g} m)")
+        base = {"id": ctx.id("structure", sid), "branch": branch["id"],
+                "chainage": min(max(chainage, 0.0), branch["length"])}
+        handler = _HANDLERS.get(kind.lower())
+        if handler is None:
+            ctx.ledger.refused(kind, sid, f"structure type {kind!r} has no counterpart in a case")
+            continue
+        table, item, notes, refusal = handler(ctx, s, base)
+        if refusal:
+            ctx.ledger.refused(kind, sid, refusal)
+            continue
+        tables[table].append(item)
+        ctx.origins[item["id"]] = (kind, sid)
+        (ctx.ledger.approximated if notes else ctx.ledger.exact)(kind, sid, "; ".join(notes))
+    for table, items in tables.items():
+        if items:
+            ctx.case[table] = items
+    taken = {st["id"] for st in ctx.case["stations"]}
+    for items in tables.values():
+        for item in items:
+            sid = item["id"] if item["id"] not in taken else f"{item['id']}_structure"
+            sid = sid.replace(".", "_")
+            taken.add(sid)
+            ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
+
+
+def _weir(ctx: Context, s: Section, base: dict):
+    item = {**base, "crest_level": s.number("crestLevel"), "crest_width": s.number("crestWidth"),
+            "discharge_coefficient": s.number("dischargeCoeff", default=1.0),
+            "lateral_contraction": s.number("latDisCoeff", default=1.0), "allowed_flow": _direction(s)}
+    if not item["crest_width"] > 0:
+        raise s.error("crestWidth", f"the crest width must be positive, got {item['crest_width']:g} m")
+    for key, name in (("dischargeCoeff", "discharge_coefficient"), ("latDisCoeff", "lateral_contraction")):
+        if not 0 < item[name] <= (2.0 if name == "discharge_coefficient" else 1.0):
+            raise s.error(key, f"{item[name]:g} lies outside the range of a {key} (above 0, at most "
+                               f"{2.0 if name == 'discharge_coefficient' else 1.0:g})")
+    return "weirs", item, [], ""
+
+
+def _universal_weir(ctx: Context, s: Section, base: dict):
+    count = s.integer("levelsCount", "numLevels", default=None)
+    y = s.numbers("yValues", count=count)
+    z = s.numbers("zValues", count=len(y))
+    crest = s.number("crestLevel")
+    if any(b < a for a, b in itertools.pairwise(y)):
+        raise s.error("yValues", "the y values of a universal weir must not decrease")
+    low = min(z)
+    notes = []
+    if abs(low - crest) > 1e-6:
+        notes.append(f"the crest level {crest:g} m AD differs from the lowest z value {low:g} m AD; the lowest is used")
+    factor = s.number("freeSubmergedFactor", default=0.667)
+    if abs(factor - 0.667) > 1e-3:
+        notes.append(f"freeSubmergedFactor {factor:g}: the case switches to submerged flow at 2/3")
+    item = {**base, "y": y, "z": [v - low for v in z], "crest_level": low,
+            "discharge_coefficient": s.number("dischargeCoeff", default=1.0), "allowed_flow": _direction(s)}
+    return "universal_weirs", item, notes, ""
+
+
+def _orifice(ctx: Context, s: Section, base: dict):
+    if s.has("crestLevel"):
+        crest, width, gate = s.number("crestLevel"), s.number("crestWidth"), s.number("openLevel",
+                                                                                     "gateLowerEdgeLevel")
+    else:  # SOBEK 3's older form: a bottom level and an area, a square opening
+        crest, area = s.number("bottomLevel"), s.number("area")
+        width = area**0.5
+        gate = crest + width
+    mu = s.number("contractionCoeff", default=0.63) * s.number("latContrCoeff", default=1.0)
+    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": max(gate, crest),
+            "discharge_coefficient": mu, "allowed_flow": _direction(s)}
+    notes = ["contraction coefficient times lateral contraction as the orifice's discharge coefficient"]
+    if s.flag("useLimitFlowPos", default=False):
+        item["max_flow_positive"] = s.number("limitFlowPos")
+    if s.flag("useLimitFlowNeg", default=False):
+        item["max_flow_negative"] = s.number("limitFlowNeg")
+    if gate < crest:
+        notes.append("the gate's lower edge lies below the crest: taken at the crest (closed)")
+    return "orifices", item, notes, ""
+
+
+def _culvert(ctx: Context, s: Section, base: dict, *, siphon: bool = False):
+    did = s.text("csDefId")
+    if did not in ctx.definitions:
+        raise s.error("csDefId", f"cross-section definition {did!r} is not in the definitions file")
+    if s.flag("valveOnOff", default=False):
+        return "culverts", None, [], "a culvert with a valve: the valve's losses are not converted"
+    pid, _ = add_profile(ctx, did)
+    if pid is None:
+        return "culverts", None, [], f"its cross-section definition {did!r} was refused"
+    friction, note = _friction(s, "bedFrictionType", "bedFriction")
+    item = {**base, "shape": "profile", "profile": pid, "invert_level": s.number("leftLevel"),
+            "invert_level_end": s.number("rightLevel"), "length": s.number("length"),
+            "inlet_loss": s.number("inletLossCoeff", default=0.5), "outlet_loss": s.number("outletLossCoeff",
+                                                                                          default=1.0),
+            "friction": friction, "allowed_flow": _direction(s)}
+    if siphon:
+        item["bend_loss"] = s.number("bendLossCoeff", default=0.0)
+    return "culverts", item, [note] if note else [], ""
+
+
+def _bridge(ctx: Context, s: Section, base: dict):
+    did = s.text("csDefId")
+    if did not in ctx.definitions:
+        raise s.error("csDefId", f"cross-section definition {did!r} is not in the definitions file")
+    pid, _ = add_profile(ctx, did)
+    if pid is None:
+        return "bridges", None, [], f"its cross-section definition {did!r} was refused"
+    friction, note = _friction(s, "bedFrictionType", "bedFriction")
+    item = {**base, "profile": pid, "bed_level": s.number("bedLevel"), "length": s.number("length"),
+            "inlet_loss": s.number("inletLossCoeff", default=0.5), "outlet_loss": s.number("outletLossCoeff",
+                                                                                          default=1.0),
+            "friction": friction, "allowed_flow": _direction(s)}
+    return "bridges", item, [note] if note else [], ""
+
+
+def _pump(ctx: Context, s: Section, base: dict):
+    direction = s.integer("direction", default=1)
+    stages = s.integer("nrStages", "numStages", default=1)
+    if abs(direction) not in (1, 2, 3) or direction == 0:
+        raise s.error("direction", f"direction {direction} is none of ±1 (suction side), ±2 (delivery side), "
+                                   "±3 (both sides)")
+    if abs(direction) != 1:
+        return "pumps", None, [], "a pump controlled on its delivery side; a case's pump switches on its suction side"
+    if stages != 1:
+        return "pumps", None, [], f"a pump of {stages} stages; a case's pump has one"
+    capacity = s.numbers("capacity", count=1)[0]
+    start = s.numbers("startLevelSuctionSide", count=1)[0]
+    stop = s.numbers("stopLevelSuctionSide", count=1)[0]
+    notes = []
+    if s.has("reductionFactor"):
+        factors = s.numbers("reductionFactor")
+        if any(abs(f - 1.0) > 1e-9 for f in factors):
+            notes.append("the reduction of the capacity with the head is not converted (full capacity)")
+    item = {**base, "capacity": capacity, "start_level": start, "stop_level": stop,
+            "direction": "positive" if direction > 0 else "negative"}
+    if not capacity > 0:
+        return "pumps", None, [], f"capacity {capacity:g} m³/s: the pump never pumps"
+    if stop >= start:
+        raise s.error("stopLevelSuctionSide", f"the stop level {stop:g} m AD is not below the start level "
+                                              f"{start:g} m AD")
+    return "pumps", item, notes, ""
+
+
+def _refuse(why: str):
+    def handler(ctx: Context, s: Section, base: dict):
+        return "weirs", None, [], why
+    return handler
+
+
+_HANDLERS = {
+    "weir": _weir,
+    "universalweir": _universal_weir,
+    "orifice": _orifice,
+    "gate": _orifice,
+    "culvert": _culvert,
+    "invertedsiphon": lambda ctx, s, base: _culvert(ctx, s, base, siphon=True),
+    "bridge": _bridge,
+    "pump": _pump,
+    "siphon": _refuse("a siphon with its own switch-on and switch-off levels has no counterpart in a case"),
+    "bridgepillar": _refuse("a pillar bridge (pillar width and form factor) has no counterpart in a case"),
+    "riverweir": _refuse("a river weir (its reduction tables) has no counterpart in a case"),
+    "advancedweir": _refuse("an advanced weir (piers, design head) has no counterpart in a case"),
+    "generalstructure": _refuse("a general structure has no exact counterpart in a case"),
+    "extraresistance": _refuse("an extra resistance has no counterpart in a case"),
+}
