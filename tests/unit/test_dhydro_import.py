@@ -207,7 +207,7 @@ def test_a_broken_block_costs_that_block_only(imported, tmp_path) -> None:
     result = import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions(allow_partial=True))
     assert result.ledger.status_of("culvert", "culvert2") == "refused"
     assert result.ledger.status_of("culvert", "culvert1") == "exact"
-    assert any("DiskOnlyFileModel" in w for w in result.ledger.warnings)
+    assert any("block by block" in w for w in result.ledger.warnings)
 
 
 def test_the_period_from_start_and_stop_datetimes(imported, tmp_path) -> None:

@@ -102,17 +102,22 @@ def forcing_series(ctx: Context, value: Any, *, name: str) -> pd.Series:
         v = np.array([r.data[0] for r in value.timeseries], dtype=float)
         return _cover(ctx, pd.Series(v, index=ctx.refdate + pd.to_timedelta(t * 60.0, unit="s")))
     if kind == "ForcingModel":
-        block = _block(value, name)
+        block = _block(value, name, ctx)
         return block_series(ctx, block)
     if kind == "DiskOnlyFileModel":
         raise ValueError(f"the forcing file {getattr(value, 'filepath', None)} could not be validated by hydrolib-core")
     raise ValueError(f"a value of type {kind} cannot be converted")
 
 
-def _block(model: Any, name: str) -> Any:
+def _block(model: Any, name: str, ctx: Context | None = None) -> Any:
     for f in model.forcing:
         if unquote(f.name) == unquote(name):
             return f
+    if ctx is not None:
+        for path, failures in ctx.model.sources.forcing_failures.items():
+            if ctx.model.sources.rel(path) == str(getattr(model, "filepath", "")) and unquote(name) in failures:
+                raise ValueError(f"its forcing block {unquote(name)!r} in {getattr(model, 'filepath', '?')} cannot be "
+                                 f"read: {failures[unquote(name)]}")
     raise ValueError(f"no forcing block named {name!r} in {getattr(model, 'filepath', '?')}")
 
 
@@ -188,6 +193,10 @@ def convert_forcing(ctx: Context) -> None:
     boundaries: list[dict] = []
     laterals: list[dict] = []
     if ext is not None:
+        for header, bid, reason in ext.failed:
+            kind = {"boundary": "boundary", "lateral": "lateral"}.get(header.lower(), header)
+            ctx.ledger.refused(kind, bid, f"{ctx.model.sources.rel(ext.path)}: {reason}",
+                               hydraulic=header.lower() in ("boundary", "lateral"))
         for bnd in ext.boundary:
             item = _boundary(ctx, bnd, degree)
             if item is not None:
@@ -201,6 +210,8 @@ def convert_forcing(ctx: Context) -> None:
                 ctx.ledger.refused(name, str(getattr(block, "quantity", None) or getattr(block, "id", "?")),
                                    "meteo forcing and 2D sources/sinks have no counterpart in a 1D case")
     old = ctx.model.fm.external_forcing.extforcefile
+    if old is None and ("external_forcing", "extforcefile") in ctx.model.sources.dropped:
+        old = "ExtForceFile"
     if old is not None:
         ctx.ledger.refused("forcing file", str(getattr(old, "filepath", old)),
                            "old-format external forcing file (.ext with .tim/.cmp): not read")
@@ -218,6 +229,7 @@ def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
         ctx.ledger.refused("boundary", name, "its node is not a connection node of the network")
         return None
     node = ctx.id("node", bnd.nodeid)
+    ctx.source("boundaries", ctx.id("boundary", name), bnd)
     if degree[node] != 1:
         ctx.ledger.refused("boundary", name, f"its node joins {degree[node]} branches; a case boundary sits at an end "
                            "node (D-Flow FM's AllowBndAtBifurcation)")
@@ -225,7 +237,7 @@ def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
     bid = ctx.id("boundary", name)
     try:
         if quantity == "qhbnd":
-            block = _block(bnd.forcingfile, bnd.nodeid)
+            block = _block(bnd.forcingfile, bnd.nodeid, ctx)
             return _rating(ctx, bid, node, name, block)
         if quantity not in ("waterlevelbnd", "dischargebnd"):
             ctx.ledger.refused("boundary", name, f"boundary quantity {bnd.quantity!r} has no counterpart in a case "
@@ -349,6 +361,7 @@ def _lateral(ctx: Context, lat: Any) -> dict | None:
     name = unquote(lat.id)
     lid = ctx.id("lateral", name)
     item: dict = {"id": lid}
+    ctx.source("laterals", lid, lat)
     notes: list[str] = []
     if lat.nodeid is not None:
         if not ctx.ids["node"].known(lat.nodeid):

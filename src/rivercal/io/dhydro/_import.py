@@ -78,25 +78,27 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     """
     options = options or ImportOptions()
     mdu, out = Path(mdu), Path(out)
+    _check_options(options)
+    _check_out(out)
     ledger = Ledger()
     model = load_fm_model(mdu, ledger)
-    refdate, start, end = _period(model.fm)
+    refdate, start, end = _period(model)
     ctx = Context(model=model, options=options, ledger=ledger, start=start, end=end, refdate=refdate)
     for path in options.realtime:
         try:
             found = read_exchange(Path(path), refdate)
-        except (OSError, ValueError) as exc:
-            raise CaseError(f"cannot read the exchange file: {' '.join(str(exc).split())}", file=str(path)) from None
+        except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
+            raise CaseError(f"cannot read the exchange file: {' '.join(str(exc).split())[:300]}",
+                            file=str(path)) from None
         ctx.exchange.update(found)
-    ctx.case["case"] = {"name": mdu.stem, "description": f"imported from D-Flow FM model {mdu.name}",
+    ctx.case["case"] = {"name": _case_name(mdu), "description": f"imported from D-Flow FM model {mdu.name}",
                         "start": start.isoformat().replace("+00:00", "Z"),
                         "end": end.isoformat().replace("+00:00", "Z")}
-    convert_network(ctx)
-    convert_structures(ctx)
-    convert_forcing(ctx)
-    _engine(ctx)
-    _fit_the_grid(ctx)
-    _other_settings(ctx)
+    for stage in (convert_network, convert_structures, convert_forcing, _engine, _validate_items, _fit_the_grid,
+                  _other_settings):
+        if ledger.errors:
+            break
+        stage(ctx)
     unused = sorted(k for k in ctx.exchange if k not in ctx.exchange_used and not k.startswith("observations/")
                     and not k.endswith("/water_level"))
     for key in unused:
@@ -104,7 +106,14 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     out.mkdir(parents=True, exist_ok=True)
     (out / "import.md").write_text(ledger.markdown(model=str(mdu), case_folder=str(out),
                                                    partial=options.allow_partial), encoding="utf-8")
+    if ledger.errors:
+        _remove_old_case(out)
+        shown = "; ".join(f"{where}: {text}" for where, text in ledger.errors[:3])
+        more = f" (and {len(ledger.errors) - 3} more)" if len(ledger.errors) > 3 else ""
+        raise CaseError(f"{len(ledger.errors)} value(s) in the model files cannot be used: {shown}{more}; no case was "
+                        f"written; see {out / 'import.md'}", file=str(mdu))
     if ledger.blocking and not options.allow_partial:  # no case that would run without these objects
+        _remove_old_case(out)
         groups: dict[tuple[str, str], list[str]] = {}
         for e in ledger.blocking:
             groups.setdefault((e.kind, e.note), []).append(e.id)
@@ -118,47 +127,188 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     try:
         case = load_case(out)
     except CaseError as exc:
-        raise CaseError(f"the imported case does not validate, which is a bug of the import: {exc}",
-                        file=str(mdu)) from None
+        _remove_old_case(out)
+        raise RuntimeError(f"the case made from {mdu.name} does not validate, which is a bug of the import (every "
+                           f"value read was checked): {exc}") from None
     return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger)
 
 
-def _period(fm) -> tuple[pd.Timestamp, pd.Timestamp, pd.Timestamp]:
+def _case_name(mdu: Path) -> str:
+    import re
+
+    name = re.sub(r"[^A-Za-z0-9_.\-]", "_", mdu.stem)[:64]
+    return name or "imported"
+
+
+def _check_options(options: ImportOptions) -> None:
+    from rivercal.network import MAX_DISCHARGE
+
+    q = options.realtime_lateral
+    if q is not None and (not math.isfinite(q) or abs(q) > MAX_DISCHARGE):
+        raise CaseError(f"{q}: the constant inflow of realtime laterals must be a finite discharge within "
+                        f"±{MAX_DISCHARGE:g} m³/s", field="--realtime-lateral")
+    dt = options.dt
+    if dt is not None and (not math.isfinite(dt) or not 0 < dt <= 86400):
+        raise CaseError(f"{dt}: the time step must be a finite number of seconds in (0, 86400]", field="--dt")
+
+
+def _check_out(out: Path) -> None:
+    """The case folder: new, empty, or the folder of an earlier import (whose case files are replaced)."""
+    if out.exists() and not out.is_dir():
+        raise CaseError("exists and is not a folder: give a new folder for the case", field="--out",
+                        file=str(out))
+    if out.is_dir() and any(out.iterdir()) and not (out / "import.md").is_file():
+        raise CaseError("is a folder with other files in it and not the folder of an earlier import: give a new or "
+                        "empty folder (an import replaces the case files it finds)", field="--out", file=str(out))
+
+
+def _remove_old_case(out: Path) -> None:
+    """An earlier import's case files, so that a failed import leaves no case that would run without what failed."""
+    for old in [out / "case.toml", *out.glob("*.csv")]:
+        if old.is_file():
+            old.unlink()
+
+
+def _period(model) -> tuple[pd.Timestamp, pd.Timestamp, pd.Timestamp]:
+    """Reference date, start and end (UTC) from the MDU's [time] section; an error naming the key when unusable."""
+    from rivercal.io.dhydro._read import mdu_line
+
+    fm, mdu = model.fm, model.mdu
+    index = model.sources.ini(mdu)
     t = fm.time
-    refdate = pd.Timestamp(str(int(t.refdate)), tz="UTC")
+
+    def bad(name: str, problem: str) -> CaseError:
+        return CaseError(f"{mdu_line(index, 'time', name)}: {problem}", file=str(mdu))
+
+    text = str(t.refdate).strip()
+    try:
+        if not (text.isdigit() and len(text) == 8):
+            raise ValueError(text)
+        refdate = pd.Timestamp(f"{text[:4]}-{text[4:6]}-{text[6:]}", tz="UTC")
+    except ValueError:
+        raise bad("refdate", "the reference date must be a date written yyyymmdd") from None
     shift = pd.Timedelta(hours=float(t.tzone or 0.0))
-    unit = {"D": 86400.0, "H": 3600.0, "M": 60.0, "S": 1.0}[str(t.tunit or "S").upper()]
+    if abs(float(t.tzone or 0.0)) > 24:
+        raise bad("tzone", "the time zone must lie within ±24 hours")
+    unit_name = str(t.tunit or "S").upper()
+    if unit_name not in ("D", "H", "M", "S"):
+        raise bad("tunit", "the time unit must be D, H, M or S")
+    unit = {"D": 86400.0, "H": 3600.0, "M": 60.0, "S": 1.0}[unit_name]
     if t.startdatetime and t.stopdatetime:
-        start = pd.Timestamp(str(t.startdatetime), tz="UTC") - shift
-        end = pd.Timestamp(str(t.stopdatetime), tz="UTC") - shift
+        try:
+            start = pd.Timestamp(_datetime_text(str(t.startdatetime)), tz="UTC") - shift
+        except ValueError:
+            raise bad("startdatetime", "not a date and time written yyyymmddHHMMSS") from None
+        try:
+            end = pd.Timestamp(_datetime_text(str(t.stopdatetime)), tz="UTC") - shift
+        except ValueError:
+            raise bad("stopdatetime", "not a date and time written yyyymmddHHMMSS") from None
+        names = ("startdatetime", "stopdatetime")
     else:
-        start = refdate + pd.to_timedelta(float(t.tstart or 0.0) * unit, unit="s") - shift
-        end = refdate + pd.to_timedelta(float(t.tstop) * unit, unit="s") - shift
+        if t.tstop is None:
+            raise bad("tstop", "the model gives no stop time (TStop, or StartDateTime and StopDateTime)")
+        tstart, tstop = float(t.tstart or 0.0), float(t.tstop)
+        if not (math.isfinite(tstart) and math.isfinite(tstop)) or max(abs(tstart), abs(tstop)) * unit > 3.2e9:
+            raise bad("tstop", "the start and stop times must be finite and within a century of the reference date")
+        start = refdate + pd.to_timedelta(tstart * unit, unit="s") - shift
+        end = refdate + pd.to_timedelta(tstop * unit, unit="s") - shift
+        names = ("tstart", "tstop")
+    if end <= start:
+        raise bad(names[1], f"the period ends ({end.isoformat()}) before it starts ({start.isoformat()})")
     return refdate - shift, start, end
+
+
+def _datetime_text(text: str) -> str:
+    """``yyyymmddHHMMSS`` (D-Flow FM's StartDateTime) as ISO text; a ValueError when it is not that."""
+    text = text.strip()
+    if not (text.isdigit() and len(text) in (8, 14)):
+        raise ValueError(text)
+    text = text.ljust(14, "0")
+    iso = f"{text[:4]}-{text[4:6]}-{text[6:8]}T{text[8:10]}:{text[10:12]}:{text[12:14]}"
+    pd.Timestamp(iso)  # raises ValueError for a day or hour that does not exist
+    return iso
 
 
 def _engine(ctx: Context) -> None:
     fm = ctx.model.fm
-    span = (ctx.end - ctx.start).total_seconds()
+    span = round((ctx.end - ctx.start).total_seconds())
     his = fm.output.hisinterval
     interval = float(his[0]) if his and float(his[0]) > 0 else float(fm.time.dtuser or 3600.0)
+    interval = max(1, round(interval))
     if span % interval:
-        interval = math.gcd(int(span), int(interval)) or span
-    dt_max = min(float(fm.time.dtmax or MAX_DT), MAX_DT)
-    dt = ctx.options.dt or max(d for d in range(1, int(dt_max) + 1) if interval % d == 0)
+        interval = math.gcd(int(span), int(interval)) or max(span, 1)
+    dt_max = max(1, int(min(float(fm.time.dtmax or MAX_DT), MAX_DT)))
+    dt = ctx.options.dt or max(d for d in range(1, dt_max + 1) if interval % d == 0)
+    ratio = interval / dt
+    if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
+        raise CaseError(f"{dt:g} s does not divide the model's output interval {interval:g} s (the his interval)",
+                        field="--dt")
     engine = {"dt": float(dt), "output_interval": float(interval), "structure_length": STRUCTURE_LENGTH,
               "cross_sections": "interpolated"}
     ctx.case["engine"] = engine
     from rivercal.io.dhydro._export import SETTINGS_FILE, read_engine_settings
 
-    exported = read_engine_settings(ctx.model.mdu.parent)
-    if exported:
+    exported, errors, warnings = read_engine_settings(ctx.model.mdu.parent)
+    for line, text in errors:
+        ctx.ledger.error(f"{SETTINGS_FILE}, line {line}", text)
+    for text in warnings:
+        ctx.ledger.warn(text)
+    if exported and not errors:
         engine.update(exported)
+        if engine["output_interval"] % engine["dt"]:
+            ctx.ledger.error(SETTINGS_FILE, f"the time step {engine['dt']:g} s does not divide the output interval "
+                             f"{engine['output_interval']:g} s")
         ctx.ledger.exact("setting", SETTINGS_FILE, "engine settings written by rivercal's export (cross-section "
                          "placement, numerics) taken over")
-    ctx.ledger.approximated("setting", "DtMax/DtUser", f"D-Flow FM adapts its time step to a Courant limit (at most "
-                            f"DtMax = {fm.time.dtmax:g} s); the case steps {dt:g} s (implicit, no Courant limit), "
-                            f"output every {interval:g} s (the his interval)")
+    dt_text = f" (at most DtMax = {fm.time.dtmax:g} s)" if isinstance(fm.time.dtmax, int | float) else ""
+    ctx.ledger.approximated("setting", "DtMax/DtUser", f"D-Flow FM adapts its time step to a Courant limit{dt_text}; "
+                            f"the case steps {engine['dt']:g} s (implicit, no Courant limit), output every "
+                            f"{engine['output_interval']:g} s (the his interval)")
+
+
+def _validate_items(ctx: Context) -> None:
+    """Each object of the case checked with the case's own rules; a failure is an error naming its source.
+
+    The values were screened when they were read (finite, sensible signs and magnitudes); what the case's
+    rules still reject (a gate below its crest, a table that does not rise) is a value of the model files
+    that a case cannot use, and is reported at the block it came from.
+    """
+    from pydantic import TypeAdapter, ValidationError
+
+    from rivercal.case.schema import EngineSettings, InitialConditions
+    from rivercal.network import Boundary, Branch, Friction, FrictionGroup, Lateral, Node, Profile, Station
+
+    models = {"profiles": TypeAdapter(Profile), "nodes": Node, "branches": Branch, "friction_groups": FrictionGroup,
+              "boundaries": Boundary, "laterals": Lateral, "stations": Station, **_KINDS}
+    for table, model in models.items():
+        kept = []
+        for item in ctx.case.get(table, []):
+            try:
+                model.validate_python(item) if isinstance(model, TypeAdapter) else model.model_validate(item)
+            except (ValidationError, ValueError) as exc:
+                ctx.ledger.error(ctx.where(table, item.get("id", "?")),
+                                 f"{table.rstrip('s').replace('_', ' ')} {item.get('id', '?')!r}: {_problem(exc)}")
+                continue
+            kept.append(item)
+        if table in ctx.case:
+            ctx.case[table] = kept
+    for name, model in (("friction", Friction), ("initial", InitialConditions), ("engine", EngineSettings)):
+        if ctx.case.get(name) is None:
+            continue
+        try:
+            model.model_validate(ctx.case[name])
+        except (ValidationError, ValueError) as exc:
+            ctx.ledger.error(ctx.where(name, name), f"{name}: {_problem(exc)}")
+
+
+def _problem(exc: Exception) -> str:
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError):
+        err = exc.errors(include_url=False)[0]
+        loc = ".".join(str(x) for x in err.get("loc", ()))
+        return f"{loc}: {' '.join(str(err.get('msg', '')).split())}" if loc else " ".join(str(err["msg"]).split())
+    return " ".join(str(exc).split())
 
 
 def _fit_the_grid(ctx: Context) -> None:
@@ -180,6 +330,12 @@ def _fit_the_grid(ctx: Context) -> None:
                                             f"the crest {item[name]:g} m AD lies below the bed ({bed:.3f} m AD): "
                                             "raised to the bed (D-Flow FM lets the channel bed govern there too)")
                     item[name] = bed
+                    gate = item.get("gate_lower_edge_level")
+                    if gate is not None and gate <= bed and item.get("allowed_flow") != "none":
+                        item["gate_lower_edge_level"] = bed + 0.001
+                        item["allowed_flow"] = "none"
+                        ctx.ledger.approximated(*ctx.origin(item["id"], table),
+                                                f"its gate ({gate:g} m AD) is down below the bed: taken as closed")
             if table == "culverts" and "invert_level_end" not in item and item["invert_level"] < bed:
                 item["invert_level_end"] = item["invert_level"]
             if table == "pumps" and item["stop_level"] <= bed:

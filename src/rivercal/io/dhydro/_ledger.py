@@ -49,6 +49,7 @@ class Ledger:
     entries: list[Entry] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     renamed: dict[str, dict[str, str]] = field(default_factory=dict)
+    errors: list[tuple[str, str]] = field(default_factory=list)
 
     def exact(self, kind: str, id_: str, note: str = "") -> None:
         """Record an object converted exactly."""
@@ -74,6 +75,13 @@ class Ledger:
                                         entry.hydraulic if entry.status == "refused" else e.hydraulic)
                 return
         self.entries.append(entry)
+
+    def error(self, where: str, text: str) -> None:
+        """Record a value of the model files that cannot be used: ``where`` is ``file, line N``.
+
+        Errors fail the import whatever the options: the file has to be corrected.
+        """
+        self.errors.append((where, text))
 
     def warn(self, text: str) -> None:
         """Record a warning about the files (an unknown keyword, a file read block by block)."""
@@ -117,6 +125,10 @@ class Ledger:
         for k in kinds:
             c = per[k]
             lines.append(f"| {k} | {sum(c.values())} | {c['exact']} | {c['approximated']} | {c['refused']} |")
+        if self.errors:
+            lines += ["", "## Errors", "", "Values of the model files that cannot be used; no case was written. "
+                      "Correct them in the files named:", ""]
+            lines += [f"- {where}: {text}" for where, text in self.errors]
         lines += ["", "## Warnings", ""]
         lines += [f"- {w}" for w in self.warnings] or ["None."]
         if self.renamed:

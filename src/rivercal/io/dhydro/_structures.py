@@ -36,7 +36,7 @@ def convert_structures(ctx: Context) -> None:
     objects = [s for f in ctx.model.structures for s in f.objects]
     for f in ctx.model.structures:
         for kind, sid, reason in f.failed:
-            ctx.ledger.refused(kind, unquote(sid), f"{f.path.name}: {reason}")
+            ctx.ledger.refused(kind, unquote(sid), f"{ctx.model.sources.rel(f.path)}: {reason}")
     by_id = {unquote(s.id): s for s in objects}
     in_compound: dict[str, str] = {}
     for s in objects:
@@ -73,7 +73,13 @@ def convert_structures(ctx: Context) -> None:
             ctx.ledger.refused(s.type, sid, f"its branch {unquote(s.branchid)!r} is not in the network")
             continue
         branch = ctx.id("branch", s.branchid)
-        chainage = min(max(float(s.chainage), 0.0), ctx.branch_length[branch])
+        length = ctx.branch_length[branch]
+        if float(s.chainage) > length + max(1.0, 0.01 * length):
+            ctx.ledger.error(ctx.model.sources.where(s, ctx.model.sources.key_of(s, "chainage")) or ctx.model.mdu.name,
+                             f"{s.type} {sid!r}: chainage {float(s.chainage):g} m lies beyond the end of branch "
+                             f"{unquote(s.branchid)} ({length:g} m long)")
+            continue
+        chainage = min(max(float(s.chainage), 0.0), length)
         base = {"id": ctx.id("structure", sid), "branch": branch, "chainage": chainage}
         handler = _HANDLERS.get(s.type)
         if handler is None:
@@ -86,6 +92,7 @@ def convert_structures(ctx: Context) -> None:
             continue
         tables[table].append(item)
         ctx.origins[item["id"]] = (s.type, sid)
+        ctx.source(table, item["id"], s)
         (ctx.ledger.approximated if notes else ctx.ledger.exact)(s.type, sid, "; ".join(notes))
     for table, items in tables.items():
         if items:
