@@ -69,3 +69,59 @@ def test_import_of_the_export_of_dommel_reproduces_its_series(tmp_path: Path) ->
                                        rtol=0, atol=1e-9)
             compared += 1
     assert compared == 11
+
+
+def test_the_export_of_a_packaged_case_imports_again(tmp_path: Path) -> None:
+    """An export with one observation cross-section (synthetic's S6) once failed to import: hydrolib-core does not
+    take a file with a single [ObservationCrossSection] block, so the import reads such a file block by block."""
+    run = rivercal("export", "dhydro", "synthetic", "--out", str(tmp_path / "model"), "--json")
+    assert run.returncode == 0, run.stderr
+    run = rivercal("import", "dhydro", json.loads(run.stdout)["mdu"], "--out", str(tmp_path / "case"), "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refused"] == 0
+    stations = {s.id: s for s in load_model(tmp_path / "case").case.network.stations}
+    assert stations["S6"].quantities == ["h", "Q"]  # an observation point and a cross-section of one name
+
+
+@pytest.mark.slow
+def test_the_export_of_the_controlled_case_imports_again(tmp_path: Path) -> None:
+    run = rivercal("export", "dhydro", "dommel-controlled", "--out", str(tmp_path / "model"), "--json")
+    assert run.returncode == 0, run.stderr
+    run = rivercal("import", "dhydro", json.loads(run.stdout)["mdu"], "--out", str(tmp_path / "case"), "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refused"] == 0
+
+
+def test_bad_options_are_clean_errors(tmp_path: Path) -> None:
+    mdu = write_model(tmp_path / "model")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--realtime-lateral", "nan")
+    assert run.returncode == 2 and "--realtime-lateral" in run.stderr and "internal error" not in run.stderr
+    (tmp_path / "taken").write_text("a file of the user's", encoding="utf-8")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "taken"), "--realtime-lateral", "0.01")
+    assert run.returncode == 2 and "--out" in run.stderr and "exists and is not a folder" in run.stderr
+    assert (tmp_path / "taken").read_text(encoding="utf-8") == "a file of the user's"
+
+
+def test_an_mdu_with_a_key_given_twice_imports_with_a_warning(tmp_path: Path) -> None:
+    """As published from a real project: the key given twice once ended in an internal error."""
+    mdu = write_model(tmp_path / "model")
+    text = mdu.read_text(encoding="utf-8")
+    mdu.write_text(text.replace("[Time]\n", "[Time]\nDtMax = 30.0\n", 1), encoding="utf-8")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--realtime-lateral", "0.01",
+                   "--allow-partial")
+    assert run.returncode == 0, run.stderr
+    assert "more than once" in (tmp_path / "case" / "import.md").read_text(encoding="utf-8")
+
+
+def test_observation_cross_sections_given_as_polylines_are_stations(tmp_path: Path) -> None:
+    """c01 has two observation cross-sections given by a polyline x = 1000 m across branches T2 and T4, which run
+    from x = 2000 to 0 with calculation points every 50 m. The polyline passes through the point at chainage 1000 m;
+    by D-Flow FM's rule (the crossing's direction picks one of the two links there) it observes the link
+    950-1000 m."""
+    mdu = shared_model("dhydro-1d-steady-state-flow", "Boundary.mdu")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refused"] == 0
+    stations = {s.id: s for s in load_model(tmp_path / "case").case.network.stations}
+    for name, branch in (("ObservCross_xy_T2", "T2"), ("ObservCross_xy_T4", "T4")):
+        assert (stations[name].branch, stations[name].chainage, stations[name].quantities) == (branch, 975.0, ["Q"])

@@ -252,3 +252,30 @@ def test_exchange_files_supply_realtime_values(imported, tmp_path) -> None:
     crest = case.forcing["crest:weir1"]
     t = (crest.index - case.start).total_seconds().to_numpy()
     assert np.interp([3598.0, 3600.0, 80000.0], t, crest.to_numpy()) == pytest.approx([0.5, 0.7, 0.7])
+
+
+def test_polyline_observation_cross_sections_go_on_the_link_they_cross(imported, tmp_path) -> None:
+    """D-Flow FM observes the flow links whose segment between their two calculation points the polyline crosses;
+    through a calculation point, the crossing's direction picks one of its two links (Deltares delft3d,
+    crspath_on_singlelink). Branch b2 runs from x = 1000 to 2000 m along y = 0, calculation points every 100 m."""
+    _, _, folder = imported
+    model = _copy_model(folder, tmp_path)
+    (model / "obscrs.ini").write_text(
+        "[General]\nfileVersion = 2.00\nfileType = obsCross\n\n"
+        "[ObservationCrossSection]\nname = across\nnumCoordinates = 2\nxCoordinates = 1550 1550\n"
+        "yCoordinates = -20 20\n\n"
+        "[ObservationCrossSection]\nname = northward\nnumCoordinates = 3\nxCoordinates = 1500 1500 1500\n"
+        "yCoordinates = -20 -5 20\n\n"
+        "[ObservationCrossSection]\nname = southward\nnumCoordinates = 2\nxCoordinates = 1500 1500\n"
+        "yCoordinates = 20 -20\n\n"
+        "[ObservationCrossSection]\nname = beside\nnumCoordinates = 2\nxCoordinates = 1550 1550\n"
+        "yCoordinates = 20 40\n", encoding="utf-8")
+    mdu = model / "test.mdu"
+    mdu.write_text(re.sub(r"(?im)^(obsFile\s*=.*\n)", r"\1crsFile = obscrs.ini\n", mdu.read_text(encoding="utf-8")),
+                   encoding="utf-8")
+    result = import_dhydro(mdu, tmp_path / "case", ImportOptions(allow_partial=True))
+    stations = {s.id: s for s in load_case(result.folder).network.stations}
+    assert (stations["across"].branch, stations["across"].chainage) == ("b2", 550.0)
+    assert (stations["northward"].branch, stations["northward"].chainage) == ("b2", 450.0)  # the link ending there
+    assert (stations["southward"].branch, stations["southward"].chainage) == ("b2", 550.0)  # the link starting there
+    assert "beside" not in stations and result.ledger.status_of("observation cross-section", "beside") == "refused"

@@ -99,6 +99,9 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
         if ledger.errors:
             break
         stage(ctx)
+    if not ledger.errors and not ctx.case.get("branches"):
+        ledger.refused("network", mdu.name, "no branch could be converted (see the refusals): nothing is left to "
+                       "make a case of")
     unused = sorted(k for k in ctx.exchange if k not in ctx.exchange_used and not k.startswith("observations/")
                     and not k.endswith("/water_level"))
     for key in unused:
@@ -112,7 +115,8 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
         more = f" (and {len(ledger.errors) - 3} more)" if len(ledger.errors) > 3 else ""
         raise CaseError(f"{len(ledger.errors)} value(s) in the model files cannot be used: {shown}{more}; no case was "
                         f"written; see {out / 'import.md'}", file=str(mdu))
-    if ledger.blocking and not options.allow_partial:  # no case that would run without these objects
+    if ledger.blocking and (not options.allow_partial or not ctx.case.get("branches")):
+        # no case that would run without these objects
         _remove_old_case(out)
         groups: dict[tuple[str, str], list[str]] = {}
         for e in ledger.blocking:
@@ -122,7 +126,9 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
         more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
         raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "
                         f"{shown}{more}; no case was written"
-                        f"; see {out / 'import.md'}, or import with --allow-partial to leave them out", file=str(mdu))
+                        f"; see {out / 'import.md'}" + ("" if options.allow_partial else
+                                                          ", or import with --allow-partial to leave them out"),
+                        file=str(mdu))
     _write(ctx, out)
     try:
         case = load_case(out)
