@@ -211,7 +211,8 @@ def test_an_unknown_key_is_a_warning_with_its_file_and_line(base, tmp_path) -> N
 
 def test_text_that_is_not_ini_is_an_error_at_its_line(base, tmp_path) -> None:
     model = _model(base, tmp_path)
-    line = _edit(model / "structures.ini", r"^([ \t]*crestWidth[ \t]*=[ \t]*4\.0.*)$", r"    crestWid")  # a truncated line
+    # a line cut short
+    line = _edit(model / "structures.ini", r"^([ \t]*crestWidth[ \t]*=[ \t]*4\.0.*)$", r"    crestWid")
     message = _error(model, tmp_path)
     assert f"structures.ini, line {line}" in message and "'crestWid' is not INI text" in message
 
@@ -222,11 +223,11 @@ def test_text_that_is_not_ini_is_an_error_at_its_line(base, tmp_path) -> None:
 def test_the_case_folder_must_be_new_empty_or_an_earlier_import(base, tmp_path) -> None:
     model = _model(base, tmp_path)
     (tmp_path / "file").write_text("mine", encoding="utf-8")
-    with pytest.raises(CaseError, match="--out.*exists and is not a folder"):
+    with pytest.raises(CaseError, match=r"--out.*exists and is not a folder"):
         import_dhydro(model / "test.mdu", tmp_path / "file")
     (tmp_path / "folder").mkdir()
     (tmp_path / "folder" / "notes.csv").write_text("mine", encoding="utf-8")
-    with pytest.raises(CaseError, match="--out.*other files"):
+    with pytest.raises(CaseError, match=r"--out.*other files"):
         import_dhydro(model / "test.mdu", tmp_path / "folder")
     assert (tmp_path / "folder" / "notes.csv").read_text(encoding="utf-8") == "mine"  # nothing of the user's lost
     _import(model, tmp_path, allow_partial=True)
@@ -237,5 +238,5 @@ def test_options_are_checked(base, tmp_path) -> None:
     model = _model(base, tmp_path)
     with pytest.raises(CaseError, match="--realtime-lateral"):
         import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions(realtime_lateral=float("nan")))
-    with pytest.raises(CaseError, match="--dt.*does not divide"):
+    with pytest.raises(CaseError, match=r"--dt.*does not divide"):
         import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions(realtime_lateral=0.01, dt=7.0))
