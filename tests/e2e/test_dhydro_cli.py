@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from rivercal.model import load_model
@@ -22,7 +23,7 @@ def test_import_prints_the_summary_as_json(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert set(summary) == {"branches", "points", "profiles", "structures", "boundaries", "laterals", "stations",
-                            "approximated", "refused"}
+                            "approximated", "refused", "parameters"}
     assert (summary["branches"], summary["points"], summary["laterals"]) == (171, 653, 143)
     assert summary["structures"] == {"weir": 19, "culvert": 147, "pump": 2, "bridge": 7}
     assert summary["refused"] == 0
@@ -125,3 +126,44 @@ def test_observation_cross_sections_given_as_polylines_are_stations(tmp_path: Pa
     stations = {s.id: s for s in load_model(tmp_path / "case").case.network.stations}
     for name, branch in (("ObservCross_xy_T2", "T2"), ("ObservCross_xy_T4", "T4")):
         assert (stations[name].branch, stations[name].chainage, stations[name].quantities) == (branch, 975.0, ["Q"])
+
+
+#: Each shared model as imported, a parameter the import wrote, a short calibration window (with the warm-up
+#: before it, h) and an on-line cycle (issue time, window = cycle = horizon, warm-up).
+_SHARED = {
+    "dellen": (("dhydro-dellen", "dflowfm", "Flow1D.mdu"), ("--realtime", "rr_to_flow.nc", "--realtime",
+                                                            "rtc_to_flow.nc"),
+               "F_Manning_0_03", 0.036, "2000-06-03/2000-06-03T06:00", "6", ("2000-06-05", "6h", "6h")),
+    "c01": (("dhydro-1d-steady-state-flow", "Boundary.mdu"), (), "F_T2", 50.0, "2015-01-02/2015-01-02T06:00", "6",
+            ("2015-01-02T12:00", "6h", "6h")),
+    "korte-woerden": (("dhydro-korte-woerden-1d", "dflowfm", "FlowFM.mdu"), ("--realtime-lateral", "0.001"),
+                      "W_OVS1", 2.2, "2020-01-01T01:00/2020-01-01T02:00", "1", ("2020-01-01T01:00", "1h", "0h")),
+}
+
+
+@pytest.mark.parametrize("name", [pytest.param("dellen", marks=pytest.mark.slow), "c01", "korte-woerden"])
+def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: str) -> None:
+    """Import, simulate, calibrate (a twin of one parameter the import wrote) and one on-line cycle, exit 0 each."""
+    parts, extra, param, truth, window, warmup, (issue, span, online_warmup) = _SHARED[name]
+    mdu = shared_model(*parts)
+    extra = tuple(str(mdu.parents[1] / x) if x.endswith(".nc") else x for x in extra)
+    case = tmp_path / "case"
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(case), *extra, "--json")
+    assert run.returncode == 0, run.stderr
+    assert param in json.loads(run.stdout)["parameters"]
+    run = rivercal("simulate", str(case), "--out", str(tmp_path / "sim"), "--json")
+    assert run.returncode == 0, run.stderr
+    run = rivercal("calibrate", str(case), "--params", param, "--window", window, "--twin", f"{param}={truth}",
+                   "--warmup", warmup, "--workers", "1", "--option", "max_outer=2", "--json")
+    assert run.returncode == 0, run.stderr
+    estimate = json.loads(run.stdout)["estimates"][param]
+    initial = json.loads(run.stdout)["initial"][param]
+    assert abs(estimate - truth) < 0.5 * abs(initial - truth)  # two outer iterations move it most of the way
+    series = pd.read_csv(tmp_path / "sim" / "series.csv", index_col=0)
+    series.iloc[:, :12].to_csv(tmp_path / "observed.csv")  # a few stations, as a monitoring network has
+    run = rivercal("online", str(case), "--observations", str(tmp_path / "observed.csv"), "--params", param,
+                   "--from", issue, "--to", issue, "--max-cycles", "1", "--window", span, "--cycle", span,
+                   "--horizon", span, "--warmup", online_warmup, "--db", str(tmp_path / "run.sqlite"),
+                   "--workers", "1", "--quiet", "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["status"] == {"done": 1}

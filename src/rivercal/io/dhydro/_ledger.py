@@ -50,6 +50,7 @@ class Ledger:
     warnings: list[str] = field(default_factory=list)
     renamed: dict[str, dict[str, str]] = field(default_factory=dict)
     errors: list[tuple[str, str]] = field(default_factory=list)
+    parameters: list[str] = field(default_factory=list)
 
     def exact(self, kind: str, id_: str, note: str = "") -> None:
         """Record an object converted exactly."""
@@ -149,6 +150,10 @@ class Ledger:
                 groups.setdefault((e.kind, e.note), []).append(e.id)
             for (kind, note), ids in groups.items():
                 lines.append(f"| {kind} | {', '.join(f'`{i}`' for i in ids)} | {_cell(note)} |")
+        if self.parameters:
+            lines += ["", "## Calibration parameters", "", "Written to case.toml so that the case can be calibrated "
+                      "as imported (bounds from the model's own value; edit them to what you know):", ""]
+            lines += [f"- {p}" for p in self.parameters]
         lines += ["", "## Converted exactly", ""]
         for k in kinds:
             ids = [e.id for e in self.entries if e.kind == k and e.status == "exact"]
