@@ -147,7 +147,7 @@ def names_a_file(message: str, model: Path, out: Path) -> bool:
     return any(n and n in message for n in names)
 
 
-def main(count: int, seed: int, bases: list[Path]) -> int:  # pragma: no cover - a tool for longer searches
+def main(count: int, seed: int, bases: list[Path], verbose: bool = False) -> int:  # pragma: no cover - a tool for longer searches
     """Run ``count`` mutations; print the ones that crash or give an error naming no file."""
     import tempfile
 
@@ -159,6 +159,8 @@ def main(count: int, seed: int, bases: list[Path]) -> int:  # pragma: no cover -
             model = Path(tmp) / "model"
             shutil.copytree(base.parent, model)
             what = mutate(model, rng)
+            if verbose:
+                print(f"... {k}: {what}", flush=True)
             before = snapshot(Path(tmp), Path(tmp) / "case")
             result = run_case(model / base.name, Path(tmp) / "case", allow_partial=rng.random() < 0.5,
                               realtime_lateral=0.01)
@@ -172,4 +174,5 @@ def main(count: int, seed: int, bases: list[Path]) -> int:  # pragma: no cover -
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(min(main(int(sys.argv[1]), int(sys.argv[2]), [Path(p) for p in sys.argv[3:]]), 1))
+    sys.exit(min(main(int(sys.argv[1]), int(sys.argv[2]), [Path(p) for p in sys.argv[3:] if p != "-v"],
+                      verbose="-v" in sys.argv), 1))

@@ -126,6 +126,9 @@ class Context:
     origins: dict[str, tuple[str, str]] = field(default_factory=dict)
     used_definitions: set[str] = field(default_factory=set)
     blocks: dict[tuple[str, str], Any] = field(default_factory=dict)
+    compounds: list[tuple[str, list[str]]] = field(default_factory=list)
+    pieces: dict[str, list[str]] = field(default_factory=dict)
+    parallel: set[str] = field(default_factory=set)
 
     def source(self, table: str, case_id: str, obj: Any) -> None:
         """Remember the D-Flow FM block (hydrolib-core object) a case object was made from."""

@@ -14,6 +14,7 @@ import pandas as pd
 
 from rivercal.case.load import load_case
 from rivercal.errors import CaseError, StructureOverlap
+from rivercal.io.dhydro._compound import place_compounds
 from rivercal.io.dhydro._context import Context, ImportOptions, unquote
 from rivercal.io.dhydro._forcing import convert_forcing, read_exchange
 from rivercal.io.dhydro._ledger import Ledger
@@ -95,8 +96,8 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     ctx.case["case"] = {"name": _case_name(mdu), "description": f"imported from D-Flow FM model {mdu.name}",
                         "start": start.isoformat().replace("+00:00", "Z"),
                         "end": end.isoformat().replace("+00:00", "Z")}
-    for stage in (convert_network, convert_structures, convert_forcing, _engine, _validate_items, _fit_the_grid,
-                  _other_settings, _parameters):
+    for stage in (convert_network, convert_structures, convert_forcing, place_compounds, _engine, _validate_items,
+                  _fit_the_grid, _end_node_storage, _other_settings, _parameters):
         if ledger.errors:
             break
         stage(ctx)
@@ -396,13 +397,98 @@ def _fit_the_grid(ctx: Context) -> None:
     ctx.case["laterals"] = kept
 
 
+def _end_node_storage(ctx: Context) -> None:
+    """D-Flow FM's ``dxDoubleAt1DEndNodes``: a dead end stores the water of a full link instead of half of it.
+
+    With the option on (its default), D-Flow FM gives the flow node at the end of a network, where only one
+    link meets and no boundary is attached, the volume of the whole link ``dx`` instead of ``dx/2`` (Deltares
+    delft3d, ``addlink1D``: ``dx1 = 2 dx1`` when ``nd(k1)%lnx == 1``). The extra half link becomes storage of
+    the node: ``storage_table`` with the area ``dx/2 · B(h)``, B the storage (total) width of the end link's
+    cross-section at the depth over its bed there; a storage node's own table is added to it.
+    """
+    if not getattr(ctx.model.fm.geometry, "dxdoubleat1dendnodes", False):
+        return
+    profiles = {p["id"]: p for p in ctx.case.get("profiles", [])}
+    degree: dict[str, list[tuple[dict, bool]]] = defaultdict(list)
+    for b in ctx.case["branches"]:
+        degree[b["from_node"]].append((b, True))
+        degree[b["to_node"]].append((b, False))
+    bounded = {bnd["node"] for bnd in ctx.case.get("boundaries", [])}
+    added = 0
+    for node in ctx.case["nodes"]:
+        ends = degree.get(node["id"], [])
+        if len(ends) != 1 or node["id"] in bounded:
+            continue
+        branch, at_start = ends[0]
+        points = branch.get("points") or [0.0, branch["length"]]
+        dx = (points[1] - points[0]) if at_start else (points[-1] - points[-2])
+        chainage = 0.0 if at_start else branch["length"]
+        sections = branch["cross_sections"]
+        nearest = min(sections, key=lambda c: abs(c["chainage"] - chainage))
+        bed = float(np.interp(chainage, [c["chainage"] for c in sections], [c["bed_level"] for c in sections]))
+        heights, widths = _storage_widths(profiles[nearest["profile"]])
+        areas = np.maximum.accumulate(0.5 * dx * widths)
+        if areas[-1] <= 0:
+            continue
+        table = {"levels": [bed + float(h) for h in heights], "areas": [float(a) for a in areas]}
+        if node.get("storage_table"):
+            table = _sum_tables(node["storage_table"], table)
+        node["storage_table"] = table
+        node.pop("storage_area", None)
+        added += 1
+    if added:
+        ctx.ledger.exact("setting", "dxDoubleAt1DEndNodes", f"{added} dead-end node(s) store the water of their whole "
+                         "end link, as D-Flow FM does with this option: the extra half link is storage of the node")
+
+
+def _storage_widths(prof: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Heights above the bed (m) and storage (total) widths there (m) of a case profile, at its break points."""
+    kind = prof["type"]
+    if kind == "zw":
+        heights = np.asarray(prof["heights"], dtype=float)
+        widths = np.asarray(prof.get("total_widths") or prof["flow_widths"], dtype=float)
+    elif kind == "yz":
+        y, z = np.asarray(prof["y"], dtype=float), np.asarray(prof["z"], dtype=float)
+        heights = np.unique(z)
+        widths = np.array([sum(_wet(y[k], y[k + 1], z[k], z[k + 1], h) for k in range(y.size - 1)) for h in heights])
+    elif kind == "rectangular":
+        top = prof.get("height") or 10.0
+        heights = np.array([0.0, top])
+        widths = np.full(2, float(prof["width"]))
+    elif kind == "trapezoidal":
+        top = prof.get("height") or 10.0
+        heights = np.array([0.0, top])
+        widths = prof["bottom_width"] + 2 * prof["side_slope"] * heights
+    else:  # circular
+        r = 0.5 * prof["diameter"]
+        heights = np.linspace(0.0, 2 * r, 21)
+        widths = 2 * np.sqrt(np.maximum(r * r - (r - heights) ** 2, 0.0))
+    if heights.size < 2:
+        heights, widths = np.array([0.0, 1.0]), np.array([widths[0], widths[0]])
+    return heights, widths
+
+
+def _wet(y1: float, y2: float, z1: float, z2: float, h: float) -> float:
+    """Horizontal wet width (m) of one segment of a yz profile at height h."""
+    lo, hi = min(z1, z2), max(z1, z2)
+    if h <= lo:
+        return 0.0
+    return abs(y2 - y1) * (1.0 if h >= hi or hi == lo else (h - lo) / (hi - lo))
+
+
+def _sum_tables(a: dict, b: dict) -> dict:
+    """The sum of two storage tables (linear between levels, constant above, zero below)."""
+    levels = sorted(set(a["levels"]) | set(b["levels"]))
+
+    def at(t: dict, z: float) -> float:
+        if z < t["levels"][0]:
+            return 0.0
+        return float(np.interp(z, t["levels"], t["areas"]))
+
+    return {"levels": levels, "areas": [at(a, z) + at(b, z) for z in levels]}
+
+
 def _other_settings(ctx: Context) -> None:
-    fm = ctx.model.fm
-    geometry = fm.geometry
-    if getattr(geometry, "dxdoubleat1dendnodes", False):
-        ctx.ledger.approximated("setting", "dxDoubleAt1DEndNodes", "D-Flow FM gives the end nodes of the network "
-                                "the storage of a full cell instead of half a cell; the case keeps half a cell (the "
-                                "extra storage at a dead end is small)")
     two_d = getattr(ctx.model.network, "_mesh2d", None)
     if two_d is not None and getattr(two_d, "mesh2d_node_x", np.empty(0)).size:
         ctx.ledger.refused("2D mesh", "mesh2d", "the 2D part of a 1D2D model is left out (a case is 1D)",
@@ -469,15 +555,22 @@ def _parameters(ctx: Context) -> None:
     used_groups = {g for b in ctx.case["branches"] for cs in b["cross_sections"]
                    for g in profiles[cs["profile"]].get("friction", [])}
     # profiles without friction sections take the branch's own friction, else the global one
-    plain = [b for b in ctx.case["branches"] if any(not profiles[cs["profile"]].get("friction")
-                                                    for cs in b["cross_sections"])]
+    plain = [b for b in ctx.case["branches"] if b["id"] not in ctx.parallel and any(
+        not profiles[cs["profile"]].get("friction") for cs in b["cross_sections"])]
     glob = ctx.case.get("friction")
     if glob is not None and any("friction" not in b for b in plain):
         friction(name("", "FA"), "friction:global", glob["type"], float(glob["value"]), "the global friction")
+    piece_of = {p: original for original, pieces in ctx.pieces.items() for p in pieces}
+    done: set[str] = set()
     for b in plain:
-        if "friction" in b:
-            friction(name("F_", b["id"]), f"friction:branch:{b['id']}", b["friction"]["type"],
-                     float(b["friction"]["value"]), f"the friction of branch {b['id']!r}")
+        original = piece_of.get(b["id"], b["id"])
+        if "friction" in b and original not in done:
+            done.add(original)
+            targets = [f"friction:branch:{p}" for p in ctx.pieces.get(original, [original])]
+            friction(name("F_", original), targets[0], b["friction"]["type"], float(b["friction"]["value"]),
+                     f"the friction of branch {original!r}")
+            if params and params[-1]["targets"] == targets[:1]:
+                params[-1]["targets"] = targets  # a branch cut for a compound: its pieces share its friction
     for g in ctx.case.get("friction_groups", []):
         if g["id"] in used_groups:
             friction(name("F_", g["id"]), f"friction:group:{g['id']}", g["type"], float(g["value"]),

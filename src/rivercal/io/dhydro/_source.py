@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 __all__ = ["FileAccess", "IniIndex", "RawKey", "RawSection", "Sources", "reading"]
 
 _LOCK = threading.Lock()
@@ -351,6 +353,11 @@ def reading(sources: Sources, unknown: list[tuple[str, list[str]]]) -> Iterator[
         return data
 
     def network_from_file(cls, file_path, *args, **kwargs):
+        problem = check_ugrid(Path(file_path))
+        if problem:
+            sources.access.append(FileAccess(Path(file_path), "NetworkModel", "unreadable",
+                                             f"not a readable UGRID network ({problem})"))
+            raise ValueError(f"{file_path}: not a readable network")
         try:
             return original_network(cls, file_path, *args, **kwargs)
         except Exception as exc:  # a damaged NetCDF file fails in netCDF4, xarray or meshkernel in many ways
@@ -369,6 +376,50 @@ def reading(sources: Sources, unknown: list[tuple[str, list[str]]]) -> Iterator[
             manager.raise_error_for_unknown_keywords = original_unknown
             type.__setattr__(ParsableFileModel, "_load", original_load)
             type.__setattr__(Network, "from_file", original_network_attr)
+
+
+def check_ugrid(path: Path) -> str:
+    """What makes a UGRID net file unusable before hydrolib-core hands its arrays to meshkernel, or "".
+
+    meshkernel (C++) trusts the connectivity it is given; a damaged file with a node index out of range
+    crashes the process. Every mesh topology's node coordinates must be finite numbers of one length, and
+    every connectivity must index those nodes (after its ``start_index``, fill values aside).
+    """
+    import netCDF4
+
+    try:
+        with netCDF4.Dataset(path) as ds:
+            ds.set_auto_mask(False)
+            topologies = [v for v in ds.variables.values() if getattr(v, "cf_role", "") == "mesh_topology"]
+            if not topologies:
+                return "no mesh topology (cf_role = mesh_topology)"
+            for topo in topologies:
+                names = str(getattr(topo, "node_coordinates", "")).split()
+                coords = [np.asarray(ds.variables[n][:], dtype=float).ravel() for n in names if n in ds.variables]
+                if len(coords) < 2 or len(coords) != len(names):
+                    return f"{topo.name}: node coordinates {names} missing"
+                n = coords[0].size
+                if any(c.size != n or not np.all(np.isfinite(c)) for c in coords):
+                    return f"{topo.name}: node coordinates of unequal length or not finite"
+                for attr in ("edge_node_connectivity", "face_node_connectivity"):
+                    name = getattr(topo, attr, None)
+                    if name is None:
+                        continue
+                    if name not in ds.variables:
+                        return f"{topo.name}: {attr} {name} missing"
+                    var = ds.variables[name]
+                    values = np.asarray(var[:])
+                    if values.dtype.kind not in "iu":
+                        return f"{name}: node indices that are not integers"
+                    fill = getattr(var, "_FillValue", None)
+                    start = int(getattr(var, "start_index", 0))
+                    used = values[values != fill] if fill is not None else values.ravel()
+                    if used.size and (used.min() - start < 0 or used.max() - start >= n):
+                        return f"{name}: node indices outside the {n} nodes"
+    except (OSError, RuntimeError, ValueError, KeyError, IndexError, TypeError, AttributeError, OverflowError,
+            MemoryError) as exc:
+        return " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+    return ""
 
 
 def _first_of_duplicates(data: dict, index: IniIndex) -> None:
