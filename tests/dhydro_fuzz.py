@@ -141,13 +141,21 @@ def run_case(mdu: Path, out: Path, **options) -> Outcome:
     return Outcome("case", "")
 
 
-def names_a_file(message: str, model: Path, out: Path) -> bool:
-    """Whether an error message names a file of the model (or the case folder or an option)."""
-    names = {p.name for p in model.rglob("*")} | {model.name, out.name, "--out", "--dt", "--realtime-lateral"}
-    return any(n and n in message for n in names)
+def names_a_file(message: str, names: set[str], mdu: Path) -> bool:
+    """Whether an error message says where the problem is.
+
+    ``names`` are the file names of the model before it was damaged. The message must name one of them (or an
+    option) after the leading ``<model file>:`` that every import error carries, or be about the model file
+    itself and name the line or section.
+    """
+    body = message.split(f"{mdu}: ", 1)[1] if message.startswith(f"{mdu}: ") else message
+    if any(n and n in body for n in names | {"--out", "--dt", "--realtime-lateral"}):
+        return True
+    return message.startswith(str(mdu)) and ("line " in body or "model file" in body or "[" in body)
 
 
-def main(count: int, seed: int, bases: list[Path], verbose: bool = False) -> int:  # pragma: no cover - a tool for longer searches
+def main(count: int, seed: int, bases: list[Path], verbose: bool = False) -> int:  # pragma: no cover - a tool
+
     """Run ``count`` mutations; print the ones that crash or give an error naming no file."""
     import tempfile
 
@@ -158,6 +166,7 @@ def main(count: int, seed: int, bases: list[Path], verbose: bool = False) -> int
         with tempfile.TemporaryDirectory() as tmp:
             model = Path(tmp) / "model"
             shutil.copytree(base.parent, model)
+            names = {p.name for p in model.rglob("*")}
             what = mutate(model, rng)
             if verbose:
                 print(f"... {k}: {what}", flush=True)
@@ -166,7 +175,7 @@ def main(count: int, seed: int, bases: list[Path], verbose: bool = False) -> int
                               realtime_lateral=0.01)
             after = snapshot(Path(tmp), Path(tmp) / "case")
             if result.kind == "crash" or before != after or (
-                    result.kind == "error" and not names_a_file(result.message, model, Path(tmp) / "case")):
+                    result.kind == "error" and not names_a_file(result.message, names, model / base.name)):
                 bad += 1
                 print(f"--- {k}: {base.parent.name}: {what}\n{result.kind}: {result.message[:3000]}")
     print(f"{bad} of {count} bad")

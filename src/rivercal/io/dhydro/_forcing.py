@@ -323,7 +323,7 @@ def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
     try:
         if quantity == "qhbnd":
             block = _block(bnd.forcingfile, bnd.nodeid, ctx)
-            return _rating(ctx, bid, node, name, block)
+            return _rating(ctx, bid, node, name, block, bnd.forcingfile)
         if quantity not in ("waterlevelbnd", "dischargebnd"):
             ctx.ledger.refused("boundary", name, f"boundary quantity {bnd.quantity!r} has no counterpart in a case "
                                "(level, discharge and Q(h) only)")
@@ -344,11 +344,23 @@ def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
     return item
 
 
-def _rating(ctx: Context, bid: str, node: str, name: str, block: Any) -> dict | None:
-    rows = np.asarray(block.datablock, dtype=float)
-    names = [q.quantity.lower() for q in block.quantityunitpair]
-    qcol = next(k for k, n in enumerate(names) if "discharge" in n)
-    hcol = next(k for k, n in enumerate(names) if "waterlevel" in n)
+def _rating(ctx: Context, bid: str, node: str, name: str, block: Any, model: Any = None) -> dict | None:
+    names = [str(q.quantity).lower() for q in block.quantityunitpair]
+    qcol = next((k for k, n in enumerate(names) if "discharge" in n), None)
+    hcol = next((k for k, n in enumerate(names) if "waterlevel" in n), None)
+    try:
+        rows = np.asarray(block.datablock, dtype=float)
+    except (TypeError, ValueError):
+        rows = np.empty((0, 0))
+    if qcol is None or hcol is None or rows.ndim != 2 or rows.shape[0] < 2 or rows.shape[1] <= max(qcol, hcol):
+        ctx.ledger.error(_bc_where(ctx, model, block, None), f"forcing {unquote(block.name)!r}: a Q(h) table needs a "
+                         "discharge and a water level column and at least two rows")
+        return None
+    bad = ~np.isfinite(rows).all(axis=1) | (np.abs(rows) > _LARGEST).any(axis=1)
+    if bad.any():
+        ctx.ledger.error(_bc_where(ctx, model, block, int(np.argmax(bad))), f"forcing {unquote(block.name)!r}: a value "
+                         "that is not a finite number of a plausible size")
+        return None
     q, h = rows[:, qcol], rows[:, hcol]
     order = np.argsort(h)
     q, h = q[order], h[order]

@@ -123,7 +123,12 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
         groups: dict[tuple[str, str], list[str]] = {}
         for e in ledger.blocking:
             groups.setdefault((e.kind, e.note), []).append(e.id)
-        shown = "; ".join(f"{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1 else "") + f": {note}"
+        def where(kind: str, ident: str) -> str:
+            found = model.sources.find_block(ident) if kind != "file" else ""
+            return f"{found}: " if found else ""
+
+        shown = "; ".join(f"{where(kind, ids[0])}{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1
+                                                                        else "") + f": {note}"
                           for (kind, note), ids in list(groups.items())[:4])
         more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
         raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "

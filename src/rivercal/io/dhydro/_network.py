@@ -23,6 +23,7 @@ import numpy as np
 
 from rivercal.errors import CaseError
 from rivercal.io.dhydro._context import Context, unquote
+from rivercal.io.dhydro._source import is_file
 
 __all__ = ["FRICTION_TYPES", "MAIN", "convert_network", "friction_of", "profile_of_definition"]
 
@@ -771,7 +772,7 @@ def _initial(ctx: Context) -> None:
     level_ini = getattr(fm.geometry, "waterlevini", None)
     found = False
     path = _ini_field_path(ctx)
-    index = _readable(ctx, path, "initial fields") if path is not None else None
+    index = _readable(ctx, path, "initial fields", f"{ctx.model.mdu.name}, iniFieldFile") if path is not None else None
     for section in (index.sections if index is not None else []):
         header = section.header.lower()
         if header == "general":
@@ -798,7 +799,8 @@ def _initial(ctx: Context) -> None:
         if not name:
             ctx.ledger.error(where, f"[Initial] {quantity}: no dataFile")
             continue
-        data = _readable(ctx, _relative(ctx, Path(name), index.path), f"initial {quantity}")
+        data = _readable(ctx, _relative(ctx, Path(name), index.path), f"initial {quantity}",
+                         f"{where}, dataFile = {name}")
         if data is None:
             continue
         glob, per_branch = _one_d_field(ctx, data)
@@ -849,13 +851,13 @@ def _relative(ctx: Context, path: Path, referring: Path) -> Path:
     return ctx.model.mdu.parent / path
 
 
-def _readable(ctx: Context, path: Path, what: str):
-    """The line index of a file the initial state needs, or a refusal naming why it cannot be read."""
+def _readable(ctx: Context, path: Path, what: str, named_at: str):
+    """The line index of a file the initial state needs, or a refusal saying why not and where the file is named."""
     sources = ctx.model.sources
     reason = None
     if not sources.inside(path):
         reason = f"it lies outside the model folder {sources.root} (the import reads no file outside it)"
-    elif not path.is_file():
+    elif not is_file(path):
         reason = "the file does not exist"
     if reason is None:
         try:
@@ -869,8 +871,8 @@ def _readable(ctx: Context, path: Path, what: str):
                 for line, text in index.stray[:5]:
                     ctx.ledger.error(f"{sources.rel(path)}, line {line}", f"{text[:60]!r} is not INI text")
                 return index
-    ctx.ledger.refused("file", sources.rel(path), f"{reason}; the {what} it holds are missing, which changes the "
-                       "initial state", hydraulic=True)
+    ctx.ledger.refused("file", sources.rel(path), f"named at {named_at}: {reason}; the {what} it holds are missing, "
+                       "which changes the initial state", hydraulic=True)
     return None
 
 

@@ -38,7 +38,7 @@ from pydantic import ValidationError
 
 from rivercal.errors import CaseError
 from rivercal.io.dhydro._ledger import Ledger
-from rivercal.io.dhydro._source import IniIndex, RawSection, Sources, reading
+from rivercal.io.dhydro._source import IniIndex, RawSection, Sources, is_file, reading
 
 __all__ = ["ExtBlocks", "FileBlocks", "LoadedModel", "load_fm_model"]
 
@@ -131,9 +131,8 @@ def load_fm_model(mdu: Path, ledger: Ledger, sources: Sources | None = None) -> 
         When the MDU or its network file cannot be read at all, or a value of the MDU is not usable.
     """
     mdu = Path(mdu)
-    if not mdu.is_file():
-        raise CaseError("the D-Flow FM model file does not exist" if not mdu.exists() else
-                        "the D-Flow FM model file is not a file", file=str(mdu))
+    if not is_file(mdu):
+        raise CaseError("the D-Flow FM model file does not exist or is not a readable file", file=str(mdu))
     sources = sources or Sources(root=mdu.parent)
     try:
         index = sources.ini(mdu)
@@ -206,12 +205,21 @@ def _load_mdu(mdu: Path, index: IniIndex, sources: Sources, ledger: Ledger) -> A
             droppable, other = [], []
             for err in errors:
                 loc = _mdu_loc(err.get("loc", ()))
+                raw = [str(x) for x in err.get("loc", ())]
                 if len(loc) >= 2 and str(loc[1]).endswith("file") and (loc[0], loc[1]) not in sources.dropped:
                     droppable.append((loc[0], loc[1]))
+                elif not loc and err.get("type") == "extra_forbidden" and raw and (raw[-1], "") not in sources.dropped:
+                    droppable.append((raw[-1], ""))  # a section hydrolib-core does not know
+                    section = next((x for x in index.sections if _header_key(x.header) == raw[-1]), None)
+                    ledger.warn(f"{mdu.name}, line {section.line if section else '?'}: section "
+                                f"[{section.header if section else raw[-1]}] is not an MDU section known to "
+                                "hydrolib-core: read past (D-Flow FM does not read it either)")
                 else:
                     other.append(err)
             if other:
                 raise CaseError(_mdu_problem(other, index, sources), file=str(mdu)) from None
+            if not droppable:  # pragma: no cover - every error above is either dropped or reported
+                raise CaseError(_mdu_problem(errors, index, sources), file=str(mdu)) from None
             sources.dropped.update(droppable)
         except (OSError, UnicodeError) as exc:
             raise CaseError(f"hydrolib-core cannot read the model: {' '.join(str(exc).split())}",
@@ -354,7 +362,7 @@ def _network(fm: Any, mdu: Path, index: IniIndex, sources: Sources) -> tuple[Pat
         path = paths[0] if paths else None
     full = None if path is None else (path if Path(path).is_absolute() else mdu.parent / path)
     if type(net).__name__ == "NetworkModel" and getattr(net, "network", None) is not None and full is not None \
-            and full.is_file() and sources.inside(full):
+            and is_file(full) and sources.inside(full):
         return full, net.network
     if path is None:
         raise CaseError("the model names no network file (NetFile)", file=str(mdu), field=mdu_line(index, "geometry",
@@ -364,7 +372,7 @@ def _network(fm: Any, mdu: Path, index: IniIndex, sources: Sources) -> tuple[Pat
     reason = access.reason if access else "hydrolib-core could not read it as a UGRID network"
     if access is None and full is not None and not sources.inside(full):
         reason = f"it lies outside the model folder {sources.root}; the import reads no file outside it"
-    elif access is None and full is not None and not full.is_file():
+    elif access is None and full is not None and not is_file(full):
         reason = "the file does not exist"
     raise CaseError(f"the network file {path}: {reason}", file=str(mdu), field=mdu_line(index, "geometry", "netfile"))
 
@@ -408,8 +416,8 @@ class _Reader:
             self.refuse_file(full, what, f"it lies outside the model folder {self.sources.root} (the import reads no "
                              "file outside it: copy it into the model folder)", hydraulic)
             return False
-        if not full.is_file():
-            self.refuse_file(full, what, "the file does not exist" if not full.exists() else "not a file", hydraulic)
+        if not is_file(full):
+            self.refuse_file(full, what, "the file does not exist or is not a readable file", hydraulic)
             return False
         try:
             self.sources.ini(full)
@@ -595,7 +603,7 @@ class _Reader:
         if key in self.forcing:
             return self.forcing[key]
         self.forcing[key] = None
-        if not self.sources.inside(full) or not full.is_file():
+        if not self.sources.inside(full) or not is_file(full):
             return None
         try:
             index = self.sources.ini(full, datablocks=True)
@@ -686,7 +694,7 @@ class _Reader:
                                                              f"folder {self.sources.root} (not read)"))
                         data = None
                         break
-                    if not full.is_file():
+                    if not is_file(full):
                         out.failed.append((header, block_id, f"its forcing file {value.strip()} does not exist"))
                         data = None
                         break

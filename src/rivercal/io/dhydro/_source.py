@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FileAccess", "IniIndex", "RawKey", "RawSection", "Sources", "reading"]
+__all__ = ["FileAccess", "IniIndex", "RawKey", "RawSection", "Sources", "is_file", "reading"]
 
 _LOCK = threading.Lock()
 _ENCODINGS = ("utf-8", "latin-1")
@@ -172,8 +172,16 @@ def _strip_comment(value: str) -> str:
         return value
     if value.startswith("#"):
         parts = value.split("#")
-        return "#".join(parts[:3]) if len(parts) >= 3 else value
+        return "#".join(parts[:3]) if len(parts) >= 3 else ""  # ``key = # a comment`` has no value
     return value.split("#", 1)[0].strip()
+
+
+def is_file(path: Path | str) -> bool:
+    """Whether a path names a readable regular file (False for a name too long or a path the system refuses)."""
+    try:
+        return Path(path).is_file()
+    except (OSError, ValueError):
+        return False
 
 
 def read_text(path: Path) -> str:
@@ -259,6 +267,14 @@ class Sources:
             self._index[key] = IniIndex.read(key[0], datablocks=datablocks)
         return self._index[key]
 
+    def find_block(self, block_id: str) -> str:
+        """``file, line N`` of the first block read with this id (any file), or ""."""
+        for (path, _), index in self._index.items():
+            for section in index.sections:
+                if section.header.lower() != "general" and section.block_id == block_id:
+                    return f"{self.rel(path)}, line {section.line}"
+        return ""
+
     def locate(self, obj: Any, path: Path, section: RawSection) -> None:
         """Tie a hydrolib-core block object to the section it was read from."""
         self._located[id(obj)] = (obj, path, section)
@@ -328,7 +344,7 @@ def reading(sources: Sources, unknown: list[tuple[str, list[str]]]) -> Iterator[
             sources.access.append(FileAccess(path, name, "outside", "it lies outside the model folder "
                                              f"{sources.root}; the import reads no file outside it"))
             raise ValueError(f"{path}: outside the model folder, not read")
-        if not path.is_file():
+        if not is_file(path):
             sources.access.append(FileAccess(path, name, "missing", "the file does not exist"))
             raise ValueError(f"{path}: no such file")
         if isinstance(self, INIModel):
@@ -346,6 +362,9 @@ def reading(sources: Sources, unknown: list[tuple[str, list[str]]]) -> Iterator[
             _first_of_duplicates(data, index)
         if name == "FMModel":
             for section, key in sources.dropped:
+                if not key:
+                    data.pop(section, None)
+                    continue
                 part = data.get(section)
                 if isinstance(part, dict):
                     part.pop(key, None)
