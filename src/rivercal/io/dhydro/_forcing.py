@@ -280,8 +280,7 @@ def convert_forcing(ctx: Context) -> None:
     if ext is not None:
         for header, bid, reason in ext.failed:
             kind = {"boundary": "boundary", "lateral": "lateral"}.get(header.lower(), header)
-            ctx.ledger.refused(kind, bid, f"{ctx.model.sources.rel(ext.path)}: {reason}",
-                               hydraulic=header.lower() in ("boundary", "lateral"))
+            ctx.ledger.refused(kind, bid, reason, hydraulic=header.lower() in ("boundary", "lateral"))
         for bnd in ext.boundary:
             item = _boundary(ctx, bnd, degree)
             if item is not None:

@@ -87,7 +87,7 @@ def _friction_groups(ctx: Context) -> None:
     main_laws: dict[str, dict] = {}
     for blocks in ctx.model.frictions:
         for _, bid, reason in blocks.failed:
-            ctx.ledger.refused("friction group", bid, f"{blocks.path.name}: {reason}")
+            ctx.ledger.refused("friction group", bid, reason)
         group_id = None
         for obj in blocks.objects:
             if type(obj).__name__ == "FrictGlobal":

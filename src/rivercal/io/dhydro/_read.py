@@ -530,10 +530,10 @@ class _Reader:
             if section.header.lower() == "general" or section.header.lower() not in {h.lower() for h in headers}:
                 continue
             found = kind_of({**data, "_header": section.header})
-            block_id = (raw.block_id if raw is not None else "") or "?"
+            block_id = _block_name(raw, self.sources, path)
             if found is None:
                 out.failed.append((section.header, block_id, f"[{section.header}] block of type "
-                                                             f"{data.get('type')!r} is not known to hydrolib-core"))
+                                   f"{data.get('type')!r} is not known to hydrolib-core"))
                 continue
             kind, cls = found
             for block_type, test, drop, why in REPAIRS:
@@ -673,7 +673,7 @@ class _Reader:
             header = section.header.lower()
             if header == "general":
                 continue
-            block_id = (raw.block_id if raw else "") or "?"
+            block_id = _block_name(raw, self.sources, out.path)
             if header not in classes:
                 out.failed.append((section.header, block_id, f"[{section.header}] block is not read"))
                 continue
@@ -717,6 +717,13 @@ class _Reader:
             target.append(obj)
             if raw is not None:
                 self.sources.locate(obj, out.path, raw)
+
+
+def _block_name(raw: RawSection | None, sources: Sources, path: Path) -> str:
+    """The id of a block for the ledger; a block without one is named by its file and line."""
+    if raw is not None and raw.block_id:
+        return raw.block_id
+    return f"(no id) {sources.rel(path)}, line {raw.line}" if raw is not None else f"(no id) {sources.rel(path)}"
 
 
 def _header_of(obj: Any) -> str | None:

@@ -35,7 +35,7 @@ def convert_structures(ctx: Context) -> None:
     objects = [s for f in ctx.model.structures for s in f.objects]
     for f in ctx.model.structures:
         for kind, sid, reason in f.failed:
-            ctx.ledger.refused(kind, unquote(sid), f"{ctx.model.sources.rel(f.path)}: {reason}")
+            ctx.ledger.refused(kind, unquote(sid), reason)
     by_id = {unquote(s.id): s for s in objects}
     compounds: list[tuple[str, list[str]]] = []
     for s in objects:
