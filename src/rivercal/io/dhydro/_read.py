@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import threading
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -42,7 +41,6 @@ from rivercal.io.dhydro._source import IniIndex, RawSection, Sources, is_file, r
 
 __all__ = ["ExtBlocks", "FileBlocks", "LoadedModel", "load_fm_model"]
 
-_LOCK = threading.Lock()
 #: MDU file keys that the import reads: (section, key) → what the file holds and whether losing it changes
 #: the hydraulics.
 FILE_KEYS: dict[tuple[str, str], tuple[str, bool]] = {
