@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from rivercal.model import load_model
@@ -22,7 +23,7 @@ def test_import_prints_the_summary_as_json(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert set(summary) == {"branches", "points", "profiles", "structures", "boundaries", "laterals", "stations",
-                            "approximated", "refused"}
+                            "approximated", "refused", "parameters"}
     assert (summary["branches"], summary["points"], summary["laterals"]) == (171, 653, 143)
     assert summary["structures"] == {"weir": 19, "culvert": 147, "pump": 2, "bridge": 7}
     assert summary["refused"] == 0
@@ -69,3 +70,100 @@ def test_import_of_the_export_of_dommel_reproduces_its_series(tmp_path: Path) ->
                                        rtol=0, atol=1e-9)
             compared += 1
     assert compared == 11
+
+
+def test_the_export_of_a_packaged_case_imports_again(tmp_path: Path) -> None:
+    """An export with one observation cross-section (synthetic's S6) once failed to import: hydrolib-core does not
+    take a file with a single [ObservationCrossSection] block, so the import reads such a file block by block."""
+    run = rivercal("export", "dhydro", "synthetic", "--out", str(tmp_path / "model"), "--json")
+    assert run.returncode == 0, run.stderr
+    run = rivercal("import", "dhydro", json.loads(run.stdout)["mdu"], "--out", str(tmp_path / "case"), "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refused"] == 0
+    stations = {s.id: s for s in load_model(tmp_path / "case").case.network.stations}
+    assert stations["S6"].quantities == ["h", "Q"]  # an observation point and a cross-section of one name
+
+
+@pytest.mark.slow
+def test_the_export_of_the_controlled_case_imports_again(tmp_path: Path) -> None:
+    run = rivercal("export", "dhydro", "dommel-controlled", "--out", str(tmp_path / "model"), "--json")
+    assert run.returncode == 0, run.stderr
+    run = rivercal("import", "dhydro", json.loads(run.stdout)["mdu"], "--out", str(tmp_path / "case"), "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refused"] == 0
+
+
+def test_bad_options_are_clean_errors(tmp_path: Path) -> None:
+    mdu = write_model(tmp_path / "model")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--realtime-lateral", "nan")
+    assert run.returncode == 2 and "--realtime-lateral" in run.stderr and "internal error" not in run.stderr
+    (tmp_path / "taken").write_text("a file of the user's", encoding="utf-8")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "taken"), "--realtime-lateral", "0.01")
+    assert run.returncode == 2 and "--out" in run.stderr and "exists and is not a folder" in run.stderr
+    assert (tmp_path / "taken").read_text(encoding="utf-8") == "a file of the user's"
+
+
+def test_an_mdu_with_a_key_given_twice_imports_with_a_warning(tmp_path: Path) -> None:
+    """As published from a real project: the key given twice once ended in an internal error."""
+    mdu = write_model(tmp_path / "model")
+    text = mdu.read_text(encoding="utf-8")
+    mdu.write_text(text.replace("[Time]\n", "[Time]\nDtMax = 30.0\n", 1), encoding="utf-8")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--realtime-lateral", "0.01",
+                   "--allow-partial")
+    assert run.returncode == 0, run.stderr
+    assert "more than once" in (tmp_path / "case" / "import.md").read_text(encoding="utf-8")
+
+
+def test_observation_cross_sections_given_as_polylines_are_stations(tmp_path: Path) -> None:
+    """c01 has two observation cross-sections given by a polyline x = 1000 m across branches T2 and T4, which run
+    from x = 2000 to 0 with calculation points every 50 m. The polyline passes through the point at chainage 1000 m;
+    by D-Flow FM's rule (the crossing's direction picks one of the two links there) it observes the link
+    950-1000 m."""
+    mdu = shared_model("dhydro-1d-steady-state-flow", "Boundary.mdu")
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refused"] == 0
+    stations = {s.id: s for s in load_model(tmp_path / "case").case.network.stations}
+    for name, branch in (("ObservCross_xy_T2", "T2"), ("ObservCross_xy_T4", "T4")):
+        assert (stations[name].branch, stations[name].chainage, stations[name].quantities) == (branch, 975.0, ["Q"])
+
+
+#: Each shared model as imported, a parameter the import wrote, a short calibration window (with the warm-up
+#: before it, h) and an on-line cycle (issue time, window = cycle = horizon, warm-up).
+_SHARED = {
+    "dellen": (("dhydro-dellen", "dflowfm", "Flow1D.mdu"), ("--realtime", "rr_to_flow.nc", "--realtime",
+                                                            "rtc_to_flow.nc"),
+               "F_Manning_0_03", 0.036, "2000-06-03/2000-06-03T06:00", "6", ("2000-06-05", "6h", "6h")),
+    "c01": (("dhydro-1d-steady-state-flow", "Boundary.mdu"), (), "F_T2", 50.0, "2015-01-02/2015-01-02T06:00", "6",
+            ("2015-01-02T12:00", "6h", "6h")),
+    "korte-woerden": (("dhydro-korte-woerden-1d", "dflowfm", "FlowFM.mdu"), ("--realtime-lateral", "0.001"),
+                      "W_OVS1", 2.2, "2020-01-01T01:00/2020-01-01T02:00", "1", ("2020-01-01T01:00", "1h", "0h")),
+}
+
+
+@pytest.mark.parametrize("name", [pytest.param("dellen", marks=pytest.mark.slow), "c01", "korte-woerden"])
+def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: str) -> None:
+    """Import, simulate, calibrate (a twin of one parameter the import wrote) and one on-line cycle, exit 0 each."""
+    parts, extra, param, truth, window, warmup, (issue, span, online_warmup) = _SHARED[name]
+    mdu = shared_model(*parts)
+    extra = tuple(str(mdu.parents[1] / x) if x.endswith(".nc") else x for x in extra)
+    case = tmp_path / "case"
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(case), *extra, "--json")
+    assert run.returncode == 0, run.stderr
+    assert param in json.loads(run.stdout)["parameters"]
+    run = rivercal("simulate", str(case), "--out", str(tmp_path / "sim"), "--json")
+    assert run.returncode == 0, run.stderr
+    run = rivercal("calibrate", str(case), "--params", param, "--window", window, "--twin", f"{param}={truth}",
+                   "--warmup", warmup, "--workers", "1", "--option", "max_outer=2", "--json")
+    assert run.returncode == 0, run.stderr
+    estimate = json.loads(run.stdout)["estimates"][param]
+    initial = json.loads(run.stdout)["initial"][param]
+    assert abs(estimate - truth) < 0.5 * abs(initial - truth)  # two outer iterations move it most of the way
+    series = pd.read_csv(tmp_path / "sim" / "series.csv", index_col=0)
+    series.iloc[:, :12].to_csv(tmp_path / "observed.csv")  # a few stations, as a monitoring network has
+    run = rivercal("online", str(case), "--observations", str(tmp_path / "observed.csv"), "--params", param,
+                   "--from", issue, "--to", issue, "--max-cycles", "1", "--window", span, "--cycle", span,
+                   "--horizon", span, "--warmup", online_warmup, "--db", str(tmp_path / "run.sqlite"),
+                   "--workers", "1", "--quiet", "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["status"] == {"done": 1}

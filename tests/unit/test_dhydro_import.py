@@ -207,7 +207,7 @@ def test_a_broken_block_costs_that_block_only(imported, tmp_path) -> None:
     result = import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions(allow_partial=True))
     assert result.ledger.status_of("culvert", "culvert2") == "refused"
     assert result.ledger.status_of("culvert", "culvert1") == "exact"
-    assert any("DiskOnlyFileModel" in w for w in result.ledger.warnings)
+    assert any("block by block" in w for w in result.ledger.warnings)
 
 
 def test_the_period_from_start_and_stop_datetimes(imported, tmp_path) -> None:
@@ -252,3 +252,117 @@ def test_exchange_files_supply_realtime_values(imported, tmp_path) -> None:
     crest = case.forcing["crest:weir1"]
     t = (crest.index - case.start).total_seconds().to_numpy()
     assert np.interp([3598.0, 3600.0, 80000.0], t, crest.to_numpy()) == pytest.approx([0.5, 0.7, 0.7])
+
+
+def test_polyline_observation_cross_sections_go_on_the_link_they_cross(imported, tmp_path) -> None:
+    """D-Flow FM observes the flow links whose segment between their two calculation points the polyline crosses;
+    through a calculation point, the crossing's direction picks one of its two links (Deltares delft3d,
+    crspath_on_singlelink). Branch b2 runs from x = 1000 to 2000 m along y = 0, calculation points every 100 m."""
+    _, _, folder = imported
+    model = _copy_model(folder, tmp_path)
+    (model / "obscrs.ini").write_text(
+        "[General]\nfileVersion = 2.00\nfileType = obsCross\n\n"
+        "[ObservationCrossSection]\nname = across\nnumCoordinates = 2\nxCoordinates = 1550 1550\n"
+        "yCoordinates = -20 20\n\n"
+        "[ObservationCrossSection]\nname = northward\nnumCoordinates = 3\nxCoordinates = 1500 1500 1500\n"
+        "yCoordinates = -20 -5 20\n\n"
+        "[ObservationCrossSection]\nname = southward\nnumCoordinates = 2\nxCoordinates = 1500 1500\n"
+        "yCoordinates = 20 -20\n\n"
+        "[ObservationCrossSection]\nname = beside\nnumCoordinates = 2\nxCoordinates = 1550 1550\n"
+        "yCoordinates = 20 40\n", encoding="utf-8")
+    mdu = model / "test.mdu"
+    mdu.write_text(re.sub(r"(?im)^(obsFile\s*=.*\n)", r"\1crsFile = obscrs.ini\n", mdu.read_text(encoding="utf-8")),
+                   encoding="utf-8")
+    result = import_dhydro(mdu, tmp_path / "case", ImportOptions(allow_partial=True))
+    stations = {s.id: s for s in load_case(result.folder).network.stations}
+    assert (stations["across"].branch, stations["across"].chainage) == ("b2", 550.0)
+    assert (stations["northward"].branch, stations["northward"].chainage) == ("b2", 450.0)  # the link ending there
+    assert (stations["southward"].branch, stations["southward"].chainage) == ("b2", 550.0)  # the link starting there
+    assert "beside" not in stations and result.ledger.status_of("observation cross-section", "beside") == "refused"
+
+
+def _with_structures(folder, tmp_path, blocks: str, compound_members: str | None = None):
+    """A copy of the test model with structure blocks added (and compound1's members replaced)."""
+    model = _copy_model(folder, tmp_path)
+    path = model / "structures.ini"
+    text = path.read_text(encoding="utf-8") + "\n" + blocks
+    if compound_members is not None:
+        n = len(compound_members.split(";"))
+        text = re.sub(r"(id\s*=\s*compound1\b[^\[]*?numStructures\s*=\s*)1(\s*\n\s*structureIds\s*=\s*)pump1",
+                      rf"\g<1>{n}\g<2>{compound_members}", text, flags=re.S)
+    path.write_text(text, encoding="utf-8")
+    return model
+
+
+def _weir_block(name: str, width: float, chainage: float = 350.0) -> str:
+    return (f"[Structure]\nid = {name}\ntype = weir\nbranchId = b4\nchainage = {chainage}\nallowedFlowDir = both\n"
+            f"crestLevel = 0.2\ncrestWidth = {width}\ncorrCoeff = 1.0\nuseVelocityHeight = 0\n\n")
+
+
+def test_every_member_of_a_compound_is_converted(imported, tmp_path) -> None:
+    """A universal weir as the second member (once refused): the stretch between the calculation points around the
+    compound (D-Flow FM's flow link, 600-700 m on b4) becomes two parallel branches of half its length, one per
+    member, with its cross-sections and its branch's own friction."""
+    _, _, folder = imported
+    uweir = ("[Structure]\nid = uweir2\ntype = universalWeir\nbranchId = b4\nchainage = 650.0\nallowedFlowDir = both\n"
+             "numLevels = 3\nyValues = 0.0 2.0 4.0\nzValues = 1.5 1.0 1.5\ncrestLevel = 1.0\ndischargeCoeff = 0.9\n\n")
+    model = _with_structures(folder, tmp_path, uweir, "pump1;uweir2")
+    result = import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions(allow_partial=True))
+    net = load_case(result.folder).network
+    assert result.ledger.status_of("compound", "compound1") == "approximated"
+    assert result.ledger.status_of("universalWeir", "uweir2") == "exact"
+    pump = next(p for p in net.pumps if p.id == "pump1")
+    uweir = next(u for u in net.universal_weirs if u.id == "uweir2")
+    stretch = next(b for b in net.branches if b.id == pump.branch)
+    beside = next(b for b in net.branches if b.id == uweir.branch)
+    assert (stretch.from_node, stretch.to_node) == (beside.from_node, beside.to_node)
+    assert stretch.length == pytest.approx(50.0) and beside.length == pytest.approx(50.0)
+    assert beside.cross_sections == stretch.cross_sections
+    pieces = [b for b in net.branches if b.id.startswith("b4") and b is not stretch]
+    assert sum(b.length for b in pieces) == pytest.approx(900.0)  # b4 cut at 600 and 700 m
+    assert all(b.friction.type == "manning" and b.friction.value == 0.03 for b in [*pieces, stretch, beside])
+
+
+def test_a_compound_of_two_weirs_flows_as_one_weir_of_both_widths(imported, tmp_path) -> None:
+    """D-Flow FM sets the members of a compound on one flow link; two equal weirs of width 2 m side by side pass
+    what one weir of 4 m passes (the weir formula is linear in the width). The two imports run the same day; the
+    flows are equal once the filling of the first hours (where each member's shorter link follows faster) is over."""
+    from rivercal.model import load_model
+
+    _, _, folder = imported
+    (tmp_path / "pair").mkdir()
+    (tmp_path / "single").mkdir()
+    pair = _with_structures(folder, tmp_path / "pair", _weir_block("wa", 2.0) + _weir_block("wb", 2.0) +
+                            "[Structure]\nid = pairc\ntype = compound\nnumStructures = 2\nstructureIds = wa;wb\n\n")
+    single = _with_structures(folder, tmp_path / "single", _weir_block("wa", 4.0))
+    for model, out in ((pair, "pair_case"), (single, "single_case")):
+        import_dhydro(model / "test.mdu", tmp_path / out, ImportOptions(allow_partial=True, realtime_lateral=0.2))
+    a, _ = load_model(tmp_path / "pair_case").simulate()
+    b, _ = load_model(tmp_path / "single_case").simulate()
+    np.testing.assert_allclose(a.series["wa.Q"].to_numpy(), a.series["wb.Q"].to_numpy(), rtol=0, atol=1e-9)
+    settled = a.series.index >= a.series.index[0] + pd.Timedelta(hours=5)
+    q = (a.series["wa.Q"] + a.series["wb.Q"])[settled]
+    assert float(b.series["wa.Q"][settled].abs().min()) > 0.5  # the weir carries flow
+    np.testing.assert_allclose(q.to_numpy(), b.series["wa.Q"][settled].to_numpy(), rtol=1e-3, atol=0)
+    levels = [c for c in b.series.columns if c.endswith((".h", ".h_up", ".h_down")) and c in a.series.columns]
+    assert len(levels) > 10
+    np.testing.assert_allclose(a.series[levels][settled].to_numpy(), b.series[levels][settled].to_numpy(), rtol=0,
+                               atol=1e-3)
+
+
+def test_a_dead_end_stores_the_water_of_its_whole_end_link(imported, tmp_path) -> None:
+    """dxDoubleAt1DEndNodes (on in the test model, D-Flow FM's default): the flow node at a dead end gets the volume
+    of the whole end link instead of half of it. Without its Q(h) boundary, node E (the end of b4, 100 m calculation
+    points, one zw cross-section: bed 0.2 - 1.0 = -0.8 m AD, total widths 4, 8, 20 m at 0, 1, 3 m) is a dead end:
+    its extra half link of 50 m stores 50 m x the total width."""
+    _, data, folder = imported
+    assert "storage_table" not in next(n for n in data["nodes"] if n["id"] == "E")  # a boundary node: not an end
+    model = _copy_model(folder, tmp_path)
+    ext = model / "forcing.ext"
+    ext.write_text(re.sub(r"\[Boundary\][^\[]*?nodeId\s*=\s*E\b[^\[]*", "", ext.read_text(encoding="utf-8"),
+                          flags=re.S), encoding="utf-8")
+    result = import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions(allow_partial=True))
+    node = next(n for n in load_case(result.folder).network.nodes if n.id == "E")
+    assert node.storage_table.levels == pytest.approx([-0.8, 0.2, 2.2])
+    assert node.storage_table.areas == pytest.approx([200.0, 400.0, 1000.0])
+    assert result.ledger.status_of("setting", "dxDoubleAt1DEndNodes") == "exact"

@@ -175,9 +175,11 @@ def dhydro(
     if as_json:
         emit_json(summary)
         return
+    after = summary["after_spinup"]
     out_console.print(f"Dellen, {summary['locations']} locations over {summary['dhydro_period_s'] / 86400:g} days: "
                       f"RMSE median {summary['rmse_median_m']:.3f} m, 90 % {summary['rmse_p90_m']:.3f} m, max "
-                      f"{summary['rmse_max_m']:.3f} m; simulated in {summary['wall_s']:.2f} s")
+                      f"{summary['rmse_max_m']:.3f} m; after the spin-up day {after['median']:.3f}, "
+                      f"{after['p90']:.3f}, {after['max']:.3f} m; simulated in {summary['wall_s']:.2f} s")
 
 
 @app.command("online")

@@ -54,8 +54,8 @@ def import_dhydro_cmd(
     kinds = ", ".join(f"{n} {k}" for k, n in s["structures"].items()) or "no structures"
     out_console.print(f"imported [bold]{model.name}[/] into {out}: {s['branches']} branches, {s['points']} points, "
                       f"{s['profiles']} profiles, {kinds}, {s['boundaries']} boundaries, {s['laterals']} laterals, "
-                      f"{s['stations']} stations; {s['approximated']} approximated, {s['refused']} refused "
-                      f"(see {out / 'import.md'})")
+                      f"{s['stations']} stations, {len(s['parameters'])} calibration parameters; {s['approximated']} "
+                      f"approximated, {s['refused']} refused (see {out / 'import.md'})")
 
 
 @export_app.command("dhydro")

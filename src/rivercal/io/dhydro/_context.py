@@ -6,6 +6,7 @@ import hashlib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -124,6 +125,22 @@ class Context:
     branch_length: dict[str, float] = field(default_factory=dict)
     origins: dict[str, tuple[str, str]] = field(default_factory=dict)
     used_definitions: set[str] = field(default_factory=set)
+    blocks: dict[tuple[str, str], Any] = field(default_factory=dict)
+    compounds: list[tuple[str, list[str]]] = field(default_factory=list)
+    pieces: dict[str, list[str]] = field(default_factory=dict)
+    parallel: set[str] = field(default_factory=set)
+
+    def source(self, table: str, case_id: str, obj: Any) -> None:
+        """Remember the D-Flow FM block (hydrolib-core object) a case object was made from."""
+        self.blocks[(table, case_id)] = obj
+
+    def where(self, table: str, case_id: str) -> str:
+        """``file, line N`` of the block a case object was made from (the model file when unknown)."""
+        obj = self.blocks.get((table, case_id))
+        if isinstance(obj, str):
+            return obj
+        found = self.model.sources.where(obj) if obj is not None else ""
+        return found or self.model.mdu.name
 
     def origin(self, case_id: str, kind: str) -> tuple[str, str]:
         """The ledger kind and D-Flow FM id of a structure or station of the case (``kind`` if unknown)."""

@@ -52,25 +52,61 @@ def _write_engine_settings(engine, path: Path) -> None:
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
-def read_engine_settings(folder: Path) -> dict | None:
-    """The engine settings an export left beside its MDU (case fields → values), or None."""
-    from hydrolib.core.dflowfm.ini.parser import Parser
+def read_engine_settings(folder: Path) -> tuple[dict | None, list[tuple[int, str]], list[str]]:
+    """The engine settings an export left beside its MDU (case fields → values), and what is wrong with them.
+
+    Returns
+    -------
+    settings, errors, warnings
+        The settings (None without the file); per unusable line (line number, what is wrong); warnings
+        (unknown keys). Each value is checked with the case's own rules for the engine settings.
+    """
+    from pydantic import ValidationError
+
+    from rivercal.case.schema import EngineSettings
+    from rivercal.io.dhydro._source import IniIndex
 
     path = Path(folder) / SETTINGS_FILE
     if not path.is_file():
-        return None
+        return None, [], []
+    try:
+        index = IniIndex.read(path)
+    except OSError as exc:
+        return None, [(0, f"cannot be read ({exc.strerror or exc})")], []
+    errors: list[tuple[int, str]] = [(line, f"{text[:60]!r} is not 'key = value'") for line, text in index.stray]
+    warnings: list[str] = []
     out: dict = {}
-    for section in Parser.parse(path).sections:
+    lines: dict[str, int] = {}
+    engine = index.of("engine")
+    if not engine:
+        errors.append((1, "no [engine] section (the file rivercal's export writes has one)"))
+    for section in index.sections:
         if section.header.lower() != "engine":
-            continue
-        values = {k.lower(): v for k, v in section.flatten(duplicate_key_as_list=False, with_comments=False).items()}
-        for name, key in _ENGINE_KEYS.items():
-            text = values.get(key.lower())
-            if text is None:
+            warnings.append(f"{SETTINGS_FILE}, line {section.line}: section [{section.header}] is not read")
+    keys = {key.lower(): name for name, key in _ENGINE_KEYS.items()}
+    for section in engine:
+        for key, found in section.keys.items():
+            raw = found[0]
+            name = keys.get(key)
+            if name is None:
+                warnings.append(f"{SETTINGS_FILE}, line {raw.line}: unknown key {raw.key} read past")
                 continue
-            out[name] = text.strip() if name == "cross_sections" else (
-                int(text) if name == "max_iterations" else float(text))
-    return out
+            if len(found) > 1:
+                warnings.append(f"{SETTINGS_FILE}, lines {', '.join(str(r.line) for r in found)}: {raw.key} given "
+                                "more than once; the first is read")
+            text = (raw.value or "").strip()
+            try:
+                value = text if name == "cross_sections" else int(text) if name == "max_iterations" else float(text)
+                EngineSettings.model_validate({name: value, **({"dt": 1e-1, "output_interval": 1e-1}
+                                                               if name not in ("dt", "output_interval") else {})})
+            except (ValueError, ValidationError) as exc:
+                problem = (exc.errors(include_url=False)[0]["msg"] if isinstance(exc, ValidationError)
+                           else "not a number")
+                errors.append((raw.line, f"{raw.key} = {text}: {problem}"))
+                continue
+            out[name] = value
+            lines[name] = raw.line
+    return out, errors, warnings
 
 
 @functools.cache

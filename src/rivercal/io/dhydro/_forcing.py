@@ -46,6 +46,9 @@ def read_exchange(path: Path, refdate: pd.Timestamp) -> dict[str, pd.Series]:
         if "time_offset" not in ds.coords and "time_offset" not in ds:
             raise ValueError(f"{path}: no time_offset: not a DIMR exchange file")
         seconds = np.asarray(ds["time_offset"].values, dtype=float)
+        if seconds.ndim != 1 or not np.all(np.isfinite(seconds)) or np.any(np.diff(seconds) <= 0) or \
+                np.any(np.abs(seconds) > 3.2e9):
+            raise ValueError("time_offset: times that are not finite, increasing seconds from the reference date")
         index = refdate + pd.to_timedelta(seconds, unit="s")
         for name, var in ds.data_vars.items():
             long_name = str(var.attrs.get("long_name", ""))
@@ -55,6 +58,8 @@ def read_exchange(path: Path, refdate: pd.Timestamp) -> dict[str, pd.Series]:
             if key is None:
                 continue
             values = np.asarray(var.values, dtype=float).reshape(len(index), -1)[:, 0]
+            if not np.all(np.isfinite(values)):
+                raise ValueError(f"{name} ({long_name}): values that are not finite numbers")
             out[key] = pd.Series(values, index=index, name=key)
     return out
 
@@ -81,7 +86,12 @@ def _time_unit(unit: str) -> tuple[float, pd.Timestamp]:
     if not m:
         raise ValueError(f"time unit {unit!r} is not '<seconds|minutes|hours|days> since <date>'")
     factor = {"seconds": 1.0, "minutes": 60.0, "hours": 3600.0, "days": 86400.0}[m.group(1).lower()]
-    base = pd.Timestamp(m.group(2).strip().replace(" +00:00", ""))
+    try:
+        base = pd.Timestamp(m.group(2).strip().replace(" +00:00", ""))
+    except (ValueError, OverflowError):
+        base = pd.NaT
+    if base is pd.NaT:
+        raise ValueError(f"time unit {unit!r}: {m.group(2).strip()!r} is not a date")
     base = base.tz_localize("UTC") if base.tzinfo is None else base.tz_convert("UTC")
     return factor, base
 
@@ -92,42 +102,122 @@ def forcing_series(ctx: Context, value: Any, *, name: str) -> pd.Series:
     Raises
     ------
     ValueError
-        For a function the case cannot express (harmonic, astronomic, ...) or a missing block.
+        For a function the case cannot express (harmonic, astronomic, ...), a missing block, or values
+        that cannot be used (these are also recorded as errors at their line).
     """
     kind = type(value).__name__
     if isinstance(value, int | float):
         return _constant(ctx, float(value))
     if kind == "TimModel":
         t = np.array([r.time for r in value.timeseries], dtype=float)
-        v = np.array([r.data[0] for r in value.timeseries], dtype=float)
+        v = np.array([r.data[0] if r.data else np.nan for r in value.timeseries], dtype=float)
+        where = ctx.model.sources.rel(_source_path(ctx, value))
+        if t.size == 0 or not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))) or np.any(np.abs(t) > 5e7) or \
+                np.any(np.abs(v) > _LARGEST):
+            ctx.ledger.error(where, "a time or value that is not a finite number of a plausible size")
+            raise ValueError(f"{where}: unusable values (see the errors)")
         return _cover(ctx, pd.Series(v, index=ctx.refdate + pd.to_timedelta(t * 60.0, unit="s")))
     if kind == "ForcingModel":
-        block = _block(value, name)
-        return block_series(ctx, block)
+        block = _block(value, name, ctx)
+        return block_series(ctx, block, value)
     if kind == "DiskOnlyFileModel":
         raise ValueError(f"the forcing file {getattr(value, 'filepath', None)} could not be validated by hydrolib-core")
     raise ValueError(f"a value of type {kind} cannot be converted")
 
 
-def _block(model: Any, name: str) -> Any:
+#: Largest magnitude of a value of a forcing series (a level in m AD, a discharge in m³/s, a width in m).
+_LARGEST = 1.0e7
+
+
+def _source_path(ctx: Context, model: Any) -> Path:
+    path = Path(getattr(model, "filepath", None) or "")
+    return path if path.is_absolute() else ctx.model.mdu.parent / path
+
+
+def _block(model: Any, name: str, ctx: Context | None = None) -> Any:
     for f in model.forcing:
         if unquote(f.name) == unquote(name):
             return f
+    if ctx is not None:
+        for path, failures in ctx.model.sources.forcing_failures.items():
+            if ctx.model.sources.rel(path) == str(getattr(model, "filepath", "")) and unquote(name) in failures:
+                raise ValueError(f"its forcing block {unquote(name)!r} in {getattr(model, 'filepath', '?')} cannot be "
+                                 f"read: {failures[unquote(name)]}")
     raise ValueError(f"no forcing block named {name!r} in {getattr(model, 'filepath', '?')}")
 
 
-def block_series(ctx: Context, block: Any) -> pd.Series:
-    """A ``.bc`` constant or time-series block as a UTC series covering the period."""
+def _bc_where(ctx: Context, model: Any, block: Any, row: int | None) -> str:
+    """``file, line N`` of a block of a ``.bc`` file (of one of its data rows when given)."""
+    path = _source_path(ctx, model) if model is not None else None
+    rel = ctx.model.sources.rel(path) if path is not None else "the forcing file"
+    try:
+        index = ctx.model.sources.ini(path, datablocks=True) if path is not None else None
+    except OSError:
+        index = None
+    if index is None:
+        return rel
+    section = next((s for s in index.of("forcing") if s.block_id == unquote(block.name)), None)
+    if section is None:
+        return rel
+    if row is not None and row < len(section.rows):
+        return f"{rel}, line {section.rows[row][0]}"
+    return f"{rel}, line {section.line}"
+
+
+def block_series(ctx: Context, block: Any, model: Any = None) -> pd.Series:
+    """A ``.bc`` constant or time-series block as a UTC series covering the period.
+
+    Raises
+    ------
+    ValueError
+        For a function the case cannot express, or values that cannot be used (also recorded as errors with
+        the file and line).
+    """
     kind = type(block).__name__
-    rows = np.asarray(block.datablock, dtype=float)
+    name = unquote(block.name)
+
+    def bad(row: int | None, problem: str) -> ValueError:
+        ctx.ledger.error(_bc_where(ctx, model, block, row), f"forcing {name!r}: {problem}")
+        return ValueError(f"forcing {name!r}: {problem} (see the errors)")
+
+    try:
+        rows = np.asarray(block.datablock, dtype=float)
+    except (TypeError, ValueError):
+        raise bad(None, "a table whose rows are not all numbers of the same count") from None
+    if rows.ndim != 2 or rows.shape[0] == 0:
+        raise bad(None, "an empty table")
+    finite = np.isfinite(rows).all(axis=1)
+    if not finite.all():
+        raise bad(int(np.argmin(finite)), "a value that is not a finite number")
+    large = (np.abs(rows) > _LARGEST * (86400.0 * 36525 if kind == "TimeSeries" else 1.0)).any(axis=1)
+    if large.any():
+        raise bad(int(np.argmax(large)), "a value beyond any plausible size")
+    factor_value, offset = float(block.factor if block.factor is not None else 1.0), float(block.offset or 0.0)
+    if not (np.isfinite(factor_value) and np.isfinite(offset)) or abs(factor_value) > _LARGEST or \
+            abs(offset) > _LARGEST:
+        raise bad(None, f"factor {block.factor} or offset {block.offset} is not a finite number of a plausible size")
     if kind == "Constant":
-        return _constant(ctx, float(rows.ravel()[0]))
+        return _constant(ctx, float(rows.ravel()[0]) * factor_value + offset)
     if kind != "TimeSeries":
-        raise ValueError(f"forcing function {block.function!r} of {unquote(block.name)!r} has no counterpart in a "
+        raise ValueError(f"forcing function {block.function!r} of {name!r} has no counterpart in a "
                          "case (constant and time series only)")
-    factor, base = _time_unit(block.quantityunitpair[0].unit)
-    values = rows[:, 1] * float(block.factor or 1.0) + float(block.offset or 0.0)
-    index = base + pd.to_timedelta(rows[:, 0] * factor, unit="s")
+    if rows.shape[1] < 2:
+        raise bad(0, "a time series needs a time and a value on every row")
+    try:
+        factor, base = _time_unit(block.quantityunitpair[0].unit)
+    except ValueError as exc:
+        raise bad(None, str(exc)) from None
+    seconds = rows[:, 0] * factor
+    if np.any(np.abs(seconds) > 3.2e9):
+        raise bad(int(np.argmax(np.abs(seconds) > 3.2e9)), "a time more than a century from the reference date")
+    steps = np.diff(seconds)
+    if np.any(steps < 0):
+        raise bad(int(np.argmax(steps < 0)) + 1, "times that go back (a time series runs forward)")
+    values = rows[:, 1] * factor_value + offset
+    try:
+        index = base + pd.to_timedelta(seconds, unit="s")
+    except (OverflowError, ValueError):
+        raise bad(None, "times that do not fit a calendar (years 1677-2262)") from None
     series = pd.Series(values, index=index)
     interp = str(getattr(block.timeinterpolation, "value", block.timeinterpolation) or "linear").lower()
     if interp != "linear":
@@ -188,6 +278,9 @@ def convert_forcing(ctx: Context) -> None:
     boundaries: list[dict] = []
     laterals: list[dict] = []
     if ext is not None:
+        for header, bid, reason in ext.failed:
+            kind = {"boundary": "boundary", "lateral": "lateral"}.get(header.lower(), header)
+            ctx.ledger.refused(kind, bid, reason, hydraulic=header.lower() in ("boundary", "lateral"))
         for bnd in ext.boundary:
             item = _boundary(ctx, bnd, degree)
             if item is not None:
@@ -201,6 +294,8 @@ def convert_forcing(ctx: Context) -> None:
                 ctx.ledger.refused(name, str(getattr(block, "quantity", None) or getattr(block, "id", "?")),
                                    "meteo forcing and 2D sources/sinks have no counterpart in a 1D case")
     old = ctx.model.fm.external_forcing.extforcefile
+    if old is None and ("external_forcing", "extforcefile") in ctx.model.sources.dropped:
+        old = "ExtForceFile"
     if old is not None:
         ctx.ledger.refused("forcing file", str(getattr(old, "filepath", old)),
                            "old-format external forcing file (.ext with .tim/.cmp): not read")
@@ -218,6 +313,7 @@ def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
         ctx.ledger.refused("boundary", name, "its node is not a connection node of the network")
         return None
     node = ctx.id("node", bnd.nodeid)
+    ctx.source("boundaries", ctx.id("boundary", name), bnd)
     if degree[node] != 1:
         ctx.ledger.refused("boundary", name, f"its node joins {degree[node]} branches; a case boundary sits at an end "
                            "node (D-Flow FM's AllowBndAtBifurcation)")
@@ -225,8 +321,8 @@ def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
     bid = ctx.id("boundary", name)
     try:
         if quantity == "qhbnd":
-            block = _block(bnd.forcingfile, bnd.nodeid)
-            return _rating(ctx, bid, node, name, block)
+            block = _block(bnd.forcingfile, bnd.nodeid, ctx)
+            return _rating(ctx, bid, node, name, block, bnd.forcingfile)
         if quantity not in ("waterlevelbnd", "dischargebnd"):
             ctx.ledger.refused("boundary", name, f"boundary quantity {bnd.quantity!r} has no counterpart in a case "
                                "(level, discharge and Q(h) only)")
@@ -247,11 +343,23 @@ def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
     return item
 
 
-def _rating(ctx: Context, bid: str, node: str, name: str, block: Any) -> dict | None:
-    rows = np.asarray(block.datablock, dtype=float)
-    names = [q.quantity.lower() for q in block.quantityunitpair]
-    qcol = next(k for k, n in enumerate(names) if "discharge" in n)
-    hcol = next(k for k, n in enumerate(names) if "waterlevel" in n)
+def _rating(ctx: Context, bid: str, node: str, name: str, block: Any, model: Any = None) -> dict | None:
+    names = [str(q.quantity).lower() for q in block.quantityunitpair]
+    qcol = next((k for k, n in enumerate(names) if "discharge" in n), None)
+    hcol = next((k for k, n in enumerate(names) if "waterlevel" in n), None)
+    try:
+        rows = np.asarray(block.datablock, dtype=float)
+    except (TypeError, ValueError):
+        rows = np.empty((0, 0))
+    if qcol is None or hcol is None or rows.ndim != 2 or rows.shape[0] < 2 or rows.shape[1] <= max(qcol, hcol):
+        ctx.ledger.error(_bc_where(ctx, model, block, None), f"forcing {unquote(block.name)!r}: a Q(h) table needs a "
+                         "discharge and a water level column and at least two rows")
+        return None
+    bad = ~np.isfinite(rows).all(axis=1) | (np.abs(rows) > _LARGEST).any(axis=1)
+    if bad.any():
+        ctx.ledger.error(_bc_where(ctx, model, block, int(np.argmax(bad))), f"forcing {unquote(block.name)!r}: a value "
+                         "that is not a finite number of a plausible size")
+        return None
     q, h = rows[:, qcol], rows[:, hcol]
     order = np.argsort(h)
     q, h = q[order], h[order]
@@ -349,6 +457,7 @@ def _lateral(ctx: Context, lat: Any) -> dict | None:
     name = unquote(lat.id)
     lid = ctx.id("lateral", name)
     item: dict = {"id": lid}
+    ctx.source("laterals", lid, lat)
     notes: list[str] = []
     if lat.nodeid is not None:
         if not ctx.ids["node"].known(lat.nodeid):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,6 +14,7 @@ import pandas as pd
 
 from rivercal.case.load import load_case
 from rivercal.errors import CaseError, StructureOverlap
+from rivercal.io.dhydro._compound import place_compounds
 from rivercal.io.dhydro._context import Context, ImportOptions, unquote
 from rivercal.io.dhydro._forcing import convert_forcing, read_exchange
 from rivercal.io.dhydro._ledger import Ledger
@@ -78,25 +80,30 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     """
     options = options or ImportOptions()
     mdu, out = Path(mdu), Path(out)
+    _check_options(options)
+    _check_out(out)
     ledger = Ledger()
     model = load_fm_model(mdu, ledger)
-    refdate, start, end = _period(model.fm)
+    refdate, start, end = _period(model)
     ctx = Context(model=model, options=options, ledger=ledger, start=start, end=end, refdate=refdate)
     for path in options.realtime:
         try:
             found = read_exchange(Path(path), refdate)
-        except (OSError, ValueError) as exc:
-            raise CaseError(f"cannot read the exchange file: {' '.join(str(exc).split())}", file=str(path)) from None
+        except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
+            raise CaseError(f"cannot read the exchange file: {' '.join(str(exc).split())[:300]}",
+                            file=str(path)) from None
         ctx.exchange.update(found)
-    ctx.case["case"] = {"name": mdu.stem, "description": f"imported from D-Flow FM model {mdu.name}",
+    ctx.case["case"] = {"name": _case_name(mdu), "description": f"imported from D-Flow FM model {mdu.name}",
                         "start": start.isoformat().replace("+00:00", "Z"),
                         "end": end.isoformat().replace("+00:00", "Z")}
-    convert_network(ctx)
-    convert_structures(ctx)
-    convert_forcing(ctx)
-    _engine(ctx)
-    _fit_the_grid(ctx)
-    _other_settings(ctx)
+    for stage in (convert_network, convert_structures, convert_forcing, place_compounds, _engine, _validate_items,
+                  _fit_the_grid, _end_node_storage, _other_settings, _parameters):
+        if ledger.errors:
+            break
+        stage(ctx)
+    if not ledger.errors and not ctx.case.get("branches"):
+        ledger.refused("network", mdu.name, "no branch could be converted (see the refusals): nothing is left to "
+                       "make a case of")
     unused = sorted(k for k in ctx.exchange if k not in ctx.exchange_used and not k.startswith("observations/")
                     and not k.endswith("/water_level"))
     for key in unused:
@@ -104,61 +111,215 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     out.mkdir(parents=True, exist_ok=True)
     (out / "import.md").write_text(ledger.markdown(model=str(mdu), case_folder=str(out),
                                                    partial=options.allow_partial), encoding="utf-8")
-    if ledger.blocking and not options.allow_partial:  # no case that would run without these objects
+    if ledger.errors:
+        _remove_old_case(out)
+        shown = "; ".join(f"{where}: {text}" for where, text in ledger.errors[:3])
+        more = f" (and {len(ledger.errors) - 3} more)" if len(ledger.errors) > 3 else ""
+        raise CaseError(f"{len(ledger.errors)} value(s) in the model files cannot be used: {shown}{more}; no case was "
+                        f"written; see {out / 'import.md'}", file=str(mdu))
+    if ledger.blocking and (not options.allow_partial or not ctx.case.get("branches")):
+        # no case that would run without these objects
+        _remove_old_case(out)
         groups: dict[tuple[str, str], list[str]] = {}
         for e in ledger.blocking:
             groups.setdefault((e.kind, e.note), []).append(e.id)
-        shown = "; ".join(f"{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1 else "") + f": {note}"
+        def where(kind: str, ident: str) -> str:
+            found = model.sources.find_block(ident) if kind != "file" else ""
+            return f"{found}: " if found else ""
+
+        shown = "; ".join(f"{where(kind, ids[0])}{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1
+                                                                        else "") + f": {note}"
                           for (kind, note), ids in list(groups.items())[:4])
         more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
         raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "
                         f"{shown}{more}; no case was written"
-                        f"; see {out / 'import.md'}, or import with --allow-partial to leave them out", file=str(mdu))
+                        f"; see {out / 'import.md'}" + ("" if options.allow_partial else
+                                                          ", or import with --allow-partial to leave them out"),
+                        file=str(mdu))
     _write(ctx, out)
     try:
         case = load_case(out)
     except CaseError as exc:
-        raise CaseError(f"the imported case does not validate, which is a bug of the import: {exc}",
-                        file=str(mdu)) from None
+        _remove_old_case(out)
+        raise RuntimeError(f"the case made from {mdu.name} does not validate, which is a bug of the import (every "
+                           f"value read was checked): {exc}") from None
     return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger)
 
 
-def _period(fm) -> tuple[pd.Timestamp, pd.Timestamp, pd.Timestamp]:
+def _case_name(mdu: Path) -> str:
+    name = re.sub(r"[^A-Za-z0-9_.\-]", "_", mdu.stem)[:64]
+    return name or "imported"
+
+
+def _check_options(options: ImportOptions) -> None:
+    from rivercal.network import MAX_DISCHARGE
+
+    q = options.realtime_lateral
+    if q is not None and (not math.isfinite(q) or abs(q) > MAX_DISCHARGE):
+        raise CaseError(f"{q}: the constant inflow of realtime laterals must be a finite discharge within "
+                        f"±{MAX_DISCHARGE:g} m³/s", field="--realtime-lateral")
+    dt = options.dt
+    if dt is not None and (not math.isfinite(dt) or not 0 < dt <= 86400):
+        raise CaseError(f"{dt}: the time step must be a finite number of seconds in (0, 86400]", field="--dt")
+
+
+def _check_out(out: Path) -> None:
+    """The case folder: new, empty, or the folder of an earlier import (whose case files are replaced)."""
+    if out.exists() and not out.is_dir():
+        raise CaseError("exists and is not a folder: give a new folder for the case", field="--out",
+                        file=str(out))
+    if out.is_dir() and any(out.iterdir()) and not (out / "import.md").is_file():
+        raise CaseError("is a folder with other files in it and not the folder of an earlier import: give a new or "
+                        "empty folder (an import replaces the case files it finds)", field="--out", file=str(out))
+
+
+def _remove_old_case(out: Path) -> None:
+    """An earlier import's case files, so that a failed import leaves no case that would run without what failed."""
+    for old in [out / "case.toml", *out.glob("*.csv")]:
+        if old.is_file():
+            old.unlink()
+
+
+def _period(model) -> tuple[pd.Timestamp, pd.Timestamp, pd.Timestamp]:
+    """Reference date, start and end (UTC) from the MDU's [time] section; an error naming the key when unusable."""
+    from rivercal.io.dhydro._read import mdu_line
+
+    fm, mdu = model.fm, model.mdu
+    index = model.sources.ini(mdu)
     t = fm.time
-    refdate = pd.Timestamp(str(int(t.refdate)), tz="UTC")
+
+    def bad(name: str, problem: str) -> CaseError:
+        return CaseError(f"{mdu_line(index, 'time', name)}: {problem}", file=str(mdu))
+
+    text = str(t.refdate).strip()
+    try:
+        if not (text.isdigit() and len(text) == 8):
+            raise ValueError(text)
+        refdate = pd.Timestamp(f"{text[:4]}-{text[4:6]}-{text[6:]}", tz="UTC")
+    except ValueError:
+        raise bad("refdate", "the reference date must be a date written yyyymmdd") from None
     shift = pd.Timedelta(hours=float(t.tzone or 0.0))
-    unit = {"D": 86400.0, "H": 3600.0, "M": 60.0, "S": 1.0}[str(t.tunit or "S").upper()]
+    if abs(float(t.tzone or 0.0)) > 24:
+        raise bad("tzone", "the time zone must lie within ±24 hours")
+    unit_name = str(t.tunit or "S").upper()
+    if unit_name not in ("D", "H", "M", "S"):
+        raise bad("tunit", "the time unit must be D, H, M or S")
+    unit = {"D": 86400.0, "H": 3600.0, "M": 60.0, "S": 1.0}[unit_name]
     if t.startdatetime and t.stopdatetime:
-        start = pd.Timestamp(str(t.startdatetime), tz="UTC") - shift
-        end = pd.Timestamp(str(t.stopdatetime), tz="UTC") - shift
+        try:
+            start = pd.Timestamp(_datetime_text(str(t.startdatetime)), tz="UTC") - shift
+        except ValueError:
+            raise bad("startdatetime", "not a date and time written yyyymmddHHMMSS") from None
+        try:
+            end = pd.Timestamp(_datetime_text(str(t.stopdatetime)), tz="UTC") - shift
+        except ValueError:
+            raise bad("stopdatetime", "not a date and time written yyyymmddHHMMSS") from None
+        names = ("startdatetime", "stopdatetime")
     else:
-        start = refdate + pd.to_timedelta(float(t.tstart or 0.0) * unit, unit="s") - shift
-        end = refdate + pd.to_timedelta(float(t.tstop) * unit, unit="s") - shift
+        if t.tstop is None:
+            raise bad("tstop", "the model gives no stop time (TStop, or StartDateTime and StopDateTime)")
+        tstart, tstop = float(t.tstart or 0.0), float(t.tstop)
+        if not (math.isfinite(tstart) and math.isfinite(tstop)) or max(abs(tstart), abs(tstop)) * unit > 3.2e9:
+            raise bad("tstop", "the start and stop times must be finite and within a century of the reference date")
+        start = refdate + pd.to_timedelta(tstart * unit, unit="s") - shift
+        end = refdate + pd.to_timedelta(tstop * unit, unit="s") - shift
+        names = ("tstart", "tstop")
+    if end <= start:
+        raise bad(names[1], f"the period ends ({end.isoformat()}) before it starts ({start.isoformat()})")
     return refdate - shift, start, end
+
+
+def _datetime_text(text: str) -> str:
+    """``yyyymmddHHMMSS`` (D-Flow FM's StartDateTime) as ISO text; a ValueError when it is not that."""
+    text = text.strip()
+    if not (text.isdigit() and len(text) in (8, 14)):
+        raise ValueError(text)
+    text = text.ljust(14, "0")
+    iso = f"{text[:4]}-{text[4:6]}-{text[6:8]}T{text[8:10]}:{text[10:12]}:{text[12:14]}"
+    pd.Timestamp(iso)  # raises ValueError for a day or hour that does not exist
+    return iso
 
 
 def _engine(ctx: Context) -> None:
     fm = ctx.model.fm
-    span = (ctx.end - ctx.start).total_seconds()
+    span = round((ctx.end - ctx.start).total_seconds())
     his = fm.output.hisinterval
     interval = float(his[0]) if his and float(his[0]) > 0 else float(fm.time.dtuser or 3600.0)
+    interval = max(1, round(interval))
     if span % interval:
-        interval = math.gcd(int(span), int(interval)) or span
-    dt_max = min(float(fm.time.dtmax or MAX_DT), MAX_DT)
-    dt = ctx.options.dt or max(d for d in range(1, int(dt_max) + 1) if interval % d == 0)
+        interval = math.gcd(int(span), int(interval)) or max(span, 1)
+    dt_max = max(1, int(min(float(fm.time.dtmax or MAX_DT), MAX_DT)))
+    dt = ctx.options.dt or max(d for d in range(1, dt_max + 1) if interval % d == 0)
+    ratio = interval / dt
+    if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
+        raise CaseError(f"{dt:g} s does not divide the model's output interval {interval:g} s (the his interval)",
+                        field="--dt")
     engine = {"dt": float(dt), "output_interval": float(interval), "structure_length": STRUCTURE_LENGTH,
               "cross_sections": "interpolated"}
     ctx.case["engine"] = engine
     from rivercal.io.dhydro._export import SETTINGS_FILE, read_engine_settings
 
-    exported = read_engine_settings(ctx.model.mdu.parent)
-    if exported:
+    exported, errors, warnings = read_engine_settings(ctx.model.mdu.parent)
+    for line, text in errors:
+        ctx.ledger.error(f"{SETTINGS_FILE}, line {line}", text)
+    for text in warnings:
+        ctx.ledger.warn(text)
+    if exported and not errors:
         engine.update(exported)
+        if engine["output_interval"] % engine["dt"]:
+            ctx.ledger.error(SETTINGS_FILE, f"the time step {engine['dt']:g} s does not divide the output interval "
+                             f"{engine['output_interval']:g} s")
         ctx.ledger.exact("setting", SETTINGS_FILE, "engine settings written by rivercal's export (cross-section "
                          "placement, numerics) taken over")
-    ctx.ledger.approximated("setting", "DtMax/DtUser", f"D-Flow FM adapts its time step to a Courant limit (at most "
-                            f"DtMax = {fm.time.dtmax:g} s); the case steps {dt:g} s (implicit, no Courant limit), "
-                            f"output every {interval:g} s (the his interval)")
+    dt_text = f" (at most DtMax = {fm.time.dtmax:g} s)" if isinstance(fm.time.dtmax, int | float) else ""
+    ctx.ledger.approximated("setting", "DtMax/DtUser", f"D-Flow FM adapts its time step to a Courant limit{dt_text}; "
+                            f"the case steps {engine['dt']:g} s (implicit, no Courant limit), output every "
+                            f"{engine['output_interval']:g} s (the his interval)")
+
+
+def _validate_items(ctx: Context) -> None:
+    """Each object of the case checked with the case's own rules; a failure is an error naming its source.
+
+    The values were screened when they were read (finite, sensible signs and magnitudes); what the case's
+    rules still reject (a gate below its crest, a table that does not rise) is a value of the model files
+    that a case cannot use, and is reported at the block it came from.
+    """
+    from pydantic import TypeAdapter, ValidationError
+
+    from rivercal.case.schema import EngineSettings, InitialConditions
+    from rivercal.network import Boundary, Branch, Friction, FrictionGroup, Lateral, Node, Profile, Station
+
+    models = {"profiles": TypeAdapter(Profile), "nodes": Node, "branches": Branch, "friction_groups": FrictionGroup,
+              "boundaries": Boundary, "laterals": Lateral, "stations": Station, **_KINDS}
+    for table, model in models.items():
+        kept = []
+        for item in ctx.case.get(table, []):
+            try:
+                model.validate_python(item) if isinstance(model, TypeAdapter) else model.model_validate(item)
+            except (ValidationError, ValueError) as exc:
+                ctx.ledger.error(ctx.where(table, item.get("id", "?")),
+                                 f"{table.rstrip('s').replace('_', ' ')} {item.get('id', '?')!r}: {_problem(exc)}")
+                continue
+            kept.append(item)
+        if table in ctx.case:
+            ctx.case[table] = kept
+    for name, model in (("friction", Friction), ("initial", InitialConditions), ("engine", EngineSettings)):
+        if ctx.case.get(name) is None:
+            continue
+        try:
+            model.model_validate(ctx.case[name])
+        except (ValidationError, ValueError) as exc:
+            ctx.ledger.error(ctx.where(name, name), f"{name}: {_problem(exc)}")
+
+
+def _problem(exc: Exception) -> str:
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError):
+        err = exc.errors(include_url=False)[0]
+        loc = ".".join(str(x) for x in err.get("loc", ()))
+        return f"{loc}: {' '.join(str(err.get('msg', '')).split())}" if loc else " ".join(str(err["msg"]).split())
+    return " ".join(str(exc).split())
 
 
 def _fit_the_grid(ctx: Context) -> None:
@@ -180,6 +341,12 @@ def _fit_the_grid(ctx: Context) -> None:
                                             f"the crest {item[name]:g} m AD lies below the bed ({bed:.3f} m AD): "
                                             "raised to the bed (D-Flow FM lets the channel bed govern there too)")
                     item[name] = bed
+                    gate = item.get("gate_lower_edge_level")
+                    if gate is not None and gate <= bed and item.get("allowed_flow") != "none":
+                        item["gate_lower_edge_level"] = bed + 0.001
+                        item["allowed_flow"] = "none"
+                        ctx.ledger.approximated(*ctx.origin(item["id"], table),
+                                                f"its gate ({gate:g} m AD) is down below the bed: taken as closed")
             if table == "culverts" and "invert_level_end" not in item and item["invert_level"] < bed:
                 item["invert_level_end"] = item["invert_level"]
             if table == "pumps" and item["stop_level"] <= bed:
@@ -235,13 +402,98 @@ def _fit_the_grid(ctx: Context) -> None:
     ctx.case["laterals"] = kept
 
 
+def _end_node_storage(ctx: Context) -> None:
+    """D-Flow FM's ``dxDoubleAt1DEndNodes``: a dead end stores the water of a full link instead of half of it.
+
+    With the option on (its default), D-Flow FM gives the flow node at the end of a network, where only one
+    link meets and no boundary is attached, the volume of the whole link ``dx`` instead of ``dx/2`` (Deltares
+    delft3d, ``addlink1D``: ``dx1 = 2 dx1`` when ``nd(k1)%lnx == 1``). The extra half link becomes storage of
+    the node: ``storage_table`` with the area ``dx/2 · B(h)``, B the storage (total) width of the end link's
+    cross-section at the depth over its bed there; a storage node's own table is added to it.
+    """
+    if not getattr(ctx.model.fm.geometry, "dxdoubleat1dendnodes", False):
+        return
+    profiles = {p["id"]: p for p in ctx.case.get("profiles", [])}
+    degree: dict[str, list[tuple[dict, bool]]] = defaultdict(list)
+    for b in ctx.case["branches"]:
+        degree[b["from_node"]].append((b, True))
+        degree[b["to_node"]].append((b, False))
+    bounded = {bnd["node"] for bnd in ctx.case.get("boundaries", [])}
+    added = 0
+    for node in ctx.case["nodes"]:
+        ends = degree.get(node["id"], [])
+        if len(ends) != 1 or node["id"] in bounded:
+            continue
+        branch, at_start = ends[0]
+        points = branch.get("points") or [0.0, branch["length"]]
+        dx = (points[1] - points[0]) if at_start else (points[-1] - points[-2])
+        chainage = 0.0 if at_start else branch["length"]
+        sections = branch["cross_sections"]
+        nearest = min(sections, key=lambda c: abs(c["chainage"] - chainage))
+        bed = float(np.interp(chainage, [c["chainage"] for c in sections], [c["bed_level"] for c in sections]))
+        heights, widths = _storage_widths(profiles[nearest["profile"]])
+        areas = np.maximum.accumulate(0.5 * dx * widths)
+        if areas[-1] <= 0:
+            continue
+        table = {"levels": [bed + float(h) for h in heights], "areas": [float(a) for a in areas]}
+        if node.get("storage_table"):
+            table = _sum_tables(node["storage_table"], table)
+        node["storage_table"] = table
+        node.pop("storage_area", None)
+        added += 1
+    if added:
+        ctx.ledger.exact("setting", "dxDoubleAt1DEndNodes", f"{added} dead-end node(s) store the water of their whole "
+                         "end link, as D-Flow FM does with this option: the extra half link is storage of the node")
+
+
+def _storage_widths(prof: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Heights above the bed (m) and storage (total) widths there (m) of a case profile, at its break points."""
+    kind = prof["type"]
+    if kind == "zw":
+        heights = np.asarray(prof["heights"], dtype=float)
+        widths = np.asarray(prof.get("total_widths") or prof["flow_widths"], dtype=float)
+    elif kind == "yz":
+        y, z = np.asarray(prof["y"], dtype=float), np.asarray(prof["z"], dtype=float)
+        heights = np.unique(z)
+        widths = np.array([sum(_wet(y[k], y[k + 1], z[k], z[k + 1], h) for k in range(y.size - 1)) for h in heights])
+    elif kind == "rectangular":
+        top = prof.get("height") or 10.0
+        heights = np.array([0.0, top])
+        widths = np.full(2, float(prof["width"]))
+    elif kind == "trapezoidal":
+        top = prof.get("height") or 10.0
+        heights = np.array([0.0, top])
+        widths = prof["bottom_width"] + 2 * prof["side_slope"] * heights
+    else:  # circular
+        r = 0.5 * prof["diameter"]
+        heights = np.linspace(0.0, 2 * r, 21)
+        widths = 2 * np.sqrt(np.maximum(r * r - (r - heights) ** 2, 0.0))
+    if heights.size < 2:
+        heights, widths = np.array([0.0, 1.0]), np.array([widths[0], widths[0]])
+    return heights, widths
+
+
+def _wet(y1: float, y2: float, z1: float, z2: float, h: float) -> float:
+    """Horizontal wet width (m) of one segment of a yz profile at height h."""
+    lo, hi = min(z1, z2), max(z1, z2)
+    if h <= lo:
+        return 0.0
+    return abs(y2 - y1) * (1.0 if h >= hi or hi == lo else (h - lo) / (hi - lo))
+
+
+def _sum_tables(a: dict, b: dict) -> dict:
+    """The sum of two storage tables (linear between levels, constant above, zero below)."""
+    levels = sorted(set(a["levels"]) | set(b["levels"]))
+
+    def at(t: dict, z: float) -> float:
+        if z < t["levels"][0]:
+            return 0.0
+        return float(np.interp(z, t["levels"], t["areas"]))
+
+    return {"levels": levels, "areas": [at(a, z) + at(b, z) for z in levels]}
+
+
 def _other_settings(ctx: Context) -> None:
-    fm = ctx.model.fm
-    geometry = fm.geometry
-    if getattr(geometry, "dxdoubleat1dendnodes", False):
-        ctx.ledger.approximated("setting", "dxDoubleAt1DEndNodes", "D-Flow FM gives the end nodes of the network "
-                                "the storage of a full cell instead of half a cell; the case keeps half a cell (the "
-                                "extra storage at a dead end is small)")
     two_d = getattr(ctx.model.network, "_mesh2d", None)
     if two_d is not None and getattr(two_d, "mesh2d_node_x", np.empty(0)).size:
         ctx.ledger.refused("2D mesh", "mesh2d", "the 2D part of a 1D2D model is left out (a case is 1D)",
@@ -259,6 +511,98 @@ def _other_settings(ctx: Context) -> None:
             ctx.ledger.refused("profile", did, reason, hydraulic=False)
 
 
+#: Bounds of an imported friction parameter, as factors on the model's value (smoother, rougher): k_s and C
+#: rise with smoothness, Manning's n and a roughness height with roughness.
+_FRICTION_FACTORS = {"strickler": (0.5, 2.5), "chezy": (0.5, 2.5), "manning": (0.4, 2.0),
+                     "white-colebrook": (0.1, 10.0)}
+#: How far an imported crest parameter may move from the model's crest, m.
+CREST_RANGE = 0.5
+
+
+def _parameters(ctx: Context) -> None:
+    """``[[parameters]]`` so that the case can be calibrated as imported.
+
+    One per friction coefficient the channels use — ``FA`` for the global friction (D-Flow FM's default
+    group ``Main``, or the MDU's uniform friction) when a channel takes it, ``F_<branch>`` for a branch with
+    its own friction in group ``Main``, ``F_<group>`` for every other friction group that a channel profile
+    refers to — and one per weir whose crest is a constant in the files (``W_<weir>``; a
+    crest that follows a series or real-time control is set by that, not calibrated). Bounds: the model's
+    value times 0.5-2.5 for k_s and C, 0.4-2 for Manning's n, 0.1-10 for a White-Colebrook roughness height,
+    within the plausible range of the law; a crest ±0.5 m, never below the bed. The initial value is the
+    model's own.
+    """
+    from rivercal.network import FRICTION_RANGES
+
+    params: list[dict] = []
+    taken: set[str] = set()
+
+    def name(prefix: str, ident: str) -> str:
+        base = (prefix + re.sub(r"[^A-Za-z0-9_]", "_", ident))[:32]
+        new, k = base, 2
+        while new in taken:
+            new = f"{base[:28]}_{k}"
+            k += 1
+        taken.add(new)
+        return new
+
+    def friction(pname: str, target: str, law: str, value: float, what: str) -> None:
+        lo_f, hi_f = _FRICTION_FACTORS[law]
+        lo_r, hi_r, unit = FRICTION_RANGES[law]
+        lo, hi = max(value * lo_f, lo_r), min(value * hi_f, hi_r)
+        if not lo <= value <= hi or not hi > lo:
+            ctx.ledger.warn(f"no calibration parameter for {what}: its value {value:g} lies outside the plausible "
+                            f"range of the {law} law")
+            return
+        params.append({"name": pname, "targets": [target], "min": _round(lo), "max": _round(hi),
+                       "initial": value, "transform": "offset", "perturbation": _round(0.1 * value), "unit": unit})
+
+    profiles = {p["id"]: p for p in ctx.case.get("profiles", [])}
+    used_groups = {g for b in ctx.case["branches"] for cs in b["cross_sections"]
+                   for g in profiles[cs["profile"]].get("friction", [])}
+    # profiles without friction sections take the branch's own friction, else the global one
+    plain = [b for b in ctx.case["branches"] if b["id"] not in ctx.parallel and any(
+        not profiles[cs["profile"]].get("friction") for cs in b["cross_sections"])]
+    glob = ctx.case.get("friction")
+    if glob is not None and any("friction" not in b for b in plain):
+        friction(name("", "FA"), "friction:global", glob["type"], float(glob["value"]), "the global friction")
+    piece_of = {p: original for original, pieces in ctx.pieces.items() for p in pieces}
+    done: set[str] = set()
+    for b in plain:
+        original = piece_of.get(b["id"], b["id"])
+        if "friction" in b and original not in done:
+            done.add(original)
+            targets = [f"friction:branch:{p}" for p in ctx.pieces.get(original, [original])]
+            friction(name("F_", original), targets[0], b["friction"]["type"], float(b["friction"]["value"]),
+                     f"the friction of branch {original!r}")
+            if params and params[-1]["targets"] == targets[:1]:
+                params[-1]["targets"] = targets  # a branch cut for a compound: its pieces share its friction
+    for g in ctx.case.get("friction_groups", []):
+        if g["id"] in used_groups:
+            friction(name("F_", g["id"]), f"friction:group:{g['id']}", g["type"], float(g["value"]),
+                     f"friction group {g['id']!r}")
+    beds = {b["id"]: b for b in ctx.case["branches"]}
+    for w in ctx.case.get("weirs", []):
+        if "crest_series" in w:
+            continue
+        b = beds[w["branch"]]
+        bed = float(np.interp(w["chainage"], [c["chainage"] for c in b["cross_sections"]],
+                              [c["bed_level"] for c in b["cross_sections"]]))
+        crest = float(w["crest_level"])
+        lo, hi = max(crest - CREST_RANGE, bed), crest + CREST_RANGE
+        params.append({"name": name("W_", w["id"]), "targets": [f"weir:{w['id']}.crest_level"], "min": _round(lo),
+                       "max": _round(hi), "initial": crest, "transform": "offset", "perturbation": 0.05,
+                       "unit": "m AD"})
+    ctx.case["parameters"] = params
+    for p in params:
+        ctx.ledger.parameters.append(f"`{p['name']}`: {p['targets'][0]}, {p['min']:g} .. {p['max']:g} {p['unit']}, "
+                                     f"initial {p['initial']:g}")
+
+
+def _round(value: float) -> float:
+    """A bound written with six significant digits (the exact value is not a property of the model)."""
+    return float(f"{value:.6g}")
+
+
 def _write(ctx: Context, out: Path) -> None:
     import tomli_w
 
@@ -273,7 +617,8 @@ def _write(ctx: Context, out: Path) -> None:
         frame.index.name = "time"
         frame.to_csv(out / file)  # shortest text that reads back as the same number
     order = ["case", "engine", "initial", "friction", "friction_groups", "profiles", "nodes", "branches", "weirs",
-             "universal_weirs", "orifices", "culverts", "bridges", "pumps", "boundaries", "laterals", "stations"]
+             "universal_weirs", "orifices", "culverts", "bridges", "pumps", "boundaries", "laterals", "stations",
+             "parameters"]
     data = {k: ctx.case[k] for k in order if ctx.case.get(k) not in (None, [], {})}
     (out / "case.toml").write_text(tomli_w.dumps(_clean(data)), encoding="utf-8")
 
@@ -334,4 +679,5 @@ def _summary(ctx: Context, case) -> dict:
         "stations": len(net.stations),
         "approximated": ctx.ledger.counts("approximated"),
         "refused": ctx.ledger.counts("refused"),
+        "parameters": [p.name for p in case.spec.parameters],
     }

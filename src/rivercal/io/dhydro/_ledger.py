@@ -49,6 +49,8 @@ class Ledger:
     entries: list[Entry] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     renamed: dict[str, dict[str, str]] = field(default_factory=dict)
+    errors: list[tuple[str, str]] = field(default_factory=list)
+    parameters: list[str] = field(default_factory=list)
 
     def exact(self, kind: str, id_: str, note: str = "") -> None:
         """Record an object converted exactly."""
@@ -74,6 +76,13 @@ class Ledger:
                                         entry.hydraulic if entry.status == "refused" else e.hydraulic)
                 return
         self.entries.append(entry)
+
+    def error(self, where: str, text: str) -> None:
+        """Record a value of the model files that cannot be used: ``where`` is ``file, line N``.
+
+        Errors fail the import whatever the options: the file has to be corrected.
+        """
+        self.errors.append((where, text))
 
     def warn(self, text: str) -> None:
         """Record a warning about the files (an unknown keyword, a file read block by block)."""
@@ -117,6 +126,10 @@ class Ledger:
         for k in kinds:
             c = per[k]
             lines.append(f"| {k} | {sum(c.values())} | {c['exact']} | {c['approximated']} | {c['refused']} |")
+        if self.errors:
+            lines += ["", "## Errors", "", "Values of the model files that cannot be used; no case was written. "
+                      "Correct them in the files named:", ""]
+            lines += [f"- {where}: {text}" for where, text in self.errors]
         lines += ["", "## Warnings", ""]
         lines += [f"- {w}" for w in self.warnings] or ["None."]
         if self.renamed:
@@ -137,6 +150,10 @@ class Ledger:
                 groups.setdefault((e.kind, e.note), []).append(e.id)
             for (kind, note), ids in groups.items():
                 lines.append(f"| {kind} | {', '.join(f'`{i}`' for i in ids)} | {_cell(note)} |")
+        if self.parameters:
+            lines += ["", "## Calibration parameters", "", "Written to case.toml so that the case can be calibrated "
+                      "as imported (bounds from the model's own value; edit them to what you know):", ""]
+            lines += [f"- {p}" for p in self.parameters]
         lines += ["", "## Converted exactly", ""]
         for k in kinds:
             ids = [e.id for e in self.entries if e.kind == k and e.status == "exact"]

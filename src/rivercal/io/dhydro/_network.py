@@ -16,11 +16,14 @@ from __future__ import annotations
 
 import itertools
 from collections import defaultdict
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rivercal.errors import CaseError
 from rivercal.io.dhydro._context import Context, unquote
+from rivercal.io.dhydro._source import is_file
 
 __all__ = ["FRICTION_TYPES", "MAIN", "convert_network", "friction_of", "profile_of_definition"]
 
@@ -84,7 +87,7 @@ def _friction_groups(ctx: Context) -> None:
     main_laws: dict[str, dict] = {}
     for blocks in ctx.model.frictions:
         for _, bid, reason in blocks.failed:
-            ctx.ledger.refused("friction group", bid, f"{blocks.path.name}: {reason}")
+            ctx.ledger.refused("friction group", bid, reason)
         group_id = None
         for obj in blocks.objects:
             if type(obj).__name__ == "FrictGlobal":
@@ -94,6 +97,7 @@ def _friction_groups(ctx: Context) -> None:
                     ctx.ledger.refused("friction group", gid, note)
                     continue
                 groups.append({"id": gid, **fr, "branches": []})
+                ctx.source("friction_groups", gid, obj)
                 group_id = gid
                 (ctx.ledger.approximated if note else ctx.ledger.exact)("friction group", gid, note)
         for obj in blocks.objects:
@@ -225,6 +229,18 @@ def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) 
         levels = [float(v) for v in d.levels]
         flow = [float(v) for v in d.flowwidths]
         total = [float(v) for v in d.totalwidths] if d.totalwidths else None
+        where = ctx.model.sources.where
+        key = ctx.model.sources.key_of
+        if not levels or len(flow) != len(levels) or (total is not None and len(total) != len(levels)):
+            return None, 0.0, (f"{where(d, key(d, 'levels'))}: {len(levels)} levels, {len(flow)} flow widths"
+                               + (f", {len(total)} total widths" if total is not None else "")
+                               + ": one width of each per level")
+        if any(b < a for a, b in itertools.pairwise(levels)):
+            k = next(i for i in range(1, len(levels)) if levels[i] < levels[i - 1])
+            ctx.ledger.error(where(d, key(d, "levels")), f"definition {unquote(d.id)!r}, {key(d, 'levels')}: "
+                             f"{levels[k - 1]:g} is followed by the lower {levels[k]:g}; the levels of a zw table rise "
+                             "from the bottom up")
+            return None, 0.0, "levels that do not rise (see the errors)"
         keep = [0] + [i for i in range(1, len(levels)) if levels[i] > levels[i - 1]]
         if len(keep) < len(levels):
             notes.append(f"{len(levels) - len(keep)} repeated level(s) dropped")
@@ -232,8 +248,16 @@ def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) 
         flow = [flow[i] for i in keep]
         total = [total[i] for i in keep] if total else None
         if total is not None:
+            short = [k for k, (t, f) in enumerate(zip(total, flow, strict=True)) if t < f - max(1e-3, 1e-6 * f)]
+            if short:
+                k = short[0]
+                ctx.ledger.error(where(d, key(d, "totalwidths")),
+                                 f"definition {unquote(d.id)!r}, {key(d, 'totalwidths')}: at level {levels[k]:g} m "
+                                 f"the total width {total[k]:g} m is below the flow width {flow[k]:g} m (the total "
+                                 "width holds the flow width and the storage beside it)")
+                return None, 0.0, "total widths below the flow widths (see the errors)"
             if any(t < f for t, f in zip(total, flow, strict=True)):
-                notes.append("total widths below the flow widths raised to them")
+                notes.append("total widths less than 1 mm below the flow widths (rounding) raised to them")
             total = [max(t, f) for t, f in zip(total, flow, strict=True)]
         closed = any(b < a for a, b in itertools.pairwise(flow)) or flow[-1] == 0
         if total is not None and not closed:
@@ -320,6 +344,7 @@ def add_profile(ctx: Context, definition_id: str, *, for_structure: bool = False
         cache[key] = (None, 0.0)
         return cache[key]
     ctx.case.setdefault("profiles", []).append(prof)
+    ctx.source("profiles", prof["id"], d)
     (ctx.ledger.approximated if note else ctx.ledger.exact)("profile", key, note)
     cache[key] = (prof["id"], bottom)
     return cache[key]
@@ -328,13 +353,65 @@ def add_profile(ctx: Context, definition_id: str, *, for_structure: bool = False
 # -- nodes and branches ------------------------------------------------------------------------------
 
 
+def _network_arrays(ctx: Context) -> dict[str, Any]:
+    """The 1D network of the net file as plain arrays, checked; an error naming the net file when damaged.
+
+    hydrolib-core reads a damaged or truncated NetCDF file partly, with masked or missing values; the
+    numbers are checked here so that nothing downstream meets a hole.
+    """
+    net = ctx.model.net_path
+    try:
+        m1 = ctx.model.network._mesh1d
+        arrays = {
+            "node_ids": [str(v) for v in m1.network1d_node_id],
+            "node_x": np.ma.filled(np.ma.asarray(m1.network1d_node_x, dtype=float), np.nan),
+            "node_y": np.ma.filled(np.ma.asarray(m1.network1d_node_y, dtype=float), np.nan),
+            "edges": np.ma.filled(np.ma.asarray(m1.network1d_edge_nodes), -1).astype(np.int64),
+            "branch_ids": [str(v) for v in m1.network1d_branch_id],
+            "lengths": np.ma.filled(np.ma.asarray(m1.network1d_branch_length, dtype=float), np.nan),
+            "on_branch": np.ma.filled(np.ma.asarray(m1.mesh1d_node_branch_id), -1).astype(np.int64),
+            "offsets": np.ma.filled(np.ma.asarray(m1.mesh1d_node_branch_offset, dtype=float), np.nan),
+            "geometry": {str(k): np.asarray(v.geometry, dtype=float) for k, v in (m1.branches or {}).items()},
+        }
+    except (AttributeError, TypeError, ValueError, KeyError, IndexError) as exc:
+        raise CaseError(f"the network file is damaged or not a UGRID 1D network ({type(exc).__name__}: "
+                        f"{' '.join(str(exc).split())[:200]})", file=str(net)) from None
+    n_nodes, n_branches = len(arrays["node_ids"]), len(arrays["branch_ids"])
+    problems = []
+    if n_branches == 0:
+        problems.append("it has no 1D branches")
+    if arrays["edges"].shape != (n_branches, 2) or (arrays["edges"].size and (
+            arrays["edges"].min() < 0 or arrays["edges"].max() >= n_nodes)):
+        problems.append("its branches do not connect nodes of the network (network1d_edge_nodes)")
+    if arrays["lengths"].shape != (n_branches,) or not np.all(np.isfinite(arrays["lengths"])) or np.any(
+            arrays["lengths"] <= 0) or np.any(arrays["lengths"] > 1e7):
+        problems.append("branch lengths that are missing, not positive or beyond 10,000 km (network1d_branch_length)")
+    if arrays["node_x"].shape != (n_nodes,) or arrays["node_y"].shape != (n_nodes,) or not (
+            np.all(np.isfinite(arrays["node_x"])) and np.all(np.isfinite(arrays["node_y"]))):
+        problems.append("node coordinates that are missing or not finite (network1d_node_x/y)")
+    if arrays["on_branch"].shape != arrays["offsets"].shape or (arrays["on_branch"].size and (
+            arrays["on_branch"].min() < 0 or arrays["on_branch"].max() >= n_branches)) or not np.all(
+            np.isfinite(arrays["offsets"])):
+        problems.append("calculation points on branches that do not exist or at offsets that are not finite "
+                        "(mesh1d_node_branch_id/offset)")
+    if any(not np.all(np.isfinite(g)) for g in arrays["geometry"].values()):
+        problems.append("branch geometry with coordinates that are not finite")
+    if len(set(arrays["node_ids"])) < n_nodes or len(set(arrays["branch_ids"])) < n_branches:
+        problems.append("ids given to more than one node or branch")
+    if problems:
+        raise CaseError(f"the network file is damaged or inconsistent: {'; '.join(problems)}", file=str(net))
+    return arrays
+
+
 def _nodes_and_branches(ctx: Context) -> None:
-    m1 = ctx.model.network._mesh1d
-    node_ids = [str(v) for v in m1.network1d_node_id]
-    xs, ys = np.asarray(m1.network1d_node_x, dtype=float), np.asarray(m1.network1d_node_y, dtype=float)
+    arrays = _network_arrays(ctx)
+    net_where = ctx.model.sources.rel(ctx.model.net_path)
+    node_ids = arrays["node_ids"]
+    xs, ys = arrays["node_x"], arrays["node_y"]
     nodes = []
     for k, nid in enumerate(node_ids):
         nodes.append({"id": ctx.id("node", nid), "x": float(xs[k]), "y": float(ys[k])})
+        ctx.source("nodes", nodes[-1]["id"], net_where)
         ctx.ledger.exact("node", unquote(nid))
     ctx.case["nodes"] = nodes
     locations: dict[str, list[Any]] = defaultdict(list)
@@ -344,20 +421,26 @@ def _nodes_and_branches(ctx: Context) -> None:
                                "unassigned cross-section)")
             continue
         locations[unquote(loc.branchid)].append(loc)
+    known_branches = {unquote(b) for b in arrays["branch_ids"]}
+    for name, locs in locations.items():
+        if name not in known_branches:
+            for loc in locs:
+                ctx.ledger.refused("cross-section", unquote(loc.id), f"its branch {name!r} is not in the network")
     for _, cid, reason in ctx.model.crosslocs.failed:
         ctx.ledger.refused("cross-section", cid, reason)
     branches = []
     pending: list[tuple[dict, str, list[str]]] = []
-    edges = np.asarray(m1.network1d_edge_nodes)
-    on_branch = np.asarray(m1.mesh1d_node_branch_id, dtype=int)
-    offsets = np.asarray(m1.mesh1d_node_branch_offset, dtype=float)
-    lengths = np.asarray(m1.network1d_branch_length, dtype=float)
-    for k, raw in enumerate(m1.network1d_branch_id):
+    edges = arrays["edges"]
+    on_branch = arrays["on_branch"]
+    offsets = arrays["offsets"]
+    lengths = arrays["lengths"]
+    geometries = arrays["geometry"]
+    for k, raw in enumerate(arrays["branch_ids"]):
         name = unquote(raw)
         bid = ctx.id("branch", name)
         a, b = (node_ids[int(i)] for i in edges[k])
         length = float(lengths[k])
-        geo = m1.branches.get(str(raw))
+        geo = geometries.get(str(raw))
         points = np.unique(np.concatenate([[0.0, length], offsets[on_branch == k]]))
         points = points[(points >= 0.0) & (points <= length + 1e-3)]
         if points.size >= 2 and abs(points[0]) < 1e-6 and abs(points[-1] - length) < 1e-3 * max(1.0, length):
@@ -380,8 +463,9 @@ def _nodes_and_branches(ctx: Context) -> None:
             branch["dx"] = max(dx, 0.1)
             ctx.ledger.warn(f"branch {name}: its calculation points do not run from 0 to its length; the case lays "
                             f"out its own at most {dx:g} m apart")
-        if geo is not None:
-            branch["geometry"] = [[float(x), float(y)] for x, y in np.asarray(geo.geometry, dtype=float)]
+        if geo is not None and geo.ndim == 2 and geo.shape[1] == 2 and len(geo) >= 2:
+            branch["geometry"] = [[float(x), float(y)] for x, y in geo]
+        ctx.source("branches", bid, net_where)
         sections, notes = _cross_sections(ctx, name, locations.get(name, []), length)
         if not sections:
             pending.append((branch, name, notes))
@@ -436,6 +520,11 @@ def _cross_sections(ctx: Context, branch: str, locations: list[Any], length: flo
                                "was refused")
             continue
         chainage = float(loc.chainage)
+        if chainage > length + max(1.0, 0.01 * length):
+            ctx.ledger.error(ctx.model.sources.where(loc, ctx.model.sources.key_of(loc, "chainage")),
+                             f"cross-section {unquote(loc.id)!r}: chainage {chainage:g} m lies beyond the end of "
+                             f"branch {branch} ({length:g} m long)")
+            continue
         if chainage > length:
             if chainage - length > 1e-3:
                 notes.append(f"cross-section {unquote(loc.id)} at {chainage:g} m beyond the branch end ({length:g} m) "
@@ -458,13 +547,9 @@ def _storage_nodes(ctx: Context) -> None:
     blocks = ctx.model.storage_nodes
     if blocks is None:
         return
-    general_street = True
-    try:
-        from hydrolib.core.dflowfm.storagenode.models import StorageNodeModel
-
-        general_street = bool(StorageNodeModel(filepath=blocks.path).general.usestreetstorage)
-    except (ValueError, OSError):
-        pass
+    general = ctx.model.sources.ini(blocks.path).of("General")
+    flag = general[0].value("useStreetStorage") if general else None
+    general_street = str(flag).strip().lower() not in ("0", "false", "no") if flag is not None else True
     for _, sid, reason in blocks.failed:
         ctx.ledger.refused("storage node", sid, reason)
     nodes = {n["id"]: n for n in ctx.case["nodes"]}
@@ -507,6 +592,7 @@ def _storage_nodes(ctx: Context) -> None:
             ctx.ledger.refused("storage node", sid, "the storage area is 0 at every level", hydraulic=False)
             continue
         node["storage_table"] = {"levels": levels, "areas": areas}
+        ctx.source("nodes", node["id"], s)
         node.pop("storage_area", None)
         (ctx.ledger.approximated if notes else ctx.ledger.exact)("storage node", sid, "; ".join(notes))
 
@@ -531,7 +617,7 @@ def _stations(ctx: Context) -> None:
             ctx.ledger.refused("observation point", oid, reason, hydraulic=False)
         for obs in blocks.objects:
             name = unquote(obs.name)
-            where = _locate(ctx, obs.branchid, obs.chainage, obs.x, obs.y)
+            where = _locate(ctx, obs.branchid, obs.chainage, obs.x, obs.y, obs)
             if where is None:
                 ctx.ledger.refused("observation point", name, f"not on a branch of the network (none within "
                                    f"{SNAP_DISTANCE:g} m)", hydraulic=False)
@@ -540,34 +626,52 @@ def _stations(ctx: Context) -> None:
             stations.append({"id": ctx.id("station", name), "branch": branch, "chainage": chainage,
                              "quantities": ["h"]})
             ctx.origins[stations[-1]["id"]] = ("observation point", name)
+            ctx.source("stations", stations[-1]["id"], obs)
             (ctx.ledger.approximated if note else ctx.ledger.exact)("observation point", name, note)
-    crs = ctx.model.fm.output.crsfile
-    for f in crs or []:
-        if type(f).__name__ != "ObservationCrossSectionModel":
-            ctx.ledger.warn(f"observation cross-section file {getattr(f, 'filepath', None)} could not be validated "
-                            f"by hydrolib-core ({type(f).__name__}); its cross-sections are not stations")
-            continue
-        for oc in f.observationcrosssection:
+    for blocks in ctx.model.cross_observations:
+        for _, oid, reason in blocks.failed:
+            ctx.ledger.refused("observation cross-section", oid, reason, hydraulic=False)
+        for oc in blocks.objects:
             name = unquote(oc.name)
-            where = _locate(ctx, oc.branchid, oc.chainage, None, None)
+            where = _locate(ctx, oc.branchid, oc.chainage, None, None, oc)
+            note = ""
+            if where is None and getattr(oc, "xcoordinates", None):
+                where = _crossing(ctx, oc)
+                if where is not None:
+                    note = where[2]
             if where is None:
-                ctx.ledger.refused("observation cross-section", name, "not on a branch of the network (a 2D "
-                                   "polyline)", hydraulic=False)
+                ctx.ledger.refused("observation cross-section", name, "not on a branch of the network (its branch "
+                                   "is unknown, or its polyline crosses no branch)", hydraulic=False)
                 continue
             branch, chainage, _ = where
-            stations.append({"id": ctx.id("station", name), "branch": branch, "chainage": chainage,
-                             "quantities": ["Q"]})
-            ctx.ledger.exact("observation cross-section", name)
+            sid = ctx.id("station", name)
+            same = next((st for st in stations if st["id"] == sid), None)
+            if same is not None and same["branch"] == branch and abs(same["chainage"] - chainage) < 1e-6:
+                same["quantities"].append("Q")  # an observation point and cross-section of one name at one place
+                (ctx.ledger.approximated if note else ctx.ledger.exact)("observation cross-section", name, note)
+                continue
+            if same is not None:
+                sid = ctx.id("station", f"{name}_discharge")
+            stations.append({"id": sid, "branch": branch, "chainage": chainage, "quantities": ["Q"]})
+            ctx.origins[stations[-1]["id"]] = ("observation cross-section", name)
+            ctx.source("stations", stations[-1]["id"], oc)
+            (ctx.ledger.approximated if note else ctx.ledger.exact)("observation cross-section", name, note)
     ctx.case["stations"] = stations
 
 
-def _locate(ctx: Context, branch: Any, chainage: Any, x: Any, y: Any) -> tuple[str, float, str] | None:
+def _locate(ctx: Context, branch: Any, chainage: Any, x: Any, y: Any, obj: Any = None) -> tuple[str, float, str] | None:
     """Branch id and chainage of a location given on a branch or by x, y (snapped to the nearest branch)."""
     if branch is not None and chainage is not None:
         if not ctx.ids["branch"].known(branch) or ctx.id("branch", branch) not in ctx.branch_length:
             return None
         bid = ctx.id("branch", branch)
-        return bid, min(max(float(chainage), 0.0), ctx.branch_length[bid]), ""
+        length = ctx.branch_length[bid]
+        if float(chainage) > length + max(1.0, 0.01 * length):
+            where = ctx.model.sources.where(obj, ctx.model.sources.key_of(obj, "chainage")) if obj is not None else ""
+            ctx.ledger.error(where or ctx.model.mdu.name, f"chainage {float(chainage):g} m lies beyond the end of "
+                             f"branch {unquote(branch)} ({length:g} m long)")
+            return None
+        return bid, min(max(float(chainage), 0.0), length), ""
     if x is None or y is None:
         return None
     best = None
@@ -590,35 +694,125 @@ def _locate(ctx: Context, branch: Any, chainage: Any, x: Any, y: Any) -> tuple[s
     return best[1], best[2], f"given by x, y; snapped to the nearest branch {best[1]} ({best[0]:.1f} m away)"
 
 
+def _crossing(ctx: Context, oc: Any) -> tuple[str, float, str] | None:
+    """Where D-Flow FM places an observation cross-section given as a polyline: on the 1D flow link it crosses.
+
+    D-Flow FM (Deltares delft3d, ``crosssections_on_flowgeom`` and ``crspath_on_singlelink`` with
+    ``zork = 1``) observes every flow link whose segment between its two calculation points the polyline
+    crosses. Where the polyline passes exactly through a calculation point it touches two links; D-Flow FM
+    keeps the one the crossing's direction selects (at the link's end point when the cross product of
+    polyline and link, −(x43·y21 − y43·x21), is negative, at its start point when it is positive), so that
+    the point counts once. The station is put at the middle of the first link the polyline crosses (in the
+    polyline's order), where the case reports that link's discharge.
+    """
+    xs = [float(v) for v in (oc.xcoordinates or [])]
+    ys = [float(v) for v in (oc.ycoordinates or [])]
+    if len(xs) < 2 or len(xs) != len(ys):
+        return None
+    poly = np.column_stack([xs, ys])
+    found: list[tuple[float, str, float]] = []
+    for b in ctx.case["branches"]:
+        geo = np.asarray(b.get("geometry") or [], dtype=float)
+        points = np.asarray(b.get("points") or [0.0, b["length"]], dtype=float)
+        if geo.shape[0] < 2:
+            continue
+        along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(geo, axis=0).T))])
+        scale = along[-1] / b["length"] if b["length"] > 0 else 1.0
+        px = np.interp(points * scale, along, geo[:, 0])
+        py = np.interp(points * scale, along, geo[:, 1])
+        for k in range(points.size - 1):
+            q1, q2 = np.array([px[k], py[k]]), np.array([px[k + 1], py[k + 1]])
+            for j in range(len(poly) - 1):
+                hit = _crosses(poly[j], poly[j + 1], q1, q2)
+                if hit is not None:
+                    found.append((j + hit, b["id"], 0.5 * (points[k] + points[k + 1])))
+    if not found:
+        return None
+    found.sort()
+    _, branch, chainage = found[0]
+    links = {(f[1], f[2]) for f in found}
+    note = (f"given by a polyline: placed on the flow link it crosses, as D-Flow FM places it (the middle of the link, "
+            f"{chainage:g} m on branch {branch})")
+    if len(links) > 1:
+        note += (f"; the polyline crosses {len(links)} links, whose discharges D-Flow FM adds up; the station "
+                 "reports the first")
+    return branch, float(chainage), note
+
+
+def _crosses(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> float | None:
+    """Where polyline segment p1-p2 crosses link q1-q2 (a fraction of p1-p2) by D-Flow FM's rule, or None."""
+    x21, y21 = p2 - p1
+    x43, y43 = q2 - q1
+    x31, y31 = q1 - p1
+    det = x43 * y21 - y43 * x21
+    eps = max(1e-12 * max(abs(x21), abs(y21), abs(x43), abs(y43), abs(x31), abs(y31)), 1e-300)
+    if abs(det) < eps:
+        return None
+    sm = (y31 * x21 - x31 * y21) / det
+    sl = (sm * x43 + x31) / x21 if abs(x21) > eps else (sm * y43 + y31) / y21 if abs(y21) > eps else 0.0
+    tol = 1e-9
+    if not (-tol <= sm <= 1 + tol and -tol <= sl <= 1 + tol):
+        return None
+    crp = -det
+    if abs(sm - 1.0) <= tol and crp > 0:
+        return None
+    if abs(sm) <= tol and crp < 0:
+        return None
+    return float(min(max(sl, 0.0), 1.0))
+
+
 # -- initial state -------------------------------------------------------------------------------------
 
 
 def _initial(ctx: Context) -> None:
+    """``[initial]`` from the initial-field file (1dField water depth or level) or the MDU's WaterLevIni."""
     fm = ctx.model.fm
+    sources = ctx.model.sources
     initial: dict = {"depth": 0.0}
     level_ini = getattr(fm.geometry, "waterlevini", None)
     found = False
-    ini = fm.geometry.inifieldfile
-    if ini is not None and type(ini).__name__ != "IniFieldModel":
-        ctx.ledger.warn(f"initial field file {getattr(ini, 'filepath', None)} could not be validated by "
-                        f"hydrolib-core ({type(ini).__name__}); the initial state comes from the MDU")
-        ini = None
-    for block in (ini.initial if ini is not None else []):
-        quantity = str(block.quantity).lower()
+    path = _ini_field_path(ctx)
+    index = _readable(ctx, path, "initial fields", f"{ctx.model.mdu.name}, iniFieldFile") if path is not None else None
+    for section in (index.sections if index is not None else []):
+        header = section.header.lower()
+        if header == "general":
+            continue
+        quantity = (section.value("quantity") or "?").lower()
+        where = f"{sources.rel(index.path)}, line {section.line}"
+        if header == "parameter":
+            ctx.ledger.refused("initial field", f"{quantity} ({where})", "a [Parameter] field (a spatially varying "
+                               "model parameter) is not read", hydraulic=True)
+            continue
+        if header != "initial":
+            ctx.ledger.warn(f"{where}: a [{section.header}] block in an initial-field file is not read")
+            continue
         if quantity not in ("waterdepth", "waterlevel"):
             ctx.ledger.refused("initial field", quantity, "only the initial water depth or level is used",
                                hydraulic=False)
             continue
-        kind = str(getattr(block.datafiletype, "value", block.datafiletype)).lower()
+        kind = (section.value("dataFileType") or "").lower()
         if kind != "1dfield":
             ctx.ledger.refused("initial field", quantity, f"data file type {kind!r} (2D samples or polygons) is not "
                                "read; the initial state comes from the other settings", hydraulic=False)
             continue
-        glob, per_branch = _one_d_field(ctx, block.datafile)
+        name = section.value("dataFile")
+        if not name:
+            ctx.ledger.error(where, f"[Initial] {quantity}: no dataFile")
+            continue
+        data = _readable(ctx, _relative(ctx, Path(name), index.path), f"initial {quantity}",
+                         f"{where}, dataFile = {name}")
+        if data is None:
+            continue
+        glob, per_branch = _one_d_field(ctx, data)
         values = ([glob] if glob is not None else []) + list(per_branch.values())
         if not values:
+            ctx.ledger.exact("initial field", quantity, f"{sources.rel(data.path)} holds no [Global] value and no "
+                             "[Branch] values: D-Flow FM applies none either, and the initial state comes from the MDU")
             continue
         value = glob if glob is not None else float(np.median(values))
+        if quantity == "waterdepth" and value < 0:
+            ctx.ledger.error(sources.rel(data.path), f"the initial water depth {value:g} m is negative")
+            continue
         note = ""
         if per_branch:
             note = (f"values per branch ({min(values):g}-{max(values):g}); the case takes one value, {value:g}, "
@@ -633,24 +827,79 @@ def _initial(ctx: Context) -> None:
         initial = {"depth": 0.0, "level": float(level_ini)}
         ctx.ledger.exact("setting", "WaterLevIni", "initial level where no initial field is given")
     ctx.case["initial"] = initial
+    if index is not None:
+        ctx.source("initial", "initial", f"{sources.rel(index.path)}")
 
 
-def _one_d_field(ctx: Context, datafile: Any) -> tuple[float | None, dict[str, float]]:
-    from hydrolib.core.dflowfm.onedfield.models import OneDFieldModel
+def _ini_field_path(ctx: Context) -> Path | None:
+    from rivercal.io.dhydro._read import _dropped_paths
 
-    path = getattr(datafile, "filepath", None)
-    if path is None:
-        return None, {}
-    full = path if path.is_absolute() else ctx.model.mdu.parent / path
-    try:
-        model = OneDFieldModel(filepath=full)
-    except (ValueError, OSError) as exc:
-        ctx.ledger.warn(f"initial field {path}: hydrolib-core cannot read it ({' '.join(str(exc).split())[:200]})")
-        return None, {}
-    glob = float(model.global_.value) if getattr(model, "global_", None) is not None else None
-    per_branch = {}
-    for b in getattr(model, "branch", []) or []:
-        values = [float(v) for v in (getattr(b, "values", None) or [])]
-        if values:
-            per_branch[unquote(b.branchid)] = float(np.mean(values))
+    if ("geometry", "inifieldfile") in ctx.model.sources.dropped:
+        found = _dropped_paths(ctx.model.sources.ini(ctx.model.mdu), "geometry", "inifieldfile")
+        return _relative(ctx, found[0], ctx.model.mdu) if found else None
+    ini = ctx.model.fm.geometry.inifieldfile
+    name = getattr(ini, "filepath", None)
+    return None if name is None else _relative(ctx, Path(name), ctx.model.mdu)
+
+
+def _relative(ctx: Context, path: Path, referring: Path) -> Path:
+    """A file name as D-Flow FM resolves it: relative to the MDU's folder, or to its own file's folder."""
+    if path.is_absolute():
+        return path
+    if bool(getattr(ctx.model.fm.general, "pathsrelativetoparent", False)):
+        return referring.parent / path
+    return ctx.model.mdu.parent / path
+
+
+def _readable(ctx: Context, path: Path, what: str, named_at: str):
+    """The line index of a file the initial state needs, or a refusal saying why not and where the file is named."""
+    sources = ctx.model.sources
+    reason = None
+    if not sources.inside(path):
+        reason = f"it lies outside the model folder {sources.root} (the import reads no file outside it)"
+    elif not is_file(path):
+        reason = "the file does not exist"
+    if reason is None:
+        try:
+            index = sources.ini(path)
+        except OSError as exc:
+            reason = f"the file cannot be read ({exc.strerror or exc})"
+        else:
+            if not index.sections:
+                reason = "not a D-Flow FM INI file (no [section])"
+            else:
+                for line, text in index.stray[:5]:
+                    ctx.ledger.error(f"{sources.rel(path)}, line {line}", f"{text[:60]!r} is not INI text")
+                return index
+    ctx.ledger.refused("file", sources.rel(path), f"named at {named_at}: {reason}; the {what} it holds are missing, "
+                       "which changes the initial state", hydraulic=True)
+    return None
+
+
+def _one_d_field(ctx: Context, index) -> tuple[float | None, dict[str, float]]:
+    """The [Global] value and the mean value per [Branch] of a 1dField file; non-numbers are errors with their line."""
+    sources = ctx.model.sources
+    glob = None
+    per_branch: dict[str, float] = {}
+    for section in index.sections:
+        header = section.header.lower()
+        if header not in ("global", "branch"):
+            continue
+        raw = section.first("value" if header == "global" else "values")
+        if raw is None or raw.value is None:
+            ctx.ledger.error(f"{sources.rel(index.path)}, line {section.line}", f"[{section.header}] has no "
+                             f"{'value' if header == 'global' else 'values'}")
+            continue
+        try:
+            values = [float(v) for v in raw.value.split()]
+        except ValueError:
+            values = []
+        if not values or not all(np.isfinite(values)) or any(abs(v) > 1e4 for v in values):
+            ctx.ledger.error(f"{sources.rel(index.path)}, line {raw.line}",
+                             f"{raw.key} = {raw.value}: not finite numbers of a plausible size")
+            continue
+        if header == "global":
+            glob = values[0]
+        else:
+            per_branch[section.value("branchId") or "?"] = float(np.mean(values))
     return glob, per_branch

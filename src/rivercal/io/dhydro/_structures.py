@@ -2,8 +2,7 @@
 
 D-Flow FM → case: ``weir`` → ``[[weirs]]``; ``universalWeir`` → ``[[universal_weirs]]``; ``orifice`` →
 ``[[orifices]]``; ``culvert`` (also a siphon) → ``[[culverts]]``; ``bridge`` → ``[[bridges]]``; ``pump`` →
-``[[pumps]]``; ``compound`` → its members (one member: exact; more: the members would need one segment
-together, which a case cannot express, so the others are refused); ``generalStructure`` and ``gate`` →
+``[[pumps]]``; ``compound`` → its members, side by side (:mod:`._compound`); ``generalStructure`` and ``gate`` →
 an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused. Settings given as time series
 (``.tim``/``.bc``) or supplied in real time (DIMR exchange files) become structure-setting series.
 """
@@ -36,9 +35,9 @@ def convert_structures(ctx: Context) -> None:
     objects = [s for f in ctx.model.structures for s in f.objects]
     for f in ctx.model.structures:
         for kind, sid, reason in f.failed:
-            ctx.ledger.refused(kind, unquote(sid), f"{f.path.name}: {reason}")
+            ctx.ledger.refused(kind, unquote(sid), reason)
     by_id = {unquote(s.id): s for s in objects}
-    in_compound: dict[str, str] = {}
+    compounds: list[tuple[str, list[str]]] = []
     for s in objects:
         if s.type != "compound":
             continue
@@ -48,23 +47,14 @@ def convert_structures(ctx: Context) -> None:
         if missing:
             ctx.ledger.refused("compound", cid, f"member(s) {', '.join(missing)} not found", hydraulic=False)
         present = [m for m in members if m in by_id]
-        for m in present[1:]:
-            in_compound[m] = cid
-        for m in present[:1]:
-            in_compound.setdefault(m, "")
         if len(present) > 1:
-            ctx.ledger.approximated("compound", cid, f"{len(present)} structures side by side; a case gives each "
-                                    "structure a segment of its own, so only the first is kept and the others are "
-                                    "refused")
+            compounds.append((cid, present))
         else:
             ctx.ledger.exact("compound", cid, "one member: the member itself")
     for s in objects:
         if s.type == "compound":
             continue
         sid = unquote(s.id)
-        if in_compound.get(sid):
-            ctx.ledger.refused(s.type, sid, f"second or later member of compound {in_compound[sid]!r} (see there)")
-            continue
         if s.branchid is None or s.chainage is None:
             ctx.ledger.refused(s.type, sid, "located by x, y coordinates: a structure of the 2D part of a 1D2D "
                                "model, which a case leaves out", hydraulic=False)
@@ -73,7 +63,13 @@ def convert_structures(ctx: Context) -> None:
             ctx.ledger.refused(s.type, sid, f"its branch {unquote(s.branchid)!r} is not in the network")
             continue
         branch = ctx.id("branch", s.branchid)
-        chainage = min(max(float(s.chainage), 0.0), ctx.branch_length[branch])
+        length = ctx.branch_length[branch]
+        if float(s.chainage) > length + max(1.0, 0.01 * length):
+            ctx.ledger.error(ctx.model.sources.where(s, ctx.model.sources.key_of(s, "chainage")) or ctx.model.mdu.name,
+                             f"{s.type} {sid!r}: chainage {float(s.chainage):g} m lies beyond the end of branch "
+                             f"{unquote(s.branchid)} ({length:g} m long)")
+            continue
+        chainage = min(max(float(s.chainage), 0.0), length)
         base = {"id": ctx.id("structure", sid), "branch": branch, "chainage": chainage}
         handler = _HANDLERS.get(s.type)
         if handler is None:
@@ -86,10 +82,19 @@ def convert_structures(ctx: Context) -> None:
             continue
         tables[table].append(item)
         ctx.origins[item["id"]] = (s.type, sid)
+        ctx.source(table, item["id"], s)
         (ctx.ledger.approximated if notes else ctx.ledger.exact)(s.type, sid, "; ".join(notes))
     for table, items in tables.items():
         if items:
             ctx.case[table] = items
+    converted = {i["id"] for items in tables.values() for i in items}
+    for cid, members in compounds:
+        ids = [ctx.id("structure", m) for m in members]
+        kept = [i for i in ids if i in converted]
+        if len(kept) > 1:
+            ctx.compounds.append((cid, kept))
+        elif kept:
+            ctx.ledger.exact("compound", cid, "its other members were refused (see there): the one left is itself")
     # D-Flow FM reports every structure's levels either side and discharge: so does the case
     taken = {st["id"] for st in ctx.case["stations"]}
     for items in tables.values():
