@@ -26,7 +26,7 @@ ZONE_H = 1.0  # the example's run file is in CET
 T0 = pd.Timestamp("2010-11-07T00:00Z")  # the example's time0 (01:00 CET)
 TRUE_FA = 25.0  # the friction the observations were simulated with (the case's own is 16)
 #: Properties that make one cycle cheap (the example's own run a 7-day window, two parameters, 48 h ahead).
-QUICK = {"parameters": "FA", "window": "2D", "warmup": "6h", "horizon": "6h", "deadline": "60"}
+QUICK = {"parameters": "FA", "window": "1D", "warmup": "3h", "horizon": "3h", "deadline": "60"}
 
 
 def q(tag: str) -> str:
@@ -231,3 +231,19 @@ def _resolve(path: Path) -> Path:
         return path.resolve()
     except (OSError, RuntimeError):
         return path.absolute()
+
+
+@functools.cache
+def previous_state() -> bytes:
+    """The store a quick cycle issued one day before :data:`T0` hands on (its bytes): history for a hot start."""
+    import tempfile
+
+    from rivercal.fews import run_module
+
+    with tempfile.TemporaryDirectory() as tmp:
+        run_file = module(Path(tmp) / "m")
+        local = (T0 - pd.Timedelta("1D") + pd.Timedelta(hours=ZONE_H)).tz_localize(None)
+        set_element(run_file, "time0", date=local.strftime("%Y-%m-%d"), time=local.strftime("%H:%M:%S"))
+        outcome = run_module(run_file)
+        assert outcome.exit_code == 0, outcome.diagnostics
+        return Path(outcome.summary["state"]).read_bytes()

@@ -27,6 +27,7 @@ from __future__ import annotations
 import logging
 import math
 import shutil
+import stat
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -194,7 +195,7 @@ def _workers(run: RunFile) -> int:
 def _case_source(run: RunFile) -> str:
     text = prop(run, "case")
     folder = Path(text) if Path(text).is_absolute() else run.work_dir / text
-    return str(folder) if folder.exists() else text
+    return str(folder) if _what(folder) != "missing" else text
 
 
 def _classify(run: RunFile, case: Any, observables: list[str]) -> tuple[dict[Path, dict], dict[str, str]]:
@@ -266,10 +267,11 @@ class _Forcing:
 def _inputs(run: RunFile, case: Any, observables: list[str],
             diag: Diagnostics) -> tuple[list[tuple[str, Any]], list[_Forcing]]:
     """Observation sets by file (source name) and the forcing series FEWS exported (m³/s or m, UTC)."""
-    missing = [p for p in run.input_series_files if not p.is_file()]
-    if missing:
-        raise AdapterError(f"input time-series file {missing[0]} does not exist", file=str(run.path),
-                           field="inputTimeSeriesFile")
+    for path in run.input_series_files:
+        what = _what(path)
+        if what != "file":
+            raise AdapterError(f"input time-series file {path} {_WHAT[what] if what in _WHAT else what}",
+                               file=str(run.path), field="inputTimeSeriesFile")
     mappings, forcing_ids = _classify(run, case, observables)
     observations: list[tuple[str, Any]] = []
     forcing: list[_Forcing] = []
@@ -378,7 +380,10 @@ def _inside_work(path: Path, run: RunFile, file: Path, field: str) -> Path:
         resolved, work = path.resolve(), run.work_dir.resolve()
     except (OSError, RuntimeError) as exc:  # a loop of symbolic links
         raise AdapterError(f"state location {path} cannot be resolved ({exc})", file=str(file), field=field) from None
-    if not resolved.is_relative_to(work) or resolved == work:
+    if resolved == work:
+        raise AdapterError(f"state location {path} is the module's work folder itself; rivercal's state is one file in "
+                           "it", file=str(file), field=field)
+    if not resolved.is_relative_to(work):
         raise AdapterError(f"state location {path} lies outside the module's work folder {work}; rivercal reads and "
                            "writes its state only inside the work folder (the run file's workDir)", file=str(file),
                            field=field)
@@ -396,8 +401,9 @@ def _is_store(path: Path) -> bool:
 
 def _check_store(path: Path, file: Path, field: str, role: str) -> None:
     """Refuse ``path`` unless it is a regular file holding a rivercal store (read, never written)."""
-    if not path.is_file():
-        raise AdapterError(f"{role} {path} exists but is not a file", file=str(file), field=field)
+    what = _what(path)
+    if what != "file":
+        raise AdapterError(f"{role} {path} {_WHAT.get(what, what)}", file=str(file), field=field)
     try:
         ok = _is_store(path)
     except OSError as exc:
@@ -408,8 +414,26 @@ def _check_store(path: Path, file: Path, field: str, role: str) -> None:
                            "neither reads nor replaces any other file", file=str(file), field=field)
 
 
+#: How messages say what :func:`_what` found.
+_WHAT = {"missing": "does not exist", "not a file": "exists but is not a file"}
+
+
+def _what(path: Path) -> str:
+    """``file``, ``missing``, ``not a file`` (a folder, a FIFO, a device), or why ``path`` cannot be used."""
+    try:
+        mode = path.stat().st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        try:
+            return "is a symbolic link to nothing" if path.is_symlink() else "missing"
+        except OSError as exc:
+            return f"cannot be used ({exc.strerror or exc})"
+    except (OSError, ValueError) as exc:  # a loop of links, a name too long, no permission
+        return f"cannot be used ({getattr(exc, 'strerror', None) or exc})"
+    return "file" if stat.S_ISREG(mode) else "not a file"
+
+
 def _exists(path: Path) -> bool:
-    return path.exists() or path.is_symlink()
+    return _what(path) != "missing"
 
 
 def _state_locations(run: RunFile) -> tuple[Path | None, StateLocation]:
@@ -421,8 +445,9 @@ def _state_locations(run: RunFile) -> tuple[Path | None, StateLocation]:
         raise AdapterError(f"{len(run.input_state_files)} state descriptions; rivercal's state is one file, described "
                            "once", file=str(run.path), field="inputStateDescriptionFile")
     for description in run.input_state_files:
-        if not description.is_file():
-            raise AdapterError(f"input state description {description} does not exist", file=str(run.path),
+        what = _what(description)
+        if what != "file":
+            raise AdapterError(f"input state description {description} {_WHAT.get(what, what)}", file=str(run.path),
                                field="inputStateDescriptionFile")
         _, locations = read_state_description(description, run.work_dir)
         if len(locations) > 1:
@@ -487,18 +512,19 @@ def _check_outputs(run: RunFile, loc: StateLocation) -> None:
 
 
 def _output_problem(path: Path, root: str) -> str | None:
-    """Why the PI file ``path`` (root element ``root``) cannot be written, or None; creates its folder."""
+    """Why the PI file ``path`` (root element ``root``) cannot be written, or None; creates the folder of a new one."""
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if _exists(path):
-            if not path.is_file():
-                return f"{path} exists and is not a file"
+        what = _what(path)
+        if what != "missing":
+            if what != "file":
+                return f"{path} {_WHAT.get(what, what)}"
             if not _is_pi(path, root):
                 return (f"{path} exists and is not a PI <{root}> file; rivercal replaces only the output of an earlier "
                         "run")
             with path.open("ab"):
                 pass
         else:
+            path.parent.mkdir(parents=True, exist_ok=True)
             with path.open("xb"):
                 pass
             path.unlink()
@@ -519,8 +545,9 @@ def _is_pi(path: Path, root: str) -> bool:
     import defusedxml
     import defusedxml.ElementTree as SafeET
 
-    if path.stat().st_size == 0:
-        return True
+    with path.open("rb") as f:  # not the size: files of /proc say 0 and are not empty
+        if not f.read(1):
+            return True
     try:
         for _, element in SafeET.iterparse(str(path), events=("start",), forbid_dtd=True):
             return bool(element.tag == f"{{{PI_NAMESPACE}}}{root}")
@@ -565,19 +592,37 @@ def _estimate_series(store: Any, run: Any, cycle: int, used: Mapping[str, float]
 
 
 def _check_times(run: RunFile, model: Any, config: Any) -> None:
-    """time0, the window, the warm-up and the horizon fit the case's period (compared in seconds: no overflow)."""
+    """time0 and the durations fit the case's period and the forecasts' time step (seconds: no overflow).
+
+    The service runs the model from ``time0 - window - warmup``, takes the state for the next run's hot start
+    one ``period`` later, and forecasts ``horizon`` ahead, all on the grid of the forecasts' time step from the
+    case's start.
+    """
     t0 = run.time0
-    if t0.value % 1_000_000_000:
-        raise AdapterError(f"time0 {t0.isoformat()} has a fraction of a second", file=str(run.path), field="time0")
-    window, warmup, horizon = (pd.Timedelta(v).total_seconds() for v in (config.window, config.warmup, config.horizon))
+    step = float(config.output_interval_s)
+    seconds = {key: pd.Timedelta(getattr(config, key)).total_seconds() for key in ("window", "warmup", "horizon",
+                                                                                   "period")}
+    for key, value in seconds.items():
+        if abs(value / step - round(value / step)) > 1e-9:
+            raise AdapterError(f"property {key!r}: {getattr(config, key)!r} is not a whole number of the forecasts' "
+                               f"time step ({step:g} s)", file=str(run.path), field="properties")
+    if seconds["period"] > seconds["window"] + seconds["warmup"]:
+        raise AdapterError(f"property 'period': {config.period!r} is longer than the window and warm-up "
+                           f"({config.window} + {config.warmup}); the next run's hot start is taken one period after "
+                           "this run's warm-up starts, so it must lie before time0", file=str(run.path),
+                           field="properties")
     after_start, before_end = t0.timestamp() - model.start.timestamp(), model.end.timestamp() - t0.timestamp()
-    if window + warmup > after_start:
+    if seconds["window"] + seconds["warmup"] > after_start:
         raise AdapterError(f"time0 {t0:%Y-%m-%d %H:%M} UTC: the window ({config.window}) and warm-up "
                            f"({config.warmup}) before it need the model from before the case starts "
                            f"({model.start:%Y-%m-%d %H:%M} UTC)", file=str(run.path), field="time0")
-    if horizon > before_end:
+    if seconds["horizon"] > before_end:
         raise AdapterError(f"time0 {t0:%Y-%m-%d %H:%M} UTC: the forecast ({config.horizon}) runs past the end of the "
                            f"case ({model.end:%Y-%m-%d %H:%M} UTC)", file=str(run.path), field="time0")
+    if abs(after_start / step - round(after_start / step)) > 1e-9:
+        raise AdapterError(f"time0 {t0:%Y-%m-%d %H:%M:%S} UTC is not on the forecasts' time step ({step:g} s from the "
+                           f"case's start, {model.start:%Y-%m-%d %H:%M} UTC); check the run file's timeZone "
+                           f"({run.time_zone:+g} h)", file=str(run.path), field="time0")
 
 
 def _schemas(run: RunFile) -> dict[str, Any]:

@@ -179,7 +179,16 @@ def diagnostic_file_of(path: str | Path) -> Path | None:
     base = Path(path).resolve().parent
     if work is not None and (work.text or "").strip():
         base = _resolve(work.text, base)
-    return _resolve(node.text, base)
+    if Path(node.text.strip()).is_absolute():
+        return Path(node.text.strip())
+    return _resolve(node.text, base) if _is_dir(base) else None  # never below a work folder that is not one
+
+
+def _is_dir(path: Path) -> bool:
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False
 
 
 def read_run_file(path: str | Path) -> RunFile:
@@ -202,9 +211,9 @@ def read_run_file(path: str | Path) -> RunFile:
     if not work_text:
         raise PiFileError("no <workDir>", file=str(path), field="workDir")
     work = _resolve(work_text[0], path.resolve().parent)
-    if not work.is_dir():
-        raise PiFileError(f"the work folder {work} does not exist (FEWS creates it before it starts the module)",
-                          file=str(path), field="workDir")
+    if not _is_dir(work):
+        raise PiFileError(f"the work folder {work} is not an existing folder (FEWS creates it before it starts the "
+                          "module)", file=str(path), field="workDir")
     diag = texts("outputDiagnosticFile")
     if not diag:
         raise PiFileError("no <outputDiagnosticFile>", file=str(path), field="outputDiagnosticFile")
