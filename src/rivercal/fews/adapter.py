@@ -3,23 +3,29 @@
 FEWS calls ``rivercal fews run_info.xml``; :func:`run_module` then
 
 1. reads the run file (time zero, the files, the ``<properties>`` of :data:`PROPERTIES`);
-2. takes the state FEWS handed over — the rivercal store of the previous run (SQLite: estimates,
-   alerts, forecasts, the model states of the hot start) — copies it to the state's write location,
-   or starts a new one when FEWS exported no state;
+2. checks, before anything is written: the state's locations (inside the work folder; an existing one a
+   rivercal store, never another file), every output location (writable; an existing one a PI file of its
+   kind), the case, the inputs, the properties and the times;
 3. reads the PI time series FEWS exported: observations at the stations (locationId = station id,
    parameterId = ``h``, ``h_up``, ``h_down`` or ``Q``) go into the store, forcing at boundaries and
    laterals (locationId = boundary or lateral id, parameterId ``Q`` in m³/s, ``h`` in m) replaces the
-   case's own series where FEWS has values. Missing values, flags and time zones as PI defines them
-   (:func:`rivercal.io.read_pixml`). FEWS's id maps translate its own ids to these;
-4. runs one cycle of :class:`rivercal.online.OnlineService`: the calibration window ends at time zero,
+   case's own series where FEWS has values, unless implausible (:func:`_screen_forcing`). Missing values,
+   flags and time zones as PI defines them (:func:`rivercal.io.read_pixml`); cm, mm, l/s, m3/h and m3/min
+   converted. FEWS's id maps translate its own ids to these;
+4. takes the state FEWS handed over — the rivercal store of the previous run (SQLite: estimates,
+   alerts, forecasts, the model states of the hot start) — copies it to the state's write location,
+   or starts a new one when FEWS exported no state;
+5. runs one cycle of :class:`rivercal.online.OnlineService`: the calibration window ends at time zero,
    the forecasts (updated parameters, and the fixed DSS) start there;
-5. writes the PI time series (forecasts with qualifier ``updated`` or ``dss``; per parameter the
+6. writes the PI time series (forecasts with qualifier ``updated`` or ``dss``; per parameter the
    estimate with flag 0 when accepted, 3 (doubtful) when held, the reason as the event's comment, its σ
    (qualifier ``sigma``) and the value the forecast used (qualifier ``used``), at location
-   ``estimatesLocationId``), the PI state description, and the PI diagnostics file.
+   ``estimatesLocationId``), the PI state description, and the PI diagnostics file, each through a
+   temporary file and a rename.
 
-Every problem goes to the diagnostics file with level 1 (error) — 0 (fatal) for an error in rivercal
-itself — and a non-zero exit status (2 bad input, 3 failed model run, 1 otherwise); never a traceback.
+Every problem goes to the diagnostics file with level 1 (error) naming the file and the element, property
+or series — 0 (fatal) for an error in rivercal itself — and a non-zero exit status (2 bad input, 3 failed
+model run, 1 otherwise); never a traceback. Only rivercal's own bad-input errors count as bad input.
 """
 
 from __future__ import annotations
@@ -159,6 +165,9 @@ def _config(run: RunFile, model: Any) -> Any:
     change: dict[str, float] = {}
     for item in filter(None, (part.strip() for part in prop(run, "maxChange").split(","))):
         name, _, value = item.partition("=")
+        if name.strip() in change:
+            raise AdapterError(f"property 'maxChange': {name.strip()!r} is given more than once", file=str(run.path),
+                               field="properties")
         try:
             change[name.strip()] = float(value)
         except ValueError:
@@ -168,10 +177,14 @@ def _config(run: RunFile, model: Any) -> Any:
                                f"parameters ({', '.join(names)}) and VALUE > 0", file=str(run.path),
                                field="properties")
     workers = _workers(run)
-    return OnlineConfig(parameters=tuple(names), window=duration(run, "window"), period=duration(run, "period"),
-                        horizon=duration(run, "horizon"), warmup=duration(run, "warmup", allow_zero=True),
-                        algorithm=algorithm, deadline_s=number(run, "deadline"), max_change=change,
-                        alert_k=number(run, "alertK"), workers=workers)
+    values = dict(parameters=tuple(names), window=duration(run, "window"), period=duration(run, "period"),
+                  horizon=duration(run, "horizon"), warmup=duration(run, "warmup", allow_zero=True),
+                  algorithm=algorithm, deadline_s=number(run, "deadline"), max_change=change,
+                  alert_k=number(run, "alertK"), workers=workers)
+    try:
+        return OnlineConfig(**values)
+    except ValueError as exc:  # the service's own rules, beyond the checks above
+        raise AdapterError(str(exc), file=str(run.path), field="properties") from None
 
 
 def _workers(run: RunFile) -> int:

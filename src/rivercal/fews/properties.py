@@ -41,12 +41,18 @@ class AdapterError(CaseError):
 
 
 def prop(run: RunFile, key: str) -> str:
-    """The property ``key`` as text (its default when absent); a required one that is missing is an error."""
+    """The property ``key`` as text (its default when absent).
+
+    A required property that is missing, and an empty value of one that has a default, are errors.
+    """
     default, _ = PROPERTIES[key]
     value = run.properties.get(key, default)
     if value is None or (default is None and not str(value).strip()):
         raise AdapterError(f"property {key!r} is required ({PROPERTIES[key][1]})", file=str(run.path),
                            field="properties")
+    if default and not str(value).strip():
+        raise AdapterError(f"property {key!r} is empty; give a value or leave the property out (default {default})",
+                           file=str(run.path), field="properties")
     return str(value).strip()
 
 
