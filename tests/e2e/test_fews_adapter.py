@@ -323,7 +323,6 @@ def test_the_command_line_refuses_hostile_input_cleanly(tmp_path: Path, what: st
     (The other refusals, and many more, run in-process: ``tests/unit/test_fews_safety.py`` and the fuzz.)
     """
     run_file, words = _hostile(tmp_path / "m", what)
-    passwd = Path("/etc/passwd").read_bytes()
     proc = subprocess.Popen([sys.executable, "-m", "rivercal.cli", "fews", str(run_file)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
     _, stderr = proc.communicate(timeout=300)
@@ -331,7 +330,6 @@ def test_the_command_line_refuses_hostile_input_cleanly(tmp_path: Path, what: st
     assert all(w in stderr for w in words), stderr
     assert "Traceback" not in stderr and "internal error" not in stderr
     assert _session_processes(proc.pid) == []
-    assert Path("/etc/passwd").read_bytes() == passwd
     assert not (tmp_path / "m" / "state").exists()  # the state never advanced
     if what == "write location":
         assert (tmp_path / "m" / "victim.txt").read_text(encoding="utf-8") == "keep me\n"

@@ -3,9 +3,9 @@
 Two surfaces, each a seeded generator of cases (reproducible: a failing case names its seed):
 
 - **run files**, mutated from the how-to's example: elements removed, doubled or given hostile text (paths out of
-  the folder, ``/etc/passwd``, a FIFO, a symbolic-link loop, dates rivercal cannot hold, time zones, numbers that
-  are none), property values (durations, parameters, workers, the state file), unknown properties and files,
-  truncated XML, a DTD;
+  the folder, a system file — a stand-in ``passwd`` beside the folder, never the machine's own —, ``/proc``, a
+  FIFO, a symbolic-link loop, dates rivercal cannot hold, time zones, numbers that are none), property values
+  (durations, parameters, workers, the state file), unknown properties and files, truncated XML, a DTD;
 - **PI inputs**: the exported observations and forcing (values, flags, dates, units, missing values, headers,
   repeated times, time zones), the state description and the state file FEWS hands over (locations inside and
   outside the work folder, foreign files, a damaged store), and a PI parameter file rivercal does not read.
@@ -46,9 +46,9 @@ SEED = 20101107
 
 #: Hostile or careless texts for any element or property (the module folder is the work folder, ``..`` its parent).
 PATHS = ["../outside/victim.txt", "../outside/store.sqlite", "../outside/new.xml", "{outside}/victim.txt",
-         "{outside}/new.sqlite", "/etc/passwd", "/proc/self/status", "/dev/null", "notes.txt", "input/observations.xml",
-         "state/rivercal.sqlite", ".", "input", "", " ", "x" * 300, "no/such/folder/file.xml", "loop", "link-out",
-         "fifo", "output/other.xml"]
+         "{outside}/new.sqlite", "{outside}/passwd", "../outside/passwd", "/proc/self/status", "notes.txt",
+         "input/observations.xml", "state/rivercal.sqlite", ".", "input", "", " ", "x" * 300, "no/such/folder/file.xml",
+         "loop", "link-out", "fifo", "output/other.xml"]
 NUMBERS = ["0", "-1", "1", "2", "1.5", "nan", "inf", "-inf", "1e308", "1e-300", "²", "1,5", "0x10", "", "many"]
 DURATIONS = ["2D", "1D", "12h", "6h", "90min", "0", "0h", "-1D", "1000000D", "100000D", "P1D", "7 days", "1e400D",
              "nan", ""]
@@ -85,6 +85,7 @@ def _layout(tmp_path: Path) -> Case:
     run_file = module(folder)
     outside.mkdir()
     (outside / "victim.txt").write_text("someone's notes\n", encoding="utf-8")
+    (outside / "passwd").write_text("root:x:0:0:root:/root:/bin/bash\n", encoding="utf-8")  # never the real one
     with Store(outside / "store.sqlite"):
         pass
     (folder / "notes.txt").write_text("the modeller's notes\n", encoding="utf-8")
@@ -383,6 +384,7 @@ def _check(case: Case, outcome, audit: FileAudit, before: dict, children: set[in
             continue
         assert after.get(name) == stamp, (name, why)
     assert (case.outside / "victim.txt").read_text(encoding="utf-8") == "someone's notes\n", why
+    assert (case.outside / "passwd").read_text(encoding="utf-8") == "root:x:0:0:root:/root:/bin/bash\n", why
     assert _children() <= children, why
     if outcome.exit_code:
         errors = [line.text for line in outcome.diagnostics if line.level == 1]

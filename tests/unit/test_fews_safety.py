@@ -30,7 +30,15 @@ from tests.fews_support import (
     snapshot,
 )
 
-PASSWD = Path("/etc/passwd")
+#: A system file's stand-in beside the module folder: a regression must never get the machine's own to damage.
+PASSWD_TEXT = "root:x:0:0:root:/root:/bin/bash\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\n"
+
+
+def _passwd(tmp_path: Path) -> Path:
+    path = tmp_path / "etc" / "passwd"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(PASSWD_TEXT, encoding="utf-8")
+    return path
 
 
 def _errors(outcome) -> list[str]:
@@ -112,7 +120,7 @@ def test_a_read_location_that_is_not_a_store_is_refused_before_anything_is_copie
     folder = tmp_path / "m"
     run_file = module(folder, observations=False)
     (folder / "state").mkdir()
-    (folder / "state" / "exported.sqlite").write_bytes(PASSWD.read_bytes() or b"root:x:0:0\n")
+    (folder / "state" / "exported.sqlite").write_text(PASSWD_TEXT, encoding="utf-8")
     hand_over_state(run_file, "state/exported.sqlite", "state/rivercal.sqlite")
     with FileAudit() as audit:
         outcome = run_module(run_file)
@@ -121,34 +129,39 @@ def test_a_read_location_that_is_not_a_store_is_refused_before_anything_is_copie
     assert not [p for p in audit.writes if p.parent.name == "state"]
 
 
-def test_etc_passwd_as_read_location_is_neither_read_nor_copied(tmp_path: Path) -> None:
-    folder = tmp_path / "m"
+def test_a_system_file_as_read_location_is_neither_read_nor_copied(tmp_path: Path) -> None:
+    """``/etc/passwd`` as the state handed over (here a stand-in at ``<tmp>/etc/passwd``): refused, never opened."""
+    folder, passwd = tmp_path / "m", _passwd(tmp_path)
     run_file = module(folder, observations=False)
-    hand_over_state(run_file, str(PASSWD), "state/rivercal.sqlite")
-    digest = _digest(PASSWD)
+    hand_over_state(run_file, str(passwd), "state/rivercal.sqlite")
     with FileAudit() as audit:
         outcome = run_module(run_file)
-    _assert_refused(outcome, "stateLoc/readLocation:", "/etc/passwd lies outside the module's work folder")
-    assert PASSWD not in audit.reads + audit.writes and _digest(PASSWD) == digest
+    _assert_refused(outcome, "stateLoc/readLocation:", "etc/passwd lies outside the module's work folder")
+    assert passwd not in audit.reads + audit.writes and passwd.read_text(encoding="utf-8") == PASSWD_TEXT
     assert not (folder / "state").exists()
 
 
-@pytest.mark.parametrize("value", ["../../../../etc/passwd", "/etc/passwd", "notes.txt"])
+@pytest.mark.parametrize("value", ["../../../../etc/passwd", "absolute", "notes.txt"])
 def test_the_state_file_property_is_confined_and_never_opened_unless_a_store(tmp_path: Path, value: str) -> None:
-    """Without a state description the store is the ``stateFile`` property's file: it too is checked first."""
-    folder = tmp_path / "m"
-    run_file = set_properties(module(folder, observations=False), stateFile=value)
+    """Without a state description the store is the ``stateFile`` property's file: it too is checked first.
+
+    The module folder lies four levels below ``tmp_path``, so ``../../../../etc/passwd`` reaches the stand-in
+    ``<tmp>/etc/passwd`` as it would reach the machine's own from a module folder four levels below ``/``.
+    """
+    folder, passwd = tmp_path / "a" / "b" / "c" / "m", _passwd(tmp_path)
+    state_file = str(passwd) if value == "absolute" else value
+    run_file = set_properties(module(folder, observations=False), stateFile=state_file)
     (folder / "notes.txt").write_text("not a store\n", encoding="utf-8")
-    digest, notes = _digest(PASSWD), _digest(folder / "notes.txt")
+    notes = _digest(folder / "notes.txt")
     with FileAudit() as audit:
         outcome = run_module(run_file)
     words = ("run_info.xml: properties/stateFile:",
              "is not a rivercal store" if value == "notes.txt" else "lies outside the module's work folder")
     _assert_refused(outcome, *words)
-    assert not [p for p in audit.writes if p.resolve() in (PASSWD, (folder / "notes.txt").resolve())]
-    assert not [p for p in audit.writes if str(p).endswith(("-wal", "-shm"))]
-    assert _digest(PASSWD) == digest and _digest(folder / "notes.txt") == notes
-    assert not Path("/etc/passwd-wal").exists()
+    assert not [p for p in audit.writes if p.resolve() in (passwd, (folder / "notes.txt").resolve())]
+    assert not [p for p in audit.writes if str(p).endswith(("-wal", "-shm", "-journal"))]
+    assert passwd.read_text(encoding="utf-8") == PASSWD_TEXT and _digest(folder / "notes.txt") == notes
+    assert sorted(p.name for p in passwd.parent.iterdir()) == ["passwd"]  # no journal beside it
 
 
 # -- times and flags that used to end in an internal error ----------------------------------------------------------
