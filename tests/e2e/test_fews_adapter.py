@@ -10,6 +10,7 @@ validated against the official PI schemas.
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -281,3 +282,74 @@ def test_the_command_line_runs_as_fews_calls_it(tmp_path: Path) -> None:
                                timeout=120, check=True, env={"COLUMNS": "200", "PATH": ""}).stdout
     for key in ("case", "parameters", "window", "horizon", "warmup", "period", "stateFile", "estimatesLocationId"):
         assert f"{key}:" in help_text
+
+
+def _session_processes(pgid: int) -> list[int]:
+    """Processes still in a process group (the session ``rivercal fews`` was started in)."""
+    out = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rpartition(")")[2].split()
+            except OSError:
+                continue
+            if int(fields[2]) == pgid:
+                out.append(int(entry.name))
+    return out
+
+
+def _hostile(folder: Path, what: str) -> tuple[Path, list[str]]:
+    """A module folder with one hostile change, and the words its error must carry."""
+    from tests.fews_support import hand_over_state, module, set_element
+
+    run_file = module(folder)
+    if what == "write location":
+        (folder / "victim.txt").write_text("keep me\n", encoding="utf-8")
+        hand_over_state(run_file, "nothere.sqlite", "victim.txt")
+        return run_file, ["stateLoc/writeLocation", "victim.txt is not a rivercal store"]
+    if what == "flag":
+        path = folder / "input" / "observations.xml"
+        path.write_text(path.read_text(encoding="utf-8").replace('flag="0"', 'flag="²"', 1), encoding="utf-8")
+        return run_file, ["observations.xml", "series locationId=", "flag '²' is not a FEWS flag"]
+    (folder / "blocker").write_text("a file\n", encoding="utf-8")
+    set_element(run_file, "outputDiagnosticFile", "blocker/diag.xml")
+    return run_file, ["outputDiagnosticFile", "cannot be written"]
+
+
+@pytest.mark.parametrize("what", ["write location", "flag", "diagnostics"])
+def test_the_command_line_refuses_hostile_input_cleanly(tmp_path: Path, what: str) -> None:
+    """As FEWS calls it: exit 2, the error on stderr naming file and field, nothing touched, no process left.
+
+    (The other refusals, and many more, run in-process: ``tests/unit/test_fews_safety.py`` and the fuzz.)
+    """
+    run_file, words = _hostile(tmp_path / "m", what)
+    proc = subprocess.Popen([sys.executable, "-m", "rivercal.cli", "fews", str(run_file)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    _, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 2, stderr
+    assert all(w in stderr for w in words), stderr
+    assert "Traceback" not in stderr and "internal error" not in stderr
+    assert _session_processes(proc.pid) == []
+    assert not (tmp_path / "m" / "state").exists()  # the state never advanced
+    if what == "write location":
+        assert (tmp_path / "m" / "victim.txt").read_text(encoding="utf-8") == "keep me\n"
+    if what == "diagnostics":
+        assert "no diagnostics file that could be written" in stderr
+
+
+def test_the_command_line_runs_a_cycle_from_the_example(tmp_path: Path, pi_schema) -> None:
+    """The how-to's module folder (quick properties) as FEWS calls it: exit 0, the true friction, valid outputs."""
+    from tests.fews_support import TRUE_FA, module
+
+    run_file = module(tmp_path / "m")
+    proc = subprocess.Popen([sys.executable, "-m", "rivercal.cli", "fews", "--json", "--quiet", str(run_file)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 0, stderr
+    summary = json.loads(stdout)
+    assert summary["exit_code"] == 0 and summary["estimates"]["FA"] == pytest.approx(TRUE_FA, abs=0.5)
+    assert _session_processes(proc.pid) == []
+    out = tmp_path / "m" / "output"
+    for name, schema in (("forecasts.xml", "pi_timeseries.xsd"), ("estimates.xml", "pi_timeseries.xsd"),
+                         ("state.xml", "pi_state.xsd"), ("diag.xml", "pi_diag.xsd")):
+        assert_valid_pi(pi_schema(schema), out / name)

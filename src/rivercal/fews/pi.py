@@ -16,6 +16,9 @@ UTC on reading and back on writing. Files are parsed with :mod:`defusedxml` (no 
 from __future__ import annotations
 
 import math
+import os
+import re
+import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,13 +32,18 @@ import pandas as pd
 from rivercal.errors import CaseError
 from rivercal.io.pixml import PI_NAMESPACE
 
-__all__ = ["DIAG_LEVELS", "DiagLine", "RunFile", "StateLocation", "read_run_file", "read_state_description",
-           "write_diag", "write_state_description"]
+__all__ = ["DIAG_LEVELS", "FIRST_TIME", "LAST_TIME", "DiagLine", "RunFile", "StateLocation", "read_run_file",
+           "read_state_description", "replace_atomically", "write_diag", "write_state_description"]
 
 _XSI = "http://www.w3.org/2001/XMLSchema-instance"
 _SCHEMAS = "http://fews.wldelft.nl/schemas/version1.0/pi-schemas"
 #: PI diagnostics levels by name (pi_diag.xsd): lower is more severe.
 DIAG_LEVELS = {"fatal": 0, "error": 1, "warn": 2, "info": 3, "debug": 4}
+#: The earliest and latest times rivercal handles (UTC): its time axes count nanoseconds in 64 bits.
+FIRST_TIME = pd.Timestamp("1678-01-01T00:00:00Z")
+LAST_TIME = pd.Timestamp("2261-12-31T23:59:59Z")
+_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
+_TIME = re.compile(r"\d{2}:\d{2}(:\d{2}(\.\d{1,9})?)?")
 
 
 class PiFileError(CaseError):
@@ -84,14 +92,20 @@ def _datetime(node: ET.Element | None, zone_h: float, path: Path, tag: str) -> p
     if node is None:
         raise PiFileError(f"no <{tag}>", file=str(path), field=tag)
     date, time = (node.get("date") or "").strip(), (node.get("time") or "").strip()
-    try:
-        local = pd.Timestamp(f"{date}T{time}")
-    except ValueError:
-        local = pd.NaT
-    if not date or not time or pd.isna(local):
-        raise PiFileError(f"date {date!r} time {time!r} is not a date and time (YYYY-MM-DD, HH:MM:SS)",
+    local: Any = pd.NaT
+    if _DATE.fullmatch(date) and _TIME.fullmatch(time):
+        try:
+            local = pd.Timestamp(f"{date}T{time}")
+        except ValueError:
+            local = pd.NaT
+    if pd.isna(local):
+        raise PiFileError(f"date {date[:40]!r} time {time[:40]!r} is not a date and time (YYYY-MM-DD, HH:MM:SS)",
                           file=str(path), field=tag)
-    return (local - pd.Timedelta(hours=zone_h)).tz_localize("UTC")
+    utc = (local - pd.Timedelta(hours=zone_h)).tz_localize("UTC")  # microseconds: no overflow for years 1-9999
+    if not FIRST_TIME <= utc <= LAST_TIME:
+        raise PiFileError(f"{date} {time} (time zone {zone_h:+g} h) lies outside the years "
+                          f"{FIRST_TIME.year}-{LAST_TIME.year} that rivercal handles", file=str(path), field=tag)
+    return utc
 
 
 def _local(time: pd.Timestamp, zone_h: float) -> dict[str, str]:
@@ -126,6 +140,9 @@ class RunFile:
         The ``<properties>``: key -> value as text (dates as ISO 8601 UTC).
     log_level
         The run file's ``logLevel`` (``info`` when absent).
+    unread
+        (element, text) of the files the run file names that the module neither reads nor writes
+        (:data:`UNUSED_ELEMENTS`).
     """
 
     path: Path
@@ -141,6 +158,13 @@ class RunFile:
     output_series_files: tuple[Path, ...] = ()
     properties: Mapping[str, str] = field(default_factory=dict)
     log_level: str = "info"
+    unread: tuple[tuple[str, str], ...] = ()
+
+
+#: Run-file elements naming files the module neither reads nor writes (reported as warnings).
+UNUSED_ELEMENTS = ("inputParameterFile", "inputMapStackFile", "inputNetcdfFile", "inputLongitudinalProfilesFile",
+                   "inputRatingCurveFile", "outputMapStackFile", "outputNetcdfFile", "outputLongitudinalProfilesFile",
+                   "outputCsvModuleRunTableFile")
 
 
 def diagnostic_file_of(path: str | Path) -> Path | None:
@@ -155,7 +179,16 @@ def diagnostic_file_of(path: str | Path) -> Path | None:
     base = Path(path).resolve().parent
     if work is not None and (work.text or "").strip():
         base = _resolve(work.text, base)
-    return _resolve(node.text, base)
+    if Path(node.text.strip()).is_absolute():
+        return Path(node.text.strip())
+    return _resolve(node.text, base) if _is_dir(base) else None  # never below a work folder that is not one
+
+
+def _is_dir(path: Path) -> bool:
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False
 
 
 def read_run_file(path: str | Path) -> RunFile:
@@ -178,6 +211,9 @@ def read_run_file(path: str | Path) -> RunFile:
     if not work_text:
         raise PiFileError("no <workDir>", file=str(path), field="workDir")
     work = _resolve(work_text[0], path.resolve().parent)
+    if not _is_dir(work):
+        raise PiFileError(f"the work folder {work} is not an existing folder (FEWS creates it before it starts the "
+                          "module)", file=str(path), field="workDir")
     diag = texts("outputDiagnosticFile")
     if not diag:
         raise PiFileError("no <outputDiagnosticFile>", file=str(path), field="outputDiagnosticFile")
@@ -190,22 +226,25 @@ def read_run_file(path: str | Path) -> RunFile:
         key = (prop.get("key") or "").strip()
         if not key:
             raise PiFileError(f"a <{kind}> property has no key", file=str(path), field="properties")
+        if key in props:
+            raise PiFileError(f"property {key!r} is given more than once", file=str(path), field="properties")
         if kind == "dateTime":
             props[key] = _datetime(prop, zone, path, f"properties/{key}").isoformat()
         else:
             props[key] = (prop.get("value") or "").strip()
     state_out = texts("outputStateDescriptionFile")
     level = texts("logLevel")
+    time0 = _datetime(root.find(_q("time0")), zone, path, "time0")  # first: the time that matters most
     run = RunFile(path=path, time_zone=zone,
                   start=_datetime(root.find(_q("startDateTime")), zone, path, "startDateTime"),
-                  end=_datetime(root.find(_q("endDateTime")), zone, path, "endDateTime"),
-                  time0=_datetime(root.find(_q("time0")), zone, path, "time0"),
+                  end=_datetime(root.find(_q("endDateTime")), zone, path, "endDateTime"), time0=time0,
                   work_dir=work, output_diagnostic_file=_resolve(diag[0], work),
                   input_state_files=tuple(_resolve(t, work) for t in texts("inputStateDescriptionFile")),
                   input_series_files=tuple(_resolve(t, work) for t in texts("inputTimeSeriesFile")),
                   output_state_file=_resolve(state_out[0], work) if state_out else None,
                   output_series_files=tuple(_resolve(t, work) for t in texts("outputTimeSeriesFile")),
-                  properties=props, log_level=level[0] if level else "info")
+                  properties=props, log_level=level[0] if level else "info",
+                  unread=tuple((tag, text) for tag in UNUSED_ELEMENTS for text in texts(tag)))
     if not run.start <= run.time0 <= run.end:
         raise PiFileError(f"time0 {run.time0:%Y-%m-%d %H:%M} UTC is not between startDateTime "
                           f"{run.start:%Y-%m-%d %H:%M} and endDateTime {run.end:%Y-%m-%d %H:%M} UTC", file=str(path),
@@ -258,8 +297,20 @@ def _root(tag: str, schema: str, version: str = "1.2") -> ET.Element:
 def _write(root: ET.Element, path: Path) -> Path:
     ET.indent(root, space="  ")
     path.parent.mkdir(parents=True, exist_ok=True)
-    ET.ElementTree(root).write(path, encoding="UTF-8", xml_declaration=True)
+    replace_atomically(path, lambda part: ET.ElementTree(root).write(part, encoding="UTF-8", xml_declaration=True))
     return path
+
+
+def replace_atomically(path: Path, write: Any) -> None:
+    """Write ``path`` through ``write(temporary_path)`` and rename: a killed run leaves the old file or the new one."""
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.close(fd)
+    part = Path(name)
+    try:
+        write(part)
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
 
 
 def write_state_description(path: str | Path, state_id: str, time: pd.Timestamp, locations: Sequence[StateLocation],
@@ -299,5 +350,10 @@ def write_diag(path: str | Path, lines: Sequence[DiagLine], *, comment: str | No
 
 
 def _clean_text(text: Any) -> str:
-    """Text XML 1.0 can hold (control characters other than tab and newline dropped)."""
-    return "".join(ch for ch in str(text) if ch in "\t\n" or ord(ch) >= 32)
+    """Text XML 1.0 in UTF-8 can hold.
+
+    Control characters other than tab and newline are dropped; lone surrogates (from file names that are not
+    UTF-8) and the non-characters U+FFFE and U+FFFF become U+FFFD.
+    """
+    return "".join(ch if ch in "\t\n" or (32 <= ord(ch) < 0xD800) or (0xE000 <= ord(ch) < 0xFFFE) or ord(ch) > 0xFFFF
+                   else "\ufffd" for ch in str(text) if ch in "\t\n" or ord(ch) >= 32)

@@ -26,12 +26,13 @@ PROPERTIES: dict[str, tuple[str | None, str]] = {
     "maxChange": ("", "largest change per forecast, e.g. FA=5,Wd=0.1 (default: none)"),
     "alertK": ("3", "alert when an estimate moves more than this many σ"),
     "run": ("fews", "name of the run in the state's store (a new name starts a new history)"),
-    "stateFile": ("state/rivercal.sqlite", "the state file (relative to the work folder) when FEWS exports no "
-                                           "state description"),
+    "stateFile": ("state/rivercal.sqlite", "the state file when FEWS exports no state description (relative to "
+                                           "the work folder, and inside it)"),
     "estimatesLocationId": ("", "locationId of the parameter-estimate series (default: the case name)"),
-    "workers": ("1", "worker processes of the calibration"),
-    "piSchemaDir": ("", "folder with the PI schemas (pi_timeseries.xsd, pi_state.xsd, pi_diag.xsd) to check every "
-                        "written file against (needs the fews extra: xmlschema); default: no check"),
+    "workers": ("1", "worker processes of the calibration (1 to the cores of the machine)"),
+    "piSchemaDir": ("", "folder (relative to the work folder) with the PI schemas pi_timeseries.xsd and pi_state.xsd "
+                        "to check the written time series and state description against (needs the fews extra: "
+                        "xmlschema); default: no check"),
 }
 
 
@@ -39,14 +40,19 @@ class AdapterError(CaseError):
     """Bad input to the module (a property, a series, the state): named in the message."""
 
 
-
 def prop(run: RunFile, key: str) -> str:
-    """The property ``key`` as text (its default when absent); a required one that is missing is an error."""
+    """The property ``key`` as text (its default when absent).
+
+    A required property that is missing, and an empty value of one that has a default, are errors.
+    """
     default, _ = PROPERTIES[key]
     value = run.properties.get(key, default)
     if value is None or (default is None and not str(value).strip()):
         raise AdapterError(f"property {key!r} is required ({PROPERTIES[key][1]})", file=str(run.path),
                            field="properties")
+    if default and not str(value).strip():
+        raise AdapterError(f"property {key!r} is empty; give a value or leave the property out (default {default})",
+                           file=str(run.path), field="properties")
     return str(value).strip()
 
 

@@ -69,6 +69,7 @@ __all__ = [
     "PiXmlError",
     "read_pixml",
     "read_pixml_series",
+    "unit_factor",
     "write_pixml",
     "write_pixml_series",
 ]
@@ -87,6 +88,8 @@ STANDARD_CONVERSIONS = {("cm", "m"): 0.01, ("mm", "m"): 0.001, ("l/s", "m3/s"): 
 #: FEWS flags: 0–2 reliable (original, corrected, completed), 3–5 doubtful, 6 and above unreliable or missing.
 DOUBTFUL_FLAGS = range(3, 6)
 UNRELIABLE_FROM = 6
+#: The largest flag a PI file can hold (the schema's ``xs:int``).
+_MAX_FLAG = 2**31 - 1
 
 
 class PiXmlError(CaseError):
@@ -187,9 +190,9 @@ def _events(series: ET.Element, ns: str, label: str, zone_h: float,
         texts.append((ev.get("value") or "").strip())
         comments.append(ev.get("comment") or "")
         flag = (ev.get("flag") or "").strip()
-        if flag and not flag.isdigit():
-            raise PiXmlError(f"event {i} ({date} {time}): flag {flag!r} is not a FEWS flag (0, 1, 2, ...)",
-                             file=str(path), field=label)
+        if flag and not (flag.isascii() and flag.isdigit() and int(flag) <= _MAX_FLAG):
+            raise PiXmlError(f"event {i} ({date} {time}): flag {flag[:40]!r} is not a FEWS flag (a whole number 0, 1, "
+                             "2, ...)", file=str(path), field=label)
         flags.append(int(flag) if flag else -1)
     local = pd.to_datetime(pd.Series(stamps, dtype=object), format="ISO8601", errors="coerce")
     bad = np.flatnonzero(local.isna().to_numpy())
@@ -262,6 +265,29 @@ def _norm_unit(unit: str) -> str:
     return u
 
 
+def unit_factor(units: str, quantity: str, conversions: Mapping[tuple[str, str], float] | None = None) -> float | None:
+    """The factor from a file's unit to the unit of ``quantity`` (1 when they are the same), or None.
+
+    Parameters
+    ----------
+    units
+        The unit as a file writes it (``m``, ``m NAP``, ``cm``, ``m3 s-1``, ...).
+    quantity
+        ``h``, ``h_up``, ``h_down`` or ``Q`` (see :data:`EXPECTED_UNITS`).
+    conversions
+        (file unit, expected unit) -> factor, e.g. :data:`STANDARD_CONVERSIONS`; without it only the
+        quantity's own unit (in any of its spellings) has a factor.
+    """
+    expected = EXPECTED_UNITS.get(quantity)
+    if expected is None:
+        return None
+    unit = _norm_unit(units)
+    if unit == expected:
+        return 1.0
+    table = {(_norm_unit(a), _norm_unit(b)): float(f) for (a, b), f in (conversions or {}).items()}
+    return table.get((unit, expected))
+
+
 def _factor(pi: PiSeries, series_id: str, conversions: Mapping[tuple[str, str], float] | None,
             path: Path) -> tuple[float, str | None]:
     """(factor, problem): the factor to the expected unit, or a problem message."""
@@ -272,13 +298,13 @@ def _factor(pi: PiSeries, series_id: str, conversions: Mapping[tuple[str, str], 
     if pi.units is None:
         log.warning("%s: %s has no <units>; taken to be %s as %s expects", path, pi.label, expected, series_id)
         return 1.0, None
-    unit = _norm_unit(pi.units)
-    if unit == expected:
+    factor = unit_factor(pi.units, quantity, conversions)
+    if factor == 1.0:
         return 1.0, None
-    table = {(_norm_unit(a), _norm_unit(b)): float(f) for (a, b), f in (conversions or {}).items()}
-    if (unit, expected) in table:
-        log.info("%s: %s: converted from %s to %s (x %g)", path, pi.label, pi.units, expected, table[(unit, expected)])
-        return table[(unit, expected)], None
+    if factor is not None:
+        log.info("%s: %s: converted from %s to %s (x %g)", path, pi.label, pi.units, expected, factor)
+        return factor, None
+    unit = _norm_unit(pi.units)
     hint = STANDARD_CONVERSIONS.get((unit, expected))
     advice = (f"; pass conversions={{({unit!r}, {expected!r}): {hint:g}}} (or STANDARD_CONVERSIONS) to convert"
               if hint is not None else "; convert the file or pass a conversions table")
