@@ -6,6 +6,7 @@ A restarted command with the same ``--db`` and ``--run`` resumes at the first un
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -26,6 +27,7 @@ from rivercal.cli.options import (
     check_choice,
     check_number,
     check_overlap,
+    check_workers,
     dask_address,
     open_model,
     output_dir,
@@ -38,7 +40,7 @@ from rivercal.cli.options import (
     read_observations,
     workers_for,
 )
-from rivercal.errors import OptionError
+from rivercal.errors import OptionError, RivercalError
 
 __all__ = ["demo", "online", "print_summary", "report"]
 
@@ -142,9 +144,9 @@ def online(
     names = parse_names(params, "--params")
     if not names:
         raise OptionError("--params: give at least one parameter name", option="--params")
-    durations = {o: parse_duration(v, o) for o, v in (("--window", window), ("--cycle", cycle),
-                                                       ("--horizon", horizon))}
-    spin = parse_duration(warmup, "--warmup", allow_zero=True)
+    for option, text in (("--window", window), ("--cycle", cycle), ("--horizon", horizon)):
+        parse_duration(text, option)
+    parse_duration(warmup, "--warmup", allow_zero=True)
     check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
     check_number(deadline, "--deadline", low=0, low_open=True)
     read_dependency(dependency, dependency_threshold, algorithm, names)
@@ -166,7 +168,7 @@ def online(
     check_number(rain_error, "--rain-error", low=0, high=2)
     if rain_error and scenario is None:
         raise OptionError("--rain-error applies to the twin observations of --scenario only", option="--rain-error")
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     address = dask_address(dask, workers)
     files = [(p.name, read_observations(p)) for p in observations]
     db = _store_file(db, "--db")
@@ -180,21 +182,15 @@ def online(
         raise OptionError(f"--params: unknown parameter {unknown[0]!r}; {model.name!r} defines {', '.join(known)}",
                           option="--params")
     check_overlap(model, names)
-    earliest = model.start + durations["--window"] + spin
-    if first < earliest:
-        raise OptionError(f"--from {date_from}: the first window ({window}) and its warm-up ({warmup}) need the model "
-                          f"from {first - durations['--window'] - spin:%Y-%m-%d %H:%M}, before the case starts "
-                          f"({model.start:%Y-%m-%d %H:%M}); issue the first cycle at {earliest:%Y-%m-%d %H:%M} or "
-                          "later", option="--from")
-    if last > model.end:
-        raise OptionError(f"--to {date_to}: after the end of the case ({model.end:%Y-%m-%d %H:%M})", option="--to")
+    config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
+                          algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
+                          loss=loss, transition=transition, skill_cycles=skill_cycles, workers=None,
+                          dependency=str(dependency) if dependency is not None else None,
+                          dependency_threshold=dependency_threshold)
+    check_times(model, config, first, last)
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("starting"), workers_for(workers, address) as where:
-        config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
-                              algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
-                              loss=loss, transition=transition, skill_cycles=skill_cycles, workers=where,
-                              dependency=str(dependency) if dependency is not None else None,
-                              dependency_threshold=dependency_threshold)
+        config = replace(config, workers=where)
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter,
@@ -205,6 +201,38 @@ def online(
         emit_json(summary)
     elif not quiet:
         print_summary(summary)
+    if summary["cycles_done_now"] and not summary["cycles_succeeded_now"]:
+        raise NoCycleSucceeded(summary)
+
+
+class NoCycleSucceeded(RivercalError):
+    """Cycles ran, and none of them ended ``done``: exit status 1, with what the cycles said."""
+
+    def __init__(self, summary: dict[str, Any]):
+        n = summary["cycles_done_now"]
+        kinds = ", ".join(f"{v} {k}" for k, v in sorted(summary.get("status_now", {}).items()))
+        first = summary.get("first_message_now") or ""
+        super().__init__(f"no cycle succeeded: {'the' if n > 1 else 'the one'} cycle{'s' if n > 1 else ''} run now "
+                         f"{'all ' if n > 1 else ''}ended without an estimate ({kinds or n}); the first said: "
+                         f"{first}. They are stored in {summary['db']} (run {summary['run']!r}) with the last "
+                         "accepted estimates kept")
+
+
+#: The options that set the times of an on-line run, by the setting they set (for the messages of the checks).
+_TIME_OPTIONS = {"window": "--window", "period": "--cycle", "horizon": "--horizon", "warmup": "--warmup",
+                 "first": "--from", "last": "--to"}
+
+
+def check_times(model: Any, config: Any, first: Any, last: Any) -> None:
+    """The times of the run against the model (:func:`rivercal.online.config.check_schedule`), named by option."""
+    from rivercal.online.config import check_schedule
+
+    try:
+        check_schedule(model, config, first, last, names=_TIME_OPTIONS)
+    except ValueError as exc:
+        text = str(exc)
+        option = next((o for o in _TIME_OPTIONS.values() if text.startswith(o + " ")), "--window")
+        raise OptionError(text, option=option) from None
 
 
 def _store_file(db: str | Path, option: str, *, must_exist: bool = False) -> str | Path:

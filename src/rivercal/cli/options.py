@@ -19,6 +19,7 @@ __all__ = [
     "check_choice",
     "check_number",
     "check_truth",
+    "check_workers",
     "dask_address",
     "input_file",
     "open_model",
@@ -67,11 +68,25 @@ def dask_address(address: str | None, workers: int | None) -> str | None:
     text = address.strip()
     local = re.fullmatch(r"local:(\d+)", text)
     if local is not None and int(local.group(1)) >= 1:
+        check_workers(int(local.group(1)), f"--dask {address}: N =")
         return text
     if local is None and re.fullmatch(r"(tcp|tls)://[^\s/:]+:\d+/?", text):
         return text
     raise OptionError(f"--dask {address!r}: expected local:N (N ≥ 1 worker processes on this machine) or "
                       "tcp://HOST:PORT (the address of a running Dask scheduler)", option="--dask")
+
+
+def check_workers(workers: int | None, option: str = "--workers") -> None:
+    """``--workers``: a whole number from 1 to the cores available to this process (None: all of them).
+
+    More is refused with the limit, not cut down (:func:`rivercal.evaluate.check_workers` says why).
+    """
+    from rivercal.evaluate import check_workers as check
+
+    try:
+        check(workers, option)
+    except ValueError as exc:
+        raise OptionError(str(exc), option=option.split()[0]) from None
 
 
 @contextlib.contextmanager
@@ -171,26 +186,58 @@ def parse_sets(values: list[str], model: Any | None = None) -> dict[str, float]:
             except (KeyError, ValueError) as exc:
                 text = str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc).removeprefix(f"{name}: ")
                 raise OptionError(f"--set {name}={value:g}: {text}", option="--set") from None
+            _check_with_case(model, name, value)
     return out
+
+
+def _check_with_case(model: Any, name: str, value: float) -> None:
+    """``--set`` under the case's own rules: the case with the value in place must still load.
+
+    A crest set below the bed is refused as ``case.toml`` refuses it (the case's validation runs on a copy
+    of the case with the crest in place; nothing is written). Models without a case have only the bounds
+    of their quantities.
+    """
+    case = getattr(model, "case", None)
+    spec = getattr(case, "spec", None)
+    if spec is None or not (name.startswith("weir:") and name.endswith(".crest_level")):
+        return
+    from rivercal.case.load import case_from_dict
+    from rivercal.errors import CaseError
+    from rivercal.network import STRUCTURE_TABLES
+
+    ident = name.removeprefix("weir:").removesuffix(".crest_level")
+    data = spec.model_dump(by_alias=True, exclude_unset=True)
+    placed = False
+    for table, _ in STRUCTURE_TABLES:
+        for item in data.get(table) or []:
+            if item.get("id") == ident and "crest_level" in item:
+                item["crest_level"] = float(value)
+                placed = True
+    if not placed:
+        return
+    try:
+        case_from_dict(data, case.root)
+    except CaseError as exc:
+        where = f" at {exc.field}" if exc.field else ""
+        raise OptionError(f"--set {name}={value:g}: {exc.reason}; case.toml refuses the same value{where}",
+                          option="--set") from None
 
 
 # -- times -----------------------------------------------------------------------------------------
 
 
 def parse_time(text: str, option: str) -> Any:
-    """An ISO 8601 time as a UTC timestamp (a time without zone is UTC)."""
-    import pandas as pd
+    """An ISO 8601 time as a UTC timestamp (a time without zone is UTC); other forms are refused, never guessed.
 
+    ``10-11-2010`` is 10 November to a Dutch reader and October 11 to pandas: such a date is refused with
+    both readings (:func:`rivercal._time.parse_iso`).
+    """
     from rivercal._time import utc
 
     try:
-        ts = pd.Timestamp(text)
-    except (ValueError, TypeError, OverflowError):
-        ts = None
-    if ts is None or ts is pd.NaT:
-        raise OptionError(f"{option} {text!r}: not a date or time (ISO 8601, e.g. 2010-10-18 or "
-                          "2010-10-18T06:00Z)", option=option)
-    return utc(ts)
+        return utc(text)
+    except (ValueError, TypeError, OverflowError) as exc:
+        raise OptionError(f"{option} {exc}", option=option) from None
 
 
 def parse_duration(text: str, option: str, *, allow_zero: bool = False) -> Any:
