@@ -16,6 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from rivercal.cli.main import app
+from rivercal.evaluate import default_workers
 
 
 def rivercal(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
@@ -43,6 +44,19 @@ def test_version_and_versions_of_the_numeric_stack() -> None:
     (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--seed",
       "-3"], "--seed -3: must be at least 0"),
     (["simulate", "synthetic", "--set", "weir:W99.crest_level=3"], "--set weir:W99.crest_level=3: no weir 'W99'"),
+    # the case's own rule, as case.toml applies it: a crest not below the bed at the weir
+    (["simulate", "synthetic", "--set", "weir:W1.crest_level=-100"], "--set weir:W1.crest_level=-100: the crest of "
+     "weir 'W1' (-100 m AD) lies below the bed (13.250 m AD at chainage 1500 m of branch 'M'); case.toml refuses the "
+     "same value at weirs[0].crest_level"),
+    # a Dutch user's 10 November, which pandas reads as October 11
+    (["simulate", "synthetic", "--start", "10-11-2010"], "--start '10-11-2010' is ambiguous: day first it is "
+     "2010-11-10, month first 2010-10-11; write the date in ISO 8601"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--workers",
+      str(default_workers() + 1)], f"--workers {default_workers() + 1}: give 1 to {default_workers()} worker "
+     "processes"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--dask",
+      f"local:{default_workers() + 1}"], f"--dask local:{default_workers() + 1}: N = {default_workers() + 1}: give 1 "
+     f"to {default_workers()} worker processes"),
     (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--algorithm",
       "lm"], "--algorithm 'lm': it is now called trf (scipy's trust-region reflective method"),
 ])

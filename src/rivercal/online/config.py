@@ -1,17 +1,24 @@
-"""The configuration of the on-line service (:class:`OnlineConfig`), stored with its run."""
+"""The configuration of the on-line service (:class:`OnlineConfig`), stored with its run.
+
+:func:`check_schedule` checks the times of a run against its model before anything runs: the window,
+the cycle, the horizon and the warm-up are whole numbers of the output interval, cycles are issued at the
+model's output times, and every window and forecast lies inside the model's period.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Literal
 
 import pandas as pd
 
-from rivercal.evaluate import Workers
+from rivercal._time import utc
+from rivercal.evaluate import DaskCluster, Workers, check_workers
 from rivercal.problem import LOSSES
 from rivercal.store import Schedule
 
-__all__ = ["DEFAULT_RESOLUTION", "OnlineConfig"]
+__all__ = ["DEFAULT_RESOLUTION", "SETTING_NAMES", "OnlineConfig", "check_schedule", "span"]
 
 
 #: Resolution d of the identifiability gate and alert floor for the parameters of the packaged cases,
@@ -85,7 +92,8 @@ class OnlineConfig:
         Failed model run inside a calibration: ``penalty`` (logged; the optimiser steers away) or
         ``raise`` (the cycle fails and keeps the last estimate).
     workers
-        Worker processes of one calibration (None: all cores), or a :class:`~rivercal.evaluate.DaskCluster`.
+        Worker processes of one calibration (None: all cores; at most the cores available,
+        :func:`~rivercal.evaluate.check_workers`), or a :class:`~rivercal.evaluate.DaskCluster`.
     dependency, dependency_threshold
         With ``algorithm = "sparse_dud"``: a dependency map, the ``dependency.csv`` that ``rivercal analyse``
         writes (which series each parameter moves, in σ; :mod:`rivercal.analysis.dependency`), and the
@@ -159,6 +167,10 @@ class OnlineConfig:
             raise ValueError(f"online dependency_threshold must be >= 0 (σ), got {self.dependency_threshold}")
         if self.skill_cycles < 0 or not self.skill_lead_h > 0 or self.skill_tolerance < 0:
             raise ValueError("online: skill_cycles must be >= 0, skill_lead_h > 0 and skill_tolerance >= 0")
+        if not self.output_interval_s > 0:
+            raise ValueError(f"online output_interval_s must be positive, got {self.output_interval_s}")
+        if not isinstance(self.workers, DaskCluster):
+            check_workers(self.workers, "online workers")
 
     def schedule(self, first_issue: Any) -> Schedule:
         """The cycle schedule whose cycle 0 is issued at ``first_issue``."""
@@ -175,3 +187,106 @@ class OnlineConfig:
         if self.dependency is None:  # as runs stored before the map existed: they resume unchanged
             del out["dependency"], out["dependency_threshold"]
         return out
+
+
+#: How :func:`check_schedule` names each setting by default (the command line passes its option names).
+SETTING_NAMES = {"window": "window", "period": "period", "horizon": "horizon", "warmup": "warmup",
+                 "first": "first issue", "last": "last issue"}
+
+
+def span(value: Any) -> str:
+    """A duration as text that pandas reads back: '7D', '48h', '58D23h', '90min', '45s' ('0h' for none)."""
+    seconds = round(pd.Timedelta(value).total_seconds())
+    if seconds == 0:
+        return "0h"
+    sign, seconds = ("-", -seconds) if seconds < 0 else ("", seconds)
+    if seconds % 86400 and seconds % 3600 == 0 and seconds < 3 * 86400:
+        return f"{sign}{seconds // 3600}h"  # 36h, 48h: as forecasters say them
+    parts = []
+    for unit, size in (("D", 86400), ("h", 3600), ("min", 60), ("s", 1)):
+        if seconds >= size:
+            parts.append(f"{seconds // size}{unit}")
+            seconds %= size
+    return sign + "".join(parts)
+
+
+def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | None = None, *,
+                   names: Mapping[str, str] | None = None) -> None:
+    """Check the times of a run of ``config`` on ``model`` from issue time ``first`` to ``last`` (UTC).
+
+    - the window, the cycle (``period``) and the horizon are positive, and the warm-up not negative, whole
+      numbers of the output interval (``config.output_interval_s``): every run the service makes is;
+    - cycles are issued at the model's output times (whole output intervals after its start);
+    - the first window with its warm-up starts inside the model's period, the last issue time does not
+      lie after its end, and the last cycle's forecast ends inside it (nothing is run beyond it).
+
+    Parameters
+    ----------
+    model
+        The model (:mod:`rivercal.models.contract`): its ``start`` and ``end``.
+    config
+        The service configuration.
+    first, last
+        Issue times of the first and the last cycle (None: the last is not known yet, e.g. a follow run).
+    names
+        How messages name each setting (keys of :data:`SETTING_NAMES`), e.g. ``{"period": "--cycle"}``.
+
+    Raises
+    ------
+    ValueError
+        Naming the setting, its value and the range it may take.
+    """
+    name = {**SETTING_NAMES, **(names or {})}
+    step = pd.Timedelta(seconds=config.output_interval_s)
+    grid = f"the output interval ({span(step)})"
+    start, end = utc(model.start), utc(model.end)
+    length = end - start
+    values = {key: pd.Timedelta(getattr(config, key)) for key in ("window", "period", "horizon", "warmup")}
+    for key, value in values.items():
+        smallest = pd.Timedelta(0) if key == "warmup" else step
+        if value < smallest or value % step:
+            lower = (value // step) * step
+            near = sorted({span(v) for v in (lower, lower + step) if v >= smallest})
+            raise ValueError(f"{name[key]} {getattr(config, key)}: must be a whole number of {grid}, "
+                             f"{'0 or more' if key == 'warmup' else 'at least one'}; e.g. {' or '.join(near)}")
+    if values["period"] > length:
+        raise ValueError(f"{name['period']} {config.period}: longer than the model's period ({span(length)}); give "
+                         f"{span(step)} to {span((length // step) * step)}")
+    first = utc(first)
+    if (first - start) % step:
+        before = start + ((first - start) // step) * step
+        raise ValueError(f"{name['first']} {first:%Y-%m-%d %H:%M:%S}: cycles are issued at the model's output times, "
+                         f"every {span(step)} from {start:%Y-%m-%d %H:%M}; e.g. {before:%Y-%m-%d %H:%M} or "
+                         f"{before + step:%Y-%m-%d %H:%M}")
+    need = values["window"] + values["warmup"]
+    if need > length - step:
+        longest = ((length - step - values["warmup"]) // step) * step
+        raise ValueError(f"{name['window']} {config.window}: with the warm-up ({span(values['warmup'])}) longer than "
+                         f"the model's period ({span(length)}) allows"
+                         + (f"; give {span(step)} to {span(longest)}" if longest >= step else
+                            f"; shorten {name['warmup']}"))
+    if first - need < start:
+        room = ((first - start - values["warmup"]) // step) * step
+        shorter = f", or shorten {name['window']} to at most {span(room)}" if room >= step else ""
+        raise ValueError(f"{name['first']} {first:%Y-%m-%d %H:%M}: the first window ({span(values['window'])}) and "
+                         f"its warm-up ({span(values['warmup'])}) need the model from {first - need:%Y-%m-%d %H:%M}, "
+                         f"before the model's period starts ({start:%Y-%m-%d %H:%M}); issue the first cycle at "
+                         f"{start + need:%Y-%m-%d %H:%M} or later{shorter}")
+    if first > end:
+        raise ValueError(f"{name['first']} {first:%Y-%m-%d %H:%M}: after the end of the model's period "
+                         f"({end:%Y-%m-%d %H:%M})")
+    if last is None:
+        return
+    last = utc(last)
+    if last > end:
+        raise ValueError(f"{name['last']} {last:%Y-%m-%d %H:%M}: after the end of the model's period "
+                         f"({end:%Y-%m-%d %H:%M})")
+    final = first + ((last - first) // values["period"]) * values["period"] if last >= first else first
+    if final + values["horizon"] > end:
+        longest = ((end - final) // step) * step
+        room = (f"the horizon can be {span(step)} to {span(longest)}" if longest >= step else
+                "no forecast fits")
+        raise ValueError(f"{name['horizon']} {config.horizon}: the last cycle, issued at {final:%Y-%m-%d %H:%M}, "
+                         f"would forecast to {final + values['horizon']:%Y-%m-%d %H:%M}, after the end of the "
+                         f"model's period ({end:%Y-%m-%d %H:%M}); {room}, or end the cycles earlier "
+                         f"({name['last']})")

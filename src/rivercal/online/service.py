@@ -46,7 +46,7 @@ from rivercal.errors import ModelRunError
 from rivercal.models.contract import spun_up
 from rivercal.observations import DEFAULT_SIGMA, measurable
 from rivercal.online import guardrails, intervention
-from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig
+from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig, check_schedule
 from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
@@ -129,7 +129,9 @@ class OnlineService:
     Raises
     ------
     ValueError
-        For an unknown parameter or series, or a first window that starts before the model's period.
+        For an unknown parameter or series, or times that do not fit the model
+        (:func:`~rivercal.online.config.check_schedule`: the window, cycle, horizon or warm-up not whole
+        output intervals, a first window that starts before the model's period).
     StoreError
         If the run exists with another model or configuration.
     """
@@ -157,10 +159,7 @@ class OnlineService:
         self.period = pd.Timedelta(config.period)
         self.horizon = pd.Timedelta(config.horizon)
         self.warmup = pd.Timedelta(config.warmup)
-        first_run = self.schedule.first_issue - self.window - self.warmup
-        if first_run < model.start:
-            raise ValueError(f"online: the first window needs the model from {first_run}, before the model's period "
-                             f"starts ({model.start}); issue the first cycle later")
+        check_schedule(model, config, self.schedule.first_issue)
         setup = model.calibration  # e.g. the case's stopping rules are DuD's (thesis Table 4-3)
         case_options = setup.options if config.algorithm == setup.algorithm else {}
         self.options = dict(config.options if config.options is not None else case_options)

@@ -2,9 +2,12 @@
 
 Observations reach the store from a twin scenario of thesis chapter 5, from files (CSV or Delft-FEWS
 PI-XML), or from a folder that is watched; every value is screened for spikes at ingestion
-(:class:`~rivercal.observations.ScreenRule`) and stored with its flag, and gaps are recorded. The service
-then runs every cycle that is due. A restart
-with the same store and run resumes at the first unfinished cycle.
+(:class:`~rivercal.observations.ScreenRule`) and stored with its flag, and gaps are recorded. A file is
+first checked against the model (:mod:`rivercal.online.screening`): a series the model does not simulate,
+or one whose values mostly lie outside what the model makes plausible there (a unit, a datum), refuses
+the file before anything of it is stored; a few implausible values are stored flagged as outliers. The
+service then runs every cycle that is due. A restart with the same store and run resumes at the first
+unfinished cycle.
 """
 
 from __future__ import annotations
@@ -84,6 +87,13 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     rain_error
         Twin only: σ of the multiplicative error of the truth's inflows and laterals against the model's
         (:func:`rivercal.twin.forcing_error.rain_error_model`; 0.3: about 30 %).
+
+    Raises
+    ------
+    CaseError
+        For an observation file (``observations``) with a series the model does not simulate or with values
+        mostly outside their plausible range (:mod:`rivercal.online.screening`); nothing is stored then. A
+        file in the ``follow`` folder with such a problem is reported and skipped instead.
     """
     from rivercal.online.service import OnlineService
     from rivercal.store import FINAL_STATUSES, Store, is_url
@@ -100,6 +110,9 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             meta["realism"] = level.summary()
     if scenario and rain_error:
         meta["rain_error"] = rain_error
+    ranges: dict[str, tuple[float, float]] | None = None
+    if observations or follow is not None:
+        ranges = _screen_deliveries(model, config, first, last, observations, progress)
     if not is_url(db):
         Path(db).parent.mkdir(parents=True, exist_ok=True)
     from rivercal.evaluate import DaskCluster
@@ -122,7 +135,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             store.ingest(truth.observations, source=f"twin:{scenario}", screen=ScreenRule())
             truth_series = truth.series
         for source, obs in observations:
-            store.ingest(obs, source=source, screen=ScreenRule())
+            store.ingest(obs, source=source, screen=ScreenRule(), plausible=ranges)
         finished = int(store.cycles(service.run)["status"].isin(FINAL_STATUSES).sum())
         total = int((last - service.schedule.first_issue) // service.period) + 1
         if max_cycles is not None:
@@ -144,7 +157,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         if follow is None:
             service.replay(last, progress=on_cycle, max_cycles=max_cycles)
         else:
-            _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress)
+            _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress, ranges or {})
         summary = online_summary(store, service, outcomes, time.perf_counter() - t_start, truth=truth_series)
         if report is not None:
             from rivercal.report.online import write_online_report
@@ -154,9 +167,38 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     return summary
 
 
+def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Timestamp,
+                       observations: Sequence[tuple[str, Any]], progress: Progress) -> dict[str, tuple[float, float]]:
+    """Check the given files against the model; the plausible range (low, high) of each series for the store.
+
+    The series of every file are checked first (no model run); then the model runs the data period once
+    (:func:`rivercal.online.screening.plausible_ranges`) and every file's values are checked against it.
+    """
+    from rivercal.observations import measurable
+    from rivercal.online.screening import check_delivery, data_end, plausible_ranges, unknown_series
+
+    for source, obs in observations:
+        unknown_series(obs, model.observables, source, model.name)
+    progress.stage("checking the observations against the model's own levels")
+    start = first - pd.Timedelta(config.window) - pd.Timedelta(config.warmup)
+    ranges = plausible_ranges(model, measurable(model.observables), start, data_end(model, config, first, last),
+                              config.dss, config.output_interval_s)
+    for source, obs in observations:
+        for note in check_delivery(obs, source, ranges):
+            log.warning("%s", note)
+            progress.note(note)
+    return {sid: (r.low, r.high) for sid, r in ranges.items()}
+
+
 def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: float, on_cycle: Callable[[Any], None],
-            max_cycles: int | None, progress: Progress) -> None:
-    """Ingest new files from ``folder`` and run each cycle when the newest data reach its issue time."""
+            max_cycles: int | None, progress: Progress, ranges: Any) -> None:
+    """Ingest new files from ``folder`` and run each cycle when the newest data reach its issue time.
+
+    A file that cannot be read, names a series the model does not simulate or holds mostly implausible
+    values (:mod:`rivercal.online.screening`) is reported and skipped; ``ranges`` are the plausible ranges.
+    """
+    from rivercal.online.screening import check_delivery, unknown_series
+
     seen: dict[Path, tuple[float, int]] = {}
     done = 0
     try:
@@ -168,7 +210,13 @@ def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: fl
                 if seen.get(path) == stamp:
                     continue
                 try:
-                    store.ingest(read_observation_file(path), source=path.name, screen=ScreenRule())
+                    delivery = read_observation_file(path)
+                    unknown_series(delivery, service.model.observables, path.name, service.model.name)
+                    for note in check_delivery(delivery, path.name, ranges):
+                        log.warning("%s", note)
+                        progress.note(note)
+                    store.ingest(delivery, source=path.name, screen=ScreenRule(),
+                                 plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
                 except ValueError as exc:  # a bad file (CaseError) is reported and skipped; the service goes on
                     log.warning("skipped %s: %s", path.name, exc)
                     progress.note(f"skipped {path.name}: {exc}")
@@ -193,6 +241,10 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
                    truth: pd.DataFrame | None = None) -> dict[str, Any]:
     """JSON-friendly summary of a run: cycles, estimates, alerts and forecast errors (updated vs DSS).
 
+    ``cycles_done_now`` counts the cycles this call computed, ``cycles_succeeded_now`` those of them that
+    ended ``done`` (not failed or aborted), ``status_now`` counts them by status and ``first_message_now`` is
+    the message of the first that did not end ``done``.
+
     ``forecast_errors`` is :func:`rivercal.report.online.forecast_errors` (with its ``reason`` when
     nothing could be compared yet); the headline figures (``forecast_mae_ratio``,
     ``time_to_correct_cycles``, ``jump_alerts``, ``fallbacks`` …) are
@@ -212,6 +264,9 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
         "case": service.model.name,
         "db": str(store.path),
         "cycles_done_now": len(outcomes),
+        "cycles_succeeded_now": sum(o.status == "done" for o in outcomes),
+        "status_now": {k: sum(o.status == k for o in outcomes) for k in sorted({o.status for o in outcomes})},
+        "first_message_now": next((o.message for o in outcomes if o.status != "done"), None),
         "cycles": len(cycles),
         "status": cycles["status"].value_counts().to_dict(),
         "wall_s": round(wall, 2),
