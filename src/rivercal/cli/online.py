@@ -100,6 +100,10 @@ def online(
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
     dask: DaskOpt = None,
     out: Annotated[Path | None, typer.Option(help="Write the report and exports into this folder.")] = None,
+    take_over: Annotated[bool, typer.Option(
+        "--take-over", help="Resume a cycle that the store says a live process computes: after a reboot or a "
+                            "container restart another program may have the dead service's process id. Only when "
+                            "no other service runs this run.")] = False,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -196,7 +200,7 @@ def online(
                              max_cycles=max_cycles, report=out, progress=reporter,
                              assimilation=AssimilationConfig(mode=assimilate, members=members, method=ensemble_filter,
                                                              seed=seed),
-                             rain_error=rain_error)
+                             rain_error=rain_error, take_over=take_over)
     if as_json:
         emit_json(summary)
     elif not quiet:
@@ -335,7 +339,7 @@ def demo(
            follow=None, poll=10.0, run="demo-PI-Fg", params="FA,Wd", window="7D", cycle="1D", horizon="48h",
            warmup="24h", algorithm="dud", deadline=60.0, max_change=None, alert_k=3.0, loss="huber", transition=True,
            skill_cycles=3, noise="none", seed=0, realism="realistic", max_cycles=None, workers=workers, dask=None,
-           out=out / "report", as_json=as_json, quiet=False)
+           out=out / "report", take_over=False, as_json=as_json, quiet=False)
 
 
 def report(

@@ -125,6 +125,11 @@ class OnlineService:
     meta
         Further facts stored with the run's configuration (e.g. the twin scenario that produced the
         observations), so that a report can find them and a restart with other facts is refused.
+    assimilation
+        State updating (:class:`~rivercal.online.assimilation.AssimilationConfig`; None: parameters only).
+    take_over
+        Compute an unfinished cycle even when the store names a live process as its owner
+        (:meth:`rivercal.store.Store.begin_cycle`): only when no other service runs this run.
 
     Raises
     ------
@@ -137,8 +142,9 @@ class OnlineService:
     """
 
     def __init__(self, model: Any, store: Store, run_name: str, config: OnlineConfig, first_issue: Any,
-                 meta: Mapping[str, Any] | None = None, assimilation: Any = None):
+                 meta: Mapping[str, Any] | None = None, assimilation: Any = None, take_over: bool = False):
         self.model = model
+        self.take_over = take_over
         self.store = store
         self.config = config
         self.schedule = config.schedule(first_issue)
@@ -245,7 +251,7 @@ class OnlineService:
     def run_cycle(self, spec: CycleSpec) -> CycleOutcome:
         """Compute cycle ``spec`` and commit it (see the module docstring)."""
         t_wall = time.perf_counter()
-        spec = self.store.begin_cycle(self.run, spec)
+        spec = self.store.begin_cycle(self.run, spec, take_over=self.take_over)
         t0 = spec.issue_time
         run_start = spec.window_start - self.warmup
         warm = self.warm_start()

@@ -97,25 +97,72 @@ def is_url(location: Any) -> bool:
 
 
 def _owner() -> str:
-    return f"{os.getpid()}@{socket.gethostname()}"
+    """The owner this process writes into a cycle: ``pid@host/start``, start being its start time (Unix s)."""
+    pid = os.getpid()
+    start = _process_start(pid)
+    return f"{pid}@{socket.gethostname()}" + (f"/{start:.2f}" if start is not None else "")
 
 
-def _owner_alive(owner: str | None) -> bool:
-    """Whether ``pid@host`` names another process that still runs on this host."""
-    if not owner or owner == _owner():
+def _process_start(pid: int) -> float | None:
+    """When process ``pid`` started (Unix seconds, to 0.01 s), or None when it does not run or cannot be seen."""
+    import psutil
+
+    try:
+        return float(psutil.Process(pid).create_time())
+    except (psutil.Error, OSError, ValueError):
+        return None
+
+
+def _parse_owner(owner: str) -> tuple[str, str, float | None]:
+    """``pid@host/start`` (or ``pid@host``, as stores written before start times kept it) → (pid, host, start)."""
+    who, _, start = owner.partition("/")
+    pid_text, _, host = who.partition("@")
+    try:
+        return pid_text, host, float(start) if start else None
+    except ValueError:
+        return pid_text, host, None
+
+
+def _owner_alive(owner: str | None, started: str | None = None) -> bool:
+    """Whether ``owner`` is another process of this host that still runs: the same process id AND start time.
+
+    A process id alone is not enough: after a reboot or a container restart another program (often the
+    container's process 1) has the dead service's id. A record with its owner's start time matches only the
+    process that started then (within 1 s); a record without one (written before start times were kept)
+    cannot be owned by a process that started after the cycle was begun (``started``, the stored stamp).
+    """
+    if not owner:
         return False
-    pid_text, _, host = owner.partition("@")
+    pid_text, host, start = _parse_owner(owner)
     if host != socket.gethostname() or not pid_text.isdigit():
         return False  # another host: no way to know; the caller's lock is the authority there
+    if int(pid_text) == os.getpid():
+        return False  # this process: a cycle it began itself (or its id's dead earlier holder)
     try:
         os.kill(int(pid_text), 0)
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True
+        pass  # alive, another user's
     except OSError:
         return False
+    running_since = _process_start(int(pid_text))
+    if running_since is None:
+        return True  # alive, but its start cannot be read: take it for the owner (the override is there for this)
+    if start is not None:
+        return abs(running_since - start) < 1.0
+    if started is not None:
+        begun = fr.stamp_to_time(started)
+        if not pd.isna(begun) and running_since > begun.timestamp() + 1.0:
+            return False
     return True
+
+
+def _describe_owner(owner: str) -> str:
+    """``process 1234@vm (started 2026-11-25 10:00:01 UTC)`` for messages."""
+    pid_text, host, start = _parse_owner(owner)
+    when = f" (started {pd.Timestamp(start, unit='s', tz='UTC'):%Y-%m-%d %H:%M:%S} UTC)" if start else ""
+    return f"process {pid_text}@{host}{when}"
 
 
 class Store(ResultTables, ObservationTables):
@@ -440,8 +487,8 @@ class Store(ResultTables, ObservationTables):
             raise CycleStateError(f"{self.path}: run {run_id}: cycle {unfinished} is unfinished; finish it before "
                                   f"cycle {cycle}")
 
-    def _check_existing_cycle(self, row: tuple, run_id: int, spec: CycleSpec) -> None:
-        _, w0, w1, t0, status, _, owner, _ = row
+    def _check_existing_cycle(self, row: tuple, run_id: int, spec: CycleSpec, take_over: bool = False) -> None:
+        _, w0, w1, t0, status, _, owner, started = row
         if status in FINAL_STATUSES:
             raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is already {status}; it is not "
                                   "stored twice (retry_cycle() re-opens it)")
@@ -453,15 +500,33 @@ class Store(ResultTables, ObservationTables):
                 f"{fr.from_unix(w0).isoformat()}/{fr.from_unix(w1).isoformat()}, issue {fr.from_unix(t0).isoformat()}; "
                 f"got {spec.window_start.isoformat()}/{spec.window_end.isoformat()}, "
                 f"issue {spec.issue_time.isoformat()}")
-        if _owner_alive(owner):
-            raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is being computed by process "
-                                  f"{owner}, which is still alive")
+        if _owner_alive(owner, started):
+            if take_over:
+                log.warning("%s: run %d: cycle %d: taking it over from %s, which still runs (take-over asked for)",
+                            self.path, run_id, spec.cycle, _describe_owner(owner))
+                return
+            raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is being computed by "
+                                  f"{_describe_owner(owner)}, which is still alive. If that process is not a rivercal "
+                                  "service of this run (after a reboot or a container restart another program can "
+                                  "have its process id), take the cycle over: rivercal online --take-over (in "
+                                  "Python: begin_cycle(..., take_over=True))")
 
-    def begin_cycle(self, run: int | Run, spec: CycleSpec) -> CycleSpec:
+    def begin_cycle(self, run: int | Run, spec: CycleSpec, *, take_over: bool = False) -> CycleSpec:
         """Mark a cycle running (inserting it if new) before computing it; returns it as stored.
 
         A new cycle must be the next index and every earlier cycle final. A cycle left ``running`` by a dead
         process is taken over (``attempts`` grows); one owned by a live process on this host is refused.
+        The owner is known by its process id and its start time (``pid@host/start``), so a process that
+        merely has the dead owner's id (after a reboot or a container restart) is not taken for it.
+
+        Parameters
+        ----------
+        run, spec
+            The run and the cycle.
+        take_over
+            Take the cycle over even when its owner looks alive (logged): for the case the start time cannot
+            tell, e.g. a store written before start times were kept whose owner's id was reused. Only when no
+            other service computes this run.
 
         Raises
         ------
@@ -479,7 +544,7 @@ class Store(ResultTables, ObservationTables):
                              (run_id, spec.cycle, *values, _owner(), fr.now_stamp()))
                 attempts = 1
             else:
-                self._check_existing_cycle(row, run_id, spec)
+                self._check_existing_cycle(row, run_id, spec, take_over)
                 if row[4] == "running":
                     log.warning("%s: run %d: cycle %d was left running by %s (attempt %d); computing it again",
                                 self.path, run_id, spec.cycle, row[6], row[5])

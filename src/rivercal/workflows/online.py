@@ -51,7 +51,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
                scenario: str | None = None, noise: str = "none", seed: int = 0, realism: Any = None,
                observations: Sequence[tuple[str, Any]] = (), follow: str | Path | None = None, poll: float = 10.0,
                max_cycles: int | None = None, report: str | Path | None = None,
-               progress: Progress = NO_PROGRESS, assimilation: Any = None, rain_error: float = 0.0) -> dict[str, Any]:
+               progress: Progress = NO_PROGRESS, assimilation: Any = None, rain_error: float = 0.0,
+               take_over: bool = False) -> dict[str, Any]:
     """Run the cycles issued from ``first`` to ``last`` and return the summary (:func:`online_summary`).
 
     Parameters
@@ -87,6 +88,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     rain_error
         Twin only: σ of the multiplicative error of the truth's inflows and laterals against the model's
         (:func:`rivercal.twin.forcing_error.rain_error_model`; 0.3: about 30 %).
+    take_over
+        Resume a cycle whose recorded owner looks alive (:meth:`rivercal.store.Store.begin_cycle`).
 
     Raises
     ------
@@ -120,7 +123,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     if isinstance(config.workers, DaskCluster):  # every cycle's problem then refers to the model on the workers
         config.workers.share(model)
     with Store(db) as store:
-        service = OnlineService(model, store, run, config, first, meta=meta, assimilation=assimilation)
+        service = OnlineService(model, store, run, config, first, meta=meta, assimilation=assimilation,
+                                take_over=take_over)
         if scenario is not None:
             from rivercal.twin.practical import practical_truth
 
