@@ -246,9 +246,15 @@ def _store_file(db: str | Path, option: str, *, must_exist: bool = False) -> str
     if is_url(db):
         return str(db)
     db = Path(db)
-    if must_exist and not db.is_file():
-        raise OptionError(f"{option} {db}: no such store", option=option)
-    output_file(db, option)
+    if must_exist:  # read only: the store may lie where nothing can be written (a read-only mount)
+        if not db.is_file():
+            raise OptionError(f"{option} {db}: {'is a folder, not a store' if db.is_dir() else 'no such store'}",
+                              option=option)
+        if db.stat().st_size == 0:
+            raise OptionError(f"{option} {db}: an empty file, not a store (no run was ever written to it)",
+                              option=option)
+    else:
+        output_file(db, option)
     if db.is_file() and db.stat().st_size > 0:
         with db.open("rb") as fh:
             if fh.read(16) != b"SQLite format 3\x00":

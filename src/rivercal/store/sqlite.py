@@ -210,8 +210,7 @@ class Store(ResultTables, ObservationTables):
             raise StoreError(f"{self.path}: no such store")
         try:
             if readonly:
-                self._conn = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
-                                             isolation_level=None, timeout=timeout_s)
+                self._conn = self._open_readonly(timeout_s)
             else:
                 self._conn = sqlite3.connect(str(path), isolation_level=None, timeout=timeout_s)
         except sqlite3.Error as exc:
@@ -230,6 +229,32 @@ class Store(ResultTables, ObservationTables):
             raise
 
     # -- connection, transactions, migrations ---------------------------------------------------------------
+
+    def _open_readonly(self, timeout_s: float) -> sqlite3.Connection:
+        """A read-only connection; on a read-only file system too.
+
+        A WAL-mode file is read through its shared-memory file (``-shm``), which SQLite creates beside the
+        store; where the folder cannot be written (a read-only mount) the plain read-only open fails. Then,
+        if no write-ahead log holds changes that are not yet in the file, the file is opened as immutable
+        (nothing can change it there). A log with changes in it would be skipped by that: refused instead.
+        """
+        uri = self.path.resolve().as_uri() + "?mode=ro"
+        conn = sqlite3.connect(uri, uri=True, isolation_level=None, timeout=timeout_s)
+        try:
+            conn.execute("PRAGMA schema_version").fetchone()
+            return conn
+        except sqlite3.OperationalError as exc:
+            conn.close()
+            if "unable to open" not in str(exc):
+                raise
+            wal = Path(f"{self.path}-wal")
+            if wal.is_file() and wal.stat().st_size > 0:
+                raise StoreError(f"{self.path}: cannot be read where it lies ({exc}): its folder cannot be written "
+                                 f"(a read-only file system?) and its write-ahead log {wal.name} holds changes not yet "
+                                 "in the store; copy the store and that file to a writable folder, or open it once "
+                                 "for writing where it can be") from None
+        log.info("%s: opened as an immutable file (its folder cannot be written)", self.path)
+        return sqlite3.connect(uri + "&immutable=1", uri=True, isolation_level=None, timeout=timeout_s)
 
     def _configure(self, synchronous: str) -> None:
         conn = self._conn
@@ -287,6 +312,8 @@ class Store(ResultTables, ObservationTables):
                                     f"one knows up to {SCHEMA_VERSION}); upgrade rivercal to use it")
         if version >= target:
             return
+        if self.readonly and version == 0 and not user_tables(self._conn):
+            raise StoreError(f"{self.path}: not a rivercal store: an empty database (no run was ever written to it)")
         if self.readonly:
             raise StoreVersionError(f"{self.path}: schema version {version} is older than {SCHEMA_VERSION}; open it "
                                     "once for writing to migrate it")
