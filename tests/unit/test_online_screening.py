@@ -18,7 +18,7 @@ from rivercal.errors import CaseError
 from rivercal.evaluate import Tasks, default_workers
 from rivercal.observations import ObservationSeries, ObservationSet, ScreenRule
 from rivercal.online.config import OnlineConfig, check_schedule
-from rivercal.online.screening import LEVEL_MARGIN_M, check_delivery, plausible_ranges, unknown_series
+from rivercal.online.screening import LEVEL_MARGIN_M, check_delivery, check_series, plausible_ranges
 from rivercal.store import Store
 from tests.unit.test_online_service import END, START, ToyRiver, _observations
 
@@ -78,11 +78,11 @@ def test_a_series_the_model_does_not_simulate_is_refused_with_the_known_ids() ->
     renamed = ObservationSet((ObservationSeries("Z.h", obs["A.h"].times, obs["A.h"].values),))
     with pytest.raises(CaseError, match=r"gauges.csv: column 'Z.h': station 'Z' is not in model 'toy'; its stations "
                                         r"are A, B"):
-        unknown_series(renamed, model.observables, "gauges.csv", model.name)
+        check_series(renamed, model.observables, "gauges.csv", model.name)
     other = ObservationSet((ObservationSeries("A.Q", obs["A.h"].times, obs["A.h"].values),))
     with pytest.raises(CaseError, match=r"series locationId=A parameterId=Q: model 'toy' does not simulate 'A.Q'; at "
                                         r"station A it has A.h"):
-        unknown_series(other, model.observables, "gauges.xml", model.name)
+        check_series(other, model.observables, "gauges.xml", model.name)
 
 
 @pytest.mark.parametrize(("settings", "first", "last", "message"), [

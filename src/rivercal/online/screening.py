@@ -37,7 +37,7 @@ from rivercal.models.contract import spun_up
 from rivercal.observations import ObservationSet
 
 __all__ = ["DISCHARGE_FACTOR", "DISCHARGE_FLOOR", "LEVEL_MARGIN_M", "REFUSE_SHARE", "PlausibleRange",
-           "check_delivery", "data_end", "plausible_ranges", "unknown_series"]
+           "check_delivery", "check_series", "data_end", "plausible_ranges"]
 
 log = logging.getLogger(__name__)
 
@@ -124,22 +124,37 @@ def plausible_ranges(model: Any, series: Iterable[str], start: Any, end: Any, qu
     return out
 
 
-def unknown_series(observations: ObservationSet, observables: Iterable[str], file: str, model_name: str) -> None:
-    """CaseError naming the file, the column and the model's ids when a series is not simulated by the model."""
+def check_series(observations: ObservationSet, observables: Iterable[str], file: str, model_name: str) -> None:
+    """CaseError naming the file and the series when a series cannot be stored for this model.
+
+    A series the model does not simulate (the message names the column and the model's ids), or a time
+    the store cannot keep: a fraction of a second, or a year beyond what pandas holds (1677 to 2262).
+    """
     known = list(observables)
     stations = sorted({s.rpartition(".")[0] for s in known})
-    for sid in observations.ids:
-        if sid in known:
-            continue
-        station = sid.rpartition(".")[0]
+    for s in observations:
+        sid = s.id
         column = _column(file, sid)
-        if station in stations:
-            there = ", ".join(s for s in known if s.rpartition(".")[0] == station)
-            reason = f"model {model_name!r} does not simulate {sid!r}; at station {station} it has {there}"
-        else:
-            reason = (f"station {station!r} is not in model {model_name!r}; its stations are "
-                      f"{', '.join(stations) or 'none'}")
-        raise CaseError(reason + " (nothing of this file was stored)", file=file, field=column)
+        if sid not in known:
+            station = sid.rpartition(".")[0]
+            if station in stations:
+                there = ", ".join(k for k in known if k.rpartition(".")[0] == station)
+                reason = f"model {model_name!r} does not simulate {sid!r}; at station {station} it has {there}"
+            else:
+                reason = (f"station {station!r} is not in model {model_name!r}; its stations are "
+                          f"{', '.join(stations) or 'none'}")
+            raise CaseError(reason + " (nothing of this file was stored)", file=file, field=column)
+        if len(s) == 0:
+            continue
+        lo, hi = pd.Timestamp.min.tz_localize("UTC"), pd.Timestamp.max.tz_localize("UTC")
+        outside = (s.times < lo) | (s.times > hi)
+        if outside.any():
+            raise CaseError(f"time {s.times[outside][0]:%Y-%m-%d %H:%M:%S} lies outside the times rivercal can hold "
+                            f"({lo:%Y} to {hi:%Y}) (nothing of this file was stored)", file=file, field=column)
+        fraction = s.times != s.times.floor("s")
+        if fraction.any():
+            raise CaseError(f"time {s.times[fraction][0].isoformat()} has a fraction of a second; the store keeps "
+                            "whole seconds (nothing of this file was stored)", file=file, field=column)
 
 
 def check_delivery(observations: ObservationSet, file: str, ranges: Mapping[str, PlausibleRange]) -> list[str]:

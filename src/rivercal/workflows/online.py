@@ -23,7 +23,7 @@ import pandas as pd
 from rivercal.observations import ScreenRule
 from rivercal.workflows.progress import NO_PROGRESS, Progress
 
-__all__ = ["format_value", "online_summary", "read_observation_file", "run_online"]
+__all__ = ["format_value", "ingest_file", "online_summary", "read_observation_file", "run_online"]
 
 log = logging.getLogger(__name__)
 
@@ -34,17 +34,36 @@ def read_observation_file(path: str | Path) -> Any:
     Raises
     ------
     CaseError
-        For a file that cannot be read or holds bad values (named, with the line).
+        For a file that cannot be read or holds bad values (named, with the line). A message quotes the
+        file's text; a long run of it (a 100 kB column name) is cut to its start and its length.
     """
     from rivercal.errors import CaseError
     from rivercal.io import read_observations_csv, read_pixml
 
     path = Path(path)
-    if path.suffix.lower() == ".xml":
-        return read_pixml(path)
-    if path.suffix.lower() == ".csv":
-        return read_observations_csv(path)
+    try:
+        if path.suffix.lower() == ".xml":
+            return read_pixml(path)
+        if path.suffix.lower() == ".csv":
+            return read_observations_csv(path)
+    except CaseError as exc:
+        reason, field = _cut(exc.reason), _cut(exc.field) if exc.field else exc.field
+        if (reason, field) == (exc.reason, exc.field):
+            raise
+        raise type(exc)(reason, file=exc.file, field=field) from None
     raise CaseError("expected a .csv or a PI-XML .xml file", file=str(path))
+
+
+#: Longest run of text without a blank that a message quotes as it is, characters.
+_LONGEST_WORD = 200
+
+
+def _cut(text: str) -> str:
+    """``text`` with every run of more than :data:`_LONGEST_WORD` characters without a blank cut short."""
+    import re
+
+    return re.sub(r"\S{" + str(_LONGEST_WORD + 1) + ",}",
+                  lambda m: f"{m.group(0)[:60]}… ({len(m.group(0))} characters)", text)
 
 
 def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Timestamp, last: pd.Timestamp, *,
@@ -171,6 +190,44 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     return summary
 
 
+def ingest_file(store: Any, path: str | Path, model: Any, ranges: Any, progress: Progress = NO_PROGRESS) -> Any:
+    """Read, check and store one delivered observation file, as ``--follow`` does with each new file.
+
+    Parameters
+    ----------
+    store
+        The open store.
+    path
+        A CSV or PI-XML file; its name is the values' source in the store.
+    model
+        The model whose series the file must hold.
+    ranges
+        The plausible range of each series (:func:`rivercal.online.screening.plausible_ranges`).
+    progress
+        Where notes on values stored as outliers go (they are logged too).
+
+    Returns
+    -------
+    IngestResult
+        What :meth:`rivercal.store.Store.ingest` stored.
+
+    Raises
+    ------
+    CaseError
+        Naming the file and the series (and line) of the problem; nothing of the file is stored then.
+    """
+    from rivercal.online.screening import check_delivery, check_series
+
+    path = Path(path)
+    delivery = read_observation_file(path)
+    check_series(delivery, model.observables, path.name, model.name)
+    for note in check_delivery(delivery, path.name, ranges):
+        log.warning("%s", note)
+        progress.note(note)
+    return store.ingest(delivery, source=path.name, screen=ScreenRule(),
+                        plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
+
+
 def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Timestamp,
                        observations: Sequence[tuple[str, Any]], progress: Progress) -> dict[str, tuple[float, float]]:
     """Check the given files against the model; the plausible range (low, high) of each series for the store.
@@ -179,10 +236,10 @@ def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Ti
     (:func:`rivercal.online.screening.plausible_ranges`) and every file's values are checked against it.
     """
     from rivercal.observations import measurable
-    from rivercal.online.screening import check_delivery, data_end, plausible_ranges, unknown_series
+    from rivercal.online.screening import check_delivery, check_series, data_end, plausible_ranges
 
     for source, obs in observations:
-        unknown_series(obs, model.observables, source, model.name)
+        check_series(obs, model.observables, source, model.name)
     progress.stage("checking the observations against the model's own levels")
     start = first - pd.Timedelta(config.window) - pd.Timedelta(config.warmup)
     ranges = plausible_ranges(model, measurable(model.observables), start, data_end(model, config, first, last),
@@ -201,8 +258,6 @@ def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: fl
     A file that cannot be read, names a series the model does not simulate or holds mostly implausible
     values (:mod:`rivercal.online.screening`) is reported and skipped; ``ranges`` are the plausible ranges.
     """
-    from rivercal.online.screening import check_delivery, unknown_series
-
     seen: dict[Path, tuple[float, int]] = {}
     done = 0
     try:
@@ -214,13 +269,7 @@ def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: fl
                 if seen.get(path) == stamp:
                     continue
                 try:
-                    delivery = read_observation_file(path)
-                    unknown_series(delivery, service.model.observables, path.name, service.model.name)
-                    for note in check_delivery(delivery, path.name, ranges):
-                        log.warning("%s", note)
-                        progress.note(note)
-                    store.ingest(delivery, source=path.name, screen=ScreenRule(),
-                                 plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
+                    ingest_file(store, path, service.model, ranges, progress)
                 except ValueError as exc:  # a bad file (CaseError) is reported and skipped; the service goes on
                     log.warning("skipped %s: %s", path.name, exc)
                     progress.note(f"skipped {path.name}: {exc}")
