@@ -74,7 +74,7 @@ def test_a_horizon_past_the_cases_end_is_refused_with_the_allowed_range(delivere
                   "--horizon", "1000D")
     assert run.returncode == 2, run.stderr
     assert ("--horizon 1000D: the last cycle, issued at 2010-11-06 00:00, would forecast to 2013-08-02 00:00, after "
-            "the end of the model's period (2010-12-01 00:00); the horizon can be 1h to 25D") in \
+            "the end of the case (2010-12-01 00:00), where its forcing ends; the horizon can be 1h to 25D") in \
         run.stderr.replace("\n", " ")
 
 

@@ -191,7 +191,7 @@ def online(
                           loss=loss, transition=transition, skill_cycles=skill_cycles, workers=None,
                           dependency=str(dependency) if dependency is not None else None,
                           dependency_threshold=dependency_threshold)
-    check_times(model, config, first, last)
+    check_times(model, config, first, last, {"first": date_from, "last": date_to})
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("starting"), workers_for(workers, address) as where:
         config = replace(config, workers=where)
@@ -227,12 +227,12 @@ _TIME_OPTIONS = {"window": "--window", "period": "--cycle", "horizon": "--horizo
                  "first": "--from", "last": "--to"}
 
 
-def check_times(model: Any, config: Any, first: Any, last: Any) -> None:
+def check_times(model: Any, config: Any, first: Any, last: Any, shown: dict[str, str]) -> None:
     """The times of the run against the model (:func:`rivercal.online.config.check_schedule`), named by option."""
     from rivercal.online.config import check_schedule
 
     try:
-        check_schedule(model, config, first, last, names=_TIME_OPTIONS)
+        check_schedule(model, config, first, last, names=_TIME_OPTIONS, shown=shown)
     except ValueError as exc:
         text = str(exc)
         option = next((o for o in _TIME_OPTIONS.values() if text.startswith(o + " ")), "--window")

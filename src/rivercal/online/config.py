@@ -211,14 +211,15 @@ def span(value: Any) -> str:
 
 
 def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | None = None, *,
-                   names: Mapping[str, str] | None = None) -> None:
+                   names: Mapping[str, str] | None = None, shown: Mapping[str, str] | None = None) -> None:
     """Check the times of a run of ``config`` on ``model`` from issue time ``first`` to ``last`` (UTC).
 
     - the window, the cycle (``period``) and the horizon are positive, and the warm-up not negative, whole
       numbers of the output interval (``config.output_interval_s``): every run the service makes is;
     - cycles are issued at the model's output times (whole output intervals after its start);
     - the first window with its warm-up starts inside the model's period, the last issue time does not
-      lie after its end, and the last cycle's forecast ends inside it (nothing is run beyond it).
+      lie after its end, and the last cycle's forecast ends inside it: the model's forcing ends there, so
+      a forecast beyond it would run on made-up forcing (the Delft-FEWS module refuses it too).
 
     Parameters
     ----------
@@ -227,9 +228,11 @@ def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | Non
     config
         The service configuration.
     first, last
-        Issue times of the first and the last cycle (None: the last is not known yet, e.g. a follow run).
+        Issue times of the first and the last cycle (None: the last is not known yet).
     names
         How messages name each setting (keys of :data:`SETTING_NAMES`), e.g. ``{"period": "--cycle"}``.
+    shown
+        How messages show ``first`` and ``last`` (keys ``first``, ``last``), e.g. as the user wrote them.
 
     Raises
     ------
@@ -241,6 +244,7 @@ def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | Non
     grid = f"the output interval ({span(step)})"
     start, end = utc(model.start), utc(model.end)
     length = end - start
+    whose = "the case" if getattr(model, "case", None) is not None else "the model's period"
     values = {key: pd.Timedelta(getattr(config, key)) for key in ("window", "period", "horizon", "warmup")}
     for key, value in values.items():
         smallest = pd.Timedelta(0) if key == "warmup" else step
@@ -250,43 +254,49 @@ def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | Non
             raise ValueError(f"{name[key]} {getattr(config, key)}: must be a whole number of {grid}, "
                              f"{'0 or more' if key == 'warmup' else 'at least one'}; e.g. {' or '.join(near)}")
     if values["period"] > length:
-        raise ValueError(f"{name['period']} {config.period}: longer than the model's period ({span(length)}); give "
+        raise ValueError(f"{name['period']} {config.period}: longer than {whose} ({span(length)}); give "
                          f"{span(step)} to {span((length // step) * step)}")
     first = utc(first)
+    text = {"first": _when(first), **({"last": _when(utc(last))} if last is not None else {}), **(shown or {})}
     if (first - start) % step:
         before = start + ((first - start) // step) * step
-        raise ValueError(f"{name['first']} {first:%Y-%m-%d %H:%M:%S}: cycles are issued at the model's output times, "
-                         f"every {span(step)} from {start:%Y-%m-%d %H:%M}; e.g. {before:%Y-%m-%d %H:%M} or "
+        raise ValueError(f"{name['first']} {text['first']}: cycles are issued at the model's output times, every "
+                         f"{span(step)} from {start:%Y-%m-%d %H:%M}; e.g. {before:%Y-%m-%d %H:%M} or "
                          f"{before + step:%Y-%m-%d %H:%M}")
     need = values["window"] + values["warmup"]
     if need > length - step:
         longest = ((length - step - values["warmup"]) // step) * step
         raise ValueError(f"{name['window']} {config.window}: with the warm-up ({span(values['warmup'])}) longer than "
-                         f"the model's period ({span(length)}) allows"
+                         f"{whose} ({span(length)}) allows"
                          + (f"; give {span(step)} to {span(longest)}" if longest >= step else
                             f"; shorten {name['warmup']}"))
     if first - need < start:
         room = ((first - start - values["warmup"]) // step) * step
         shorter = f", or shorten {name['window']} to at most {span(room)}" if room >= step else ""
-        raise ValueError(f"{name['first']} {first:%Y-%m-%d %H:%M}: the first window ({span(values['window'])}) and "
-                         f"its warm-up ({span(values['warmup'])}) need the model from {first - need:%Y-%m-%d %H:%M}, "
-                         f"before the model's period starts ({start:%Y-%m-%d %H:%M}); issue the first cycle at "
+        raise ValueError(f"{name['first']} {text['first']}: the first window ({span(values['window'])}) and its "
+                         f"warm-up ({span(values['warmup'])}) need the model from {first - need:%Y-%m-%d %H:%M}, "
+                         f"before {whose} starts ({start:%Y-%m-%d %H:%M}); issue the first cycle at "
                          f"{start + need:%Y-%m-%d %H:%M} or later{shorter}")
     if first > end:
-        raise ValueError(f"{name['first']} {first:%Y-%m-%d %H:%M}: after the end of the model's period "
-                         f"({end:%Y-%m-%d %H:%M})")
+        raise ValueError(f"{name['first']} {text['first']}: after the end of {whose} ({end:%Y-%m-%d %H:%M})")
     if last is None:
         return
     last = utc(last)
     if last > end:
-        raise ValueError(f"{name['last']} {last:%Y-%m-%d %H:%M}: after the end of the model's period "
-                         f"({end:%Y-%m-%d %H:%M})")
+        raise ValueError(f"{name['last']} {text['last']}: after the end of {whose} ({end:%Y-%m-%d %H:%M})")
     final = first + ((last - first) // values["period"]) * values["period"] if last >= first else first
     if final + values["horizon"] > end:
         longest = ((end - final) // step) * step
-        room = (f"the horizon can be {span(step)} to {span(longest)}" if longest >= step else
-                "no forecast fits")
+        latest = end - values["horizon"]
+        ways = [f"the horizon can be {span(step)} to {span(longest)}"] if longest >= step else []
+        which = f"the last cycle ({name['last']})" if latest >= first else \
+            f"every cycle ({name['first']} and {name['last']})"
+        ways.append(f"issue {which} at {latest:%Y-%m-%d %H:%M} or earlier")
         raise ValueError(f"{name['horizon']} {config.horizon}: the last cycle, issued at {final:%Y-%m-%d %H:%M}, "
-                         f"would forecast to {final + values['horizon']:%Y-%m-%d %H:%M}, after the end of the "
-                         f"model's period ({end:%Y-%m-%d %H:%M}); {room}, or end the cycles earlier "
-                         f"({name['last']})")
+                         f"would forecast to {final + values['horizon']:%Y-%m-%d %H:%M}, after the end of {whose} "
+                         f"({end:%Y-%m-%d %H:%M}), where its forcing ends; " + ", or ".join(ways))
+
+
+def _when(time: pd.Timestamp) -> str:
+    """A time for messages, to the minute (to the second where it has seconds)."""
+    return f"{time:%Y-%m-%d %H:%M}" if time.second == 0 and time.microsecond == 0 else f"{time:%Y-%m-%d %H:%M:%S}"
