@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["ISO_EXAMPLE", "interpolate_at", "parse_iso", "seconds_since", "utc", "utc_index"]
+__all__ = ["ISO_EXAMPLE", "interpolate_at", "iso_datetime", "parse_iso", "seconds_since", "utc", "utc_index"]
 
 #: How messages show the expected form of a time.
 ISO_EXAMPLE = "ISO 8601, YYYY-MM-DD with an optional time, e.g. 2010-10-18 or 2010-10-18T06:00Z"
@@ -71,6 +71,26 @@ def _not_iso(text: str) -> str:
         return f"{text!r} is not an ISO 8601 date; write it as {ISO_EXAMPLE}" + (
             f" (here {readings[0]})" if readings else "")
     return f"{text!r} is not a date or time in {ISO_EXAMPLE}"
+
+
+def iso_datetime(value: Any) -> Any:
+    """A date field of a file (``case.toml``, ``model.toml``) before pydantic reads it: ISO 8601 or a TOML date.
+
+    Text is read by :func:`parse_iso` (a date such as ``10-11-2010`` is refused with its readings); a TOML
+    date or date-time passes as it is; a number is refused — pydantic would take ``20101018`` for seconds
+    since 1970 and give 21 August 1970.
+
+    Raises
+    ------
+    ValueError
+        For text that is not ISO 8601, or a number.
+    """
+    if isinstance(value, bool | int | float):
+        raise ValueError(f"{value!r} is a number, not a date; write the date in {ISO_EXAMPLE} (as text or a TOML "
+                         "date)")
+    if isinstance(value, str):
+        return parse_iso(value).to_pydatetime()
+    return value
 
 
 def utc(time: Any) -> pd.Timestamp:

@@ -124,3 +124,46 @@ def test_more_workers_than_cores_are_refused_with_the_limit() -> None:
     with pytest.raises(ValueError, match="online workers 0: give 1 to"):
         OnlineConfig(workers=0)
     assert np.isfinite(limit)
+
+
+class _Notes:
+    """A progress display that keeps the notes (the lines a terminal would show)."""
+
+    def __init__(self) -> None:
+        self.notes: list[str] = []
+
+    def stage(self, text: str) -> None:
+        pass
+
+    def step(self, done: int, total: int | None, text: str) -> None:
+        pass
+
+    def note(self, text: str) -> None:
+        self.notes.append(text)
+
+
+def test_following_a_folder_skips_refused_files_and_stores_the_rest(tmp_path) -> None:
+    """--follow: a file of another network and one in cm are reported and skipped; the good one runs the cycle."""
+    from rivercal.io import write_observations_csv
+    from rivercal.workflows.online import run_online
+
+    model = ToyRiver()
+    obs = _observations(model, [], start="2010-10-20", end="2010-10-28")
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    write_observations_csv(obs, inbox / "good.csv")
+    write_observations_csv(ObservationSet(tuple(ObservationSeries("Z" + s.id, s.times, s.values) for s in obs)),
+                           inbox / "other.csv")
+    write_observations_csv(ObservationSet(tuple(ObservationSeries(s.id, s.times, s.values * 100) for s in obs)),
+                           inbox / "cm.csv")
+    notes = _Notes()
+    config = OnlineConfig(parameters=("FA",), workers=1, window="2D", deadline_s=None)
+    summary = run_online(model, tmp_path / "run.sqlite", "r", config, FIRST, FIRST, follow=inbox, poll=0.01,
+                         progress=notes)
+    assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
+    text = "\n".join(notes.notes)
+    assert "skipped other.csv: other.csv: column 'ZA.h': station 'ZA' is not in model 'toy'" in text
+    assert "skipped cm.csv: cm.csv: column 'A.h':" in text and "they look like cm" in text
+    with Store(tmp_path / "run.sqlite") as store:
+        sources = {r[0] for r in store._conn.execute("SELECT DISTINCT source FROM observations")}
+    assert sources == {"good.csv"}

@@ -57,3 +57,22 @@ def test_a_date_that_is_not_iso_8601_is_refused_not_guessed(text: str, message: 
                                   "2010-11-10T01:00+01:00", "2010-11-10T00:00Z", "2010-W45-3"])
 def test_every_iso_8601_form_of_a_date_is_read(text: str) -> None:
     assert utc(text) == pd.Timestamp("2010-11-10T00:00Z")
+
+
+@pytest.mark.parametrize(("start", "message"), [
+    (20200101, "case.start: 20200101 is a number, not a date"),
+    ("01-02-2020", "case.start: '01-02-2020' is ambiguous: day first it is 2020-02-01, month first 2020-01-02"),
+])
+def test_a_case_file_date_is_iso_8601_never_a_guess(start, message) -> None:
+    """pydantic alone read 20200101 as seconds since 1970 (21 August 1970) and '20200101' the same way."""
+    import tomllib
+
+    from rivercal.case.load import case_from_dict, resolve_case_path
+    from rivercal.errors import CaseError
+
+    root = resolve_case_path("synthetic")
+    data = tomllib.loads((root / "case.toml").read_text(encoding="utf-8"))
+    with pytest.raises(CaseError, match=re.escape(message)):
+        case_from_dict({**data, "case": {**data["case"], "start": start}}, root)
+    basic = case_from_dict({**data, "case": {**data["case"], "start": "20200101"}}, root)
+    assert basic.start == pd.Timestamp("2020-01-01T00:00Z")  # ISO 8601's basic form

@@ -10,6 +10,13 @@ twice or skipped:
   a process killed in between leaves it ``running`` with no results, and :meth:`Store.next_cycle` returns
   that cycle again on restart (then the next index). Cycle indices are contiguous and unique
   (UNIQUE (run_id, cycle); a gap or a second commit of a final cycle is refused).
+- **One process per cycle.** The process that begins a cycle is recorded by its process id and start time
+  (``pid@host/start``); while that process runs, another is refused the cycle. A process that merely has
+  the dead owner's id (after a reboot or a container restart) is told apart by its start time;
+  ``begin_cycle(..., take_over=True)`` (``rivercal online --take-over``) overrides the check.
+- **Readers on read-only file systems.** ``readonly=True`` opens the file with SQLite's ``mode=ro``; where
+  its folder cannot be written (no shared-memory file can be made beside it) and no write-ahead log holds
+  changes not yet in the file, the file is read as immutable.
 - **WAL journal, synchronous=FULL.** WAL lets a dashboard read while the service writes. In WAL mode
   ``synchronous=NORMAL`` already survives a killed *process* (committed pages are in the WAL file, in the
   operating system's cache) but may lose the last transactions on power loss or an OS crash; ``FULL``

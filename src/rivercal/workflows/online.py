@@ -132,7 +132,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             meta["realism"] = level.summary()
     if scenario and rain_error:
         meta["rain_error"] = rain_error
-    ranges: dict[str, tuple[float, float]] | None = None
+    ranges: dict[str, Any] = {}
     if observations or follow is not None:
         ranges = _screen_deliveries(model, config, first, last, observations, progress)
     if not is_url(db):
@@ -158,7 +158,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             store.ingest(truth.observations, source=f"twin:{scenario}", screen=ScreenRule())
             truth_series = truth.series
         for source, obs in observations:
-            store.ingest(obs, source=source, screen=ScreenRule(), plausible=ranges)
+            store.ingest(obs, source=source, screen=ScreenRule(),
+                         plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
         finished = int(store.cycles(service.run)["status"].isin(FINAL_STATUSES).sum())
         total = int((last - service.schedule.first_issue) // service.period) + 1
         if max_cycles is not None:
@@ -180,7 +181,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         if follow is None:
             service.replay(last, progress=on_cycle, max_cycles=max_cycles)
         else:
-            _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress, ranges or {})
+            _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress, ranges)
         summary = online_summary(store, service, outcomes, time.perf_counter() - t_start, truth=truth_series)
         if report is not None:
             from rivercal.report.online import write_online_report
@@ -229,8 +230,8 @@ def ingest_file(store: Any, path: str | Path, model: Any, ranges: Any, progress:
 
 
 def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Timestamp,
-                       observations: Sequence[tuple[str, Any]], progress: Progress) -> dict[str, tuple[float, float]]:
-    """Check the given files against the model; the plausible range (low, high) of each series for the store.
+                       observations: Sequence[tuple[str, Any]], progress: Progress) -> dict[str, Any]:
+    """Check the given files against the model; the plausible range of each series (for the files to come too).
 
     The series of every file are checked first (no model run); then the model runs the data period once
     (:func:`rivercal.online.screening.plausible_ranges`) and every file's values are checked against it.
@@ -248,7 +249,7 @@ def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Ti
         for note in check_delivery(obs, source, ranges):
             log.warning("%s", note)
             progress.note(note)
-    return {sid: (r.low, r.high) for sid, r in ranges.items()}
+    return ranges
 
 
 def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: float, on_cycle: Callable[[Any], None],
