@@ -65,8 +65,10 @@ def test_a_request_with_a_body_is_still_answered(server: int) -> None:
     answer = _ask(server, b"GET /api/version HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\nConnection: close\r\n\r\n"
                           b"hello")
     assert answer.startswith(b"HTTP/1.1 200 ") and b'"run":"dash"' in answer
-    answer = _ask(server, b"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\nConnection: close\r\n\r\nhello")
-    assert answer.startswith(b"HTTP/1.1 405 ")
+    for method in ("POST", "PUT", "DELETE", "PATCH", "OPTIONS"):
+        answer = _ask(server, f"{method} /cycles HTTP/1.1\r\nHost: x\r\nContent-Length: 8\r\nConnection: close\r\n"
+                              "\r\ncycle=99".encode())
+        assert answer.startswith(b"HTTP/1.1 405 ") and b"allow: GET, HEAD" in answer, method
     big = MAX_BODY + 10
     answer = _ask(server, f"GET / HTTP/1.1\r\nHost: x\r\nContent-Length: {big}\r\nConnection: close\r\n\r\n".encode()
                   + b"x" * big)
