@@ -18,17 +18,22 @@ writes each file under a temporary name before renaming it into place.
 
 Where: ``$XDG_CACHE_HOME/rivercal/kernels`` or ``~/.cache/rivercal/kernels``. Where ``NUMBA_CACHE_DIR``
 is set, numba's own locator is used (that setting wins); without a home folder, or where the folder cannot
-be written, numba keeps the kernels beside their sources as before. At most :data:`KEEP` versions of a
-folder's kernels are kept; using a new one removes the least recently used beyond that.
+be written, numba keeps the kernels beside their sources as before. Where that cannot be written either (a
+read-only installation run by a user whose home cannot be written), numba would refuse to compile them at
+all ("cannot cache function"); they are then kept in a private folder of the process (removed when it ends)
+and the process compiles them for itself, with a warning that says how to keep them. At most :data:`KEEP`
+versions of a folder's kernels are kept; using a new one removes the least recently used beyond that.
 """
 
 from __future__ import annotations
 
+import atexit
 import functools
 import hashlib
 import logging
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 from rivercal._cache_dirs import user_cache
@@ -61,6 +66,9 @@ def install() -> None:
     locator = _locator_class()
     if locator not in classes:
         classes.insert(0, locator)
+    last_resort = _private_locator_class()
+    if last_resort not in classes:
+        classes.append(last_resort)
 
 
 def kernel_folder(source: str | Path) -> Path | None:
@@ -175,5 +183,81 @@ def _unwritable(version: Path, reason: str) -> None:
     if version in _REPORTED:
         return
     _REPORTED.add(version)
-    log.warning("the compiled kernels cannot be kept in %s (%s); numba keeps them in its default place",
-                version, reason)
+    log.warning("the compiled kernels cannot be kept in %s (%s); numba keeps them in its default place where it "
+                "can write", version, reason)
+
+
+@functools.cache
+def _private_locator_class() -> type:
+    """The last numba cache locator: rivercal's kernels in a private folder of this process, when no other can."""
+    from numba.core.caching import _CacheLocator
+
+    class PrivateKernelLocator(_CacheLocator):
+        """Places the kernels of a rivercal source file in this process's own folder (none could be written)."""
+
+        def __init__(self, py_func, py_file: str, folder: Path):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._folder = folder
+
+        def get_cache_path(self) -> str:
+            return str(self._folder)
+
+        def get_source_stamp(self) -> str:
+            return _source_stamp(self._py_file)
+
+        def get_disambiguator(self) -> str:
+            return str(self._lineno)
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            try:
+                relative = Path(py_file).resolve().relative_to(_PACKAGE)
+            except (ValueError, OSError):
+                return None
+            folder = _private_folder()
+            if folder is None:
+                return None
+            self = cls(py_func, py_file, folder / ".".join(relative.parent.parts))
+            try:
+                self.ensure_cache_path()
+            except OSError:
+                return None
+            _report_private(folder)
+            return self
+
+    return PrivateKernelLocator
+
+
+_PRIVATE: dict[int, Path | None] = {}
+
+
+def _private_folder() -> Path | None:
+    """The folder of this process's own kernels (made once, 0700, removed when the process that made it ends)."""
+    pid = os.getpid()
+    if pid not in _PRIVATE:
+        try:
+            folder = Path(tempfile.mkdtemp(prefix="rivercal-kernels-"))
+        except OSError as exc:
+            log.warning("the compiled kernels cannot be kept anywhere (%s)", exc)
+            _PRIVATE[pid] = None
+            return None
+        _PRIVATE[pid] = folder
+        atexit.register(_remove_private, pid, folder)
+    return _PRIVATE[pid]
+
+
+def _remove_private(pid: int, folder: Path) -> None:
+    if os.getpid() == pid:  # not in a forked child that ends normally: the folder is its parent's
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _report_private(folder: Path) -> None:
+    """Say once per process that the kernels are compiled for this process only."""
+    if folder in _REPORTED:
+        return
+    _REPORTED.add(folder)
+    log.warning("the compiled kernels cannot be kept on disk (neither the user's cache folder nor the folder of "
+                "rivercal's sources can be written): this process compiles them for itself (about a minute) and "
+                "keeps them in %s until it ends. Set XDG_CACHE_HOME (or NUMBA_CACHE_DIR) to a folder you can write "
+                "to keep them for the next runs", folder)

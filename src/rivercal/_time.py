@@ -3,16 +3,94 @@
 One conversion for a time (:func:`utc`), one for a time index (:func:`utc_index`), and the linear
 interpolation of a series to other times (:func:`interpolate_at`, e.g. simulated values at the
 observation times).
+
+Times written as text are read as ISO 8601 only (:func:`parse_iso`): ``2010-11-10``,
+``2010-11-10T06:00``, ``2010-11-10 06:00:00+01:00``, ``20101110``. A date such as ``10-11-2010`` is
+refused, not guessed: it is 10 November to a Dutch reader and October 11 to pandas.
 """
 
 from __future__ import annotations
 
+import re
+from datetime import datetime
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["interpolate_at", "seconds_since", "utc", "utc_index"]
+__all__ = ["ISO_EXAMPLE", "interpolate_at", "iso_datetime", "parse_iso", "seconds_since", "utc", "utc_index"]
+
+#: How messages show the expected form of a time.
+ISO_EXAMPLE = "ISO 8601, YYYY-MM-DD with an optional time, e.g. 2010-10-18 or 2010-10-18T06:00Z"
+#: Day, month and year in some order, separated by -, / or . (10-11-2010, 11/10/2010, 10.11.10).
+_NUMERIC_DATE = re.compile(r"^\s*(\d{1,2})[-/.](\d{1,2})[-/.](\d{2}|\d{4})\b")
+
+
+def parse_iso(text: str) -> pd.Timestamp:
+    """A time written in ISO 8601 as a pandas Timestamp (naive or aware, as written).
+
+    Accepted: the forms of :meth:`datetime.fromisoformat` — ``YYYY-MM-DD`` (or ``YYYYMMDD``, or an ISO week
+    date ``YYYY-Www-D``), optionally followed by ``T`` or a space and a time ``HH[:MM[:SS[.ffffff]]]``, and
+    an offset ``Z`` or ``±HH:MM``.
+
+    Raises
+    ------
+    ValueError
+        Naming the text and the expected form; a date of numbers in another order (``10-11-2010``) is
+        called ambiguous, with both readings.
+    """
+    if not isinstance(text, str):
+        raise ValueError(f"not a time: {text!r}")
+    stripped = text.strip()
+    try:
+        parsed = datetime.fromisoformat(stripped.replace("z", "Z"))
+    except ValueError:
+        raise ValueError(_not_iso(stripped)) from None
+    try:
+        return pd.Timestamp(parsed).as_unit("ns")
+    except (ValueError, OverflowError):
+        raise ValueError(f"{stripped!r} lies outside the times rivercal can hold ({pd.Timestamp.min:%Y} to "
+                         f"{pd.Timestamp.max:%Y})") from None
+
+
+def _not_iso(text: str) -> str:
+    """Why ``text`` is refused: ambiguous (with its readings) or not ISO 8601 at all."""
+    numeric = _NUMERIC_DATE.match(text)
+    if numeric is not None:
+        first, second, year = numeric.groups()
+        year = year if len(year) == 4 else f"{'19' if int(year) > 50 else '20'}{year}"
+        readings = []
+        for day, month in ((first, second), (second, first)):
+            try:
+                readings.append(datetime(int(year), int(month), int(day)).strftime("%Y-%m-%d"))
+            except ValueError:
+                continue
+        if len(set(readings)) > 1:
+            return (f"{text!r} is ambiguous: day first it is {readings[0]}, month first {readings[1]}; write the date "
+                    f"in {ISO_EXAMPLE}")
+        return f"{text!r} is not an ISO 8601 date; write it as {ISO_EXAMPLE}" + (
+            f" (here {readings[0]})" if readings else "")
+    return f"{text!r} is not a date or time in {ISO_EXAMPLE}"
+
+
+def iso_datetime(value: Any) -> Any:
+    """A date field of a file (``case.toml``, ``model.toml``) before pydantic reads it: ISO 8601 or a TOML date.
+
+    Text is read by :func:`parse_iso` (a date such as ``10-11-2010`` is refused with its readings); a TOML
+    date or date-time passes as it is; a number is refused — pydantic would take ``20101018`` for seconds
+    since 1970 and give 21 August 1970.
+
+    Raises
+    ------
+    ValueError
+        For text that is not ISO 8601, or a number.
+    """
+    if isinstance(value, bool | int | float):
+        raise ValueError(f"{value!r} is a number, not a date; write the date in {ISO_EXAMPLE} (as text or a TOML "
+                         "date)")
+    if isinstance(value, str):
+        return parse_iso(value).to_pydatetime()
+    return value
 
 
 def utc(time: Any) -> pd.Timestamp:
@@ -21,14 +99,15 @@ def utc(time: Any) -> pd.Timestamp:
     Parameters
     ----------
     time
-        Anything :class:`pandas.Timestamp` takes: text (ISO 8601), a datetime, a Timestamp, a number of ns.
+        Text in ISO 8601 (:func:`parse_iso`; other text is refused, never guessed), a datetime, a
+        Timestamp, a numpy datetime64 or a number of ns.
 
     Raises
     ------
     ValueError
-        If ``time`` is not a time (text that does not parse, None, NaT).
+        If ``time`` is not a time (text that is not ISO 8601, None, NaT).
     """
-    ts = pd.Timestamp(time)
+    ts = parse_iso(time) if isinstance(time, str) else pd.Timestamp(time)
     if ts is pd.NaT or pd.isna(ts):
         raise ValueError(f"not a time: {time!r}")
     return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")

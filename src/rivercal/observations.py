@@ -116,7 +116,8 @@ class ObservationSeries:
         name = id or str(series.name)
         station, _, quantity = name.rpartition(".")
         if not station or quantity not in QUANTITIES:
-            raise ValueError(f"observation id {name!r} must be '<station>.<quantity>' with quantity one of "
+            shown = repr(name) if len(name) <= 80 else f"{name[:60]!r}… ({len(name)} characters)"
+            raise ValueError(f"observation id {shown} must be '<station>.<quantity>' with quantity one of "
                              f"{', '.join(QUANTITIES)}")
         if sigma is not None and not sigma > 0:
             raise ValueError(f"{name}: sigma must be positive, got {sigma}")

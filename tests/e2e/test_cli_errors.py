@@ -16,6 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from rivercal.cli.main import app
+from rivercal.evaluate import default_workers
 
 
 def rivercal(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
@@ -43,6 +44,26 @@ def test_version_and_versions_of_the_numeric_stack() -> None:
     (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--seed",
       "-3"], "--seed -3: must be at least 0"),
     (["simulate", "synthetic", "--set", "weir:W99.crest_level=3"], "--set weir:W99.crest_level=3: no weir 'W99'"),
+    # the case's own rule, as case.toml applies it: a crest not below the bed at the weir
+    (["simulate", "synthetic", "--set", "weir:W1.crest_level=-100"], "--set weir:W1.crest_level=-100: the crest of "
+     "weir 'W1' (-100 m AD) lies below the bed (13.250 m AD at chainage 1500 m of branch 'M'); case.toml refuses the "
+     "same value at weirs[0].crest_level"),
+    # a Dutch user's 10 November, which pandas reads as October 11
+    (["simulate", "synthetic", "--start", "10-11-2010"], "--start '10-11-2010' is ambiguous: day first it is "
+     "2010-11-10, month first 2010-10-11; write the date in ISO 8601"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--workers",
+      str(default_workers() + 1)], f"--workers {default_workers() + 1}: give 1 to {default_workers()} worker "
+     "processes"),
+    (["case", "plot", "dommel", "--out", "/proc/x.png"], "--out /proc/x.png: cannot write into /proc"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27T00:00/2010-09-27T00:30", "--twin", "FA=20"],
+     "--window '2010-09-27T00:00/2010-09-27T00:30': 2010-09-27 00:30:00 is not one of the model's output times (every "
+     "1h from 2010-09-01 00:00)"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--bounds",
+      "FA=-50:100"], "--bounds FA=-50:100: parameter FA: its range [-50, 100] m^(1/3)/s reaches outside the model's "
+     "bounds (friction:global: value -50 m^(1/3)/s is outside its range [1, 200] m^(1/3)/s)"),
+    (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--dask",
+      f"local:{default_workers() + 1}"], f"--dask local:{default_workers() + 1}: N = {default_workers() + 1}: give 1 "
+     f"to {default_workers()} worker processes"),
     (["calibrate", "dommel", "--params", "FA", "--window", "2010-09-27/2010-10-04", "--twin", "FA=20", "--algorithm",
       "lm"], "--algorithm 'lm': it is now called trf (scipy's trust-region reflective method"),
 ])
@@ -138,3 +159,16 @@ def test_the_cases_calibration_options_take_words_and_a_bad_one_is_named_with_it
                     "'auto', 'fresh', 'secant'; got 'secnt'") in run.stderr
     fit = json.loads(run.stdout)
     assert abs(fit["estimates"]["F1"] - 28.0) < 3 * fit["std"]["F1"] < 1.0  # the twin's noise: within 3 σ
+
+
+def test_an_empty_file_is_not_a_store(tmp_path: Path) -> None:
+    """Not "schema version 0 is older than 6": an empty file never held a run."""
+    empty = tmp_path / "run.sqlite"
+    empty.write_bytes(b"")
+    run = CliRunner().invoke(app, ["report", "--db", str(empty), "--out", str(tmp_path / "report")])
+    assert run.exit_code == 2, run.output
+    assert f"--db {empty}: an empty file, not a store (no run was ever written to it)" in run.stderr
+    from rivercal.store import Store, StoreError
+
+    with pytest.raises(StoreError, match="not a rivercal store: an empty database"):
+        Store(empty, readonly=True)

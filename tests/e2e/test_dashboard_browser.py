@@ -26,8 +26,12 @@ PAGES = ("/", "/estimates", "/forecasts", "/map", "/cycles")
 def served(tmp_path_factory):
     folder = tmp_path_factory.mktemp("dashboard")
     db = build_store(folder / "run.sqlite", N_CYCLES)
-    proc, url = start_dashboard(db)
-    driver = chrome(folder / "profile")
+    driver = chrome(folder / "profile")  # first: without a browser no server is left behind
+    try:
+        proc, url = start_dashboard(db)
+    except BaseException:
+        driver.quit()
+        raise
     try:
         yield db, url, driver
     finally:

@@ -7,8 +7,8 @@
   summary says that the observations end before the forecasts' first lead time;
 - the earliest first cycle (its window and warm-up start exactly at the case start) runs; an hour
   earlier is refused naming --from;
-- a replay shorter than the forecast horizon whose last cycle is issued at the case end runs; past the
-  end is refused naming --to;
+- a replay whose last forecast ends at the case end runs; a cycle whose forecast would run past the end
+  (the forcing ends there) is refused naming --horizon, and a cycle issued after the end naming --to;
 - a calibration window whose runs start exactly at the case start runs and finds the twin truth; one
   whose warm-up would start before the case is refused naming --window.
 """
@@ -76,22 +76,22 @@ def test_the_first_window_touching_the_case_start(tmp_path: Path) -> None:
         early.stderr
 
 
-def test_a_replay_shorter_than_the_horizon_up_to_the_case_end(tmp_path: Path) -> None:
-    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01", "--db",
+def test_a_replay_whose_last_forecast_ends_at_the_case_end(tmp_path: Path) -> None:
+    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-28", "--to", "2010-11-29", "--db",
                    str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 2 and summary["status"] == {"done": 2}
     assert summary["forecast_errors"]["n"] > 0  # the first cycle's first day is observed
     assert [round(e["FA"]) for e in summary["estimates"]] == [25, 25]
-    # one cycle issued at the case's end: no model time follows it, so the report has no levels to compare
-    last = rivercal("online", "dommel", "--scenario", "PI-Fg", "--params", "FA", "--no-transition", "--from",
-                    "2010-12-01", "--to", "2010-12-01", "--db", str(tmp_path / "last.sqlite"), "--out",
-                    str(tmp_path / "last"), "--workers", "2", "--quiet")
-    assert last.returncode == 0, last.stderr
-    page = html.unescape((tmp_path / "last" / "index.html").read_text(encoding="utf-8"))
-    assert "the replayed cycles are issued at the end of the case (2010-12-01 00:00)" in page
-    late = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01T01:00",
+    # a cycle issued at the case's end would forecast 48 h on forcing the case does not have: refused
+    last = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01", "--db",
+                    str(tmp_path / "last.sqlite"))
+    assert last.returncode == 2
+    assert ("--horizon 48h: the last cycle, issued at 2010-12-01 00:00, would forecast to 2010-12-03 00:00, after the "
+            "end of the case (2010-12-01 00:00), where its forcing ends; issue every cycle (--from and --to) at "
+            "2010-11-29 00:00 or earlier") in " ".join(last.stderr.split())
+    late = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-28", "--to", "2010-12-01T01:00",
                     "--db", str(tmp_path / "late.sqlite"))
     assert late.returncode == 2 and "--to 2010-12-01T01:00: after the end of the case" in late.stderr
 

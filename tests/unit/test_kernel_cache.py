@@ -129,3 +129,33 @@ def test_rivercal_kernels_use_the_locator(kernel) -> None:
     locator = dispatcher._cache._impl.locator
     expected = kernel_folder(dispatcher.py_func.__code__.co_filename)
     assert expected is not None and Path(locator.get_cache_path()) == expected
+
+
+def test_where_no_folder_can_be_written_the_process_compiles_the_kernels_for_itself(tmp_path) -> None:
+    """A read-only installation run by a user whose home cannot be written: numba said "cannot cache function".
+
+    The copy's ``hydrology/__pycache__`` is a file (numba cannot keep the kernel beside its source) and the
+    home and cache folders lie below a file (neither rivercal's folder nor numba's own can be made): the kernel
+    still compiles and runs, with one warning that says how to keep it, and nothing is left behind.
+    """
+    clone = _clone(tmp_path / "a")
+    (clone / "rivercal" / "hydrology" / "__pycache__").write_text("not a folder")
+    blocked = tmp_path / "a-file"
+    blocked.write_text("not a folder")
+    private = tmp_path / "tmp"
+    private.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    env.update(PYTHONPATH=str(clone), XDG_CACHE_HOME=str(blocked / "cache"), HOME=str(blocked / "home"),
+               TMPDIR=str(private), PYTHONDONTWRITEBYTECODE="1")
+    script = "import logging; logging.basicConfig(level=logging.WARNING)\n" + SCRIPT  # as the command line does
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, cwd=clone,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    out = json.loads(run.stdout)
+    assert (out["hits"], out["misses"]) == (0, 1)
+    from rivercal.hydrology import _kernels
+
+    assert out["value"] == pytest.approx(_kernels.wetness.py_func(2.5, 10.0), rel=1e-12)
+    assert run.stderr.count("this process compiles them for itself") == 1
+    assert "XDG_CACHE_HOME" in run.stderr and "RuntimeError" not in run.stderr
+    assert list(private.iterdir()) == []  # the private folder ended with the process

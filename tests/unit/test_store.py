@@ -144,6 +144,47 @@ def test_a_cycle_left_running_is_resumed_and_counted(store: Store, run_id: int, 
     assert "left running by 999999999@elsewhere" in caplog.text
 
 
+def test_an_owner_is_a_process_id_and_its_start_time_so_a_reused_id_does_not_block(tmp_path: Path, caplog) -> None:
+    """After a reboot or a container restart a live program has the dead service's process id: it is not the owner.
+
+    The live process here is this test's parent (alive while the test runs, and not this process).
+    """
+    import os
+    import socket
+
+    import psutil
+
+    other = os.getppid()
+    started = psutil.Process(other).create_time()
+    host = socket.gethostname()
+    with Store(tmp_path / "service.db") as store:
+        run = store.create_run("r", "dommel")
+        store.begin_cycle(run, store.next_cycle(run, SCHEDULE))
+
+        def owned_by(owner: str, begun: str = "2000-01-01T00:00:00.000Z") -> None:
+            store._conn.execute("UPDATE cycles SET owner = ?, started = ?", (owner, begun))
+
+        owned_by(f"{other}@{host}/{started:.2f}")  # the live process began it: refused, with the way out
+        with pytest.raises(CycleStateError, match=rf"being computed by process {other}@{host} \(started .*still "
+                                                  r"alive.*rivercal online --take-over"):
+            store.begin_cycle(run, store.next_cycle(run, SCHEDULE))
+        owned_by(f"{other}@{host}/{started - 3600:.2f}")  # a process of that id that started an hour earlier: dead
+        assert store.begin_cycle(run, store.next_cycle(run, SCHEDULE)).attempts == 2
+        # a record of a store written before start times were kept: the process of that id started after the
+        # cycle was begun, so it cannot be the one that began it
+        owned_by(f"{other}@{host}", begun="2000-01-01T00:00:00.000Z")
+        assert store.begin_cycle(run, store.next_cycle(run, SCHEDULE)).attempts == 3
+        # ... unless it started before: then only the override takes the cycle over (and says so)
+        owned_by(f"{other}@{host}", begun=pd.Timestamp(started + 60, unit="s").strftime("%Y-%m-%dT%H:%M:%S.000Z"))
+        with pytest.raises(CycleStateError, match="still alive"):
+            store.begin_cycle(run, store.next_cycle(run, SCHEDULE))
+        with caplog.at_level(logging.WARNING, logger="rivercal.store"):
+            assert store.begin_cycle(run, store.next_cycle(run, SCHEDULE), take_over=True).attempts == 4
+        assert f"taking it over from process {other}@{host}" in caplog.text
+        mine = store.cycles(run)["owner"].iloc[0]
+        assert mine == f"{os.getpid()}@{host}/{psutil.Process().create_time():.2f}"
+
+
 def test_commit_without_begin_inserts_the_next_cycle(store: Store, run_id: int) -> None:
     store.commit_cycle(run_id, record(SCHEDULE.spec(0), status="failed", message="engine diverged"))
     assert store.cycles(run_id)[["cycle", "status", "attempts"]].values.tolist() == [[0, "failed", 1]]

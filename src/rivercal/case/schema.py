@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import re
 from datetime import UTC, datetime
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from rivercal._time import iso_datetime
 from rivercal.case.controllers import Controller, check_controllers
 from rivercal.errors import StructureOverlap
 from rivercal.network import STRUCTURE_TABLES, Culvert, FieldProblem, Identifier, Level, Network, Pump, Real, Weir
@@ -100,6 +101,11 @@ class CaseMeta(_Model):
             raise ValueError(f"{value!r} ({crs.name}) is not a projected system with coordinates in m; the case's x "
                              "and y are metres")
         return value
+
+    @field_validator("start", "end", mode="before")
+    @classmethod
+    def _iso(cls, value: Any) -> Any:
+        return iso_datetime(value)  # ISO 8601 text or a TOML date; never a number, never a guess
 
     @field_validator("start", "end")
     @classmethod
@@ -284,6 +290,11 @@ class Window(_Model):
     start: datetime = Field(description="start of the window, ISO 8601 (UTC when no offset is given)")
     end: datetime = Field(description="end of the window, ISO 8601 (UTC when no offset is given)")
     description: str = Field(default="", description="free text")
+
+    @field_validator("start", "end", mode="before")
+    @classmethod
+    def _iso(cls, value: Any) -> Any:
+        return iso_datetime(value)  # ISO 8601 text or a TOML date; never a number, never a guess
 
     @field_validator("start", "end")
     @classmethod

@@ -18,6 +18,7 @@ from rivercal.cli.options import (
     check_choice,
     check_number,
     check_truth,
+    check_workers,
     dask_address,
     open_model,
     output_dir,
@@ -88,7 +89,7 @@ def analyse(
     check_number(rel_step, "--rel-step", low=0, high=0.5, low_open=True)
     check_number(seed, "--seed", low=0)
     check_number(warmup, "--warmup", low=0, high=8784)  # at most a (leap) year, in hours
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     address = dask_address(dask, workers)
     check_number(sv_threshold, "--sv-threshold", low=0, high=1, low_open=True, high_open=True)
     check_number(k, "--k", low=1)

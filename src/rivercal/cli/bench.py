@@ -13,7 +13,7 @@ import typer
 from rich.table import Table
 
 from rivercal.cli.common import JsonOpt, emit_json, guard, out_console, watch_compilation
-from rivercal.cli.options import OptionError, check_choice, check_number, parse_names, parse_time
+from rivercal.cli.options import OptionError, check_choice, check_number, check_workers, parse_names, parse_time
 
 __all__ = ["app"]
 
@@ -98,7 +98,7 @@ def calibrate(
     names = parse_names(algorithms, "--algorithms") if algorithms is not None else None
     for name in names or []:
         check_choice(name, "--algorithms", sorted(OPTIMISERS), former=RENAMED)
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     watch_compilation(True)
     result = bench_calibrate(names or None, workers=workers)
     if as_json:
@@ -204,7 +204,7 @@ def online(
     check_choice(scenario, "--scenario", PRACTICAL_SCENARIOS)
     first = parse_time(first_issue, "--from")
     check_number(cycles, "--cycles", low=1, high=1000)
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     check_number(replay_repeats, "--replay-repeats", low=1, high=100)
     model = open_model("dommel")
     earliest = model.start + pd.Timedelta("8D")  # the 7-day window and the 24 h warm-up
@@ -240,7 +240,7 @@ def realism(
     for name in kinds or []:
         check_choice(name, "--levels", REALISM_LEVELS, "realism level")
     check_number(seed, "--seed", low=0)
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     watch_compilation(True)
     result = bench_realism(scenarios=names, levels=kinds, seed=seed, workers=workers, keep=keep)
     if as_json:

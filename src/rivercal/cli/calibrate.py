@@ -23,6 +23,7 @@ from rivercal.cli.options import (
     check_choice,
     check_number,
     check_truth,
+    check_workers,
     dask_address,
     open_model,
     optimiser_options,
@@ -80,7 +81,7 @@ def calibrate(
         raise OptionError("--noise applies to twin experiments (--twin) only", option="--noise")
     check_number(seed, "--seed", low=0)
     check_number(warmup, "--warmup", low=0, high=8784)  # at most a (leap) year, in hours
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     address = dask_address(dask, workers)
     check_number(max_nfev, "--max-nfev", low=1)
     check_number(deadline, "--deadline", low=0, low_open=True)

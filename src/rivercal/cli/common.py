@@ -24,8 +24,8 @@ from rivercal.errors import CaseError, ModelRunError, OptionError, RivercalError
 __all__ = ["CaseArg", "DaskOpt", "JsonOpt", "QuietOpt", "Reporter", "debug_enabled", "emit_json", "err_console",
            "guard", "out_console", "set_debug", "watch_compilation"]
 
-out_console = Console()
-err_console = Console(stderr=True, soft_wrap=True)
+out_console = Console(emoji=False)  # ":100:" in a message is text, not an emoji
+err_console = Console(stderr=True, soft_wrap=True, emoji=False)
 
 CaseArg = Annotated[str, typer.Argument(help="A case folder or the name of a packaged case (e.g. 'dommel'), or a "
                                              "model.toml of another model (or its folder; e.g. 'dommel-swmm').")]

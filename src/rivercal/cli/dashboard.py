@@ -9,7 +9,7 @@ import typer
 
 from rivercal.cli.common import err_console
 from rivercal.cli.options import check_number
-from rivercal.errors import OptionError
+from rivercal.errors import OptionError, RivercalError
 
 __all__ = ["dashboard"]
 
@@ -37,6 +37,39 @@ def dashboard(
         raise OptionError(f"--db {db}: {exc}", option="--db") from None
     check_number(port, "--port", low=0, high=65535)
     check_number(poll, "--poll", low=0, low_open=True)
+    _check_address(host, port)
     err_console.print(f"rivercal dashboard of {db} on http://{host}:{port}/ (read only; Ctrl-C stops it)",
                       highlight=False)
-    serve(db, host=host, port=port, poll_s=poll)
+    try:
+        serve(db, host=host, port=port, poll_s=poll)
+    except SystemExit as exc:  # uvicorn's "startup failed" (3) is not rivercal's "model run failed"
+        if exc.code in (None, 0):
+            raise
+        raise RivercalError(f"the dashboard could not start serving on {host}:{port} (the server said why above)") \
+            from None
+
+
+def _check_address(host: str, port: int) -> None:
+    """``--host``/``--port``: an address of this machine, a port free to listen on (checked by binding to it)."""
+    import errno
+    import socket
+
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+    except (socket.gaierror, UnicodeError) as exc:
+        raise OptionError(f"--host {host}: not an address (nor a name this machine can look up: "
+                          f"{getattr(exc, 'strerror', None) or exc}); e.g. 127.0.0.1 (this machine only) or 0.0.0.0 "
+                          "(every network)", option="--host") from None
+    with socket.socket(family, kind, proto) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind(address)
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                raise OptionError(f"--port {port}: already in use on {host}; give another port", option="--port") \
+                    from None
+            if exc.errno in (errno.EACCES, errno.EPERM):
+                raise OptionError(f"--port {port}: not allowed for this user ({exc.strerror}); ports below 1024 need "
+                                  "privileges, e.g. 8050", option="--port") from None
+            raise OptionError(f"--host {host}: cannot listen there ({exc.strerror or exc}); is it an address of "
+                              "this machine? e.g. 127.0.0.1 or 0.0.0.0", option="--host") from None

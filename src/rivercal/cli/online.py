@@ -6,6 +6,7 @@ A restarted command with the same ``--db`` and ``--run`` resumes at the first un
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -26,6 +27,7 @@ from rivercal.cli.options import (
     check_choice,
     check_number,
     check_overlap,
+    check_workers,
     dask_address,
     open_model,
     output_dir,
@@ -38,7 +40,7 @@ from rivercal.cli.options import (
     read_observations,
     workers_for,
 )
-from rivercal.errors import OptionError
+from rivercal.errors import OptionError, RivercalError
 
 __all__ = ["demo", "online", "print_summary", "report"]
 
@@ -98,6 +100,10 @@ def online(
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
     dask: DaskOpt = None,
     out: Annotated[Path | None, typer.Option(help="Write the report and exports into this folder.")] = None,
+    take_over: Annotated[bool, typer.Option(
+        "--take-over", help="Resume a cycle that the store says a live process computes: after a reboot or a "
+                            "container restart another program may have the dead service's process id. Only when "
+                            "no other service runs this run.")] = False,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -142,9 +148,9 @@ def online(
     names = parse_names(params, "--params")
     if not names:
         raise OptionError("--params: give at least one parameter name", option="--params")
-    durations = {o: parse_duration(v, o) for o, v in (("--window", window), ("--cycle", cycle),
-                                                       ("--horizon", horizon))}
-    spin = parse_duration(warmup, "--warmup", allow_zero=True)
+    for option, text in (("--window", window), ("--cycle", cycle), ("--horizon", horizon)):
+        parse_duration(text, option)
+    parse_duration(warmup, "--warmup", allow_zero=True)
     check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
     check_number(deadline, "--deadline", low=0, low_open=True)
     read_dependency(dependency, dependency_threshold, algorithm, names)
@@ -166,7 +172,7 @@ def online(
     check_number(rain_error, "--rain-error", low=0, high=2)
     if rain_error and scenario is None:
         raise OptionError("--rain-error applies to the twin observations of --scenario only", option="--rain-error")
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     address = dask_address(dask, workers)
     files = [(p.name, read_observations(p)) for p in observations]
     db = _store_file(db, "--db")
@@ -180,31 +186,57 @@ def online(
         raise OptionError(f"--params: unknown parameter {unknown[0]!r}; {model.name!r} defines {', '.join(known)}",
                           option="--params")
     check_overlap(model, names)
-    earliest = model.start + durations["--window"] + spin
-    if first < earliest:
-        raise OptionError(f"--from {date_from}: the first window ({window}) and its warm-up ({warmup}) need the model "
-                          f"from {first - durations['--window'] - spin:%Y-%m-%d %H:%M}, before the case starts "
-                          f"({model.start:%Y-%m-%d %H:%M}); issue the first cycle at {earliest:%Y-%m-%d %H:%M} or "
-                          "later", option="--from")
-    if last > model.end:
-        raise OptionError(f"--to {date_to}: after the end of the case ({model.end:%Y-%m-%d %H:%M})", option="--to")
+    config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
+                          algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
+                          loss=loss, transition=transition, skill_cycles=skill_cycles, workers=None,
+                          dependency=str(dependency) if dependency is not None else None,
+                          dependency_threshold=dependency_threshold)
+    check_times(model, config, first, last, {"first": date_from, "last": date_to})
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("starting"), workers_for(workers, address) as where:
-        config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
-                              algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
-                              loss=loss, transition=transition, skill_cycles=skill_cycles, workers=where,
-                              dependency=str(dependency) if dependency is not None else None,
-                              dependency_threshold=dependency_threshold)
+        config = replace(config, workers=where)
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter,
                              assimilation=AssimilationConfig(mode=assimilate, members=members, method=ensemble_filter,
                                                              seed=seed),
-                             rain_error=rain_error)
+                             rain_error=rain_error, take_over=take_over)
     if as_json:
         emit_json(summary)
     elif not quiet:
         print_summary(summary)
+    if summary["cycles_done_now"] and not summary["cycles_succeeded_now"]:
+        raise NoCycleSucceeded(summary)
+
+
+class NoCycleSucceeded(RivercalError):
+    """Cycles ran, and none of them ended ``done``: exit status 1, with what the cycles said."""
+
+    def __init__(self, summary: dict[str, Any]):
+        n = summary["cycles_done_now"]
+        kinds = ", ".join(f"{v} {k}" for k, v in sorted(summary.get("status_now", {}).items()))
+        first = summary.get("first_message_now") or ""
+        super().__init__(f"no cycle succeeded: {'the' if n > 1 else 'the one'} cycle{'s' if n > 1 else ''} run now "
+                         f"{'all ' if n > 1 else ''}ended without an estimate ({kinds or n}); the first said: "
+                         f"{first}. They are stored in {summary['db']} (run {summary['run']!r}) with the last "
+                         "accepted estimates kept")
+
+
+#: The options that set the times of an on-line run, by the setting they set (for the messages of the checks).
+_TIME_OPTIONS = {"window": "--window", "period": "--cycle", "horizon": "--horizon", "warmup": "--warmup",
+                 "first": "--from", "last": "--to"}
+
+
+def check_times(model: Any, config: Any, first: Any, last: Any, shown: dict[str, str]) -> None:
+    """The times of the run against the model (:func:`rivercal.online.config.check_schedule`), named by option."""
+    from rivercal.online.config import check_schedule
+
+    try:
+        check_schedule(model, config, first, last, names=_TIME_OPTIONS, shown=shown)
+    except ValueError as exc:
+        text = str(exc)
+        option = next((o for o in _TIME_OPTIONS.values() if text.startswith(o + " ")), "--window")
+        raise OptionError(text, option=option) from None
 
 
 def _store_file(db: str | Path, option: str, *, must_exist: bool = False) -> str | Path:
@@ -214,9 +246,15 @@ def _store_file(db: str | Path, option: str, *, must_exist: bool = False) -> str
     if is_url(db):
         return str(db)
     db = Path(db)
-    if must_exist and not db.is_file():
-        raise OptionError(f"{option} {db}: no such store", option=option)
-    output_file(db, option)
+    if must_exist:  # read only: the store may lie where nothing can be written (a read-only mount)
+        if not db.is_file():
+            raise OptionError(f"{option} {db}: {'is a folder, not a store' if db.is_dir() else 'no such store'}",
+                              option=option)
+        if db.stat().st_size == 0:
+            raise OptionError(f"{option} {db}: an empty file, not a store (no run was ever written to it)",
+                              option=option)
+    else:
+        output_file(db, option)
     if db.is_file() and db.stat().st_size > 0:
         with db.open("rb") as fh:
             if fh.read(16) != b"SQLite format 3\x00":
@@ -307,7 +345,7 @@ def demo(
            follow=None, poll=10.0, run="demo-PI-Fg", params="FA,Wd", window="7D", cycle="1D", horizon="48h",
            warmup="24h", algorithm="dud", deadline=60.0, max_change=None, alert_k=3.0, loss="huber", transition=True,
            skill_cycles=3, noise="none", seed=0, realism="realistic", max_cycles=None, workers=workers, dask=None,
-           out=out / "report", as_json=as_json, quiet=False)
+           out=out / "report", take_over=False, as_json=as_json, quiet=False)
 
 
 def report(

@@ -19,6 +19,7 @@ __all__ = [
     "check_choice",
     "check_number",
     "check_truth",
+    "check_workers",
     "dask_address",
     "input_file",
     "open_model",
@@ -67,11 +68,25 @@ def dask_address(address: str | None, workers: int | None) -> str | None:
     text = address.strip()
     local = re.fullmatch(r"local:(\d+)", text)
     if local is not None and int(local.group(1)) >= 1:
+        check_workers(int(local.group(1)), f"--dask {address}: N =")
         return text
     if local is None and re.fullmatch(r"(tcp|tls)://[^\s/:]+:\d+/?", text):
         return text
     raise OptionError(f"--dask {address!r}: expected local:N (N ≥ 1 worker processes on this machine) or "
                       "tcp://HOST:PORT (the address of a running Dask scheduler)", option="--dask")
+
+
+def check_workers(workers: int | None, option: str = "--workers") -> None:
+    """``--workers``: a whole number from 1 to the cores available to this process (None: all of them).
+
+    More is refused with the limit, not cut down (:func:`rivercal.evaluate.check_workers` says why).
+    """
+    from rivercal.evaluate import check_workers as check
+
+    try:
+        check(workers, option)
+    except ValueError as exc:
+        raise OptionError(str(exc), option=option.split()[0]) from None
 
 
 @contextlib.contextmanager
@@ -171,26 +186,58 @@ def parse_sets(values: list[str], model: Any | None = None) -> dict[str, float]:
             except (KeyError, ValueError) as exc:
                 text = str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc).removeprefix(f"{name}: ")
                 raise OptionError(f"--set {name}={value:g}: {text}", option="--set") from None
+            _check_with_case(model, name, value)
     return out
+
+
+def _check_with_case(model: Any, name: str, value: float) -> None:
+    """``--set`` under the case's own rules: the case with the value in place must still load.
+
+    A crest set below the bed is refused as ``case.toml`` refuses it (the case's validation runs on a copy
+    of the case with the crest in place; nothing is written). Models without a case have only the bounds
+    of their quantities.
+    """
+    case = getattr(model, "case", None)
+    spec = getattr(case, "spec", None)
+    if spec is None or not (name.startswith("weir:") and name.endswith(".crest_level")):
+        return
+    from rivercal.case.load import case_from_dict
+    from rivercal.errors import CaseError
+    from rivercal.network import STRUCTURE_TABLES
+
+    ident = name.removeprefix("weir:").removesuffix(".crest_level")
+    data = spec.model_dump(by_alias=True, exclude_unset=True)
+    placed = False
+    for table, _ in STRUCTURE_TABLES:
+        for item in data.get(table) or []:
+            if item.get("id") == ident and "crest_level" in item:
+                item["crest_level"] = float(value)
+                placed = True
+    if not placed:
+        return
+    try:
+        case_from_dict(data, case.root)
+    except CaseError as exc:
+        where = f" at {exc.field}" if exc.field else ""
+        raise OptionError(f"--set {name}={value:g}: {exc.reason}; case.toml refuses the same value{where}",
+                          option="--set") from None
 
 
 # -- times -----------------------------------------------------------------------------------------
 
 
 def parse_time(text: str, option: str) -> Any:
-    """An ISO 8601 time as a UTC timestamp (a time without zone is UTC)."""
-    import pandas as pd
+    """An ISO 8601 time as a UTC timestamp (a time without zone is UTC); other forms are refused, never guessed.
 
+    ``10-11-2010`` is 10 November to a Dutch reader and October 11 to pandas: such a date is refused with
+    both readings (:func:`rivercal._time.parse_iso`).
+    """
     from rivercal._time import utc
 
     try:
-        ts = pd.Timestamp(text)
-    except (ValueError, TypeError, OverflowError):
-        ts = None
-    if ts is None or ts is pd.NaT:
-        raise OptionError(f"{option} {text!r}: not a date or time (ISO 8601, e.g. 2010-10-18 or "
-                          "2010-10-18T06:00Z)", option=option)
-    return utc(ts)
+        return utc(text)
+    except (ValueError, TypeError, OverflowError) as exc:
+        raise OptionError(f"{option} {exc}", option=option) from None
 
 
 def parse_duration(text: str, option: str, *, allow_zero: bool = False) -> Any:
@@ -232,6 +279,7 @@ def parse_window(model: Any, text: str, *, option: str = "--window", warmup: Any
     if a < model.start or b > model.end:
         raise OptionError(f"{option} {text!r}: lies outside the case period {model.start:%Y-%m-%d %H:%M} .. "
                           f"{model.end:%Y-%m-%d %H:%M}", option=option)
+    _check_on_output_times(model, a, b, option, text, warmup, warmup_option)
     if warmup is not None and a - warmup < model.start:
         hours = pd.Timedelta(warmup).total_seconds() / 3600
         which = f" ({warmup_option})" if warmup_option else ""
@@ -240,6 +288,31 @@ def parse_window(model: Any, text: str, *, option: str = "--window", warmup: Any
                           f"start the window at {model.start + warmup:%Y-%m-%d %H:%M} or later"
                           + (f", or shorten {warmup_option}" if warmup_option else ""), option=option)
     return a, b
+
+
+def _check_on_output_times(model: Any, a: Any, b: Any, option: str, text: str, warmup: Any,
+                           warmup_option: str | None) -> None:
+    """A window (and its warm-up) on the model's output times: every run is a whole number of output intervals."""
+    import pandas as pd
+
+    from rivercal.online.config import span
+
+    step = pd.Timedelta(seconds=float(getattr(model, "output_interval", 0) or 0))
+    if step <= pd.Timedelta(0):
+        return
+    start = pd.Timestamp(model.start)
+    off = [t for t in (a, b) if (t - start) % step]
+    if off:
+        t = off[0]
+        before = start + ((t - start) // step) * step
+        raise OptionError(f"{option} {text!r}: {t:%Y-%m-%d %H:%M:%S} is not one of the model's output times (every "
+                          f"{span(step)} from {start:%Y-%m-%d %H:%M}); e.g. {before:%Y-%m-%d %H:%M} or "
+                          f"{before + step:%Y-%m-%d %H:%M}", option=option)
+    if warmup is not None and pd.Timedelta(warmup) % step:
+        which = warmup_option or "the warm-up"
+        hours = pd.Timedelta(warmup).total_seconds() / 3600
+        raise OptionError(f"{which} {hours:g}: the warm-up must be a whole number of the model's output interval "
+                          f"({span(step)})", option=warmup_option or option)
 
 
 # -- parameters ------------------------------------------------------------------------------------
@@ -275,6 +348,8 @@ def select_parameters(model: Any, names: str, start: Mapping[str, float], bounds
         if name not in updates:
             raise OptionError(f"--start {name}={value:g}: {name!r} is not in --params", option="--start")
         updates[name]["initial"] = value
+    from rivercal.models.contract import check_parameters
+
     chosen = []
     for n in wanted:
         p = known[n]
@@ -285,11 +360,17 @@ def select_parameters(model: Any, names: str, start: Mapping[str, float], bounds
             raise OptionError(f"{option}: the start value {x0:g} of {n} lies outside its bounds [{lo:g}, {hi:g}]"
                               + (" (the case's start value; give --start too)" if option == "--bounds" else ""),
                               option=option)
+        option = "--bounds" if "min" in updates[n] else "--start"
         try:
             chosen.append(type(p).model_validate(merged))
         except ValueError as exc:  # the parameter's own rules, e.g. a cluster lives in [0, 1]
-            option = "--bounds" if "min" in updates[n] else "--start"
             raise OptionError(f"{option}: parameter {n}: {_first_problem(exc)}", option=option) from None
+        try:  # and the model's: the quantities it sets stay inside the bounds the model declares
+            check_parameters(model, [chosen[-1]])
+        except ValueError as exc:
+            given = next((b for b in bounds if b.partition("=")[0].strip() == n), None) if option == "--bounds" \
+                else None
+            raise OptionError(f"{option}{' ' + given if given else ''}: {exc}", option=option) from None
     check_overlap(model, wanted)
     return ParameterSet(chosen)
 
@@ -375,13 +456,14 @@ def window_observations(path: Path, model: Any, window: tuple[Any, Any], option:
 
 
 def output_dir(path: Path, option: str = "--out") -> Path:
-    """A folder to write into: created if missing; an error when it cannot be."""
+    """A folder to write into: created if missing; an error when it cannot be, or cannot be written to."""
     if path.exists() and not path.is_dir():
         raise OptionError(f"{option} {path}: exists and is not a folder", option=option)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OptionError(f"{option} {path}: cannot create the folder ({exc.strerror or exc})", option=option) from None
+    _writable(path, path, option)
     return path
 
 
@@ -389,8 +471,27 @@ def output_file(path: Path, option: str) -> Path:
     """A file to write: its folder is created; an existing folder of that name is an error."""
     if path.is_dir():
         raise OptionError(f"{option} {path}: is a folder; give a file name", option=option)
-    output_dir(path.parent, option)
+    if path.parent.exists() and not path.parent.is_dir():
+        raise OptionError(f"{option} {path}: {path.parent} is not a folder", option=option)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OptionError(f"{option} {path}: cannot create its folder {path.parent} ({exc.strerror or exc})",
+                          option=option) from None
+    _writable(path.parent, path, option)
     return path
+
+
+def _writable(folder: Path, given: Path, option: str) -> None:
+    """Create and remove a file in ``folder``: a folder that cannot take files (read-only, /proc) fails here."""
+    import tempfile
+
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".rivercal-", suffix=".probe"):
+            pass
+    except OSError as exc:
+        raise OptionError(f"{option} {given}: cannot write into {folder} ({exc.strerror or exc})",
+                          option=option) from None
 
 
 # -- optimiser options -----------------------------------------------------------------------------

@@ -16,8 +16,8 @@ from rich.table import Table
 
 from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
 from rivercal.cli.options import (
-    check_number,
     check_overlap,
+    check_workers,
     dask_address,
     open_model,
     output_dir,
@@ -66,7 +66,7 @@ def twin(
     wanted = parse_names(params, "--params")
     if SENSITIVITY in names and not wanted:
         raise OptionError("--params: give at least one parameter for the sensitivity analysis", option="--params")
-    check_number(workers, "--workers", low=1)
+    check_workers(workers)
     address = dask_address(dask, workers)
     output_dir(out)
     model = open_model(case, show_compilation=not quiet)

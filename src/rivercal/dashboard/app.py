@@ -56,8 +56,19 @@ def _static_files() -> dict[str, tuple[Path, str]]:
             "dashboard.js": (Path(str(script)), "text/javascript")}
 
 
+#: Largest request body the dashboard reads (and drops) before it answers, bytes: it takes none.
+MAX_BODY = 64 * 1024
+
+
 class _ReadOnly:
-    """ASGI middleware: GET and HEAD only, and the security headers on every response."""
+    """ASGI middleware: GET and HEAD only, and the security headers on every response.
+
+    A request that carries a body is read to its end (and the body dropped) before it is answered: the
+    dashboard takes none, but a body the server cannot parse (a broken chunked encoding) makes the server
+    answer 400 and close the connection itself while the request is being handled, and an answer sent
+    after that ended in a logged traceback. Such a request is now left to the server's answer; a body
+    larger than :data:`MAX_BODY` gets 413.
+    """
 
     def __init__(self, app: Any):
         self.app = app
@@ -66,6 +77,16 @@ class _ReadOnly:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        if _has_body(scope):
+            read = await _drop_body(receive)
+            if read is None:  # the client went away, or the server refused the body and answered already
+                return
+            if read > MAX_BODY:
+                response = PlainTextResponse(f"the dashboard takes no request body (got more than {MAX_BODY} bytes)",
+                                             status_code=413, headers={"connection": "close", **_SECURITY_HEADERS})
+                await response(scope, receive, send)
+                return
+            receive = _empty_body(receive)
         if scope["method"] not in ("GET", "HEAD"):
             response = PlainTextResponse("the dashboard is read-only: only GET and HEAD are allowed", status_code=405,
                                          headers={"allow": "GET, HEAD", **_SECURITY_HEADERS})
@@ -81,6 +102,46 @@ class _ReadOnly:
             await send(message)
 
         await self.app(scope, receive, with_headers)
+
+
+def _has_body(scope: dict) -> bool:
+    """Whether a request announces a body (chunked, or a positive or unreadable Content-Length)."""
+    for key, value in scope.get("headers", []):
+        name = key.decode("latin-1").lower()
+        if name == "transfer-encoding":
+            return True
+        if name == "content-length" and value.strip() not in (b"0", b""):
+            return True
+    return False
+
+
+async def _drop_body(receive: Any) -> int | None:
+    """Read a request's body to its end, keeping none of it: the bytes read (up to just over MAX_BODY), or None.
+
+    None when the connection ended first (the client left, or the server refused a malformed body).
+    """
+    read = 0
+    while True:
+        message = await receive()
+        if message["type"] == "http.disconnect":
+            return None
+        read += len(message.get("body", b""))
+        if read > MAX_BODY or not message.get("more_body", False):
+            return read
+
+
+def _empty_body(receive: Any) -> Any:
+    """A ``receive`` whose first message is the (already read) end of the body; later ones are the server's."""
+    sent = False
+
+    async def replay() -> dict:
+        nonlocal sent
+        if not sent:
+            sent = True
+            return {"type": "http.request", "body": b"", "more_body": False}
+        return await receive()
+
+    return replay
 
 
 class _Problem(Exception):

@@ -5,7 +5,8 @@ difference Jacobians, SCE-UA complexes, grid and GLUE samples) to a ``batch`` ca
 :class:`Evaluator` is that callable. Where it runs is its ``workers``:
 
 - ``1``: in this process;
-- ``N > 1`` (default: the cores of this machine): a pool of N worker processes
+- ``N > 1`` (default: the cores of this machine; at most that many, :func:`check_workers`): a pool of N
+  worker processes
   (:func:`process_pool`) whose workers each hold their own copy of the function — for a calibration
   problem, their own model and engine state — so runs never share state. On Linux they are forked after
   the problem is built and inherit it without pickling; they end with this process, however it ends;
@@ -41,11 +42,18 @@ from typing import Any
 import numpy as np
 
 from rivercal.evaluate._dask import ClusterError, DaskCluster
-from rivercal.evaluate._pool import call_installed, default_workers, end_with_parent, install, process_pool
+from rivercal.evaluate._pool import (
+    call_installed,
+    check_workers,
+    default_workers,
+    end_with_parent,
+    install,
+    process_pool,
+)
 from rivercal.optimise import start_first, until_deadline
 
-__all__ = ["ClusterError", "DaskCluster", "Evaluator", "Tasks", "Workers", "as_completed", "default_workers",
-           "describe_workers", "end_with_parent", "process_pool"]
+__all__ = ["ClusterError", "DaskCluster", "Evaluator", "Tasks", "Workers", "as_completed", "check_workers",
+           "default_workers", "describe_workers", "end_with_parent", "process_pool"]
 
 log = logging.getLogger(__name__)
 
@@ -71,15 +79,18 @@ class Tasks:
         The object every job works on (a model, a calibration problem); it goes to each worker once.
     workers
         See :data:`Workers`.
+
+    Raises
+    ------
+    ValueError
+        For a number of local workers outside 1 … the cores available (:func:`check_workers`).
     """
 
     def __init__(self, obj: Any, workers: Workers = None):
         self.obj = obj
         self.cluster = workers if isinstance(workers, DaskCluster) else None
         if self.cluster is None:
-            self.workers = default_workers() if workers is None else int(workers)
-            if self.workers < 1:
-                raise ValueError(f"workers must be at least 1, got {workers}")
+            self.workers = check_workers(workers)
         else:
             self.workers = self.cluster.n_workers
         self._pool: ProcessPoolExecutor | None = None

@@ -30,6 +30,7 @@ from typing import Any
 
 from rivercal.errors import RivercalError
 from rivercal.evaluate import _shipping
+from rivercal.evaluate._pool import check_workers
 
 __all__ = ["ClusterError", "DaskCluster"]
 
@@ -65,7 +66,8 @@ class DaskCluster:
     Raises
     ------
     ValueError
-        For an address of neither form.
+        For an address of neither form, or ``local:N`` with N outside 1 … the cores available
+        (:func:`~rivercal.evaluate.check_workers`).
     ClusterError
         If Dask is not installed, the scheduler does not answer, or a worker runs more than one thread.
 
@@ -83,8 +85,8 @@ class DaskCluster:
         if local is None and not re.fullmatch(r"(tcp|tls|ucx|inproc)://\S+", self.address):
             raise ValueError(f"Dask address {address!r}: expected local:N (N worker processes on this machine) or "
                              "tcp://HOST:PORT (a running scheduler)")
-        if local is not None and int(local.group(1)) < 1:
-            raise ValueError(f"Dask address {address!r}: local:N needs N of at least 1")
+        if local is not None:
+            check_workers(int(local.group(1)), f"Dask address {address!r}: local:N with N =")
         distributed = _distributed()
         self._cluster: Any = None
         self._shared: dict[int, tuple[str, Any]] = {}

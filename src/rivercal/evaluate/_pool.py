@@ -22,7 +22,7 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-__all__ = ["call_installed", "default_workers", "end_with_parent", "install", "process_pool"]
+__all__ = ["call_installed", "check_workers", "default_workers", "end_with_parent", "install", "process_pool"]
 
 log = logging.getLogger(__name__)
 
@@ -121,3 +121,40 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+
+
+def check_workers(workers: int | None, what: str = "workers") -> int:
+    """The number of local worker processes asked for, checked: a whole number from 1 to :func:`default_workers`.
+
+    More processes than the cores available to this process are refused, not cut down: each worker
+    holds its own model and runs one model run at a time, so extra workers only share the same cores (and
+    memory) and make every run slower, and a silent cut would leave the caller believing the runs go
+    wider than they do. None means all the cores.
+
+    Parameters
+    ----------
+    workers
+        The number asked for, or None.
+    what
+        How messages name the setting (``--workers``, ``property 'workers'``).
+
+    Returns
+    -------
+    int
+        The number of workers to use.
+
+    Raises
+    ------
+    ValueError
+        Naming ``what``, the value and the allowed range.
+    """
+    limit = default_workers()
+    if workers is None:
+        return limit
+    if isinstance(workers, bool) or not isinstance(workers, int | float) or workers != int(workers):
+        raise ValueError(f"{what} {workers!r}: expected a whole number of worker processes, 1 to {limit}")
+    if not 1 <= workers <= limit:
+        raise ValueError(f"{what} {int(workers)}: give 1 to {limit} worker processes ({limit} processor "
+                         f"core{'s are' if limit != 1 else ' is'} available to this process; more workers than "
+                         "cores only share them)")
+    return int(workers)

@@ -19,6 +19,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from rivercal._time import iso_datetime
 from rivercal.case.load import _case_error  # the case.toml wording of pydantic's errors, shared
 from rivercal.case.schema import CalibrationSettings, Window
 from rivercal.errors import CaseError
@@ -58,6 +59,11 @@ class ModelMeta(_Model):
     output_interval: float = Field(default=3600.0, gt=0, description="interval of the simulated series, s")
     spinup: float = Field(default=0.0, ge=0, le=8784,
                           description="h run before the start of a cold-started run (swmm, blackbox)")
+
+    @field_validator("start", "end", mode="before")
+    @classmethod
+    def _iso(cls, value: Any) -> Any:
+        return iso_datetime(value)  # ISO 8601 text or a TOML date; never a number, never a guess
 
     @field_validator("start", "end")
     @classmethod

@@ -1,17 +1,24 @@
-"""The configuration of the on-line service (:class:`OnlineConfig`), stored with its run."""
+"""The configuration of the on-line service (:class:`OnlineConfig`), stored with its run.
+
+:func:`check_schedule` checks the times of a run against its model before anything runs: the window,
+the cycle, the horizon and the warm-up are whole numbers of the output interval, cycles are issued at the
+model's output times, and every window and forecast lies inside the model's period.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Literal
 
 import pandas as pd
 
-from rivercal.evaluate import Workers
+from rivercal._time import utc
+from rivercal.evaluate import DaskCluster, Workers, check_workers
 from rivercal.problem import LOSSES
 from rivercal.store import Schedule
 
-__all__ = ["DEFAULT_RESOLUTION", "OnlineConfig"]
+__all__ = ["DEFAULT_RESOLUTION", "SETTING_NAMES", "OnlineConfig", "check_schedule", "span"]
 
 
 #: Resolution d of the identifiability gate and alert floor for the parameters of the packaged cases,
@@ -85,7 +92,8 @@ class OnlineConfig:
         Failed model run inside a calibration: ``penalty`` (logged; the optimiser steers away) or
         ``raise`` (the cycle fails and keeps the last estimate).
     workers
-        Worker processes of one calibration (None: all cores), or a :class:`~rivercal.evaluate.DaskCluster`.
+        Worker processes of one calibration (None: all cores; at most the cores available,
+        :func:`~rivercal.evaluate.check_workers`), or a :class:`~rivercal.evaluate.DaskCluster`.
     dependency, dependency_threshold
         With ``algorithm = "sparse_dud"``: a dependency map, the ``dependency.csv`` that ``rivercal analyse``
         writes (which series each parameter moves, in σ; :mod:`rivercal.analysis.dependency`), and the
@@ -159,6 +167,10 @@ class OnlineConfig:
             raise ValueError(f"online dependency_threshold must be >= 0 (σ), got {self.dependency_threshold}")
         if self.skill_cycles < 0 or not self.skill_lead_h > 0 or self.skill_tolerance < 0:
             raise ValueError("online: skill_cycles must be >= 0, skill_lead_h > 0 and skill_tolerance >= 0")
+        if not self.output_interval_s > 0:
+            raise ValueError(f"online output_interval_s must be positive, got {self.output_interval_s}")
+        if not isinstance(self.workers, DaskCluster):
+            check_workers(self.workers, "online workers")
 
     def schedule(self, first_issue: Any) -> Schedule:
         """The cycle schedule whose cycle 0 is issued at ``first_issue``."""
@@ -175,3 +187,116 @@ class OnlineConfig:
         if self.dependency is None:  # as runs stored before the map existed: they resume unchanged
             del out["dependency"], out["dependency_threshold"]
         return out
+
+
+#: How :func:`check_schedule` names each setting by default (the command line passes its option names).
+SETTING_NAMES = {"window": "window", "period": "period", "horizon": "horizon", "warmup": "warmup",
+                 "first": "first issue", "last": "last issue"}
+
+
+def span(value: Any) -> str:
+    """A duration as text that pandas reads back: '7D', '48h', '58D23h', '90min', '45s' ('0h' for none)."""
+    seconds = round(pd.Timedelta(value).total_seconds())
+    if seconds == 0:
+        return "0h"
+    sign, seconds = ("-", -seconds) if seconds < 0 else ("", seconds)
+    if seconds % 86400 and seconds % 3600 == 0 and seconds < 3 * 86400:
+        return f"{sign}{seconds // 3600}h"  # 36h, 48h: as forecasters say them
+    parts = []
+    for unit, size in (("D", 86400), ("h", 3600), ("min", 60), ("s", 1)):
+        if seconds >= size:
+            parts.append(f"{seconds // size}{unit}")
+            seconds %= size
+    return sign + "".join(parts)
+
+
+def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | None = None, *,
+                   names: Mapping[str, str] | None = None, shown: Mapping[str, str] | None = None) -> None:
+    """Check the times of a run of ``config`` on ``model`` from issue time ``first`` to ``last`` (UTC).
+
+    - the window, the cycle (``period``) and the horizon are positive, and the warm-up not negative, whole
+      numbers of the output interval (``config.output_interval_s``): every run the service makes is;
+    - cycles are issued at the model's output times (whole output intervals after its start);
+    - the first window with its warm-up starts inside the model's period, the last issue time does not
+      lie after its end, and the last cycle's forecast ends inside it: the model's forcing ends there, so
+      a forecast beyond it would run on made-up forcing (the Delft-FEWS module refuses it too).
+
+    Parameters
+    ----------
+    model
+        The model (:mod:`rivercal.models.contract`): its ``start`` and ``end``.
+    config
+        The service configuration.
+    first, last
+        Issue times of the first and the last cycle (None: the last is not known yet).
+    names
+        How messages name each setting (keys of :data:`SETTING_NAMES`), e.g. ``{"period": "--cycle"}``.
+    shown
+        How messages show ``first`` and ``last`` (keys ``first``, ``last``), e.g. as the user wrote them.
+
+    Raises
+    ------
+    ValueError
+        Naming the setting, its value and the range it may take.
+    """
+    name = {**SETTING_NAMES, **(names or {})}
+    step = pd.Timedelta(seconds=config.output_interval_s)
+    grid = f"the output interval ({span(step)})"
+    start, end = utc(model.start), utc(model.end)
+    length = end - start
+    whose = "the case" if getattr(model, "case", None) is not None else "the model's period"
+    values = {key: pd.Timedelta(getattr(config, key)) for key in ("window", "period", "horizon", "warmup")}
+    for key, value in values.items():
+        smallest = pd.Timedelta(0) if key == "warmup" else step
+        if value < smallest or value % step:
+            lower = (value // step) * step
+            near = sorted({span(v) for v in (lower, lower + step) if v >= smallest})
+            raise ValueError(f"{name[key]} {getattr(config, key)}: must be a whole number of {grid}, "
+                             f"{'0 or more' if key == 'warmup' else 'at least one'}; e.g. {' or '.join(near)}")
+    if values["period"] > length:
+        raise ValueError(f"{name['period']} {config.period}: longer than {whose} ({span(length)}); give "
+                         f"{span(step)} to {span((length // step) * step)}")
+    first = utc(first)
+    text = {"first": _when(first), **({"last": _when(utc(last))} if last is not None else {}), **(shown or {})}
+    if (first - start) % step:
+        before = start + ((first - start) // step) * step
+        raise ValueError(f"{name['first']} {text['first']}: cycles are issued at the model's output times, every "
+                         f"{span(step)} from {start:%Y-%m-%d %H:%M}; e.g. {before:%Y-%m-%d %H:%M} or "
+                         f"{before + step:%Y-%m-%d %H:%M}")
+    need = values["window"] + values["warmup"]
+    if need > length - step:
+        longest = ((length - step - values["warmup"]) // step) * step
+        raise ValueError(f"{name['window']} {config.window}: with the warm-up ({span(values['warmup'])}) longer than "
+                         f"{whose} ({span(length)}) allows"
+                         + (f"; give {span(step)} to {span(longest)}" if longest >= step else
+                            f"; shorten {name['warmup']}"))
+    if first - need < start:
+        room = ((first - start - values["warmup"]) // step) * step
+        shorter = f", or shorten {name['window']} to at most {span(room)}" if room >= step else ""
+        raise ValueError(f"{name['first']} {text['first']}: the first window ({span(values['window'])}) and its "
+                         f"warm-up ({span(values['warmup'])}) need the model from {first - need:%Y-%m-%d %H:%M}, "
+                         f"before {whose} starts ({start:%Y-%m-%d %H:%M}); issue the first cycle at "
+                         f"{start + need:%Y-%m-%d %H:%M} or later{shorter}")
+    if first > end:
+        raise ValueError(f"{name['first']} {text['first']}: after the end of {whose} ({end:%Y-%m-%d %H:%M})")
+    if last is None:
+        return
+    last = utc(last)
+    if last > end:
+        raise ValueError(f"{name['last']} {text['last']}: after the end of {whose} ({end:%Y-%m-%d %H:%M})")
+    final = first + ((last - first) // values["period"]) * values["period"] if last >= first else first
+    if final + values["horizon"] > end:
+        longest = ((end - final) // step) * step
+        latest = end - values["horizon"]
+        ways = [f"the horizon can be {span(step)} to {span(longest)}"] if longest >= step else []
+        which = f"the last cycle ({name['last']})" if latest >= first else \
+            f"every cycle ({name['first']} and {name['last']})"
+        ways.append(f"issue {which} at {latest:%Y-%m-%d %H:%M} or earlier")
+        raise ValueError(f"{name['horizon']} {config.horizon}: the last cycle, issued at {final:%Y-%m-%d %H:%M}, "
+                         f"would forecast to {final + values['horizon']:%Y-%m-%d %H:%M}, after the end of {whose} "
+                         f"({end:%Y-%m-%d %H:%M}), where its forcing ends; " + ", or ".join(ways))
+
+
+def _when(time: pd.Timestamp) -> str:
+    """A time for messages, to the minute (to the second where it has seconds)."""
+    return f"{time:%Y-%m-%d %H:%M}" if time.second == 0 and time.microsecond == 0 else f"{time:%Y-%m-%d %H:%M:%S}"

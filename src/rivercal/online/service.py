@@ -46,7 +46,7 @@ from rivercal.errors import ModelRunError
 from rivercal.models.contract import spun_up
 from rivercal.observations import DEFAULT_SIGMA, measurable
 from rivercal.online import guardrails, intervention
-from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig
+from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig, check_schedule
 from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
@@ -125,18 +125,26 @@ class OnlineService:
     meta
         Further facts stored with the run's configuration (e.g. the twin scenario that produced the
         observations), so that a report can find them and a restart with other facts is refused.
+    assimilation
+        State updating (:class:`~rivercal.online.assimilation.AssimilationConfig`; None: parameters only).
+    take_over
+        Compute an unfinished cycle even when the store names a live process as its owner
+        (:meth:`rivercal.store.Store.begin_cycle`): only when no other service runs this run.
 
     Raises
     ------
     ValueError
-        For an unknown parameter or series, or a first window that starts before the model's period.
+        For an unknown parameter or series, or times that do not fit the model
+        (:func:`~rivercal.online.config.check_schedule`: the window, cycle, horizon or warm-up not whole
+        output intervals, a first window that starts before the model's period).
     StoreError
         If the run exists with another model or configuration.
     """
 
     def __init__(self, model: Any, store: Store, run_name: str, config: OnlineConfig, first_issue: Any,
-                 meta: Mapping[str, Any] | None = None, assimilation: Any = None):
+                 meta: Mapping[str, Any] | None = None, assimilation: Any = None, take_over: bool = False):
         self.model = model
+        self.take_over = take_over
         self.store = store
         self.config = config
         self.schedule = config.schedule(first_issue)
@@ -157,10 +165,7 @@ class OnlineService:
         self.period = pd.Timedelta(config.period)
         self.horizon = pd.Timedelta(config.horizon)
         self.warmup = pd.Timedelta(config.warmup)
-        first_run = self.schedule.first_issue - self.window - self.warmup
-        if first_run < model.start:
-            raise ValueError(f"online: the first window needs the model from {first_run}, before the model's period "
-                             f"starts ({model.start}); issue the first cycle later")
+        check_schedule(model, config, self.schedule.first_issue)
         setup = model.calibration  # e.g. the case's stopping rules are DuD's (thesis Table 4-3)
         case_options = setup.options if config.algorithm == setup.algorithm else {}
         self.options = dict(config.options if config.options is not None else case_options)
@@ -246,7 +251,7 @@ class OnlineService:
     def run_cycle(self, spec: CycleSpec) -> CycleOutcome:
         """Compute cycle ``spec`` and commit it (see the module docstring)."""
         t_wall = time.perf_counter()
-        spec = self.store.begin_cycle(self.run, spec)
+        spec = self.store.begin_cycle(self.run, spec, take_over=self.take_over)
         t0 = spec.issue_time
         run_start = spec.window_start - self.warmup
         warm = self.warm_start()

@@ -27,7 +27,8 @@ class ObservationTables(StoreBase):
     """Queries over the observations table."""
 
     def ingest(self, observations: ObservationSet, source: str, *,
-               on_conflict: Literal["keep", "replace"] = "keep", screen: ScreenRule | None = None) -> IngestResult:
+               on_conflict: Literal["keep", "replace"] = "keep", screen: ScreenRule | None = None,
+               plausible: Mapping[str, tuple[float, float]] | None = None) -> IngestResult:
         """Store observations from ``source`` in one transaction; values already stored are not duplicated.
 
         A value whose (series, time, source) is stored already is a duplicate. If its value differs, it is
@@ -40,8 +41,9 @@ class ObservationTables(StoreBase):
         (:func:`~rivercal.observations.screen_outliers`) together with the stored values of the same
         series and source within the rule's window of them, and every flag there is set anew: a spike at
         the end of one delivery is judged again when the next delivery brings the values after it.
-        Flagged values are stored with flag ``outlier`` and left out of :meth:`observations` and
-        :meth:`observation_table` unless asked for.
+        With ``plausible`` a value outside its series' plausible range is an outlier too (and the spike
+        screening judges the other values without it). Flagged values are stored with flag ``outlier`` and
+        left out of :meth:`observations` and :meth:`observation_table` unless asked for.
 
         Parameters
         ----------
@@ -52,7 +54,11 @@ class ObservationTables(StoreBase):
         on_conflict
             What to do with a stored value that differs.
         screen
-            The spike screening rule; None: no screening (every value is ``ok``).
+            The spike screening rule; None: no spike screening.
+        plausible
+            (low, high) per series id, m AD or m³/s (e.g. from :func:`rivercal.online.screening.plausible_ranges`);
+            values outside are flagged. Give the same ranges at every ingestion of a source (the flags of the
+            values near new ones are set anew).
 
         Returns
         -------
@@ -97,21 +103,25 @@ class ObservationTables(StoreBase):
                 inserted += len(new)
                 duplicates += int(stored.sum())
                 conflicts += int(differ.sum())
-                if screen is not None:
-                    outliers += self._screen(conn, series, source, int(times.min()), int(times.max()), screen)
+                bounds = (plausible or {}).get(series)
+                if screen is not None or bounds is not None:
+                    outliers += self._screen(conn, series, source, int(times.min()), int(times.max()), screen,
+                                             bounds)
                 gaps += self._record_gaps(conn, series, source, int(times.min()), int(times.max()), stamp)
         log.info("%s: ingested from %s: %d values stored, %d duplicates (%d differing), %d outliers flagged, %d gaps",
                  self.path, source, inserted, duplicates, conflicts, outliers, gaps)
         return IngestResult(inserted, duplicates, conflicts, outliers, gaps)
 
     @staticmethod
-    def _screen(conn: Any, series: str, source: str, first: int, last: int, rule: ScreenRule) -> int:
+    def _screen(conn: Any, series: str, source: str, first: int, last: int, rule: ScreenRule | None,
+                bounds: tuple[float, float] | None = None) -> int:
         """Screen the stored values of a series and source around [first, last]; set their flags anew.
 
         Values within one window of the new ones are judged (with the values within two windows as their
-        context); returns how many of the judged values are outliers.
+        context); values outside ``bounds`` (low, high) are outliers, and the spike screening judges the rest.
+        Returns how many of the judged values are outliers.
         """
-        half = round(rule.half_window_h * 3600)
+        half = round(rule.half_window_h * 3600) if rule is not None else 0
         rows = conn.execute("SELECT time, value, flag FROM observations WHERE series = ? AND source = ? AND time "
                             "BETWEEN ? AND ? ORDER BY time",
                             (series, source, first - 2 * half, last + 2 * half)).fetchall()
@@ -120,7 +130,12 @@ class ObservationTables(StoreBase):
         times = np.array([r[0] for r in rows], dtype=np.int64)
         values = np.array([r[1] for r in rows], dtype=float)
         was = np.array([r[2] == "outlier" for r in rows], dtype=bool)
-        now = screen_outliers(times, values, series.rpartition(".")[2], rule)
+        now = np.zeros(values.shape, dtype=bool)
+        if bounds is not None:
+            now = (values < bounds[0]) | (values > bounds[1])
+        if rule is not None:
+            keep = ~now
+            now[keep] = screen_outliers(times[keep], values[keep], series.rpartition(".")[2], rule)
         judged = (times >= first - half) & (times <= last + half)
         change = judged & (now != was)
         conn.executemany("UPDATE observations SET flag = ? WHERE series = ? AND source = ? AND time = ?",

@@ -22,7 +22,8 @@ Tables (current version)
   algorithm, model_runs, wall_time_s [s], cost_before, cost_after, message, started, finished)``:
   One row per cycle, UNIQUE (run_id, cycle). ``status`` pending/running (unfinished) or
   done/failed/aborted (final; ``finished`` is set if and only if the status is final). ``attempts``
-  counts how often the cycle was begun; ``owner`` is ``pid@host`` of the process that began it last.
+  counts how often the cycle was begun; ``owner`` is ``pid@host/start`` of the process that began it last
+  (``start``: its start time, Unix s; stores written before kept ``pid@host``).
 - ``estimates(cycle_id → cycles, parameter, value [unit], std [unit], unit, accepted 0/1, reason)``:
   PRIMARY KEY (cycle_id, parameter); a held or rejected estimate (accepted = 0) has a reason.
 - ``alerts(id, cycle_id → cycles, parameter or NULL, kind, message, magnitude [|Δθ|/σ, dimensionless])``

@@ -10,6 +10,13 @@ twice or skipped:
   a process killed in between leaves it ``running`` with no results, and :meth:`Store.next_cycle` returns
   that cycle again on restart (then the next index). Cycle indices are contiguous and unique
   (UNIQUE (run_id, cycle); a gap or a second commit of a final cycle is refused).
+- **One process per cycle.** The process that begins a cycle is recorded by its process id and start time
+  (``pid@host/start``); while that process runs, another is refused the cycle. A process that merely has
+  the dead owner's id (after a reboot or a container restart) is told apart by its start time;
+  ``begin_cycle(..., take_over=True)`` (``rivercal online --take-over``) overrides the check.
+- **Readers on read-only file systems.** ``readonly=True`` opens the file with SQLite's ``mode=ro``; where
+  its folder cannot be written (no shared-memory file can be made beside it) and no write-ahead log holds
+  changes not yet in the file, the file is read as immutable.
 - **WAL journal, synchronous=FULL.** WAL lets a dashboard read while the service writes. In WAL mode
   ``synchronous=NORMAL`` already survives a killed *process* (committed pages are in the WAL file, in the
   operating system's cache) but may lose the last transactions on power loss or an OS crash; ``FULL``
@@ -97,25 +104,72 @@ def is_url(location: Any) -> bool:
 
 
 def _owner() -> str:
-    return f"{os.getpid()}@{socket.gethostname()}"
+    """The owner this process writes into a cycle: ``pid@host/start``, start being its start time (Unix s)."""
+    pid = os.getpid()
+    start = _process_start(pid)
+    return f"{pid}@{socket.gethostname()}" + (f"/{start:.2f}" if start is not None else "")
 
 
-def _owner_alive(owner: str | None) -> bool:
-    """Whether ``pid@host`` names another process that still runs on this host."""
-    if not owner or owner == _owner():
+def _process_start(pid: int) -> float | None:
+    """When process ``pid`` started (Unix seconds, to 0.01 s), or None when it does not run or cannot be seen."""
+    import psutil
+
+    try:
+        return float(psutil.Process(pid).create_time())
+    except (psutil.Error, OSError, ValueError):
+        return None
+
+
+def _parse_owner(owner: str) -> tuple[str, str, float | None]:
+    """``pid@host/start`` (or ``pid@host``, as stores written before start times kept it) → (pid, host, start)."""
+    who, _, start = owner.partition("/")
+    pid_text, _, host = who.partition("@")
+    try:
+        return pid_text, host, float(start) if start else None
+    except ValueError:
+        return pid_text, host, None
+
+
+def _owner_alive(owner: str | None, started: str | None = None) -> bool:
+    """Whether ``owner`` is another process of this host that still runs: the same process id AND start time.
+
+    A process id alone is not enough: after a reboot or a container restart another program (often the
+    container's process 1) has the dead service's id. A record with its owner's start time matches only the
+    process that started then (within 1 s); a record without one (written before start times were kept)
+    cannot be owned by a process that started after the cycle was begun (``started``, the stored stamp).
+    """
+    if not owner:
         return False
-    pid_text, _, host = owner.partition("@")
+    pid_text, host, start = _parse_owner(owner)
     if host != socket.gethostname() or not pid_text.isdigit():
         return False  # another host: no way to know; the caller's lock is the authority there
+    if int(pid_text) == os.getpid():
+        return False  # this process: a cycle it began itself (or its id's dead earlier holder)
     try:
         os.kill(int(pid_text), 0)
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True
+        pass  # alive, another user's
     except OSError:
         return False
+    running_since = _process_start(int(pid_text))
+    if running_since is None:
+        return True  # alive, but its start cannot be read: take it for the owner (the override is there for this)
+    if start is not None:
+        return abs(running_since - start) < 1.0
+    if started is not None:
+        begun = fr.stamp_to_time(started)
+        if not pd.isna(begun) and running_since > begun.timestamp() + 1.0:
+            return False
     return True
+
+
+def _describe_owner(owner: str) -> str:
+    """``process 1234@vm (started 2026-11-25 10:00:01 UTC)`` for messages."""
+    pid_text, host, start = _parse_owner(owner)
+    when = f" (started {pd.Timestamp(start, unit='s', tz='UTC'):%Y-%m-%d %H:%M:%S} UTC)" if start else ""
+    return f"process {pid_text}@{host}{when}"
 
 
 class Store(ResultTables, ObservationTables):
@@ -163,8 +217,7 @@ class Store(ResultTables, ObservationTables):
             raise StoreError(f"{self.path}: no such store")
         try:
             if readonly:
-                self._conn = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
-                                             isolation_level=None, timeout=timeout_s)
+                self._conn = self._open_readonly(timeout_s)
             else:
                 self._conn = sqlite3.connect(str(path), isolation_level=None, timeout=timeout_s)
         except sqlite3.Error as exc:
@@ -183,6 +236,32 @@ class Store(ResultTables, ObservationTables):
             raise
 
     # -- connection, transactions, migrations ---------------------------------------------------------------
+
+    def _open_readonly(self, timeout_s: float) -> sqlite3.Connection:
+        """A read-only connection; on a read-only file system too.
+
+        A WAL-mode file is read through its shared-memory file (``-shm``), which SQLite creates beside the
+        store; where the folder cannot be written (a read-only mount) the plain read-only open fails. Then,
+        if no write-ahead log holds changes that are not yet in the file, the file is opened as immutable
+        (nothing can change it there). A log with changes in it would be skipped by that: refused instead.
+        """
+        uri = self.path.resolve().as_uri() + "?mode=ro"
+        conn = sqlite3.connect(uri, uri=True, isolation_level=None, timeout=timeout_s)
+        try:
+            conn.execute("PRAGMA schema_version").fetchone()
+            return conn
+        except sqlite3.OperationalError as exc:
+            conn.close()
+            if "unable to open" not in str(exc):
+                raise
+            wal = Path(f"{self.path}-wal")
+            if wal.is_file() and wal.stat().st_size > 0:
+                raise StoreError(f"{self.path}: cannot be read where it lies ({exc}): its folder cannot be written "
+                                 f"(a read-only file system?) and its write-ahead log {wal.name} holds changes not yet "
+                                 "in the store; copy the store and that file to a writable folder, or open it once "
+                                 "for writing where it can be") from None
+        log.info("%s: opened as an immutable file (its folder cannot be written)", self.path)
+        return sqlite3.connect(uri + "&immutable=1", uri=True, isolation_level=None, timeout=timeout_s)
 
     def _configure(self, synchronous: str) -> None:
         conn = self._conn
@@ -240,6 +319,8 @@ class Store(ResultTables, ObservationTables):
                                     f"one knows up to {SCHEMA_VERSION}); upgrade rivercal to use it")
         if version >= target:
             return
+        if self.readonly and version == 0 and not user_tables(self._conn):
+            raise StoreError(f"{self.path}: not a rivercal store: an empty database (no run was ever written to it)")
         if self.readonly:
             raise StoreVersionError(f"{self.path}: schema version {version} is older than {SCHEMA_VERSION}; open it "
                                     "once for writing to migrate it")
@@ -440,8 +521,8 @@ class Store(ResultTables, ObservationTables):
             raise CycleStateError(f"{self.path}: run {run_id}: cycle {unfinished} is unfinished; finish it before "
                                   f"cycle {cycle}")
 
-    def _check_existing_cycle(self, row: tuple, run_id: int, spec: CycleSpec) -> None:
-        _, w0, w1, t0, status, _, owner, _ = row
+    def _check_existing_cycle(self, row: tuple, run_id: int, spec: CycleSpec, take_over: bool = False) -> None:
+        _, w0, w1, t0, status, _, owner, started = row
         if status in FINAL_STATUSES:
             raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is already {status}; it is not "
                                   "stored twice (retry_cycle() re-opens it)")
@@ -453,15 +534,33 @@ class Store(ResultTables, ObservationTables):
                 f"{fr.from_unix(w0).isoformat()}/{fr.from_unix(w1).isoformat()}, issue {fr.from_unix(t0).isoformat()}; "
                 f"got {spec.window_start.isoformat()}/{spec.window_end.isoformat()}, "
                 f"issue {spec.issue_time.isoformat()}")
-        if _owner_alive(owner):
-            raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is being computed by process "
-                                  f"{owner}, which is still alive")
+        if _owner_alive(owner, started):
+            if take_over:
+                log.warning("%s: run %d: cycle %d: taking it over from %s, which still runs (take-over asked for)",
+                            self.path, run_id, spec.cycle, _describe_owner(owner))
+                return
+            raise CycleStateError(f"{self.path}: run {run_id}: cycle {spec.cycle} is being computed by "
+                                  f"{_describe_owner(owner)}, which is still alive. If that process is not a rivercal "
+                                  "service of this run (after a reboot or a container restart another program can "
+                                  "have its process id), take the cycle over: rivercal online --take-over (in "
+                                  "Python: begin_cycle(..., take_over=True))")
 
-    def begin_cycle(self, run: int | Run, spec: CycleSpec) -> CycleSpec:
+    def begin_cycle(self, run: int | Run, spec: CycleSpec, *, take_over: bool = False) -> CycleSpec:
         """Mark a cycle running (inserting it if new) before computing it; returns it as stored.
 
         A new cycle must be the next index and every earlier cycle final. A cycle left ``running`` by a dead
         process is taken over (``attempts`` grows); one owned by a live process on this host is refused.
+        The owner is known by its process id and its start time (``pid@host/start``), so a process that
+        merely has the dead owner's id (after a reboot or a container restart) is not taken for it.
+
+        Parameters
+        ----------
+        run, spec
+            The run and the cycle.
+        take_over
+            Take the cycle over even when its owner looks alive (logged): for the case the start time cannot
+            tell, e.g. a store written before start times were kept whose owner's id was reused. Only when no
+            other service computes this run.
 
         Raises
         ------
@@ -479,7 +578,7 @@ class Store(ResultTables, ObservationTables):
                              (run_id, spec.cycle, *values, _owner(), fr.now_stamp()))
                 attempts = 1
             else:
-                self._check_existing_cycle(row, run_id, spec)
+                self._check_existing_cycle(row, run_id, spec, take_over)
                 if row[4] == "running":
                     log.warning("%s: run %d: cycle %d was left running by %s (attempt %d); computing it again",
                                 self.path, run_id, spec.cycle, row[6], row[5])

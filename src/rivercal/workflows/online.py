@@ -2,9 +2,12 @@
 
 Observations reach the store from a twin scenario of thesis chapter 5, from files (CSV or Delft-FEWS
 PI-XML), or from a folder that is watched; every value is screened for spikes at ingestion
-(:class:`~rivercal.observations.ScreenRule`) and stored with its flag, and gaps are recorded. The service
-then runs every cycle that is due. A restart
-with the same store and run resumes at the first unfinished cycle.
+(:class:`~rivercal.observations.ScreenRule`) and stored with its flag, and gaps are recorded. A file is
+first checked against the model (:mod:`rivercal.online.screening`): a series the model does not simulate,
+or one whose values mostly lie outside what the model makes plausible there (a unit, a datum), refuses
+the file before anything of it is stored; a few implausible values are stored flagged as outliers. The
+service then runs every cycle that is due. A restart with the same store and run resumes at the first
+unfinished cycle.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import pandas as pd
 from rivercal.observations import ScreenRule
 from rivercal.workflows.progress import NO_PROGRESS, Progress
 
-__all__ = ["format_value", "online_summary", "read_observation_file", "run_online"]
+__all__ = ["format_value", "ingest_file", "online_summary", "read_observation_file", "run_online"]
 
 log = logging.getLogger(__name__)
 
@@ -31,24 +34,44 @@ def read_observation_file(path: str | Path) -> Any:
     Raises
     ------
     CaseError
-        For a file that cannot be read or holds bad values (named, with the line).
+        For a file that cannot be read or holds bad values (named, with the line). A message quotes the
+        file's text; a long run of it (a 100 kB column name) is cut to its start and its length.
     """
     from rivercal.errors import CaseError
     from rivercal.io import read_observations_csv, read_pixml
 
     path = Path(path)
-    if path.suffix.lower() == ".xml":
-        return read_pixml(path)
-    if path.suffix.lower() == ".csv":
-        return read_observations_csv(path)
+    try:
+        if path.suffix.lower() == ".xml":
+            return read_pixml(path)
+        if path.suffix.lower() == ".csv":
+            return read_observations_csv(path)
+    except CaseError as exc:
+        reason, field = _cut(exc.reason), _cut(exc.field) if exc.field else exc.field
+        if (reason, field) == (exc.reason, exc.field):
+            raise
+        raise type(exc)(reason, file=exc.file, field=field) from None
     raise CaseError("expected a .csv or a PI-XML .xml file", file=str(path))
+
+
+#: Longest run of text without a blank that a message quotes as it is, characters.
+_LONGEST_WORD = 200
+
+
+def _cut(text: str) -> str:
+    """``text`` with every run of more than :data:`_LONGEST_WORD` characters without a blank cut short."""
+    import re
+
+    return re.sub(r"\S{" + str(_LONGEST_WORD + 1) + ",}",
+                  lambda m: f"{m.group(0)[:60]}… ({len(m.group(0))} characters)", text)
 
 
 def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Timestamp, last: pd.Timestamp, *,
                scenario: str | None = None, noise: str = "none", seed: int = 0, realism: Any = None,
                observations: Sequence[tuple[str, Any]] = (), follow: str | Path | None = None, poll: float = 10.0,
                max_cycles: int | None = None, report: str | Path | None = None,
-               progress: Progress = NO_PROGRESS, assimilation: Any = None, rain_error: float = 0.0) -> dict[str, Any]:
+               progress: Progress = NO_PROGRESS, assimilation: Any = None, rain_error: float = 0.0,
+               take_over: bool = False) -> dict[str, Any]:
     """Run the cycles issued from ``first`` to ``last`` and return the summary (:func:`online_summary`).
 
     Parameters
@@ -84,6 +107,15 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     rain_error
         Twin only: σ of the multiplicative error of the truth's inflows and laterals against the model's
         (:func:`rivercal.twin.forcing_error.rain_error_model`; 0.3: about 30 %).
+    take_over
+        Resume a cycle whose recorded owner looks alive (:meth:`rivercal.store.Store.begin_cycle`).
+
+    Raises
+    ------
+    CaseError
+        For an observation file (``observations``) with a series the model does not simulate or with values
+        mostly outside their plausible range (:mod:`rivercal.online.screening`); nothing is stored then. A
+        file in the ``follow`` folder with such a problem is reported and skipped instead.
     """
     from rivercal.online.service import OnlineService
     from rivercal.store import FINAL_STATUSES, Store, is_url
@@ -100,6 +132,9 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             meta["realism"] = level.summary()
     if scenario and rain_error:
         meta["rain_error"] = rain_error
+    ranges: dict[str, Any] = {}
+    if observations or follow is not None:
+        ranges = _screen_deliveries(model, config, first, last, observations, progress)
     if not is_url(db):
         Path(db).parent.mkdir(parents=True, exist_ok=True)
     from rivercal.evaluate import DaskCluster
@@ -107,7 +142,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     if isinstance(config.workers, DaskCluster):  # every cycle's problem then refers to the model on the workers
         config.workers.share(model)
     with Store(db) as store:
-        service = OnlineService(model, store, run, config, first, meta=meta, assimilation=assimilation)
+        service = OnlineService(model, store, run, config, first, meta=meta, assimilation=assimilation,
+                                take_over=take_over)
         if scenario is not None:
             from rivercal.twin.practical import practical_truth
 
@@ -122,7 +158,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             store.ingest(truth.observations, source=f"twin:{scenario}", screen=ScreenRule())
             truth_series = truth.series
         for source, obs in observations:
-            store.ingest(obs, source=source, screen=ScreenRule())
+            store.ingest(obs, source=source, screen=ScreenRule(),
+                         plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
         finished = int(store.cycles(service.run)["status"].isin(FINAL_STATUSES).sum())
         total = int((last - service.schedule.first_issue) // service.period) + 1
         if max_cycles is not None:
@@ -144,7 +181,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         if follow is None:
             service.replay(last, progress=on_cycle, max_cycles=max_cycles)
         else:
-            _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress)
+            _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress, ranges)
         summary = online_summary(store, service, outcomes, time.perf_counter() - t_start, truth=truth_series)
         if report is not None:
             from rivercal.report.online import write_online_report
@@ -154,9 +191,74 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     return summary
 
 
+def ingest_file(store: Any, path: str | Path, model: Any, ranges: Any, progress: Progress = NO_PROGRESS) -> Any:
+    """Read, check and store one delivered observation file, as ``--follow`` does with each new file.
+
+    Parameters
+    ----------
+    store
+        The open store.
+    path
+        A CSV or PI-XML file; its name is the values' source in the store.
+    model
+        The model whose series the file must hold.
+    ranges
+        The plausible range of each series (:func:`rivercal.online.screening.plausible_ranges`).
+    progress
+        Where notes on values stored as outliers go (they are logged too).
+
+    Returns
+    -------
+    IngestResult
+        What :meth:`rivercal.store.Store.ingest` stored.
+
+    Raises
+    ------
+    CaseError
+        Naming the file and the series (and line) of the problem; nothing of the file is stored then.
+    """
+    from rivercal.online.screening import check_delivery, check_series
+
+    path = Path(path)
+    delivery = read_observation_file(path)
+    check_series(delivery, model.observables, path.name, model.name)
+    for note in check_delivery(delivery, path.name, ranges):
+        log.warning("%s", note)
+        progress.note(note)
+    return store.ingest(delivery, source=path.name, screen=ScreenRule(),
+                        plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
+
+
+def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Timestamp,
+                       observations: Sequence[tuple[str, Any]], progress: Progress) -> dict[str, Any]:
+    """Check the given files against the model; the plausible range of each series (for the files to come too).
+
+    The series of every file are checked first (no model run); then the model runs the data period once
+    (:func:`rivercal.online.screening.plausible_ranges`) and every file's values are checked against it.
+    """
+    from rivercal.observations import measurable
+    from rivercal.online.screening import check_delivery, check_series, data_end, plausible_ranges
+
+    for source, obs in observations:
+        check_series(obs, model.observables, source, model.name)
+    progress.stage("checking the observations against the model's own levels")
+    start = first - pd.Timedelta(config.window) - pd.Timedelta(config.warmup)
+    ranges = plausible_ranges(model, measurable(model.observables), start, data_end(model, config, first, last),
+                              config.dss, config.output_interval_s)
+    for source, obs in observations:
+        for note in check_delivery(obs, source, ranges):
+            log.warning("%s", note)
+            progress.note(note)
+    return ranges
+
+
 def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: float, on_cycle: Callable[[Any], None],
-            max_cycles: int | None, progress: Progress) -> None:
-    """Ingest new files from ``folder`` and run each cycle when the newest data reach its issue time."""
+            max_cycles: int | None, progress: Progress, ranges: Any) -> None:
+    """Ingest new files from ``folder`` and run each cycle when the newest data reach its issue time.
+
+    A file that cannot be read, names a series the model does not simulate or holds mostly implausible
+    values (:mod:`rivercal.online.screening`) is reported and skipped; ``ranges`` are the plausible ranges.
+    """
     seen: dict[Path, tuple[float, int]] = {}
     done = 0
     try:
@@ -168,7 +270,7 @@ def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: fl
                 if seen.get(path) == stamp:
                     continue
                 try:
-                    store.ingest(read_observation_file(path), source=path.name, screen=ScreenRule())
+                    ingest_file(store, path, service.model, ranges, progress)
                 except ValueError as exc:  # a bad file (CaseError) is reported and skipped; the service goes on
                     log.warning("skipped %s: %s", path.name, exc)
                     progress.note(f"skipped {path.name}: {exc}")
@@ -193,6 +295,10 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
                    truth: pd.DataFrame | None = None) -> dict[str, Any]:
     """JSON-friendly summary of a run: cycles, estimates, alerts and forecast errors (updated vs DSS).
 
+    ``cycles_done_now`` counts the cycles this call computed, ``cycles_succeeded_now`` those of them that
+    ended ``done`` (not failed or aborted), ``status_now`` counts them by status and ``first_message_now`` is
+    the message of the first that did not end ``done``.
+
     ``forecast_errors`` is :func:`rivercal.report.online.forecast_errors` (with its ``reason`` when
     nothing could be compared yet); the headline figures (``forecast_mae_ratio``,
     ``time_to_correct_cycles``, ``jump_alerts``, ``fallbacks`` …) are
@@ -212,6 +318,9 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
         "case": service.model.name,
         "db": str(store.path),
         "cycles_done_now": len(outcomes),
+        "cycles_succeeded_now": sum(o.status == "done" for o in outcomes),
+        "status_now": {k: sum(o.status == k for o in outcomes) for k in sorted({o.status for o in outcomes})},
+        "first_message_now": next((o.message for o in outcomes if o.status != "done"), None),
         "cycles": len(cycles),
         "status": cycles["status"].value_counts().to_dict(),
         "wall_s": round(wall, 2),
