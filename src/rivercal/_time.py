@@ -110,7 +110,8 @@ def utc(time: Any) -> pd.Timestamp:
     ts = parse_iso(time) if isinstance(time, str) else pd.Timestamp(time)
     if ts is pd.NaT or pd.isna(ts):
         raise ValueError(f"not a time: {time!r}")
-    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+    ts = ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+    return ts.as_unit("ns")  # one resolution whatever the input's: indexes built from it compare equal
 
 
 def utc_index(times: Any) -> pd.DatetimeIndex:

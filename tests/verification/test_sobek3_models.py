@@ -73,8 +73,6 @@ def test_the_compound_channel_at_half_its_time_step_is_within_a_centimetre(compo
     assert levels["max"] <= 0.05
 
 
-@pytest.mark.xfail(strict=True, reason="at its own 3600 s step the engine's levels oscillate where the water spreads "
-                                       "onto the near-horizontal floodplain (docs/sobek3.md)")
 def test_the_compound_channel_as_imported_is_within_a_centimetre(tmp_path) -> None:
     row = compare_sobek3(_md1d("sobek3-compound"), tmp_path).row()
     assert row["runs_as_imported"]
