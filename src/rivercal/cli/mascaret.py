@@ -10,7 +10,7 @@ import typer
 from rivercal.cli.common import JsonOpt, emit_json, guard, out_console
 from rivercal.errors import RivercalError
 
-__all__ = ["import_mascaret_cmd"]
+__all__ = ["import_mascaret_cmd", "oriege_bench"]
 
 
 @guard
@@ -68,3 +68,42 @@ def import_mascaret_cmd(
                       f"{s['profiles']} profiles, {s['friction_groups']} friction groups, {s['boundaries']} "
                       f"boundaries, {s['laterals']} laterals, {s['stations']} stations, {s['start']} .. {s['end']}; "
                       f"{s['approximated']} approximated, {s['refused']} refused (see {out / 'import.md'})")
+
+
+@guard
+def oriege_bench(
+    out: Annotated[Path | None, typer.Option(
+        "--out", help="Keep the imported case, the gauge list, the observation file and the table per gauge "
+                      "here (default: a temporary folder).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Calibrate the Oriège (Mascaret test 19) on 7 measured levels, validate on 6, then on all 13."""
+    from rich.table import Table
+
+    from rivercal.bench.oriege import calibrate_oriege, oriege_folder
+    from rivercal.cli.common import watch_compilation
+
+    try:
+        folder = oriege_folder()
+    except FileNotFoundError as exc:
+        raise RivercalError(str(exc)) from None
+    watch_compilation(True)
+    result = calibrate_oriege(folder, out)
+    summary = result.summary()
+    if out is not None:
+        result.gauges.to_csv(out / "gauges_levels.csv", index=False)
+        summary["table"] = str(out / "gauges_levels.csv")
+    if as_json:
+        emit_json(summary)
+        return
+    table = Table(title="Oriège: levels at the 13 staff gauges (m)")
+    for col in ("gauge", "x m", "role", "measured", "Mascaret", "K=20", "cal. on 7", "cal. on 13"):
+        table.add_column(col, justify="right")
+    for g in summary["gauges"]:
+        table.add_row(g["id"], f"{g['x']:g}", g["role"], f"{g['measured']:.2f}", f"{g['mascaret']:.2f}",
+                      f"{g['initial']:.3f}", f"{g['calibrated_7']:.3f}", f"{g['calibrated_13']:.3f}")
+    out_console.print(table)
+    out_console.print(f"RMSE against the measurements: Mascaret {summary['mascaret_rmse_m']:.3f} m; rivercal "
+                      f"calibrated on all 13 {summary['rmse_m']:.3f} m (max {summary['max_abs_m']:.3f} m); calibrated "
+                      f"on 7, the 6 held-out gauges {summary['held_out_rmse_m']:.3f} m (Mascaret there "
+                      f"{summary['mascaret_held_out_rmse_m']:.3f} m)", highlight=False)
