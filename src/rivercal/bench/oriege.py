@@ -100,8 +100,8 @@ def build_oriege_case(folder: Path, out: Path, *, cross_sections: str = "nearest
     """Import the Oriège with a station per gauge and three calibration zones; write ``observations.csv`` too.
 
     Returns the case folder (``out/case``). Also written: ``out/gauges.csv`` (the station list given to the
-    import) and ``out/observations.csv`` (the measured levels at the end of the period, one column
-    ``<gauge>.h`` each).
+    import), ``out/observations.csv`` (the measured levels at the end of the period, one column ``<gauge>.h``
+    each) and ``out/observations_7.csv`` (the same for the 7 calibration gauges only).
     """
     import tomli_w
 
@@ -129,6 +129,7 @@ def build_oriege_case(folder: Path, out: Path, *, cross_sections: str = "nearest
                          index=[end.strftime("%Y-%m-%dT%H:%M:%SZ")])
     frame.index.name = "time"
     frame.to_csv(out / "observations.csv")
+    frame[[f"{g}.h" for g in CALIBRATION_GAUGES]].to_csv(out / "observations_7.csv")
     return case_dir
 
 

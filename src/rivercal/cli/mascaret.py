@@ -35,6 +35,8 @@ def import_mascaret_cmd(
         "--cross-sections", help="'interpolated' (Mascaret's way: a point between two profiles takes the profile "
                                  "interpolated between them) or 'nearest'.")] = "interpolated",
     spinup: Annotated[float, typer.Option(help="Spin-up before the period, h.")] = 0.0,
+    initial_depth: Annotated[float, typer.Option(
+        help="Depth of the cold start, m (Mascaret's initial water line is not carried over).")] = 0.5,
     as_json: JsonOpt = False,
 ) -> None:
     """Convert a Mascaret model into a case folder, accounting for every object in import.md."""
@@ -45,6 +47,7 @@ def import_mascaret_cmd(
     check_number(output_interval, "--output-interval", low=0.1, high=86400 * 366, low_open=False)
     check_number(hours, "--hours", low=0, high=24 * 366 * 10, low_open=True)
     check_number(spinup, "--spinup", low=0, high=8784)
+    check_number(initial_depth, "--initial-depth", low=0, high=100)
     start = parse_time(origin, "--origin")
     try:
         import tomli_w  # noqa: F401
@@ -58,7 +61,7 @@ def import_mascaret_cmd(
                       for sid, reach, x, line in read_station_list(stations))
     options = ImportOptions(allow_partial=allow_partial, origin=start.isoformat(), dt=dt,
                             output_interval=output_interval, hours=hours, cross_sections=cross_sections,
-                            stations=specs, spinup=spinup)
+                            stations=specs, spinup=spinup, initial_depth=initial_depth)
     result = import_mascaret(model, out, options)
     if as_json:
         emit_json({"folder": str(result.folder), **result.summary})

@@ -432,7 +432,19 @@ class _Converter:
                               f"{z['end']:g} m of reach {z['reach'].name!r}: friction group(s) {', '.join(names)}, "
                               "assigned to the profiles in the zone (a link between two zones takes the zone of the "
                               "nearer profile)")
+        shared: dict[str, list[str]] = defaultdict(list)  # group -> profiles that combine it with another group
+        for p in profiles:
+            if len(set(p["friction"])) > 1:
+                for gid in set(p["friction"]):
+                    shared[gid].append(p["id"])
         for gid, g in groups.items():
+            if gid in shared:
+                names = shared[gid]
+                self.ledger.warn(f"friction group {gid} is not offered as a calibration parameter: profile(s) "
+                                 f"{', '.join(names[:4])}{' ...' if len(names) > 4 else ''} combine it with another "
+                                 "bed, and the engine fixes the ratio of a profile's section coefficients when it "
+                                 "compiles the network (a change of one would scale the whole profile)")
+                continue
             name = "K" + re.sub(r"[^A-Za-z0-9_]", "_", gid.replace("zone", "z"))
             lo, hi = _calibration_range(g["type"], g["value"])
             parameters.append({"name": name, "targets": [f"friction:group:{gid}"], "min": lo, "max": hi,
