@@ -33,7 +33,7 @@ def test_a_refusal_stops_the_import_and_names_the_way_out(tmp_path: Path) -> Non
     assert "weir 'barrage1'" in run.stderr and "--allow-partial" in run.stderr and "import.md" in run.stderr
     run = rivercal("import", "mascaret", str(xcas), "--out", str(tmp_path / "case"), "--allow-partial")
     assert run.returncode == 0, run.stderr
-    assert "1 refused" in run.stdout
+    assert "1 refused" in " ".join(run.stdout.split())  # the console wraps long lines
 
 
 def test_bad_input_is_an_error_naming_the_file_and_line(tmp_path: Path) -> None:

@@ -659,7 +659,7 @@ class _Converter:
         span_ms = ms(t_end - t0)
         if span_ms % interval_ms:
             span_ms = (span_ms // interval_ms + 1) * interval_ms
-        self.start = self.origin + pd.Timedelta(milliseconds=ms(t0) if t0 else 0)
+        self.start = self.origin + pd.Timedelta(milliseconds=round(t0 * 1000))
         self.end = self.start + pd.Timedelta(milliseconds=span_ms)
         self.t0 = t0
         self.case["case"] = {"name": _BAD.sub("_", self.x.path.stem)[:60] or "mascaret",
