@@ -21,6 +21,7 @@ BENCHMARKS = {
     "calibrate-all": ["bench", "calibrate", "--json"],
     "hupsel": ["bench", "hupsel", "--json"],
     "dhydro": ["bench", "dhydro", "--json"],
+    "oriege": ["bench", "oriege", "--json"],
     "online": ["bench", "online", "--replay", "--json"],
     "dashboard": ["benchmarks/dashboard_load.py"],
     "engines": ["bench", "engines", "--json"],

@@ -13,6 +13,7 @@ import typer
 from rich.table import Table
 
 from rivercal.cli.common import JsonOpt, emit_json, guard, out_console, watch_compilation
+from rivercal.cli.mascaret import oriege_bench
 from rivercal.cli.options import OptionError, check_choice, check_number, check_workers, parse_names, parse_time
 
 __all__ = ["app"]
@@ -338,3 +339,6 @@ def _print_flat(result: dict, title: str, as_json: bool) -> None:
     for key, value in result.items():
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out_console.print(table)
+
+
+app.command("oriege")(oriege_bench)
