@@ -34,6 +34,8 @@ FLOW_BOTH = 0
 FLOW_POSITIVE = 1
 FLOW_NEGATIVE = 2
 FLOW_NONE = 3
+#: Depth of water (m) below which a pump's suction point is dry: the pump stops, whatever its stop level.
+PUMP_DRY = 0.01
 
 # -- culvert barrel shapes (``c_shape``) ----------------------------------------------------------
 CULVERT_RECTANGULAR = 0
