@@ -325,8 +325,9 @@ def switch_pumps(net, work, z, pump_on):
     The capacity is ``net.p_cap`` (m³/s), which a capacity series sets each step (:func:`apply_settings`). A pump
     cannot draw water that is not there: it stops when its suction point holds less than ``PUMP_DRY`` of water,
     whatever its stop level (a stop level at or below the bed), and starts again ``PUMP_DRY`` above that at the
-    earliest.
+    earliest. Returns how many pumps switched.
     """
+    switched = 0
     for link in work.pump_links:
         s = net.lk_sidx[link]
         ksuc = net.lk_k1[link] if net.p_sign[s] > 0.0 else net.lk_k2[link]
@@ -334,11 +335,14 @@ def switch_pumps(net, work, z, pump_on):
         on = max(net.p_on[s], off + PUMP_DRY)
         if pump_on[s] > 0.5 and z[ksuc] <= off:
             pump_on[s] = 0.0
+            switched += 1
         elif pump_on[s] < 0.5 and z[ksuc] >= on:
             pump_on[s] = 1.0
+            switched += 1
         work.area[link] = 0.0
         work.fco[link] = 0.0
         work.rco[link] = net.p_sign[s] * net.p_cap[s] * pump_on[s]
+    return switched
 
 
 @kernel
