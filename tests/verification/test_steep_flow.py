@@ -90,10 +90,23 @@ def test_an_hour_long_step_on_a_10_m_grid_is_divided_until_it_is_right(tmp_path:
     assert sim.last_run_stats["max_division"] >= 256
 
 
-def test_a_step_that_no_division_can_save_stops_with_the_place_and_what_to_change(tmp_path: Path) -> None:
-    with pytest.raises(EngineDivergedError) as info:
-        _run(tmp_path, 2.0, 3600.0, hours=2.0)  # 3.5 s sub-steps still cross a 2 m link four times
-    exc = info.value
-    assert exc.location.startswith(("A@", "node:"))
-    assert "reduce engine.dt" in exc.detail
-    assert "sub-steps of 3.52 s" in exc.detail
+def test_a_step_the_smallest_sub_step_cannot_save_stops_with_the_place_and_what_to_change() -> None:
+    """The messages of a run that stops at the smallest sub-step (the step control's last resort) name the
+    point, the sub-step, the Courant number there and what to change."""
+    from rivercal.engine.kernels.codes import MAX_HALVINGS, STATUS_DRY, STATUS_FLICKER
+
+    sim = simulator(case_dict(
+        hours=1.0, engine={"dt": 3600.0, "output_interval": 3600.0}, initial={"depth": 1.0},
+        profiles=[{"id": "r", "type": "rectangular", "width": WIDTH}], nodes=[{"id": "up"}, {"id": "down"}],
+        branches=[{"id": "A", "from_node": "up", "to_node": "down", "length": 100.0, "dx": 10.0,
+                   "cross_sections": [{"chainage": 0.0, "profile": "r", "bed_level": 0.0}]}],
+        boundaries=[{"id": "h", "node": "down", "type": "level", "value": 1.0}]), Path(__file__).parent)
+    z = sim.compiled.arrays.hp_bed + 1.0
+    u = np.full(sim.compiled.n_links, 2.0)
+    smallest = f"{3600.0 / 2**MAX_HALVINGS:.3g} s"
+    for status, words, levels in ((STATUS_DRY, "the level falls 0.2 m below the bed", z - 1.2),
+                                  (STATUS_FLICKER, "goes up and down", z)):
+        when, where, detail = sim.divergence(status, 0, 3, levels, u, sim.start, None)
+        assert where == sim.compiled.hp_label[3] and when.startswith("2020")
+        assert words in detail and f"sub-steps of {smallest}" in detail and "reduce engine.dt" in detail
+        assert "Courant number u·dt/dx up to 0.0439" in detail  # 2 m/s × 0.22 s / 10 m

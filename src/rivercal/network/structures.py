@@ -173,7 +173,9 @@ class Pump(_OnBranch):
     capacity
         Discharge when running, m³/s.
     start_level, stop_level
-        Suction-side levels at which the pump switches on and off, m AD (start > stop > bed).
+        Suction-side levels at which the pump switches on and off, m AD (start > stop). A pump cannot draw water
+        that is not there: whatever its stop level (one at or below the bed is allowed, as in D-Flow FM), it stops
+        when its suction point holds less than 1 cm of water and starts again at 2 cm at the earliest.
     direction
         ``positive`` pumps in the branch direction, ``negative`` against it.
     capacity_series

@@ -237,12 +237,6 @@ class Network(NetworkModel):
                 if isinstance(s, Bridge) and s.profile not in profiles:
                     raise FieldProblem(f"{where}.profile", f"bridge {s.id!r} refers to unknown profile "
                                                            f"{s.profile!r}{_known(profiles, s.profile)}")
-                if isinstance(s, Pump) and s.stop_level <= bed:
-                    raise FieldProblem(
-                        f"{where}.stop_level",
-                        f"pump {s.id!r} would run the suction side dry: its stop level {num(s.stop_level)} m AD is "
-                        f"not above the bed {at}",
-                    )
 
     # -- convenience look-ups -------------------------------------------------------------
 

@@ -34,6 +34,8 @@ FLOW_BOTH = 0
 FLOW_POSITIVE = 1
 FLOW_NEGATIVE = 2
 FLOW_NONE = 3
+#: Depth of water (m) below which a pump's suction point is dry: the pump stops, whatever its stop level.
+PUMP_DRY = 0.01
 
 # -- culvert barrel shapes (``c_shape``) ----------------------------------------------------------
 CULVERT_RECTANGULAR = 0
@@ -89,8 +91,8 @@ STAT_SUBSTEPS = 3  # sub-steps taken (a step divided into 2^level sub-steps coun
 STAT_REFINED = 4  # steps that were divided into sub-steps
 STAT_MAX_LEVEL = 5  # the largest sub-step level used (the step divided by 2^level)
 STAT_LEVEL = 6  # the sub-step level of the next step (state of the step control)
-STAT_CALM = 7  # steps since the level last rose or fell
-STAT_RELAX = 8  # calm steps after which the level falls by one (doubles when a fall is undone at once)
+STAT_CALM = 7  # sub-steps since the level last rose or fell
+STAT_RELAX = 8  # calm sub-steps after which the level falls by one (doubles when a fall is undone at once)
 STAT_FELL = 9  # 1 while the last change of the level was a fall
 STAT_AMP = 10  # the last explicit-depth amplification of the step control, in millionths (kernels.stability)
 STAT_ACC = 11  # the sub-step level the accuracy control asks for this step (state of the step control)
@@ -113,7 +115,7 @@ FRICTION_GRADUAL = 0.3
 
 # -- the step control (:mod:`rivercal.engine.kernels.timeloop`) -----------------------------------
 #: Most halvings of a step: a step is divided into at most 2^MAX_HALVINGS sub-steps.
-MAX_HALVINGS = 10
+MAX_HALVINGS = 14
 #: A level this far below its bed (m) is not accepted: the (sub-)step is divided, or the run stops.
 DRY_TOLERANCE = 0.05
 #: Calm steps after which the sub-step level first falls by one again.
@@ -131,12 +133,14 @@ ERR_TARGET = 0.01
 ERR_REDO = 0.05
 #: Flicker: a level that turns (from rising to falling, or back) after moving more than FLICKER_DZ (m) since its
 #: last turn adds FLICKER_TURN to its point's count, and every (sub-)step takes one off; at FLICKER_LIMIT the point
-#: flickers (:func:`.fluxes.finish_step`). Turns every step reach it at the fourth, turns every fourth step at the
+#: flickers (:func:`.fluxes.finish_step`). Turns every step reach it at the fourth, turns every third step at the
 #: sixth; turns FLICKER_TURN or more steps apart never do: an oscillation with a period under about twice that many
-#: steps is not resolved by the step, whether the scheme or the flow started it.
+#: steps is not resolved by the step, whether the scheme or the flow started it. (Counted more loosely, 8 and 24,
+#: the imported Dellen model, whose rainfall-runoff inflows switch on and off every ten minutes, divided twice as
+#: many steps for no change of its levels.)
 FLICKER_DZ = 0.01
-FLICKER_TURN = 8
-FLICKER_LIMIT = 24
+FLICKER_TURN = 6
+FLICKER_LIMIT = 18
 
 # -- columns of a row of ``lk_runs`` (:func:`rivercal.engine.plan.link_runs`) ---------------------
 RUN_LINK = 0

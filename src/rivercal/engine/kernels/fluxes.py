@@ -202,7 +202,7 @@ def too_fast(un, vmax):
 
 
 @kernel
-def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
+def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance, counting):
     """Commit the (sub-)step of ``dt`` s: volumes and levels from the net inflows of :func:`compute_fluxes`, balance.
 
     ``un`` (m/s) and ``qn`` (m³/s) are the new velocities and fluxes; they become the state by the time
@@ -215,7 +215,8 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
     back), and a turn after a swing of more than ``FLICKER_DZ`` adds to its count ``work.flick`` (see
     ``FLICKER_LIMIT``). A point that turns too often within a few (sub-)steps makes it return ``STATUS_FLICKER``
     with that point (its count starts again; the step is committed): an oscillation of a few steps' period is not
-    resolved by the step.
+    resolved by the step. Turns are not counted in a (sub-)step in which a pump switched (``counting`` false): a
+    pump cycling between its start and stop level is its control's cycle.
 
     The loops over all points and links have no branches (their checks are conjunctions), so that they
     vectorise; the rare cases (a level outside its linearised piece, a divergence) are handled after them.
@@ -237,7 +238,7 @@ def finish_step(net, work, dt, vmax, z, dz, vol, un, qn, balance):
         vol[i] += dt * netq[i]
         d = zi - z[i]
         onward = d * swing[i] >= 0.0
-        turned = (not onward) & (math.fabs(swing[i]) > FLICKER_DZ)
+        turned = (not onward) & (math.fabs(swing[i]) > FLICKER_DZ) & counting
         swing[i] = swing[i] + d if onward else d
         flick[i] = flick[i] - (flick[i] > 0) + FLICKER_TURN * turned
         worst = max(worst, flick[i])

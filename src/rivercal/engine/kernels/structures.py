@@ -50,6 +50,7 @@ from rivercal.engine.kernels.codes import (
     O_QNEG,
     O_QPOS,
     O_SPAN,
+    PUMP_DRY,
     STRIP_CREST,
     STRIP_SPAN,
     U_CE,
@@ -321,18 +322,27 @@ def universal_weir_link(z1, z2, u_strip, lo, hi, ce, dircode, length, u_old, dt)
 def switch_pumps(net, work, z, pump_on):
     """Pump switches from the suction-side level at time n; a pump link carries a fixed flux ``rco``.
 
-    The capacity is ``net.p_cap`` (m³/s), which a capacity series sets each step (:func:`apply_settings`).
+    The capacity is ``net.p_cap`` (m³/s), which a capacity series sets each step (:func:`apply_settings`). A pump
+    cannot draw water that is not there: it stops when its suction point holds less than ``PUMP_DRY`` of water,
+    whatever its stop level (a stop level at or below the bed), and starts again ``PUMP_DRY`` above that at the
+    earliest. Returns how many pumps switched.
     """
+    switched = 0
     for link in work.pump_links:
         s = net.lk_sidx[link]
         ksuc = net.lk_k1[link] if net.p_sign[s] > 0.0 else net.lk_k2[link]
-        if pump_on[s] > 0.5 and z[ksuc] <= net.p_off[s]:
+        off = max(net.p_off[s], net.hp_bed[ksuc] + PUMP_DRY)
+        on = max(net.p_on[s], off + PUMP_DRY)
+        if pump_on[s] > 0.5 and z[ksuc] <= off:
             pump_on[s] = 0.0
-        elif pump_on[s] < 0.5 and z[ksuc] >= net.p_on[s]:
+            switched += 1
+        elif pump_on[s] < 0.5 and z[ksuc] >= on:
             pump_on[s] = 1.0
+            switched += 1
         work.area[link] = 0.0
         work.fco[link] = 0.0
         work.rco[link] = net.p_sign[s] * net.p_cap[s] * pump_on[s]
+    return switched
 
 
 @kernel

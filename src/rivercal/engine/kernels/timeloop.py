@@ -25,7 +25,7 @@ Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003), each phase 
   ``DRY_TOLERANCE`` below its bed or NaN, a velocity above ``engine.max_velocity``. A level that flickers (turns up and
   down by more than ``FLICKER_DZ`` again and again within a few steps, :func:`.fluxes.finish_step`) makes the
   coming sub-steps finer. This level carries over to the next steps and falls by one after ``RELAX_STEPS``
-  calm steps (twice as many each time a fall is undone at once);
+  calm sub-steps at it (twice as many each time a fall is undone at once);
 - *accuracy*: the error estimate of a solved (sub-)step, the largest difference between a solved level and
   its extrapolation from the last (sub-)step's change (about half the curvature of the level's path times the
   step squared: the local error of the first-order time integration), must stay below ``ERR_REDO``, or the
@@ -205,7 +205,6 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
         if status != STATUS_OK:
             _keep(u0, q0, u, q)
             return status, n, index
-        _step_done(work)
         if (n + 1) % out_every == 0:
             record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
     _keep(u0, q0, u, q)
@@ -283,7 +282,6 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
         if status != STATUS_OK:
             _keep(u0, q0, u, q)
             return status, n, index
-        _step_done(work)
         if (n + 1) % out_every == 0:
             record(net, (n + 1) // out_every, z, q0, obs_out, z_out, q_out)
             if cx is not None:
@@ -318,7 +316,7 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
         fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
         if _too_fast(net, work, z, u0, h, theta, min_depth, fastest, level):
             continue
-        switch_pumps(net, work, z, pump_on)
+        switched = switch_pumps(net, work, z, pump_on)
         if sx is None:
             picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
         elif sx.links.size > 0:
@@ -330,13 +328,16 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
         if status == STATUS_OK:
             balance[n_b] += h * lateral
             checked = vmax if level >= MAX_HALVINGS else math.inf  # the screen checked the velocities
-            status, index = finish_step(net, work, h, checked, z, dz, vol, u1, q1, balance)
+            # a level turning because a pump switched is its control's cycle, not the scheme's flicker
+            status, index = finish_step(net, work, h, checked, z, dz, vol, u1, q1, balance, switched == 0)
             u0, q0, u1, q1 = u1, q1, u0, q0
             swapped = not swapped
             done += span
             taken += 1
+            _relax(stats, done)
             if status == STATUS_FLICKER and level < MAX_HALVINGS:
                 _rise(stats, level)  # the coming (sub-)steps shorter; this one stands
+                work.flick[:] = 0  # what the longer sub-steps counted does not count against the shorter ones
                 status, index = STATUS_OK, -1
         elif status == SCREEN_REDO:
             stats[STAT_REDONE] += 1
@@ -454,17 +455,22 @@ def _screen(net, work, z, dz, un, vmax, level):
 
 
 @kernel
-def _step_done(work):
-    """Book a finished step in the step control; let the stability's sub-step level fall after enough calm steps."""
-    stats = work.stats
+def _relax(stats, done):
+    """After a committed (sub-)step: let the stability's sub-step level fall by one after enough calm sub-steps.
+
+    ``done`` is the part of the step done (in units of the smallest sub-step); the level falls only where the
+    coarser sub-step fits the rest of the step from there.
+    """
     level = stats[STAT_LEVEL]
     if level == 0:
         return
     stats[STAT_CALM] += 1
     if stats[STAT_CALM] >= stats[STAT_RELAX] and stats[STAT_AMP] < AMP_FALL * 1.0e6:
-        stats[STAT_LEVEL] = level - 1
-        stats[STAT_CALM] = 0
-        stats[STAT_FELL] = 1
+        coarser = max(level - 1, stats[STAT_ACC])
+        if done % (FULL >> coarser) == 0:
+            stats[STAT_LEVEL] = level - 1
+            stats[STAT_CALM] = 0
+            stats[STAT_FELL] = 1
 
 
 @kernel

@@ -349,12 +349,6 @@ def _fit_the_grid(ctx: Context) -> None:
                                                 f"its gate ({gate:g} m AD) is down below the bed: taken as closed")
             if table == "culverts" and "invert_level_end" not in item and item["invert_level"] < bed:
                 item["invert_level_end"] = item["invert_level"]
-            if table == "pumps" and item["stop_level"] <= bed:
-                ctx.ledger.approximated(*ctx.origin(item["id"], "pump"),
-                                        f"the stop level {item['stop_level']:g} m AD is not above "
-                                        f"the bed ({bed:.3f} m AD): raised to 1 cm above it")
-                item["stop_level"] = bed + 0.01
-                item["start_level"] = max(item["start_level"], bed + 0.02)
     branches = {b["id"]: b for b in ctx.case["branches"]}
     layouts = {}
     for bid, b in branches.items():

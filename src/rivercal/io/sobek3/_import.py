@@ -222,11 +222,6 @@ def _fit_the_grid(ctx: Context) -> None:
                 item["crest_level"] = bed
                 if "gate_lower_edge_level" in item:
                     item["gate_lower_edge_level"] = max(item["gate_lower_edge_level"], bed + 1e-3)
-            if table == "pumps" and item["stop_level"] <= bed:
-                ctx.ledger.approximated(*ctx.origin(item["id"], table), f"the stop level {item['stop_level']:g} m AD "
-                                        f"is not above the bed ({bed:.3f} m AD): raised to 1 cm above it")
-                item["stop_level"] = bed + 0.01
-                item["start_level"] = max(item["start_level"], bed + 0.02)
     branches = {b["id"]: b for b in ctx.case["branches"]}
     layouts = {}
     for bid, b in branches.items():
