@@ -42,7 +42,7 @@ SETTINGS_FILE = "rivercal.ini"
 #: Engine settings written there: case field → key.
 _ENGINE_KEYS = {"cross_sections": "crossSections", "theta": "theta", "min_depth": "minDepth",
                 "min_storage_area": "minStorageArea", "max_iterations": "maxIterations", "tolerance": "tolerance",
-                "max_velocity": "maxVelocity", "structure_length": "structureLength"}
+                "max_velocity": "maxVelocity", "structure_length": "structureLength", "dt": "timeStep"}
 
 
 def _write_engine_settings(engine, path: Path) -> None:

@@ -105,9 +105,14 @@ def friction_groups(ctx: Context) -> None:
                 groups.append(group)
                 ctx.source("friction_groups", gid, obj)
                 (ctx.ledger.approximated if note else ctx.ledger.exact)("friction group", gid, note)
-        for obj in blocks.objects:
-            if type(obj).__name__ != "FrictBranch":
-                continue
+        globals_ = [o for o in blocks.objects if type(o).__name__ == "FrictGlobal"]
+        branch_blocks = [o for o in blocks.objects if type(o).__name__ == "FrictBranch"]
+        if len(globals_) > 1 and branch_blocks:
+            ctx.ledger.error(ctx.model.sources.rel(blocks.path), f"{len(globals_)} [Global] blocks and [Branch] blocks "
+                             "in one roughness file: D-Flow FM allows [Branch] blocks only beside a single [Global] "
+                             "block (the group they belong to); give each group a file of its own")
+            continue
+        for obj in branch_blocks:
             where = f"{unquote(obj.branchid)} in {blocks.path.name}"
             if group is None:
                 ctx.ledger.refused("friction on a branch", where, "the file has no [Global] friction group")

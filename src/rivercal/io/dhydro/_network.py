@@ -475,9 +475,9 @@ def _nodes_and_branches(ctx: Context) -> None:
         ctx.branch_nodes[branch["id"]] = (branch["from_node"], branch["to_node"])
         ctx.branch_length[branch["id"]] = branch["length"]
         branches.append(branch)
-    branches.sort(key=lambda b: position[b["id"]])  # the net file's order: D-Flow FM looks for branch orders in it
     ordered = [b for b in branches if "order" in b]
     if ordered:
+        branches.sort(key=lambda b: position[b["id"]])  # the net file's order: D-Flow FM looks for orders in it
         ctx.ledger.exact("setting", "branchOrder", f"{len(ordered)} branch(es) in {len({b['order'] for b in ordered})} "
                          "order(s): their cross-sections are interpolated across the connection nodes between branches "
                          "of one order, as D-Flow FM does (branches[].order)")
