@@ -203,6 +203,10 @@ def test_case_to_dflowfm_to_case_reproduces_the_case(imported, tmp_path: Path) -
     b, _ = load_model(again.folder).simulate()
     assert list(a.series.columns) == list(b.series.columns)
     assert np.abs(a.series.to_numpy() - b.series.loc[a.series.index].to_numpy()).max() <= 1e-6
+    # the exported time step comes back from rivercal.ini, and a time step given to the import wins over it
+    assert "timeStep = 60.0" in (tmp_path / "model" / "rivercal.ini").read_text(encoding="utf-8")
+    import_dhydro(exported.mdu, tmp_path / "other", ImportOptions(dt=30.0))
+    assert tomllib.loads((tmp_path / "other" / "case.toml").read_text(encoding="utf-8"))["engine"]["dt"] == 30.0
 
 
 def test_dflowfm_to_case_to_dflowfm_keeps_every_feature_in_the_files(imported, tmp_path: Path) -> None:

@@ -41,8 +41,8 @@ class ImportOptions:
     allow_partial
         Write the case even when objects that change the hydraulics were refused (they are left out).
     dt
-        Time step of the case, s (default: the largest divisor of the output interval that is at most
-        min(DtMax, 60 s)).
+        Time step of the case, s (default: the case's own from ``rivercal.ini`` when rivercal exported the model,
+        else the largest divisor of the output interval that is at most min(DtMax, 60 s)).
     """
 
     realtime: tuple[Path, ...] = ()

@@ -494,8 +494,9 @@ def _case_orders(raw: np.ndarray, n: int) -> list[int | None]:
 
     D-Flow FM interpolates cross-sections across a connection node between branches of one order, every order but
     -1, the order of a branch that takes part in none (Deltares delft3d, flow1d ``useBranchOrdersCrs``: the
-    cross-sections are grouped by order and all groups but the one of -1 are continued across nodes). The case
-    does so for positive orders, so an order of 0 or below -1 becomes a positive order that no other branch has.
+    cross-sections are sorted by order and every group after the first, that of -1, is continued across nodes).
+    The case does so for positive orders, so an order of 0 or below -1 becomes a positive order that no other
+    branch has.
     """
     if raw.size != n:
         return [None] * n
