@@ -240,3 +240,55 @@ def test_dflowfm_to_case_to_dflowfm_keeps_every_feature_in_the_files(imported, t
     field = OneDFieldModel(out / "initial_waterlevel.ini")
     assert field.global_.value == 1.0
     assert [(b.branchid, b.chainage, b.values) for b in field.branch] == [("b1", [0.0, 1000.0], [1.6, 1.2])]
+
+
+def _edit_block(path: Path, branch: str, key: str, value: str) -> int:
+    """Set ``key = value`` in the [Branch] block of ``branch`` of a roughness file; returns the line number."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    inside = False
+    for k, line in enumerate(lines):
+        text = line.split("#")[0].strip()
+        if text.startswith("["):
+            inside = False
+        if text.replace(" ", "") == f"branchId={branch}":
+            inside = True
+        if inside and text.split("=")[0].strip() == key:
+            lines[k] = f"{key} = {value}"
+            path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+            return k + 1
+    raise AssertionError(f"{key} not found in the block of {branch}")
+
+
+@pytest.mark.parametrize(("key", "value", "expected"), [
+    ("chainage", "1000.0 0.0", "chainage must increase"),
+    ("functionType", "sometimes", "is none of constant, waterLevel, absDischarge, timeSeries"),
+    ("numLocations", "3", "chainage should be equal to the numLocations value"),  # hydrolib-core's own check
+])
+def test_a_roughness_block_that_cannot_be_right_is_an_error_at_its_line(imported, tmp_path, key, value,
+                                                                         expected) -> None:
+    _, _, folder = imported
+    model = _copy(folder, tmp_path)
+    line = _edit_block(model / "roughness-Main.ini", "b2", key, value)
+    with pytest.raises(CaseError) as err:
+        import_dhydro(model / "features.mdu", tmp_path / "case")
+    text = (tmp_path / "case" / "import.md").read_text(encoding="utf-8")
+    assert expected in text, text
+    assert "roughness-Main.ini" in str(err.value)
+    # at the line of the key (hydrolib-core names the chainage line when the count of chainages is off)
+    assert f"roughness-Main.ini, line {line if key != 'numLocations' else line + 1}" in text
+
+
+def test_a_chainage_given_twice_is_a_step_and_time_series_friction_is_refused(imported, tmp_path) -> None:
+    _, _, folder = imported
+    model = _copy(folder, tmp_path)
+    _edit_block(model / "roughness-Main.ini", "b2", "chainage", "300.0 300.0")
+    _edit_block(model / "roughness-Grass.ini", "b3", "functionType", "timeSeries")
+    with pytest.raises(CaseError, match="time series"):
+        import_dhydro(model / "features.mdu", tmp_path / "case")
+    result = import_dhydro(model / "features.mdu", tmp_path / "case", ImportOptions(allow_partial=True))
+    data = tomllib.loads((tmp_path / "case" / "case.toml").read_text(encoding="utf-8"))
+    main = _by_id(data["friction_groups"], "Main")
+    # D-Flow FM: the value of the first below 300 m, of the second from 300 m on; the case steps over 1 mm
+    assert main["branches"][1] == {"branch": "b2", "chainages": [300.0, 300.001], "values": [35.0, 45.0]}
+    assert result.ledger.status_of("friction on a branch", "b2 in roughness-Main.ini") == "approximated"
+    assert result.ledger.status_of("friction on a branch", "b3 in roughness-Grass.ini") == "refused"

@@ -198,7 +198,15 @@ def _branch_entry(ctx: Context, obj: Any, group: dict, where: str) -> dict | Non
     chain = [float(c) for c in (obj.chainage or [])] if n_loc > 0 else [0.0]
     levels = [float(v) for v in (obj.levels or [])] if n_lev > 0 else [0.0]
     expected = len(chain) * len(levels)
-    if len(chain) != max(n_loc, 1) or len(levels) != max(n_lev, 1) or len(values) != expected:
+    if len(chain) != max(n_loc, 1):
+        ctx.ledger.error(at("chainage"), f"[Branch] {unquote(obj.branchid)!r}: numLocations = {n_loc} but "
+                         f"{len(chain)} chainage(s)")
+        return None
+    if len(levels) != max(n_lev, 1):
+        ctx.ledger.error(at("levels"), f"[Branch] {unquote(obj.branchid)!r}: numLevels = {n_lev} but {len(levels)} "
+                         "level(s)")
+        return None
+    if len(values) != expected:
         ctx.ledger.error(at("frictionvalues"), f"[Branch] {unquote(obj.branchid)!r}: {len(values)} frictionValues "
                          f"for numLocations = {n_loc} and numLevels = {n_lev}; give numLocations values for each "
                          "level (one when numLocations is 0)")
