@@ -115,7 +115,8 @@ def test_bed_levels_across_a_node_of_one_order_follow_d_flow_fm(imported) -> Non
     D-Flow FM 1D (flow1d ``useBranchOrdersCrs``): the last cross-section of b1 is continued onto the next branch of
     its order at node B, the first of b2 onto the branch before it, through the connector bc that has none. So along
     the line A-D the bed runs linearly from 0.5 m AD (b1, 200 m) to -0.5 m AD (b2 at 500 m, 1,600 m from A), and a
-    calculation point takes the lowest bed of its links (D-Flow FM's flow-node bed, ``bl = min(bob)``).
+    calculation point takes the lowest bed of its links (D-Flow FM's flow-node bed: ``bl(n) = min(bl(n), bob(L))``
+    over its links, ``setbobs_1d`` in ``oned_functions.f90``).
     """
     from rivercal.engine.compile import compile_network
 
