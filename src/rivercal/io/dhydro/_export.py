@@ -450,6 +450,10 @@ class _Writer:
         main.filepath = Path(f"roughness-{self.global_id}.ini")
         used = bool(branches) or any(not p.friction for p in self.net.profiles)
         models = [main] if used or self.global_id == "Main" else []  # under another name only when used
+        if used and self.global_id != "Main":
+            self.result.notes.append(f"the case has a friction group named Main: its global friction and the "
+                                     f"branches' own are written as roughness group {self.global_id!r}, which the "
+                                     "profiles without friction groups name (D-Flow FM's default group is Main)")
         for group in self.net.friction_groups:
             fm = FrictionModel(
                 global_=[FrictGlobal(frictionid=group.id, frictiontype=_FRICTION[group.type],
