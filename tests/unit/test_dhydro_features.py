@@ -293,3 +293,31 @@ def test_a_chainage_given_twice_is_a_step_and_time_series_friction_is_refused(im
     assert main["branches"][1] == {"branch": "b2", "chainages": [300.0, 300.001], "values": [35.0, 45.0]}
     assert result.ledger.status_of("friction on a branch", "b2 in roughness-Main.ini") == "approximated"
     assert result.ledger.status_of("friction on a branch", "b3 in roughness-Grass.ini") == "refused"
+
+
+def test_a_group_named_main_beside_the_global_friction_is_exported_under_two_ids(imported, tmp_path) -> None:
+    """A case with a friction group ``Main`` and a profile that takes the global friction: D-Flow FM's default group
+    is ``Main``, so the global friction is written as another group, which that profile names."""
+    import tomli_w
+
+    from rivercal.model import load_model
+
+    _, data, _ = imported
+    data = {k: v for k, v in data.items() if k != "parameters"}
+    plain = _by_id(data["profiles"], "plain")
+    del plain["friction"]  # b2 now takes the global friction, Chezy 40
+    folder = tmp_path / "case"
+    folder.mkdir()
+    (folder / "case.toml").write_text(tomli_w.dumps(data), encoding="utf-8")
+    exported = export_dhydro(load_case(folder), tmp_path / "model")
+    assert any("written as roughness group 'Main_global'" in n for n in exported.notes)
+    from hydrolib.core.dflowfm.crosssection.models import CrossDefModel
+
+    defs = {d.id: d for d in CrossDefModel(tmp_path / "model" / "crsdef.ini").definition}
+    assert defs["plain"].frictionid == "Main_global" and defs["narrowing"].frictionid == "Grass"
+    again = import_dhydro(exported.mdu, tmp_path / "again")
+    back = tomllib.loads((tmp_path / "again" / "case.toml").read_text(encoding="utf-8"))
+    assert _by_id(back["friction_groups"], "Main_global") == {"id": "Main_global", "type": "chezy", "value": 40.0}
+    a, _ = load_model(folder).simulate()
+    b, _ = load_model(again.folder).simulate()
+    assert np.abs(a.series.to_numpy() - b.series.loc[a.series.index].to_numpy()).max() <= 1e-6
