@@ -238,3 +238,203 @@ def write_model(folder: Path) -> Path:
     fm.physics.uniffrictcoef1d = 0.025
     fm.save(recurse=True)
     return fm.filepath
+
+
+# -- a model with the friction and cross-section features of real water-board models ------------------------------
+
+#: The feature model: ``A -(b1)- B -(bc)- C -(b2)- D`` on a line, all of branch order 1 (``bc`` a 100 m connector
+#: without cross-sections), and a side branch ``C -(b3)- E`` of order 2 going north.
+FEATURE_NODES = {"A": (0.0, 0.0), "B": (1000.0, 0.0), "C": (1100.0, 0.0), "D": (2100.0, 0.0), "E": (1100.0, 800.0)}
+FEATURE_BRANCHES = {"b1": ("A", "B"), "bc": ("B", "C"), "b2": ("C", "D"), "b3": ("C", "E")}
+FEATURE_ORDERS = {"b1": 1, "bc": 1, "b2": 1, "b3": 2}
+#: Cross-sections of the feature model: branch → (chainage m, definition, shift = bed level m AD).
+FEATURE_SECTIONS = {"b1": [(200.0, "river", 0.5)], "b2": [(500.0, "plain", -0.5)], "b3": [(500.0, "narrowing", 0.0)]}
+#: Group Grass on b1: Manning n by chainage (rows) and water level (columns) — a law of its own in a Strickler group.
+GRASS_LEVELS = [0.5, 1.5, 2.5]
+GRASS_CHAINAGES = [0.0, 1000.0]
+GRASS_TABLE = [[0.040, 0.035, 0.030], [0.045, 0.040, 0.032]]
+
+
+def feature_frictions(*, discharge_dependent: bool = False):
+    """Roughness of the feature model.
+
+    - ``Main`` (Chézy 40): Manning 0.03 on b1 (a law of its own); Chézy 35 → 45 along b2 (so Main stays a group);
+    - ``Grass`` (Strickler 25): a water-level table in Manning on b1 (:data:`GRASS_TABLE`), Strickler 30 on b3 — or,
+      with ``discharge_dependent``, a table of the discharge on b3 (``functionType = absDischarge``).
+    """
+    from hydrolib.core.dflowfm.friction.models import FrictBranch, FrictGlobal, FrictionModel
+
+    main = FrictionModel(global_=[FrictGlobal(frictionid="Main", frictiontype="Chezy", frictionvalue=40.0)],
+                         branch=[FrictBranch(branchid="b1", frictiontype="Manning", functiontype="constant",
+                                             numlocations=0, frictionvalues=[0.03]),
+                                 FrictBranch(branchid="b2", frictiontype="Chezy", functiontype="constant",
+                                             numlocations=2, chainage=[0.0, 1000.0], frictionvalues=[35.0, 45.0])])
+    main.filepath = Path("roughness-Main.ini")
+    values = [row[j] for j in range(len(GRASS_LEVELS)) for row in GRASS_TABLE]  # level by level, as D-Flow FM reads
+    b3 = (FrictBranch(branchid="b3", frictiontype="Strickler", functiontype="absDischarge", numlevels=2,
+                      levels=[0.0, 10.0], numlocations=0, frictionvalues=[28.0, 32.0]) if discharge_dependent
+          else FrictBranch(branchid="b3", frictiontype="Strickler", functiontype="constant", numlocations=0,
+                           frictionvalues=[30.0]))
+    grass = FrictionModel(global_=[FrictGlobal(frictionid="Grass", frictiontype="Strickler", frictionvalue=25.0)],
+                          branch=[FrictBranch(branchid="b1", frictiontype="Manning", functiontype="waterLevel",
+                                              numlevels=len(GRASS_LEVELS), levels=GRASS_LEVELS,
+                                              numlocations=len(GRASS_CHAINAGES), chainage=GRASS_CHAINAGES,
+                                              frictionvalues=values), b3])
+    grass.filepath = Path("roughness-Grass.ini")
+    return [main, grass]
+
+
+def write_feature_model(folder: Path, *, discharge_dependent: bool = False) -> Path:
+    """A small D-Flow FM model with every friction and cross-section feature; returns the MDU path.
+
+    Branch orders (with a connector branch without cross-sections), per-branch friction laws, friction along a
+    branch and as a function of the water level, a zwRiver profile with floodplain sections and a summer dike
+    (levee), an open zw profile whose flow width narrows, initial levels along a branch, a discharge into A and E
+    and a level at D, and an observation point on every branch with a cross-section.
+    """
+    from hydrolib.core.base.models import DiskOnlyFileModel
+    from hydrolib.core.dflowfm.bc.models import Constant, ForcingModel, QuantityUnitPair
+    from hydrolib.core.dflowfm.crosssection import models as m
+    from hydrolib.core.dflowfm.ext.models import Boundary, ExtModel
+    from hydrolib.core.dflowfm.inifield.models import IniFieldModel, InitialField
+    from hydrolib.core.dflowfm.mdu.models import FMModel
+    from hydrolib.core.dflowfm.obs.models import ObservationPoint, ObservationPointModel
+    from hydrolib.core.dflowfm.onedfield.models import OneDFieldBranch, OneDFieldGlobal, OneDFieldModel
+
+    folder.mkdir(parents=True, exist_ok=True)
+    fm = FMModel()
+    fm.filepath = folder / "features.mdu"
+    net = write_network(folder, FEATURE_BRANCHES, FEATURE_NODES, dx=50.0)
+    m1 = net.network._mesh1d
+    m1.network1d_branch_order = np.array([FEATURE_ORDERS[str(b)] for b in m1.network1d_branch_id], dtype=np.int32)
+    fm.geometry.netfile = net
+    defs = m.CrossDefModel(definition=[
+        m.ZWRiverCrsDef(id="river", numlevels=4, levels=[0.0, 0.5, 1.5, 3.0], flowwidths=[8.0, 12.0, 30.0, 40.0],
+                        totalwidths=[8.0, 14.0, 40.0, 60.0], mainwidth=12.0, fp1width=28.0, fp2width=0.0,
+                        frictionids=["Main", "Grass"], leveecrestLevel=0.9, leveebaselevel=0.9, leveeflowarea=6.0,
+                        leveetotalrea=15.0),
+        m.ZWCrsDef(id="plain", numlevels=3, levels=[0.0, 1.0, 3.0], flowwidths=[6.0, 10.0, 14.0], frictionid="Main"),
+        m.ZWCrsDef(id="narrowing", numlevels=3, levels=[0.0, 1.0, 2.5], flowwidths=[4.0, 6.0, 5.0],
+                   totalwidths=[4.0, 8.0, 9.0], frictionid="Grass"),
+    ])
+    defs.filepath = Path("crsdef.ini")
+    locs = m.CrossLocModel(crosssection=[
+        m.CrossSection(id=f"{b}_{k}", branchid=b, chainage=c, shift=z, definitionid=d)
+        for b, items in FEATURE_SECTIONS.items() for k, (c, d, z) in enumerate(items)])
+    locs.filepath = Path("crsloc.ini")
+    fm.geometry.crossdeffile, fm.geometry.crosslocfile = defs, locs
+    fm.geometry.frictfile = feature_frictions(discharge_dependent=discharge_dependent)
+    OneDFieldModel(global_=OneDFieldGlobal(quantity="waterlevel", unit="m", value=1.0),
+                   branch=[OneDFieldBranch(branchid="b1", numlocations=2, chainage=[0.0, 1000.0],
+                                           values=[1.6, 1.2])]).save(folder / "level.ini")
+    ini = IniFieldModel(initial=[InitialField(quantity="waterlevel", datafile=DiskOnlyFileModel(filepath=Path(
+        "level.ini")), datafiletype="1dField")])
+    ini.filepath = Path("initialFields.ini")
+    fm.geometry.inifieldfile = ini
+    bc = ForcingModel(forcing=[
+        Constant(name="A", function="constant", quantityunitpair=[QuantityUnitPair(quantity="dischargebnd",
+                                                                                   unit="m3/s")], datablock=[[6.0]]),
+        Constant(name="E", function="constant", quantityunitpair=[QuantityUnitPair(quantity="dischargebnd",
+                                                                                   unit="m3/s")], datablock=[[-1.0]]),
+        Constant(name="D", function="constant", quantityunitpair=[QuantityUnitPair(quantity="waterlevelbnd",
+                                                                                   unit="m")], datablock=[[0.9]]),
+    ])
+    bc.filepath = Path("boundaries.bc")
+    ext = ExtModel(boundary=[Boundary(quantity="dischargebnd", nodeid="A", forcingfile=bc),
+                             Boundary(quantity="dischargebnd", nodeid="E", forcingfile=bc),
+                             Boundary(quantity="waterlevelbnd", nodeid="D", forcingfile=bc)])
+    ext.filepath = Path("forcing.ext")
+    fm.external_forcing.extforcefilenew = ext
+    obs = ObservationPointModel(observationpoint=[
+        ObservationPoint(name="obs_b1", branchid="b1", chainage=600.0),
+        ObservationPoint(name="obs_b2", branchid="b2", chainage=300.0),
+        ObservationPoint(name="obs_b3", branchid="b3", chainage=400.0)])
+    obs.filepath = Path("obs.ini")
+    fm.output.obsfile = [obs]
+    fm.output.hisinterval = [600.0, 0.0, 0.0]
+    fm.time.refdate = REFDATE
+    fm.time.tunit = "S"
+    fm.time.tstart = 0.0
+    fm.time.tstop = 6 * 3600.0
+    fm.time.dtmax = 60.0
+    fm.physics.uniffricttype = 1
+    fm.physics.uniffrictcoef1d = 0.025
+    fm.geometry.dxdoubleat1dendnodes = False
+    fm.save(recurse=True)
+    return fm.filepath
+
+
+def write_uniform_model(folder: Path, *, q: float, slope: float, width: float, depth: float,
+                        strickler: tuple[float, float], length: float = 4000.0, dx: float = 25.0) -> Path:
+    """One sloping rectangular branch whose friction depends on the water level; returns the MDU path.
+
+    The branch ``B`` (``up`` → ``down``, ``length`` m, bed from ``slope · length`` m AD down to 0) carries a
+    rectangle ``width`` m wide of friction group ``Bed`` (Chézy 30), which on ``B`` takes a Strickler coefficient
+    from a ``functionType = waterLevel`` table at its two ends: k = a + b (z - z_b) with ``strickler = (a, b)``,
+    z the water level and z_b the bed level at the end. Interpolated in chainage and level as D-Flow FM does, that is
+    k = a + b h at every place (h the depth). A constant discharge ``q`` enters at ``up``; ``down`` is held at
+    ``depth`` m AD (its bed is 0), the initial depth is ``depth``, and observation point ``mid`` lies halfway.
+    Calculation points every ``dx`` m.
+    """
+    from hydrolib.core.base.models import DiskOnlyFileModel
+    from hydrolib.core.dflowfm.bc.models import Constant, ForcingModel, QuantityUnitPair
+    from hydrolib.core.dflowfm.crosssection import models as m
+    from hydrolib.core.dflowfm.ext.models import Boundary, ExtModel
+    from hydrolib.core.dflowfm.friction.models import FrictBranch, FrictGlobal, FrictionModel
+    from hydrolib.core.dflowfm.inifield.models import IniFieldModel, InitialField
+    from hydrolib.core.dflowfm.mdu.models import FMModel
+    from hydrolib.core.dflowfm.obs.models import ObservationPoint, ObservationPointModel
+    from hydrolib.core.dflowfm.onedfield.models import OneDFieldGlobal, OneDFieldModel
+
+    folder.mkdir(parents=True, exist_ok=True)
+    fm = FMModel()
+    fm.filepath = folder / "uniform.mdu"
+    fm.geometry.netfile = write_network(folder, {"B": ("up", "down")}, {"up": (0.0, 0.0), "down": (length, 0.0)},
+                                        dx=dx)
+    top = slope * length
+    defs = m.CrossDefModel(definition=[m.RectangleCrsDef(id="rect", width=width, height=10.0, closed=False,
+                                                         frictionid="Bed")])
+    defs.filepath = Path("crsdef.ini")
+    locs = m.CrossLocModel(crosssection=[
+        m.CrossSection(id="B_up", branchid="B", chainage=0.0, shift=top, definitionid="rect"),
+        m.CrossSection(id="B_down", branchid="B", chainage=length, shift=0.0, definitionid="rect")])
+    locs.filepath = Path("crsloc.ini")
+    fm.geometry.crossdeffile, fm.geometry.crosslocfile = defs, locs
+    a, b = strickler
+    levels = [0.0, top + 10.0]
+    beds = [top, 0.0]  # at chainage 0 and length
+    values = [a + b * (z - zb) for z in levels for zb in beds]  # numLocations values for each level in turn
+    rough = FrictionModel(global_=[FrictGlobal(frictionid="Bed", frictiontype="Chezy", frictionvalue=30.0)],
+                          branch=[FrictBranch(branchid="B", frictiontype="Strickler", functiontype="waterLevel",
+                                              numlevels=2, levels=levels, numlocations=2, chainage=[0.0, length],
+                                              frictionvalues=values)])
+    rough.filepath = Path("roughness-Bed.ini")
+    fm.geometry.frictfile = [rough]
+    OneDFieldModel(global_=OneDFieldGlobal(quantity="waterdepth", unit="m", value=depth)).save(folder / "depth.ini")
+    ini = IniFieldModel(initial=[InitialField(quantity="waterdepth", datafile=DiskOnlyFileModel(filepath=Path(
+        "depth.ini")), datafiletype="1dField")])
+    ini.filepath = Path("initialFields.ini")
+    fm.geometry.inifieldfile = ini
+    bc = ForcingModel(forcing=[
+        Constant(name="up", function="constant", quantityunitpair=[QuantityUnitPair(quantity="dischargebnd",
+                                                                                    unit="m3/s")], datablock=[[q]]),
+        Constant(name="down", function="constant", quantityunitpair=[QuantityUnitPair(quantity="waterlevelbnd",
+                                                                                      unit="m")],
+                 datablock=[[depth]])])
+    bc.filepath = Path("boundaries.bc")
+    ext = ExtModel(boundary=[Boundary(quantity="dischargebnd", nodeid="up", forcingfile=bc),
+                             Boundary(quantity="waterlevelbnd", nodeid="down", forcingfile=bc)])
+    ext.filepath = Path("forcing.ext")
+    fm.external_forcing.extforcefilenew = ext
+    obs = ObservationPointModel(observationpoint=[ObservationPoint(name="mid", branchid="B", chainage=length / 2)])
+    obs.filepath = Path("obs.ini")
+    fm.output.obsfile = [obs]
+    fm.output.hisinterval = [3600.0, 0.0, 0.0]
+    fm.time.refdate = REFDATE
+    fm.time.tunit = "S"
+    fm.time.tstart = 0.0
+    fm.time.tstop = 36 * 3600.0
+    fm.time.dtmax = 120.0
+    fm.geometry.dxdoubleat1dendnodes = False
+    fm.save(recurse=True)
+    return fm.filepath

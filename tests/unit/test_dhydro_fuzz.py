@@ -1,9 +1,10 @@
 """Fuzz test of the D-HYDRO import: damaged copies of real models end in a case or a clean error.
 
-Two real models are damaged one file at a time (tests/dhydro_fuzz.py: values replaced by nonsense, keys
+Three models are damaged one file at a time (tests/dhydro_fuzz.py: values replaced by nonsense, keys
 renamed, removed or given twice, headers lost, files truncated, deleted or overwritten with bytes): the
-test model written by hydrolib-core (every profile and structure type) and the packaged case ``synthetic``
-as rivercal's export writes it. Every import must end with a case that loads, or with a
+test model written by hydrolib-core (every profile and structure type), the model with every friction and
+cross-section feature (roughness tables, branch orders, a levee, initial levels along a branch) and the packaged
+case ``synthetic`` as rivercal's export writes it. Every import must end with a case that loads, or with a
 :class:`~rivercal.errors.CaseError` whose message names a file of the model — never another exception —
 and must write nothing outside its case folder. The seeds are fixed, so a failure reproduces; a longer
 search runs with ``python -m tests.dhydro_fuzz N SEED MODEL.mdu ...``.
@@ -20,7 +21,7 @@ import pytest
 from rivercal.case import load_case
 from rivercal.io.dhydro import export_dhydro
 from tests.dhydro_fuzz import mutate, names_a_file, run_case, snapshot
-from tests.dhydro_models import write_model
+from tests.dhydro_models import write_feature_model, write_model
 
 CASES = 24
 
@@ -30,7 +31,7 @@ def models(tmp_path_factory) -> list[Path]:
     root = tmp_path_factory.mktemp("fuzz-bases")
     test_model = write_model(root / "test")
     exported = export_dhydro(load_case("synthetic"), root / "synthetic").mdu
-    return [test_model, exported]
+    return [test_model, write_feature_model(root / "features"), exported]
 
 
 @pytest.mark.parametrize("seed", range(CASES))

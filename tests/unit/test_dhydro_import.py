@@ -77,7 +77,10 @@ def test_friction_groups_and_the_default_group(imported) -> None:
     assert _by_id(data["branches"], "b4")["friction"] == {"type": "manning", "value": 0.03}
     groups = {g["id"]: g for g in data["friction_groups"]}
     assert groups["Grass"]["type"] == "strickler" and groups["Grass"]["value"] == 20.0
-    assert groups["Grass"]["branches"] == [{"branch": "b2", "value": 24.0}]  # mean of 22 and 26, approximated
+    # values along the branch, exactly (linear between the chainages, as D-Flow FM interpolates them)
+    assert groups["Grass"]["branches"] == [{"branch": "b2", "chainages": [0.0, 1000.0], "values": [22.0, 26.0]}]
+    # group Main keeps b4's own law too, for the profiles that name Main beside another group (yz1)
+    assert groups["Main"]["branches"] == [{"branch": "b4", "type": "manning", "value": 0.03}]
     assert groups["Concrete"] == {"id": "Concrete", "type": "white-colebrook", "value": 0.003}
 
 

@@ -308,3 +308,38 @@ def test_interpolated_cross_sections_keep_a_lake_at_rest(tmp_path: Path) -> None
     out, _ = simulator(data, tmp_path).simulate(snapshots=True)
     assert np.abs(out.levels.to_numpy() - 2.0).max() < 1e-9
     assert np.abs(out.discharges.to_numpy()).max() < 1e-9
+
+
+def test_a_water_level_friction_table_gives_the_normal_depth_of_its_coefficient_at_that_depth(
+        tmp_path: Path) -> None:
+    """A D-Flow FM branch whose Strickler coefficient is a ``waterLevel`` table (in a Chézy group), imported.
+
+    The table at the two ends of the sloping branch is k = a + b (z - z_b), so interpolated in chainage and level as
+    D-Flow FM does (flow1d ``getFrictionValue``) it is k = a + b h everywhere. The steady uniform depth solves
+    Q = (a + b h) A R^(2/3) √S0 for the rectangle (scipy brentq), independently of the engine. Calculation points
+    every 25 m: a link conveys at the level of its upwind point over the bed at its middle, an error of the scheme
+    that shrinks with the spacing (here 5.5 mm at 100 m, 1.4 mm at 25 m; 3.5 and 0.9 mm with a constant k).
+    """
+    from rivercal.io.dhydro import import_dhydro
+    from rivercal.model import load_model
+    from tests.dhydro_models import write_uniform_model
+
+    width, q, slope, (a, b), length = 8.0, 12.0, 2e-4, (18.0, 12.0), 4000.0
+
+    def conveyance(h):
+        area, radius = width * h, width * h / (width + 2.0 * h)
+        return (a + b * h) * area * radius ** (2.0 / 3.0)
+
+    hn = _normal_depth(conveyance, q, slope, 10.0)
+    constant = _normal_depth(lambda h: (a + b * 1.0) * width * h * (width * h / (width + 2 * h)) ** (2 / 3), q,
+                             slope, 10.0)
+    assert abs(hn - constant) > 0.05  # the level dependence matters at this depth
+    mdu = write_uniform_model(tmp_path / "model", q=q, slope=slope, width=width, depth=hn, strickler=(a, b),
+                              length=length)
+    result = import_dhydro(mdu, tmp_path / "case")
+    assert result.ledger.status_of("friction on a branch", "B in roughness-Bed.ini") == "exact"
+    sim = load_model(result.folder)
+    out, _ = sim.simulate()
+    depth = out.series["mid.h"] - slope * length / 2
+    assert abs(depth.iloc[-1] - depth.iloc[-2]) < 1e-5  # steady
+    assert depth.iloc[-1] == pytest.approx(hn, abs=2e-3)

@@ -36,8 +36,9 @@ def import_dhydro_cmd(
     realtime_lateral: Annotated[float | None, typer.Option(
         "--realtime-lateral", help="Constant inflow (m³/s) of every 'realtime' lateral that no exchange file "
                                    "supplies; without it such laterals are refused.")] = None,
-    dt: Annotated[float | None, typer.Option(help="Time step of the case, s (default: at most 60 s, a divisor "
-                                                  "of the output interval).")] = None,
+    dt: Annotated[float | None, typer.Option(help="Time step of the case, s (default: the case's own when rivercal "
+                                                  "exported the model, else at most 60 s, a divisor of the output "
+                                                  "interval).")] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Convert a D-Flow FM 1D model into a case folder, accounting for every object in import.md."""

@@ -41,8 +41,8 @@ class ImportOptions:
     allow_partial
         Write the case even when objects that change the hydraulics were refused (they are left out).
     dt
-        Time step of the case, s (default: the largest divisor of the output interval that is at most
-        min(DtMax, 60 s)).
+        Time step of the case, s (default: the case's own from ``rivercal.ini`` when rivercal exported the model,
+        else the largest divisor of the output interval that is at most min(DtMax, 60 s)).
     """
 
     realtime: tuple[Path, ...] = ()
@@ -108,6 +108,11 @@ class Context:
         The simulated period (UTC).
     refdate
         The model's reference date (UTC).
+    friction_entries
+        The roughness files' ``[Branch]`` blocks as case entries, by group id and D-Flow FM branch id.
+    main_group
+        Whether D-Flow FM's default friction group ``Main`` stays a friction group (it varies along a branch or
+        with the level) instead of becoming the global and the branches' own friction.
     """
 
     model: LoadedModel
@@ -129,6 +134,8 @@ class Context:
     compounds: list[tuple[str, list[str]]] = field(default_factory=list)
     pieces: dict[str, list[str]] = field(default_factory=dict)
     parallel: set[str] = field(default_factory=set)
+    friction_entries: dict[str, dict[str, dict]] = field(default_factory=dict)
+    main_group: bool = False
 
     def source(self, table: str, case_id: str, obj: Any) -> None:
         """Remember the D-Flow FM block (hydrolib-core object) a case object was made from."""

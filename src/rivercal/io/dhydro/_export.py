@@ -42,7 +42,7 @@ SETTINGS_FILE = "rivercal.ini"
 #: Engine settings written there: case field → key.
 _ENGINE_KEYS = {"cross_sections": "crossSections", "theta": "theta", "min_depth": "minDepth",
                 "min_storage_area": "minStorageArea", "max_iterations": "maxIterations", "tolerance": "tolerance",
-                "max_velocity": "maxVelocity", "structure_length": "structureLength"}
+                "max_velocity": "maxVelocity", "structure_length": "structureLength", "dt": "timeStep"}
 
 
 def _write_engine_settings(engine, path: Path) -> None:
@@ -135,6 +135,10 @@ def _forcing_model():
 
 
 _FRICTION = {"strickler": "Strickler", "manning": "Manning", "chezy": "Chezy", "white-colebrook": "WhiteColebrook"}
+#: Height of the level without width that closes a closed zw profile in D-Flow FM's eyes, m.
+CLOSING_STEP = 0.001
+#: D-Flow FM's transition height of every summer dike (``summerDikeTransitionHeight``), m.
+DFLOW_SUMMER_DIKE_TRANSITION = 0.5
 
 
 @dataclass
@@ -267,6 +271,12 @@ class _Writer:
         self.forcing = forcing
         self.result = result
         self.extra_defs: list = []
+        # the friction id of the global and the branches' own friction: D-Flow FM's default group Main, unless the
+        # case has a friction group of that name
+        groups = {g.id for g in self.net.friction_groups}
+        self.global_id = "Main"
+        while self.global_id in groups:
+            self.global_id += "_global"
 
     # -- network -------------------------------------------------------------------------------------
 
@@ -301,7 +311,7 @@ class _Writer:
                 length = b.length
             geo_lengths[b.id] = length
             branch = Branch(geometry=geometry, branch_offsets=chain * (length / b.length))
-            model.network.mesh1d_add_branch(branch, name=b.id, force_midpoint=False)
+            model.network.mesh1d_add_branch(branch, name=b.id, force_midpoint=False, branch_order=self._order(b))
         m1 = model.network._mesh1d
         by_xy = {(round(x, 6), round(y, 6)): nid for nid, (x, y) in xy.items()}
         m1.network1d_node_id = np.array([by_xy[(round(float(x), 6), round(float(y), 6))]
@@ -319,6 +329,20 @@ class _Writer:
         m1.mesh1d_node_branch_offset = offsets
         del nodes
         return model
+
+    def _order(self, b) -> int:
+        """D-Flow FM's ``branchOrder`` of a branch: its order when positive, else -1 (none).
+
+        D-Flow FM interpolates cross-sections across nodes between branches of every order but -1 (flow1d
+        ``useBranchOrdersCrs``); the case between branches of a positive order only.
+        """
+        if b.order is not None and b.order > 0:
+            return int(b.order)
+        if b.order is not None and b.order != -1:
+            self.result.notes.append(f"branch {b.id!r} has order {b.order}, which interpolates no cross-section in a "
+                                     "case: written as branchOrder -1 (D-Flow FM would interpolate across nodes "
+                                     "between branches of any order but -1)")
+        return -1
 
     # -- cross-sections ----------------------------------------------------------------------------
 
@@ -346,7 +370,7 @@ class _Writer:
     def _definition(self, p, did: str, friction: list[str] | None):
         from hydrolib.core.dflowfm.crosssection import models as m
 
-        ids = list(friction) if friction else ["Main"]
+        ids = list(friction) if friction else [self.global_id]
         kind = p.type
         if kind == "rectangular":
             height = p.height if p.height is not None else MIN_TOP
@@ -361,43 +385,80 @@ class _Writer:
         if kind == "circular":
             return m.CircleCrsDef(id=did, diameter=p.diameter, frictionid=ids[0])
         if kind == "zw":
-            total = p.storage_widths
-            heights = list(p.heights)
-            flow = list(p.flow_widths)
-            if not p.closed and heights[-1] < MIN_TOP:  # the engine's table continues with vertical walls
-                pass
-            if p.section_widths is not None:
-                sw = list(p.section_widths) + [0.0] * (3 - len(p.section_widths))
-                ids3 = (ids + [ids[-1]] * 3)[:3]
-                return m.ZWRiverCrsDef(id=did, numlevels=len(heights), levels=heights, flowwidths=flow,
-                                       totalwidths=total, mainwidth=sw[0], fp1width=sw[1], fp2width=sw[2],
-                                       frictionids=ids3)
-            return m.ZWCrsDef(id=did, numlevels=len(heights), levels=heights, flowwidths=flow, totalwidths=total,
-                              frictionid=ids[0])
+            return self._zw_definition(p, did, ids)
         positions = list(p.friction_positions) if p.friction_positions else [p.y[0], p.y[-1]]
         return m.YZCrsDef(id=did, yzcount=len(p.y), ycoordinates=list(p.y), zcoordinates=list(p.z),
                           conveyance=p.conveyance, sectioncount=len(positions) - 1, frictionpositions=positions,
                           frictionids=ids, singlevaluedz=True)
 
+    def _zw_definition(self, p, did: str, ids: list[str]):
+        """A zw profile as a ``zw`` definition, or ``zwRiver`` with its sections and summer dike (``levee*``).
+
+        The levels are the heights above the profile's lowest point (the location's shift is its bed level). A
+        closed profile with width left at its top gets a level 1 mm higher without width: D-Flow FM takes a table
+        as closed only when no width is left at its top (flow1d ``readTabulatedCS``). A summer dike becomes
+        D-Flow FM's levee with its base level at the crest, so that D-Flow FM fills and empties the storage behind
+        it along the same curve as the case.
+        """
+        from hydrolib.core.dflowfm.crosssection import models as m
+
+        total = list(p.storage_widths)
+        heights = list(p.heights)
+        flow = list(p.flow_widths)
+        if p.closed and max(total[-1], flow[-1]) > 0:
+            heights.append(heights[-1] + CLOSING_STEP)
+            flow.append(0.0)
+            total.append(0.0)
+            self.result.notes.append(f"profile {p.id!r} is closed with {total[-2]:g} m of width at its top: written "
+                                     f"with a level {CLOSING_STEP * 1000:g} mm higher without width, where D-Flow FM "
+                                     "closes a table")
+        dike = p.summer_dike
+        if p.section_widths is None and dike is None:
+            return m.ZWCrsDef(id=did, numlevels=len(heights), levels=heights, flowwidths=flow, totalwidths=total,
+                              frictionid=ids[0])
+        sections = list(p.section_widths) if p.section_widths is not None else [max(flow)]
+        sw = sections + [0.0] * (3 - len(sections))
+        levee = {}
+        if dike is not None:
+            levee = {"leveecrestLevel": dike.crest, "leveebaselevel": dike.crest, "leveeflowarea": dike.flow_area,
+                     "leveetotalrea": dike.total_area}
+            if abs(dike.transition - DFLOW_SUMMER_DIKE_TRANSITION) > 1e-12:
+                self.result.notes.append(
+                    f"the summer dike of profile {p.id!r} fills over {dike.transition:g} m above its crest; D-Flow FM "
+                    f"fills every summer dike over {DFLOW_SUMMER_DIKE_TRANSITION:g} m (summerDikeTransitionHeight)")
+        return m.ZWRiverCrsDef(id=did, numlevels=len(heights), levels=heights, flowwidths=flow, totalwidths=total,
+                               mainwidth=sw[0], fp1width=sw[1], fp2width=sw[2],
+                               frictionids=(ids + [ids[-1]] * 3)[:len(sections)], **levee)
+
     # -- friction ------------------------------------------------------------------------------------
 
     def frictions(self):
+        """Roughness files: the global and the branches' own friction, then one file per friction group.
+
+        Each value a group takes on a branch is a ``[Branch]`` block in its own law: one value, values at
+        ``numLocations`` chainages, or (``functionType = waterLevel``) a table of ``numLevels`` levels by
+        ``numLocations`` chainages, written level by level as D-Flow FM reads it (flow1d ``scan_roughness_input``).
+        """
         from hydrolib.core.dflowfm.friction.models import FrictBranch, FrictGlobal, FrictionModel
 
         g = self.spec.friction
         branches = [FrictBranch(branchid=b.id, frictiontype=_FRICTION[b.friction.type], functiontype="constant",
                                 numlocations=0, frictionvalues=[b.friction.value])
                     for b in self.net.branches if b.friction is not None]
-        main = FrictionModel(global_=[FrictGlobal(frictionid="Main", frictiontype=_FRICTION[g.type],
+        main = FrictionModel(global_=[FrictGlobal(frictionid=self.global_id, frictiontype=_FRICTION[g.type],
                                                   frictionvalue=g.value)], branch=branches)
-        main.filepath = Path("roughness-Main.ini")
-        models = [main]
+        main.filepath = Path(f"roughness-{self.global_id}.ini")
+        used = bool(branches) or any(not p.friction for p in self.net.profiles)
+        models = [main] if used or self.global_id == "Main" else []  # under another name only when used
+        if used and self.global_id != "Main":
+            self.result.notes.append(f"the case has a friction group named Main: its global friction and the "
+                                     f"branches' own are written as roughness group {self.global_id!r}, which the "
+                                     "profiles without friction groups name (D-Flow FM's default group is Main)")
         for group in self.net.friction_groups:
             fm = FrictionModel(
                 global_=[FrictGlobal(frictionid=group.id, frictiontype=_FRICTION[group.type],
                                      frictionvalue=group.value)],
-                branch=[FrictBranch(branchid=bf.branch, frictiontype=_FRICTION[group.type], functiontype="constant",
-                                    numlocations=0, frictionvalues=[bf.value]) for bf in group.branches])
+                branch=[_branch_block(FrictBranch, bf, group.type) for bf in group.branches])
             fm.filepath = Path(f"roughness-{group.id}.ini")
             models.append(fm)
         return models
@@ -511,9 +572,14 @@ class _Writer:
         return model
 
     def initial(self):
+        """The initial field: ``[initial]`` as a global depth or level; branches' ``initial_levels`` as levels.
+
+        Branches with initial levels get ``[Branch]`` blocks of a water-level 1dField file (chainages and levels),
+        after the global field, so that D-Flow FM applies them there instead.
+        """
         from hydrolib.core.base.models import DiskOnlyFileModel
         from hydrolib.core.dflowfm.inifield.models import IniFieldModel, InitialField
-        from hydrolib.core.dflowfm.onedfield.models import OneDFieldGlobal, OneDFieldModel
+        from hydrolib.core.dflowfm.onedfield.models import OneDFieldBranch, OneDFieldGlobal, OneDFieldModel
 
         ini = self.spec.initial
         if ini.level is not None and ini.depth > 0:
@@ -521,10 +587,24 @@ class _Writer:
                                      "initial depth is written, the minimum level is not")
         quantity, value = ("waterdepth", ini.depth) if ini.level is None or ini.depth > 0 else ("waterlevel",
                                                                                                 ini.level)
-        name = f"initial_{quantity}.ini"
-        OneDFieldModel(global_=OneDFieldGlobal(quantity=quantity, unit="m", value=value)).save(self.out / name)
-        model = IniFieldModel(initial=[InitialField(quantity=quantity, datafile=DiskOnlyFileModel(filepath=Path(name)),
-                                                    datafiletype="1dField")])
+        blocks = []
+        for b in self.net.branches:
+            if b.initial_levels is None:
+                continue
+            ch, lv = [float(c) for c in b.initial_levels.chainages], [float(v) for v in b.initial_levels.levels]
+            where = {"numlocations": len(ch), "chainage": ch} if len(ch) > 1 else {"numlocations": 0}
+            blocks.append(OneDFieldBranch(branchid=b.id, values=lv if len(ch) > 1 else lv[:1], **where))
+        files = [(quantity, f"initial_{quantity}.ini",
+                  OneDFieldModel(global_=OneDFieldGlobal(quantity=quantity, unit="m", value=value),
+                                 branch=blocks if quantity == "waterlevel" else []))]
+        if blocks and quantity != "waterlevel":
+            files.append(("waterlevel", "initial_waterlevel_branches.ini", OneDFieldModel(branch=blocks)))
+        fields = []
+        for q, name, model in files:
+            model.save(self.out / name)
+            fields.append(InitialField(quantity=q, datafile=DiskOnlyFileModel(filepath=Path(name)),
+                                       datafiletype="1dField"))
+        model = IniFieldModel(initial=fields)
         model.filepath = Path("initialFields.ini")
         return model
 
@@ -613,6 +693,23 @@ class _Writer:
             crs = ObservationCrossSectionModel(observationcrosssection=sections)
             crs.filepath = Path("obscrs.ini")
         return obs, crs
+
+
+def _branch_block(cls, bf, group_law: str):
+    """A ``[Branch]`` block of a roughness file for a group's entry on a branch (:class:`BranchFriction`)."""
+    law = _FRICTION[bf.type or group_law]
+    chainages = [float(c) for c in bf.chainages] if bf.chainages is not None else None
+    where = {"numlocations": len(chainages), "chainage": chainages} if chainages is not None else {"numlocations": 0}
+    if bf.function == "waterlevel":
+        rows = [[float(v) for v in row] for row in bf.table]
+        values = [row[j] for j in range(len(bf.levels)) for row in rows]  # numLocations values per level, in turn
+        return cls(branchid=bf.branch, frictiontype=law, functiontype="waterLevel", numlevels=len(bf.levels),
+                   levels=[float(v) for v in bf.levels], frictionvalues=values, **where)
+    if bf.values is not None:
+        return cls(branchid=bf.branch, frictiontype=law, functiontype="constant",
+                   frictionvalues=[float(v) for v in bf.values], **where)
+    return cls(branchid=bf.branch, frictiontype=law, functiontype="constant", numlocations=0,
+               frictionvalues=[float(bf.value)])
 
 
 def _with_spinup(series: pd.Series, start: pd.Timestamp, case_start: pd.Timestamp) -> pd.Series:

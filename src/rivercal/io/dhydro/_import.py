@@ -265,6 +265,8 @@ def _engine(ctx: Context) -> None:
     for text in warnings:
         ctx.ledger.warn(text)
     if exported and not errors:
+        if ctx.options.dt is not None:
+            exported.pop("dt", None)  # --dt given: it wins over the exported time step
         engine.update(exported)
         if engine["output_interval"] % engine["dt"]:
             ctx.ledger.error(SETTINGS_FILE, f"the time step {engine['dt']:g} s does not divide the output interval "

@@ -23,145 +23,26 @@ import numpy as np
 
 from rivercal.errors import CaseError
 from rivercal.io.dhydro._context import Context, unquote
+from rivercal.io.dhydro._friction import FRICTION_TYPES, MAIN, branch_friction_entries, friction_groups, friction_of
 from rivercal.io.dhydro._source import is_file
 
 __all__ = ["FRICTION_TYPES", "MAIN", "convert_network", "friction_of", "profile_of_definition"]
 
-#: D-Flow FM's default friction group: profiles without a friction id use it.
-MAIN = "Main"
 #: Farthest a location given by x, y may lie from a branch to be snapped onto it, m.
 SNAP_DISTANCE = 100.0
-
-#: hydrolib-core's friction types → the case's, with the note for the ones that are converted approximately.
-FRICTION_TYPES = {"chezy": "chezy", "manning": "manning", "strickler": "strickler", "whitecolebrook": "white-colebrook"}
-
-
-def friction_of(kind: object, value: float) -> tuple[dict | None, str]:
-    """A case friction ``{type, value}`` for a D-Flow FM friction type and value, and a note if approximated.
-
-    Returns ``(None, why)`` when the law has no counterpart.
-    """
-    name = str(getattr(kind, "value", kind)).lower().replace("-", "").replace("_", "")
-    if name in FRICTION_TYPES:
-        return {"type": FRICTION_TYPES[name], "value": float(value)}, ""
-    if name == "stricklernikuradse":
-        # C = 25 (R / k_n)^(1/6) is Strickler with k_s = 25 k_n^(-1/6) (D-Flow FM user manual, roughness formulas)
-        return {"type": "strickler", "value": 25.0 * float(value) ** (-1.0 / 6.0)}, ""
-    if name == "walllawnikuradse":
-        return ({"type": "white-colebrook", "value": float(value)},
-                "wall-law Nikuradse roughness taken as White-Colebrook with the same k_n (both are rough-turbulent "
-                "logarithmic laws; C differs by a few %)")
-    return None, f"friction type {kind!r} has no counterpart in a case"
+#: A zw table whose top width is narrower than this is a closed conduit, m.
+CLOSED_WIDTH = 1.0e-3
+#: D-Flow FM's transition height of a summer dike (``summerDikeTransitionHeight``), m.
+SUMMER_DIKE_TRANSITION = 0.5
 
 
 def convert_network(ctx: Context) -> None:
     """Fill ``ctx.case`` with friction groups, profiles, nodes, branches, stations and the initial state."""
-    _friction_groups(ctx)
+    friction_groups(ctx)
     _nodes_and_branches(ctx)
     _storage_nodes(ctx)
     _stations(ctx)
     _initial(ctx)
-
-
-# -- friction ----------------------------------------------------------------------------------------
-
-
-def _friction_groups(ctx: Context) -> None:
-    physics = ctx.model.fm.physics
-    kind = {0: "chezy", 1: "manning", 2: "whitecolebrook", 3: "whitecolebrook"}.get(int(physics.uniffricttype), None)
-    value = physics.uniffrictcoef1d if physics.uniffrictcoef1d is not None else physics.uniffrictcoef
-    glob, _ = friction_of(kind, value) if kind and value else (None, "")
-    if glob is not None:
-        try:
-            from rivercal.network import Friction
-
-            Friction.model_validate(glob)
-            ctx.case["friction"] = glob
-            ctx.ledger.exact("setting", "UnifFrictType/UnifFrictCoef1D",
-                             "global friction of profiles without a friction group")
-        except ValueError as exc:
-            ctx.ledger.approximated("setting", "UnifFrictCoef1D", f"uniform friction {value} ({kind}) is outside "
-                                    f"the plausible range ({exc}); the case keeps its default global friction")
-    groups: list[dict] = []
-    branch_values: dict[str, dict[str, float]] = defaultdict(dict)
-    main_laws: dict[str, dict] = {}
-    for blocks in ctx.model.frictions:
-        for _, bid, reason in blocks.failed:
-            ctx.ledger.refused("friction group", bid, reason)
-        group_id = None
-        for obj in blocks.objects:
-            if type(obj).__name__ == "FrictGlobal":
-                gid = ctx.id("friction group", obj.frictionid)
-                fr, note = friction_of(obj.frictiontype, obj.frictionvalue)
-                if fr is None:
-                    ctx.ledger.refused("friction group", gid, note)
-                    continue
-                groups.append({"id": gid, **fr, "branches": []})
-                ctx.source("friction_groups", gid, obj)
-                group_id = gid
-                (ctx.ledger.approximated if note else ctx.ledger.exact)("friction group", gid, note)
-        for obj in blocks.objects:
-            if type(obj).__name__ != "FrictBranch":
-                continue
-            where = f"{unquote(obj.branchid)} in {blocks.path.name}"
-            if group_id is None:
-                ctx.ledger.refused("friction on a branch", where, "the file has no [Global] friction group")
-                continue
-            fr, note = friction_of(obj.frictiontype, 1.0)
-            group = next(g for g in groups if g["id"] == group_id)
-            if fr is not None and group_id == MAIN and fr["type"] != group["type"]:
-                values = [float(v) for v in (obj.frictionvalues or [])]
-                if values:
-                    main_laws[unquote(obj.branchid)] = friction_of(obj.frictiontype, float(np.mean(values)))[0]
-                    (ctx.ledger.approximated if len(set(values)) > 1 else ctx.ledger.exact)(
-                        "friction on a branch", where, "values along the branch replaced by their mean"
-                        if len(set(values)) > 1 else "")
-                continue
-            if fr is None or fr["type"] != group["type"]:
-                ctx.ledger.refused("friction on a branch", where,
-                                   f"friction type {obj.frictiontype} differs from the group's {group['type']}; a "
-                                   "group has one law")
-                continue
-            values = [float(v) for v in (obj.frictionvalues or [])]
-            if not values:
-                ctx.ledger.refused("friction on a branch", where, "no friction values", hydraulic=False)
-                continue
-            function = str(getattr(obj.functiontype, "value", obj.functiontype) or "constant").lower()
-            value = float(np.mean(values))
-            if function != "constant" or len(set(values)) > 1:
-                ctx.ledger.approximated("friction on a branch", where,
-                                        f"{function} friction varying {min(values):g}-{max(values):g} along the "
-                                        f"branch or with level/discharge; the case takes its mean {value:g}")
-            else:
-                ctx.ledger.exact("friction on a branch", where)
-            if fr["type"] == "strickler" and str(obj.frictiontype).lower().startswith("stricklernik"):
-                value = friction_of(obj.frictiontype, value)[0]["value"]
-            branch_values[group_id][unquote(obj.branchid)] = value
-    main = next((g for g in groups if g["id"] == MAIN), None)
-    if main is not None:  # D-Flow FM's default group: the case's global friction and the branches' own
-        ctx.case["friction"] = {"type": main["type"], "value": main["value"]}
-        for branch, value in branch_values.get(MAIN, {}).items():
-            main_laws.setdefault(branch, {"type": main["type"], "value": value})
-        ctx.ledger.exact("setting", "friction group Main", "D-Flow FM's default friction group: the case's global "
-                         "friction ([friction]) and the branches' own (branches[].friction)")
-    ctx.case["friction_groups"] = groups
-    ctx._branch_friction = branch_values  # type: ignore[attr-defined]  # resolved once branch ids are known
-    ctx._main_branches = main_laws  # type: ignore[attr-defined]
-
-
-def _finish_friction_groups(ctx: Context) -> None:
-    for b in ctx.case["branches"]:
-        name = next((k for k in ctx._main_branches if ctx.id("branch", k) == b["id"]), None)  # type: ignore[attr-defined]
-        if name is not None:
-            b["friction"] = ctx._main_branches[name]  # type: ignore[attr-defined]
-    for g in ctx.case["friction_groups"]:
-        for branch, value in ctx._branch_friction.get(g["id"], {}).items():  # type: ignore[attr-defined]
-            if ctx.ids.get("branch") is None or not ctx.ids["branch"].known(branch):
-                ctx.ledger.refused("friction on a branch", branch, "the branch is not in the network", hydraulic=False)
-                continue
-            g["branches"].append({"branch": ctx.id("branch", branch), "value": value})
-        if not g["branches"]:
-            del g["branches"]
 
 
 # -- profiles ----------------------------------------------------------------------------------------
@@ -173,11 +54,24 @@ def _section_friction(ctx: Context, d: Any, sections: int) -> tuple[list[str] | 
     if ids is None and getattr(d, "frictionid", None):
         ids = [d.frictionid]
     groups = {g["id"] for g in ctx.case["friction_groups"]}
+    inline = getattr(d, "frictiontypes", None) or getattr(d, "frictiontype", None)
+    note = ""
+    if not ids and not inline and type(d).__name__ == "ZWRiverCrsDef" and sections > 1:
+        # zwRiver without friction ids: D-Flow FM's defaults (hydrolib-core, ZWRiverCrsDef.frictionids)
+        defaults = ["Main", "FloodPlain1", "FloodPlain2"][:sections]
+        absent = [i for i in defaults[1:] if ctx.id("friction group", i) not in groups]
+        ids = [i if i not in absent else MAIN for i in defaults]
+        if absent:
+            note = f"no friction ids and no roughness for {', '.join(absent)}: the floodplain(s) take Main"
+    if not ids and not inline and ctx.main_group:
+        return [MAIN] * sections, ""  # D-Flow FM's default group, kept as a group
     if ids:
         ids = [unquote(i) for i in ids]
         out = [ctx.id("friction group", i) for i in ids]
         if all(i == MAIN for i in out) and MAIN in groups:
-            return None, ""  # the case's global and branch friction
+            if ctx.main_group:
+                return [MAIN] * sections, note
+            return None, note  # the case's global and branch friction
         missing = [i for i, o in zip(ids, out, strict=True) if o not in groups]
         if missing:
             return None, f"friction group(s) {', '.join(missing)} not defined; the profile takes the global friction"
@@ -186,7 +80,7 @@ def _section_friction(ctx: Context, d: Any, sections: int) -> tuple[list[str] | 
         elif len(out) < sections:
             return [out[0]] * sections, (f"{len(out)} friction ids for {sections} sections; all sections take "
                                          f"{out[0]}")
-        return out, ""
+        return out, note
     types = getattr(d, "frictiontypes", None) or ([d.frictiontype] if getattr(d, "frictiontype", None) else None)
     values = getattr(d, "frictionvalues", None) or ([d.frictionvalue] if getattr(d, "frictionvalue", None) else None)
     if types and values:
@@ -259,9 +153,22 @@ def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) 
             if any(t < f for t, f in zip(total, flow, strict=True)):
                 notes.append("total widths less than 1 mm below the flow widths (rounding) raised to them")
             total = [max(t, f) for t, f in zip(total, flow, strict=True)]
-        closed = any(b < a for a, b in itertools.pairwise(flow)) or flow[-1] == 0
-        if total is not None and not closed:
-            total = list(np.maximum.accumulate(total))
+        # closed when no width is left at the top (D-Flow FM: a top total width no wider than its Preissmann slot,
+        # readTabulatedCS); an open table may narrow: the flow width stops conveying and only stores
+        closed = (total if total is not None else flow)[-1] < CLOSED_WIDTH
+        if not closed:
+            if total is None and any(b < a for a, b in itertools.pairwise(flow)):
+                total = list(flow)
+            if total is not None and any(b < a for a, b in itertools.pairwise(total)):
+                k = next(i for i in range(1, len(total)) if total[i] < total[i - 1])
+                notes.append(f"the total (storage) width narrows above level {levels[k - 1]:g} m ({total[k - 1]:g} m "
+                             f"to {total[k]:g} m): the case keeps the widest width below as storage (an open profile's "
+                             "storage cannot narrow), so it stores a little more water above that level")
+                total = [float(v) for v in np.maximum.accumulate(total)]
+            if flow[-1] <= 0:
+                notes.append("the flow width closes at the top of an open table: the top keeps 1 mm of flow width")
+                flow[-1] = CLOSED_WIDTH
+                total = total if total is not None else [*flow[:-1], CLOSED_WIDTH]
         if len(levels) < 2:
             levels = [levels[0], levels[0] + 0.01]
             flow, total = flow * 2, (total * 2 if total else None)
@@ -283,9 +190,11 @@ def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) 
                 widths[-1] += max(0.0, max(flow) - sum(widths))
                 prof["section_widths"] = widths
                 sections = len(widths)
-            if any(float(getattr(d, name, 0) or 0) > 0 for name in ("leveeflowarea", "leveetotalrea")):
-                notes.append("summer dike (levee) areas ignored: the floodplain behind it takes part in the flow "
-                             "from its own level up")
+            dike, note = _summer_dike(ctx, d, bottom)
+            if dike is not None and not closed:
+                prof["summer_dike"] = dike
+            if note:
+                notes.append(note)
     elif kind in ("YZCrsDef", "XYZCrsDef"):
         y = [float(v) for v in d.ycoordinates] if kind == "YZCrsDef" else _along(d)
         z = [float(v) for v in d.zcoordinates]
@@ -317,6 +226,63 @@ def profile_of_definition(ctx: Context, d: Any, *, for_structure: bool = False) 
     if note:
         notes.append(note)
     return prof, bottom, "; ".join(notes)
+
+
+def _summer_dike(ctx: Context, d: Any, bottom: float) -> tuple[dict | None, str]:
+    """A zwRiver definition's levee as a case summer dike (heights above the table's lowest level), and a note.
+
+    D-Flow FM takes a summer dike when the definition gives all four of ``leveeCrestLevel``, ``leveeBaseLevel``,
+    ``leveeFlowArea`` and ``leveeTotalArea`` and one of the areas exceeds 1e-5 m² (Deltares delft3d, flow1d
+    ``readTabulatedCS``). Its flow and total areas fill from the crest over a transition height of 0.5 m along two
+    parabolas (``GetSummerDikeFlow``, ``GetSummerDikeTotal``: ``summerDikeTransitionHeight`` is 0.5 m in D-Flow FM),
+    as the case's summer dike does. D-Flow FM empties the storage behind the dike on a falling limb along another
+    curve, from crest + 0.5 m down to the base level; the case by the same curve as it filled, which is D-Flow FM's
+    when the base level is the crest level.
+    """
+    # read from the file as written: hydrolib-core 1.5 misses two of the four keys (its fields leveecrestLevel and
+    # leveetotalrea match neither leveeCrestLevel nor leveeTotalArea)
+    keys = {"leveecrestLevel": "leveeCrestLevel", "leveebaselevel": "leveeBaseLevel", "leveeflowarea": "leveeFlowArea",
+            "leveetotalrea": "leveeTotalArea"}
+    found = ctx.model.sources.section_of(d)
+    given: dict[str, float] = {}
+    for name, key in keys.items():
+        raw = found[1].first(key) if found is not None else None
+        text = raw.value if raw is not None else getattr(d, name, None)
+        if text is None or str(text).strip() == "":
+            continue
+        numbers = _numbers(str(text))
+        if len(numbers) != 1 or not np.isfinite(numbers[0]) or abs(numbers[0]) > 1e4 or (
+                name in ("leveeflowarea", "leveetotalrea") and numbers[0] < 0):
+            where = f"{ctx.model.sources.rel(found[0])}, line {raw.line}" if found is not None and raw is not None \
+                else ctx.model.mdu.name
+            ctx.ledger.error(where, f"definition {unquote(d.id)!r}, {key} = {text}: not a finite number of a "
+                             "plausible size (areas not negative)")
+            return None, "an unusable levee value (see the errors)"
+        given[name] = numbers[0]
+    if len(given) < 4:
+        if given:
+            return None, (f"levee keys incomplete ({', '.join(sorted(given))} given): D-Flow FM takes no summer dike "
+                          "without all four of leveeCrestLevel, leveeBaseLevel, leveeFlowArea, leveeTotalArea, and "
+                          "neither does the case")
+        return None, ""
+    crest, base = given["leveecrestLevel"], given["leveebaselevel"]
+    flow, total = given["leveeflowarea"], given["leveetotalrea"]
+    if not (flow > 1e-5 or total > 1e-5):
+        return None, ""
+    notes = []
+    if total < flow:
+        notes.append(f"summer dike: its total area {total:g} m² is below its flow area {flow:g} m²; the case raises it "
+                     "to the flow area")
+        total = flow
+    if crest < bottom:
+        notes.append(f"summer dike: its crest {crest:g} m lies below the lowest level of the table; taken at it")
+        crest = bottom
+    if abs(base - crest) > 1e-9 and total > 0:
+        notes.append(f"summer dike: the storage behind it fills from the crest ({crest:g} m) over 0.5 m and the case "
+                     f"drains it by the same curve; D-Flow FM drains it on a falling limb from crest + 0.5 m down to "
+                     f"its base level ({base:g} m), so the case gives that water back to the river at other levels")
+    return {"crest": crest - bottom, "flow_area": flow, "total_area": total, "transition": SUMMER_DIKE_TRANSITION}, \
+        "; ".join(notes)
 
 
 def _along(d: Any) -> list[float]:
@@ -372,6 +338,8 @@ def _network_arrays(ctx: Context) -> dict[str, Any]:
             "on_branch": np.ma.filled(np.ma.asarray(m1.mesh1d_node_branch_id), -1).astype(np.int64),
             "offsets": np.ma.filled(np.ma.asarray(m1.mesh1d_node_branch_offset, dtype=float), np.nan),
             "geometry": {str(k): np.asarray(v.geometry, dtype=float) for k, v in (m1.branches or {}).items()},
+            "orders": np.ma.filled(np.ma.asarray(getattr(m1, "network1d_branch_order", np.empty(0))), -1)
+            .astype(np.int64).ravel(),
         }
     except (AttributeError, TypeError, ValueError, KeyError, IndexError) as exc:
         raise CaseError(f"the network file is damaged or not a UGRID 1D network ({type(exc).__name__}: "
@@ -394,6 +362,8 @@ def _network_arrays(ctx: Context) -> dict[str, Any]:
             np.isfinite(arrays["offsets"])):
         problems.append("calculation points on branches that do not exist or at offsets that are not finite "
                         "(mesh1d_node_branch_id/offset)")
+    if arrays["orders"].size not in (0, n_branches):
+        problems.append("branch orders that are not one per branch (network1d_branch_order)")
     if any(not np.all(np.isfinite(g)) for g in arrays["geometry"].values()):
         problems.append("branch geometry with coordinates that are not finite")
     if len(set(arrays["node_ids"])) < n_nodes or len(set(arrays["branch_ids"])) < n_branches:
@@ -430,11 +400,13 @@ def _nodes_and_branches(ctx: Context) -> None:
         ctx.ledger.refused("cross-section", cid, reason)
     branches = []
     pending: list[tuple[dict, str, list[str]]] = []
+    position: dict[str, int] = {}
     edges = arrays["edges"]
     on_branch = arrays["on_branch"]
     offsets = arrays["offsets"]
     lengths = arrays["lengths"]
     geometries = arrays["geometry"]
+    orders = _case_orders(arrays["orders"], len(arrays["branch_ids"]))
     for k, raw in enumerate(arrays["branch_ids"]):
         name = unquote(raw)
         bid = ctx.id("branch", name)
@@ -456,6 +428,8 @@ def _nodes_and_branches(ctx: Context) -> None:
                 points = np.array([0.0, length])
         dx = float(np.max(np.diff(points))) if points.size > 1 else length
         branch: dict = {"id": bid, "from_node": ctx.id("node", a), "to_node": ctx.id("node", b), "length": length}
+        if orders[k] is not None:
+            branch["order"] = orders[k]
         if points.size >= 2 and abs(points[0]) < 1e-6 and abs(points[-1] - length) < 1e-3 * max(1.0, length):
             points[0], points[-1] = 0.0, length
             branch["points"] = [float(p) for p in points]
@@ -467,6 +441,7 @@ def _nodes_and_branches(ctx: Context) -> None:
             branch["geometry"] = [[float(x), float(y)] for x, y in geo]
         ctx.source("branches", bid, net_where)
         sections, notes = _cross_sections(ctx, name, locations.get(name, []), length)
+        position[bid] = k
         if not sections:
             pending.append((branch, name, notes))
             continue
@@ -476,25 +451,120 @@ def _nodes_and_branches(ctx: Context) -> None:
         ctx.__dict__.setdefault("_points", {})[bid] = points
         branches.append(branch)
         (ctx.ledger.approximated if notes else ctx.ledger.exact)("branch", name, "; ".join(notes))
+    across = _sections_across_nodes(ctx, branches, [b for b, _, _ in pending], position)
     for branch, name, notes in pending:
-        section = _borrowed_section(branches, branch)
-        if section is None:
-            ctx.ledger.refused("branch", name, "no cross-section on the branch or on a branch next to it")
-            continue
-        branch["cross_sections"] = [section]
-        notes.append(f"no cross-section (a branch that carries a structure): it borrows profile {section['profile']!r} "
-                     f"at bed {section['bed_level']:g} m AD from the end of a branch next to it; it holds only "
-                     "the little storage of its own length")
+        found = across.get(branch["id"])
+        if found is not None:
+            branch["cross_sections"], note = found
+            notes = [*notes, note] if note else notes
+            if notes:
+                ctx.ledger.approximated("branch", name, "; ".join(notes))
+            else:
+                ctx.ledger.exact("branch", name, "no cross-section of its own: it takes those D-Flow FM continues into "
+                                 "it from the branches of its order")
+        else:
+            section = _borrowed_section(branches, branch)
+            if section is None:
+                ctx.ledger.refused("branch", name, "no cross-section on the branch or on a branch next to it")
+                continue
+            branch["cross_sections"] = [section]
+            notes.append(f"no cross-section (a branch that carries a structure): it borrows profile "
+                         f"{section['profile']!r} at bed {section['bed_level']:g} m AD from the end of a branch next "
+                         "to it; it holds only the little storage of its own length")
+            ctx.ledger.approximated("branch", name, "; ".join(notes))
         ctx.branch_nodes[branch["id"]] = (branch["from_node"], branch["to_node"])
         ctx.branch_length[branch["id"]] = branch["length"]
         branches.append(branch)
-        ctx.ledger.approximated("branch", name, "; ".join(notes))
+    ordered = [b for b in branches if "order" in b]
+    if ordered:
+        branches.sort(key=lambda b: position[b["id"]])  # the net file's order: D-Flow FM looks for orders in it
+        ctx.ledger.exact("setting", "branchOrder", f"{len(ordered)} branch(es) in {len({b['order'] for b in ordered})} "
+                         "order(s): their cross-sections are interpolated across the connection nodes between branches "
+                         "of one order, as D-Flow FM does (branches[].order)")
     ctx.case["branches"] = branches
-    _finish_friction_groups(ctx)
+    branch_friction_entries(ctx)
     referenced = {g for prof in ctx.case.get("profiles", []) for g in prof.get("friction", [])}
     ctx.case["friction_groups"] = [g for g in ctx.case["friction_groups"] if g["id"] != MAIN or MAIN in referenced]
     used = {n for b in branches for n in (b["from_node"], b["to_node"])}
     ctx.case["nodes"] = [n for n in nodes if n["id"] in used]
+
+
+def _case_orders(raw: np.ndarray, n: int) -> list[int | None]:
+    """The case's order of each branch from D-Flow FM's ``branchOrder`` (``network1d_branch_order``).
+
+    D-Flow FM interpolates cross-sections across a connection node between branches of one order, every order but
+    -1, the order of a branch that takes part in none (Deltares delft3d, flow1d ``useBranchOrdersCrs``: the
+    cross-sections are sorted by order and every group after the first, that of -1, is continued across nodes).
+    The case does so for positive orders, so an order of 0 or below -1 becomes a positive order that no other
+    branch has.
+    """
+    if raw.size != n:
+        return [None] * n
+    values = [int(v) for v in raw]
+    spare = max([v for v in values if v > 0], default=0) + 1
+    mapped: dict[int, int] = {}
+    out: list[int | None] = []
+    for v in values:
+        if v == -1:
+            out.append(None)
+        elif v > 0:
+            out.append(v)
+        else:
+            if v not in mapped:
+                mapped[v] = spare
+                spare += 1
+            out.append(mapped[v])
+    return out
+
+
+def _sections_across_nodes(ctx: Context, branches: list[dict], pending: list[dict],
+                           position: dict[str, int]) -> dict[str, tuple[list[dict], str]]:
+    """Cross-sections for branches of an order that have none: those D-Flow FM continues into them across nodes.
+
+    D-Flow FM copies the first and last cross-section of a branch of an order onto the next branch of that order
+    at the node, at the chainage seen from there, and a branch without cross-sections of its own passes it on
+    (:func:`rivercal.engine.channels.extended_cross_sections`). Such a branch is given cross-sections at its two
+    ends, interpolated (bed level) between the copies that reach it: the same bed levels along it and along its
+    neighbours, and the same shapes when the copies have one profile (else the profile of the nearer copy at each
+    end, approximated).
+    """
+    from types import SimpleNamespace
+
+    from rivercal.engine.channels import extended_cross_sections
+
+    wanted = [b for b in pending if "order" in b]
+    if not wanted:
+        return {}
+    ids = [p["id"] for p in ctx.case.get("profiles", [])]
+    everything = sorted([*branches, *wanted], key=lambda b: position[b["id"]])
+    network = SimpleNamespace(
+        profiles=[SimpleNamespace(id=i) for i in ids],
+        branches=[SimpleNamespace(id=b["id"], from_node=b["from_node"], to_node=b["to_node"], length=b["length"],
+                                  order=b.get("order"),
+                                  cross_sections=[SimpleNamespace(**cs) for cs in b.get("cross_sections", [])])
+                  for b in everything])
+    extended = extended_cross_sections(network)
+    out = {}
+    for b in wanted:
+        copies = extended.get(b["id"], [])
+        if not copies:
+            continue
+        ch = np.array([c[0] for c in copies])
+        beds = np.array([c[2] for c in copies])
+        ends = [0.0, b["length"]] if b["length"] > 0 else [0.0]
+        sections = []
+        for end in ends:
+            nearest = copies[int(np.argmin(np.abs(ch - end)))]
+            sections.append({"chainage": end, "profile": ids[nearest[1]], "bed_level": float(np.interp(end, ch, beds))})
+        if len(sections) == 2 and sections[0]["profile"] == sections[1]["profile"] and \
+                abs(sections[0]["bed_level"] - sections[1]["bed_level"]) < 1e-12:
+            sections = sections[:1]
+        shapes = {c[1] for c in copies}
+        note = ("" if len(shapes) == 1 else "no cross-section of its own; D-Flow FM interpolates the shapes of the "
+                f"cross-sections of its order across it ({', '.join(sorted(ids[s] for s in shapes))}): the case "
+                "gives each end the shape of the nearer one, with the bed levels interpolated")
+        out[b["id"]] = (sections, note)
+    return out
 
 
 def _borrowed_section(branches: list[dict], branch: dict) -> dict | None:
@@ -804,31 +874,59 @@ def _initial(ctx: Context) -> None:
         if data is None:
             continue
         glob, per_branch = _one_d_field(ctx, data)
-        values = ([glob] if glob is not None else []) + list(per_branch.values())
-        if not values:
+        if glob is None and not per_branch:
             ctx.ledger.exact("initial field", quantity, f"{sources.rel(data.path)} holds no [Global] value and no "
                              "[Branch] values: D-Flow FM applies none either, and the initial state comes from the MDU")
             continue
-        value = glob if glob is not None else float(np.median(values))
-        if quantity == "waterdepth" and value < 0:
-            ctx.ledger.error(sources.rel(data.path), f"the initial water depth {value:g} m is negative")
-            continue
-        note = ""
-        if per_branch:
-            note = (f"values per branch ({min(values):g}-{max(values):g}); the case takes one value, {value:g}, "
-                    "everywhere (affects the first hours only)")
-        if quantity == "waterdepth":
-            initial = {"depth": value}
-        else:
-            initial = {"depth": 0.0, "level": value}
-        found = True
-        (ctx.ledger.approximated if note else ctx.ledger.exact)("initial field", quantity, note)
+        if glob is not None:
+            if quantity == "waterdepth" and glob < 0:
+                ctx.ledger.error(sources.rel(data.path), f"the initial water depth {glob:g} m is negative")
+                continue
+            initial = {"depth": glob} if quantity == "waterdepth" else {"depth": 0.0, "level": glob}
+            found = True
+            ctx.ledger.exact("initial field", quantity)
+        for branch, (chainages, values, where_branch) in per_branch.items():
+            _branch_initial(ctx, quantity, branch, chainages, values, where_branch)
     if not found and level_ini is not None:
         initial = {"depth": 0.0, "level": float(level_ini)}
         ctx.ledger.exact("setting", "WaterLevIni", "initial level where no initial field is given")
     ctx.case["initial"] = initial
     if index is not None:
         ctx.source("initial", "initial", f"{sources.rel(index.path)}")
+
+
+def _branch_initial(ctx: Context, quantity: str, branch: str, chainages: list[float], values: list[float],
+                    where: str) -> None:
+    """A [Branch] block of an initial field as the branch's ``initial_levels``.
+
+    Levels are taken as they are (exact); a depth is added to the bed level interpolated between the
+    cross-sections at every chainage where either changes slope (approximated: D-Flow FM adds it to the bed level
+    of each calculation point, the lowest of its links).
+    """
+    what = f"{quantity} on {branch}"
+    target = None
+    if ctx.ids.get("branch") is not None and ctx.ids["branch"].known(branch):
+        target = next((b for b in ctx.case["branches"] if b["id"] == ctx.id("branch", branch)), None)
+    if target is None:
+        ctx.ledger.refused("initial field", what, f"{where}: the branch is not in the network", hydraulic=False)
+        return
+    if quantity == "waterlevel":
+        target["initial_levels"] = {"chainages": chainages, "levels": values}
+        ctx.ledger.exact("initial field", what, "initial levels along the branch (branches[].initial_levels)")
+        return
+    if any(v < 0 for v in values):
+        ctx.ledger.error(where, f"[Branch] {branch!r}: a negative initial water depth")
+        return
+    cs = target["cross_sections"]
+    ch = [c["chainage"] for c in cs]
+    beds = [c["bed_level"] for c in cs]
+    at = sorted({*chainages, *ch, 0.0, float(target["length"])})
+    target["initial_levels"] = {"chainages": at, "levels": [float(np.interp(c, ch, beds) + np.interp(c, chainages,
+                                                                                                       values))
+                                                            for c in at]}
+    ctx.ledger.approximated("initial field", what, "initial depths along the branch become initial levels: the depth "
+                            "plus the bed level interpolated between the cross-sections (D-Flow FM adds it to the bed "
+                            "level of each calculation point, the lowest of its links; affects the first hours only)")
 
 
 def _ini_field_path(ctx: Context) -> Path | None:
@@ -876,11 +974,15 @@ def _readable(ctx: Context, path: Path, what: str, named_at: str):
     return None
 
 
-def _one_d_field(ctx: Context, index) -> tuple[float | None, dict[str, float]]:
-    """The [Global] value and the mean value per [Branch] of a 1dField file; non-numbers are errors with their line."""
+def _one_d_field(ctx: Context, index) -> tuple[float | None, dict[str, tuple[list[float], list[float], str]]]:
+    """The [Global] value and, per [Branch], its chainages, values and place of a 1dField file.
+
+    Non-numbers, a count that does not match ``numLocations`` and chainages that go down are errors with their line.
+    A branch with ``numLocations = 0`` has one value along it (chainage 0).
+    """
     sources = ctx.model.sources
     glob = None
-    per_branch: dict[str, float] = {}
+    per_branch: dict[str, tuple[list[float], list[float], str]] = {}
     for section in index.sections:
         header = section.header.lower()
         if header not in ("global", "branch"):
@@ -890,16 +992,40 @@ def _one_d_field(ctx: Context, index) -> tuple[float | None, dict[str, float]]:
             ctx.ledger.error(f"{sources.rel(index.path)}, line {section.line}", f"[{section.header}] has no "
                              f"{'value' if header == 'global' else 'values'}")
             continue
-        try:
-            values = [float(v) for v in raw.value.split()]
-        except ValueError:
-            values = []
+        values = _numbers(raw.value)
         if not values or not all(np.isfinite(values)) or any(abs(v) > 1e4 for v in values):
             ctx.ledger.error(f"{sources.rel(index.path)}, line {raw.line}",
                              f"{raw.key} = {raw.value}: not finite numbers of a plausible size")
             continue
         if header == "global":
             glob = values[0]
-        else:
-            per_branch[section.value("branchId") or "?"] = float(np.mean(values))
+            continue
+        where = f"{sources.rel(index.path)}, line {section.line}"
+        count = _numbers(section.value("numLocations") or "0")
+        n = int(count[0]) if count and count[0] >= 0 else -1
+        chain_raw = section.first("chainage")
+        chainages = _numbers(chain_raw.value) if chain_raw is not None and chain_raw.value else []
+        if n <= 0:
+            chainages, values = [0.0], values[:1]
+        if n < 0 or len(chainages) != len(values) or (n > 0 and len(values) != n):
+            ctx.ledger.error(where, f"[Branch] {section.value('branchId')!r}: {len(values)} values and "
+                             f"{len(chainages)} chainages for numLocations = {section.value('numLocations')}")
+            continue
+        if not all(np.isfinite(chainages)) or any(b < a for a, b in itertools.pairwise(chainages)) or chainages[0] < 0:
+            ctx.ledger.error(f"{sources.rel(index.path)}, line {chain_raw.line if chain_raw else section.line}",
+                             f"[Branch] {section.value('branchId')!r}: chainages must be finite, not negative and "
+                             "increasing")
+            continue
+        for i in range(1, len(chainages)):  # a chainage given twice: a step, spread over 1 mm
+            if chainages[i] <= chainages[i - 1]:
+                chainages[i] = chainages[i - 1] + 0.001
+        per_branch[section.value("branchId") or "?"] = (chainages, values, where)
     return glob, per_branch
+
+
+def _numbers(text: str) -> list[float]:
+    """The numbers of a value written as numbers separated by spaces; [] when one is not a number."""
+    try:
+        return [float(v) for v in text.split()]
+    except ValueError:
+        return []
