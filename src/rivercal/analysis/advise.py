@@ -72,6 +72,7 @@ __all__ = [
     "Step",
     "advice_jacobian",
     "advise",
+    "model_candidates",
     "posterior_covariance",
     "prior_std",
 ]
@@ -105,6 +106,26 @@ class Candidate:
     name: str = ""
     cost: float | None = None
     location: Any = None
+
+
+def model_candidates(model: Any, where: str, measure: str) -> list[Candidate]:
+    """The places a model offers for a gauge (``points``: every calculation point; ``structures``: either side).
+
+    Asked through the optional capability :class:`~rivercal.models.contract.VirtualStations`; ``measure`` is
+    ``level``, ``discharge`` or ``both``.
+
+    Raises
+    ------
+    ValueError
+        When the model lacks the capability.
+    """
+    from rivercal.models.contract import VirtualStations
+
+    if not isinstance(model, VirtualStations):
+        raise ValueError(f"model {getattr(model, 'name', '?')!r} cannot simulate series at places where it has no "
+                         "station (it lacks the optional capability VirtualStations), so it cannot be asked where a "
+                         "new gauge would help")
+    return [Candidate(loc.id, loc.series, loc.name, None, loc) for loc in model.candidate_locations(where, measure)]
 
 
 def prior_std(parameters: Any, scale: np.ndarray | None = None) -> np.ndarray:

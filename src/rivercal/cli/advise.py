@@ -184,3 +184,56 @@ def _print(summary: dict) -> None:
     else:
         console.print("not every parameter is identifiable with the chosen gauges (see after.csv)")
     console.print("wrote " + ", ".join(summary["files"].values()))
+
+
+def bench(
+    candidates: Annotated[str, typer.Option(help="Candidate places: points or structures.")] = "points",
+    kind: Annotated[str, typer.Option(help="What a new gauge measures: level, discharge or both.")] = "level",
+    seeds: Annotated[int, typer.Option(help="Random draws of as many candidates for the twin proof.")] = 20,
+    twin: Annotated[bool, typer.Option("--twin/--no-twin", help="Run the twin proof.")] = True,
+    online: Annotated[bool, typer.Option("--online/--no-online", help="Run the on-line replays of PI-Wl.")] = True,
+    online_params: Annotated[str, typer.Option(
+        "--online-params", help="What the on-line service estimates in the replays.")] \
+        = "W1,W2,W3,W4,W5,W6,W7,W8,W9,FA",
+    workers: Annotated[int | None, typer.Option(help="Worker threads per model batch (default: all cores).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The gauge advice on dommel (W1…W9, FA): its cost, the twin proof against random gauges, PI-Wl on-line."""
+    from rivercal.bench.advise import bench_advise
+    from rivercal.cli.common import err_console, watch_compilation
+    from rivercal.workflows.advise import CANDIDATE_KINDS, MEASURES
+
+    check_choice(candidates, "--candidates", CANDIDATE_KINDS)
+    check_choice(kind, "--kind", MEASURES)
+    check_number(seeds, "--seeds", low=0, high=1000)
+    check_number(workers, "--workers", low=1)
+    names = parse_names(online_params, "--online-params")
+    known = {"FA", "W1", "W2", "W3", "W4", "W5", "W6", "W7", "W8", "W9", "Wd", "Wc", "F1", "FL"}
+    for n in names:
+        check_choice(n, "--online-params", sorted(known))
+    if online and "W4" not in names:
+        raise OptionError("--online-params: PI-Wl lowers W4's crest; estimate W4 to see whether it is found",
+                          option="--online-params")
+    watch_compilation(True)
+    result = bench_advise(candidates=candidates, kind=kind, seeds=seeds, workers=workers, twin=twin, online=online,
+                          online_parameters=names,
+                          progress=None if as_json else lambda line: err_console.print(line, highlight=False))
+    if as_json:
+        emit_json(result)
+        return
+    a = result["advice"]
+    out_console.print(f"advice over {a['candidates']} candidates in {a['wall_s']} s ({a['jacobian_runs']} model runs): "
+                      f"{', '.join(c['name'] for c in a['chosen'])}; identifiable {a['before']['identifiable']} → "
+                      f"{a['after']['identifiable']} of {len(result['parameters'])}")
+    if "twin" in result:
+        t = result["twin"]
+        out_console.print(f"twin proof: five stations {'succeed' if t['present_stations']['success'] else 'fail'}, "
+                          f"advised gauges {'succeed' if t['advised']['success'] else 'fail'}, random gauges "
+                          f"succeed {t['random']['successes']} of {t['random']['draws']}")
+    if "online" in result:
+        for key in ("present_stations", "advised"):
+            o = result["online"][key]
+            out_console.print(f"PI-Wl on-line, {key.replace('_', ' ')}: {o['jump_alerts_after_change']} jump alerts, "
+                              f"W4 {o['w4_before_change']} → {o['w4_last']} (true {o['w4_true_after']}), time to "
+                              f"correct {o['time_to_correct_cycles']} cycles, forecast MAE ratio "
+                              f"{o['forecast_mae_ratio']}")

@@ -336,3 +336,9 @@ def _print_flat(result: dict, title: str, as_json: bool) -> None:
     for key, value in result.items():
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out_console.print(table)
+
+
+# the gauge advice's benchmark lives with its command (rivercal.cli.advise)
+from rivercal.cli.advise import bench as _advise_bench  # noqa: E402
+
+app.command("advise")(guard(_advise_bench))

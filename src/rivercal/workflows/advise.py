@@ -48,10 +48,10 @@ def _capable(model: Any, option: str) -> None:
 
 def candidates_of(model: Any, where: str, measure: str) -> list[Any]:
     """The model's own candidate places (``points`` or ``structures``) for a gauge measuring ``measure``."""
-    from rivercal.analysis.advise import Candidate
+    from rivercal.analysis.advise import model_candidates
 
     _capable(model, "--candidates")
-    return [Candidate(loc.id, loc.series, loc.name, None, loc) for loc in model.candidate_locations(where, measure)]
+    return model_candidates(model, where, measure)
 
 
 def read_candidates(path: str | Path, model: Any, measure: str) -> list[Any]:
