@@ -60,6 +60,8 @@ def test_a_csv_of_practical_places(tmp_path: Path) -> None:
     ("branch,chainage,name\nZL12,10,x\nZL13,10,y\n", "line 3: column 'branch': unknown branch 'ZL13'"),
     ("branch,chainage,name\nZL12,9000,x\n", "line 2: column 'chainage': chainage 9000 m is outside branch 'ZL12'"),
     ("branch,chainage,name,cost\nZL12,10,x,2\nZL12,20,y,\n", "line 3: column 'cost' is empty"),
+    ("branch,chainage,name\nZL12,10,x\nZL12,1882,inside\n",
+     "line 3: the places cannot be stations of case 'dommel': level station 'inside' at chainage 1882 m"),
 ])
 def test_a_bad_csv_is_named_with_its_line(tmp_path: Path, content: str, message: str) -> None:
     places = tmp_path / "places.csv"

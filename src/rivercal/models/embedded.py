@@ -347,12 +347,17 @@ def _link_at(c, branch: str, chainage: float) -> int:
 
 def _first_error(exc: Exception) -> str:
     """The first message of a pydantic error (or the exception's text), on one line."""
+    import re
+
     errors = getattr(exc, "errors", None)
     if callable(errors):
         first = errors(include_url=False)[0]
         where = ".".join(str(p) for p in first.get("loc", ()))
-        return f"{where + ': ' if where else ''}{first.get('msg', exc)}".replace("\n", " ")
-    return str(getattr(exc, "reason", exc)).replace("\n", " ")
+        text = f"{where + ': ' if where else ''}{first.get('msg', exc)}"
+    else:
+        text = str(getattr(exc, "reason", exc))
+    # pydantic's prefix and the index among the case's stations say nothing about the place (named in the text)
+    return re.sub(r"^(Value error, )?(stations\[\d+\]\.\w+: )?", "", text.replace("\n", " "))
 
 
 def build_model(case: Case) -> EmbeddedModel:

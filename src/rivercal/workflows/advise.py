@@ -121,6 +121,11 @@ def read_candidates(path: str | Path, model: Any, measure: str) -> list[Any]:
     try:
         model.with_stations([c.location for c in out])
     except ValueError as exc:
+        for line, c in enumerate(out, start=2):  # the first line that cannot be a station on its own
+            try:
+                model.with_stations([c.location])
+            except ValueError as one:
+                raise OptionError(f"{label}: line {line}: {one}", option="--candidates") from None
         raise OptionError(f"{label}: {exc}", option="--candidates") from None
     return out
 
