@@ -85,3 +85,11 @@ def test_bad_options_are_named(tmp_path: Path, args: list[str], message: str) ->
     assert done.returncode == 2, done.stderr
     assert message in " ".join(done.stderr.split())
     assert "internal error" not in done.stderr
+
+
+def test_a_model_that_cannot_add_places_says_so(tmp_path: Path) -> None:
+    """EPA SWMM behind the contract has no VirtualStations capability: the command names it, before any run."""
+    done = rivercal("advise", "gauges", "dommel-swmm", "--params", "W4,FA", "--window", WINDOW,
+                    "--out", str(tmp_path / "out"))
+    assert done.returncode == 2, done.stderr
+    assert "lacks the optional capability VirtualStations" in " ".join(done.stderr.split())
