@@ -123,7 +123,10 @@ def _online(model: Any, parameters: Sequence[str], first: str, last: str, folder
     change = CHANGE_TIME
     table = est.pivot_table(index="cycle", columns="parameter", values="value", aggfunc="first")
     accepted = est.pivot_table(index="cycle", columns="parameter", values="accepted", aggfunc="first").astype(bool)
+    # the accepted value after each cycle; a parameter the gate never let move keeps its start (the case's value)
+    start = {p.name: p.initial for p in model.calibration.parameters}
     table = table.where(accepted).ffill()
+    table = table.fillna({n: start[n] for n in table.columns if n in start})
     before_cycles = cycles[cycles["issue_time"] <= change]["cycle"]
     after_cycles = cycles[cycles["issue_time"] > change].sort_values("cycle")["cycle"]
     dss = model.default_parameters()["weir:ZL1-5930.crest_level"]
