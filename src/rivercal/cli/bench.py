@@ -342,3 +342,7 @@ def _print_flat(result: dict, title: str, as_json: bool) -> None:
 
 
 app.command("oriege")(oriege_bench)
+# the gauge advice's benchmark lives with its command (rivercal.cli.advise)
+from rivercal.cli.advise import bench as _advise_bench  # noqa: E402
+
+app.command("advise")(guard(_advise_bench))

@@ -17,7 +17,7 @@ import typer
 
 from rivercal import __version__
 from rivercal._options import options
-from rivercal.cli import analyse, bench, calibrate, case, dashboard, dhydro, fews, model, online, simulate, twin
+from rivercal.cli import advise, analyse, bench, calibrate, case, dashboard, dhydro, fews, model, online, simulate, twin
 from rivercal.cli.common import guard, out_console, set_debug
 from rivercal.cli.mascaret import import_mascaret_cmd
 from rivercal.cli.sobek3 import import_sobek3_cmd
@@ -84,6 +84,7 @@ app.add_typer(model.app, name="model")
 app.add_typer(bench.app, name="bench")
 dhydro.import_app.command("sobek3")(import_sobek3_cmd)
 dhydro.import_app.command("mascaret")(import_mascaret_cmd)
+app.add_typer(advise.app, name="advise")
 app.add_typer(dhydro.import_app, name="import")
 app.add_typer(dhydro.export_app, name="export")
 for _name, _command in (("simulate", simulate.simulate), ("calibrate", calibrate.calibrate), ("twin", twin.twin),

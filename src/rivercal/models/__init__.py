@@ -22,8 +22,10 @@ __all__ = [
     "CalibrationSetup",
     "EmbeddedModel",
     "FileState",
+    "Location",
     "Model",
     "Quantity",
+    "VirtualStations",
     "build_model",
     "check_parameters",
     "check_settable",
@@ -34,7 +36,8 @@ __all__ = [
 _WHERE = {
     "CalibrationSetup": "contract", "FileState": "contract", "Model": "contract", "Quantity": "contract",
     "check_parameters": "contract", "check_settable": "contract", "EmbeddedModel": "embedded",
-    "build_model": "embedded", "load_model": "load", "spun_up": "contract",
+    "build_model": "embedded", "load_model": "load", "spun_up": "contract", "Location": "contract",
+    "VirtualStations": "contract",
 }
 
 

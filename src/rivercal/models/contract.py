@@ -14,6 +14,9 @@ the transition wrapper — declares:
 - optionally ``numerical_noise``: the jitter of its series under a tiny parameter change, in their units
   (m, m³/s) — a solver's convergence tolerance — so that difference steps stand above it; a model
   without it is taken to have none known;
+- optionally (the capability :class:`VirtualStations`) series at places where it has no station: the
+  places it offers (every calculation point, either side of every structure), a place at a chainage of a
+  branch, and a copy of itself that also simulates the series of such places;
 - how its state is saved and restored: ``state_format`` (a tag stored beside the bytes),
   ``save_state(state) -> bytes`` and ``load_state(data, fmt) -> state``. A state carries its simulated
   ``time``. Models whose state lives in files (a SWMM hotstart file, restart files of an external
@@ -49,9 +52,11 @@ __all__ = [
     "CalibrationSetup",
     "ExternalRunError",
     "FileState",
+    "Location",
     "Model",
     "Quantity",
     "RunRequest",
+    "VirtualStations",
     "check_parameters",
     "check_run",
     "check_settable",
@@ -170,6 +175,70 @@ class Model(Protocol):
 
     def load_state(self, data: bytes, fmt: str) -> Any:
         """A state from :meth:`save_state` bytes; ValueError when they are not this model's."""
+        ...
+
+
+@dataclass(frozen=True)
+class Location:
+    """A place where a model can simulate series although it has no station there (:class:`VirtualStations`).
+
+    Attributes
+    ----------
+    id
+        Station id of the place (no ``.``): its series are ``"<id>.<quantity>"``.
+    quantities
+        What a gauge there measures: ``h`` (level on a branch), ``h_up``/``h_down`` (level up-/downstream of
+        a structure), ``Q`` (discharge); m AD and m³/s.
+    name
+        The place in words, for tables (``ZL12@1000.0``, ``upstream of weir ZL1-5``).
+    branch, chainage
+        Branch id and chainage (m from its start), where the place is on a branch.
+    structure, side
+        Structure id and ``up``/``down``, where the place is at a structure.
+    point
+        The model's label of the calculation point whose level the place measures (for maps), if any.
+    x, y
+        Map coordinates, m (None where the model has none).
+    """
+
+    id: str
+    quantities: tuple[str, ...]
+    name: str = ""
+    branch: str | None = None
+    chainage: float | None = None
+    structure: str | None = None
+    side: str | None = None
+    point: str | None = None
+    x: float | None = None
+    y: float | None = None
+
+    @property
+    def series(self) -> tuple[str, ...]:
+        """The series ids of the place, ``"<id>.<quantity>"``."""
+        return tuple(f"{self.id}.{q}" for q in self.quantities)
+
+
+@runtime_checkable
+class VirtualStations(Protocol):
+    """Optional capability: series at places where the model has no station (the embedded engine has it).
+
+    A model with it offers its places (``where`` = ``points``: every calculation point; ``structures``:
+    either side of every structure) for a gauge that measures ``level``, ``discharge`` or ``both``, leaving
+    out what its stations already measure; a place on a branch at a chainage; and a copy of itself that
+    also simulates the series of given places. The copy's states are interchangeable with the model's
+    (the places change what is written out, not what is computed).
+    """
+
+    def candidate_locations(self, where: str, measure: str) -> list[Location]:
+        """The places of kind ``where`` (``points``, ``structures``) for a gauge measuring ``measure``."""
+        ...
+
+    def location_at(self, branch: str, chainage: float, *, id: str, measure: str, name: str = "") -> Location:
+        """A place on ``branch`` at ``chainage`` (m); ValueError naming the branch or chainage when it is not."""
+        ...
+
+    def with_stations(self, locations: Iterable[Location]) -> Model:
+        """A copy of the model that also simulates the series of ``locations``."""
         ...
 
 

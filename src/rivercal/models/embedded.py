@@ -19,12 +19,17 @@ Quantities:
   weir driven by a controller declares no ``crest_level``.
 
 Friction bounds are the plausible ranges of :data:`rivercal.network.FRICTION_RANGES`.
+
+Virtual stations (the optional capability :class:`~rivercal.models.contract.VirtualStations`): the model
+offers every calculation point and either side of every structure as a place for a new gauge, and
+:meth:`EmbeddedModel.with_stations` returns the same model with those places added to the case's
+``[[stations]]`` (the same grid, forcing and quantities; only the written series differ).
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -32,11 +37,12 @@ import pandas as pd
 
 from rivercal.case.load import Case, load_case
 from rivercal.engine.compile import FRICTION_CODES
+from rivercal.engine.kernels.codes import OBS_FLUX, OBS_LEVEL
 from rivercal.engine.simulator import Simulator
 from rivercal.engine.state import EngineState
 from rivercal.hydrology.catchments import catchment_forcing
-from rivercal.models.contract import CalibrationSetup, Quantity, utc
-from rivercal.network import FRICTION_RANGES, MAX_LEVEL
+from rivercal.models.contract import CalibrationSetup, Location, Quantity, utc
+from rivercal.network import FRICTION_RANGES, MAX_LEVEL, Station
 
 __all__ = ["EmbeddedModel", "build_model", "load_case_model"]
 
@@ -122,6 +128,152 @@ class EmbeddedModel(Simulator):
                                 windows={w.name: (utc(w.start), utc(w.end)) for w in spec.windows},
                                 algorithm=spec.calibration.algorithm, options=dict(spec.calibration.options))
 
+    # -- virtual stations (the optional capability VirtualStations) ----------------------------------
+
+    def candidate_locations(self, where: str, measure: str) -> list[Location]:
+        """Places for a new gauge: every calculation point (``points``) or either side of every structure.
+
+        Parameters
+        ----------
+        where
+            ``points`` (every calculation point, connection nodes included) or ``structures`` (the points
+            either side of every structure, and its discharge).
+        measure
+            What the gauge measures: ``level``, ``discharge`` or ``both``.
+
+        Returns
+        -------
+        list of Location
+            In grid order. What the case's stations already measure is left out (a place whose every
+            quantity is measured is left out altogether); a link's discharge is offered once, at the
+            first point whose nearest link it is.
+        """
+        if where not in ("points", "structures"):
+            raise ValueError(f"unknown kind of place {where!r}; choose points or structures")
+        levels, flows = _wanted(measure)
+        c = self.compiled
+        seen_h, seen_q = self._observed()
+        taken = {st.id for st in self.case.network.stations}
+        out: list[Location] = []
+        if where == "structures":
+            k1, k2 = c.arrays.lk_k1, c.arrays.lk_k2
+            for sid, li in c.structure_link.items():
+                q = ("Q",) if flows and li not in seen_q else ()
+                sides = (("up", "h_up", int(k1[li])), ("down", "h_down", int(k2[li]))) if levels else ()
+                if not levels and q:
+                    out.append(self._location(_unique(f"{sid}_Q", taken), q, f"discharge at {sid}", None, None, sid,
+                                              None, int(k1[li])))
+                for side, quantity, k in sides:
+                    quantities = ((quantity,) if k not in seen_h else ()) + q
+                    if quantities:
+                        out.append(self._location(_unique(f"{sid}_{side}", taken), quantities,
+                                                  f"{'upstream' if side == 'up' else 'downstream'} of {sid}",
+                                                  None, None, sid, side, k))
+            return out
+        ends = self._node_ends()
+        for k, label in enumerate(c.hp_label):
+            branch = c.hp_branch[k]
+            if branch:
+                chainage = float(c.hp_chainage[k])
+            elif label.startswith("node:") and label[5:] in ends:
+                branch, chainage = ends[label[5:]]
+            else:
+                continue
+            li = _link_at(c, branch, chainage)
+            quantities = (("h",) if levels and k not in seen_h else ()) + (("Q",) if flows and li not in seen_q
+                                                                           else ())
+            seen_q.add(li)  # a link's discharge is offered once, at the first point that reaches it
+            if quantities:
+                stem = label[5:] if label.startswith("node:") else f"{branch}_{round(chainage)}"
+                out.append(self._location(_unique(stem.replace(".", "_"), taken), quantities, label, branch,
+                                          chainage, None, None, k))
+        return out
+
+    def location_at(self, branch: str, chainage: float, *, id: str, measure: str, name: str = "") -> Location:
+        """A place on ``branch`` at ``chainage`` (m from its start) for a gauge measuring ``measure``.
+
+        Raises
+        ------
+        ValueError
+            For an unknown branch, a chainage outside it, or an id that is not a station id.
+        """
+        levels, flows = _wanted(measure)
+        branches = {b.id: b for b in self.case.network.branches}
+        if branch not in branches:
+            raise ValueError(f"unknown branch {branch!r}")
+        length = float(branches[branch].length)
+        if not (0.0 <= float(chainage) <= length):
+            raise ValueError(f"chainage {chainage:g} m is outside branch {branch!r} (0 … {length:g} m)")
+        if not id or "." in id:
+            raise ValueError(f"{id!r} cannot be a station id: it must be non-empty and contain no '.'")
+        c = self.compiled
+        on = [k for k, b in enumerate(c.hp_branch) if b == branch]
+        k = on[int(np.argmin(np.abs(c.hp_chainage[on] - float(chainage))))] if on else None
+        quantities = (("h",) if levels else ()) + (("Q",) if flows else ())
+        return self._location(id, quantities, name or f"{branch}@{float(chainage):.1f}", branch, float(chainage),
+                              None, None, k)
+
+    def with_stations(self, locations: Iterable[Location]) -> EmbeddedModel:
+        """The model with ``locations`` added to the case's stations (same grid, forcing and quantities).
+
+        Raises
+        ------
+        ValueError
+            When a place cannot be a station of the case (its id taken, a level inside a structure's
+            segment …); the message names the place.
+        """
+        from pydantic import ValidationError
+
+        from rivercal.errors import FieldProblem
+
+        spec = self.case.spec
+        new = []
+        for loc in locations:
+            fields = {"id": loc.id, "quantities": list(loc.quantities)}
+            fields.update({"structure": loc.structure} if loc.structure is not None else
+                          {"branch": loc.branch, "chainage": loc.chainage})
+            try:
+                new.append(Station(**fields))
+            except (ValidationError, FieldProblem, ValueError) as exc:
+                raise ValueError(f"place {loc.id!r} ({loc.name}): {_first_error(exc)}") from None
+        data = spec.model_dump(by_alias=True)
+        data["stations"] = [st.model_dump(by_alias=True, exclude_none=True) for st in [*spec.stations, *new]]
+        try:
+            extended = type(spec).model_validate(data)
+        except (ValidationError, FieldProblem, ValueError) as exc:
+            raise ValueError(f"the places cannot be stations of case {self.name!r}: {_first_error(exc)}") from None
+        case = Case(spec=extended, root=self.case.root, forcing=self.case.forcing)
+        return EmbeddedModel(case, forcing={k: v for k, v in self.forcing.items() if k in self.compiled.forcing_keys})
+
+    def _observed(self) -> tuple[set[int], set[int]]:
+        """The calculation points whose level and the links whose discharge the case's stations measure."""
+        a = self.compiled.arrays
+        levels, flows = set(), set()
+        for kind, i1, i2, w in zip(a.ob_type, a.ob_i1, a.ob_i2, a.ob_w, strict=True):
+            if kind == OBS_LEVEL and w >= 1.0 - 1e-12:
+                levels.add(int(i1))
+            elif kind == OBS_LEVEL and w <= 1e-12:
+                levels.add(int(i2))
+            elif kind == OBS_FLUX:
+                flows.add(int(i1))
+        return levels, flows
+
+    def _node_ends(self) -> dict[str, tuple[str, float]]:
+        """Per connection node a branch end that reaches it: (branch id, chainage in m)."""
+        out: dict[str, tuple[str, float]] = {}
+        for b in self.case.network.branches:
+            out.setdefault(b.from_node, (b.id, 0.0))
+            out.setdefault(b.to_node, (b.id, float(b.length)))
+        return out
+
+    def _location(self, id: str, quantities: tuple[str, ...], name: str, branch: str | None,
+                  chainage: float | None, structure: str | None, side: str | None, k: int | None) -> Location:
+        xy = self.compiled.hp_xy[k] if k is not None else (np.nan, np.nan)
+        x, y = (float(v) if np.isfinite(v) else None for v in xy)
+        return Location(id=id, quantities=quantities, name=name, branch=branch, chainage=chainage,
+                        structure=structure, side=side, point=self.compiled.hp_label[k] if k is not None else None,
+                        x=x, y=y)
+
     # -- state ------------------------------------------------------------------------------------
 
     def start_state(self, start: pd.Timestamp | None = None,
@@ -166,6 +318,46 @@ class EmbeddedModel(Simulator):
                              f"{state.signature[1]} links; case {self.name!r} has {self.compiled.n_hpoints} and "
                              f"{self.compiled.n_links})")
         return state
+
+
+def _wanted(measure: str) -> tuple[bool, bool]:
+    """(levels, discharges) a gauge measuring ``measure`` (``level``, ``discharge``, ``both``) records."""
+    if measure not in ("level", "discharge", "both"):
+        raise ValueError(f"unknown measurement {measure!r}; choose level, discharge or both")
+    return measure != "discharge", measure != "level"
+
+
+def _unique(stem: str, taken: set[str]) -> str:
+    """``stem``, or ``stem_2``, ``stem_3`` … when taken; the id is then taken."""
+    name, n = stem, 1
+    while name in taken:
+        n += 1
+        name = f"{stem}_{n}"
+    taken.add(name)
+    return name
+
+
+def _link_at(c, branch: str, chainage: float) -> int:
+    """The link of ``branch`` whose midpoint is nearest to ``chainage`` (m); -1 when the branch has none."""
+    on = [li for li, b in enumerate(c.link_branch) if b == branch]
+    if not on:
+        return -1
+    return on[int(np.argmin(np.abs(c.link_chainage[on] - chainage)))]
+
+
+def _first_error(exc: Exception) -> str:
+    """The first message of a pydantic error (or the exception's text), on one line."""
+    import re
+
+    errors = getattr(exc, "errors", None)
+    if callable(errors):
+        first = errors(include_url=False)[0]
+        where = ".".join(str(p) for p in first.get("loc", ()))
+        text = f"{where + ': ' if where else ''}{first.get('msg', exc)}"
+    else:
+        text = str(getattr(exc, "reason", exc))
+    # pydantic's prefix and the index among the case's stations say nothing about the place (named in the text)
+    return re.sub(r"^(Value error, )?(stations\[\d+\]\.\w+: )?", "", text.replace("\n", " "))
 
 
 def build_model(case: Case) -> EmbeddedModel:

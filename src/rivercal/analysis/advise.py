@@ -1,0 +1,706 @@
+"""Where to put the next gauge: identifiability and data worth of candidate gauges (linear first-order analysis).
+
+The reference study (thesis §6-3, "More measurement locations") found that some crest levels of its
+network could not be identified from the five stations and proposed choosing further measurement places.
+This module answers "which gauge should we add?" from one finite-difference Jacobian of every candidate's
+series, without a calibration per candidate.
+
+Notation: x the parameters in optimiser units (p of them), d their scales (default their ranges), J₀ the
+Jacobian of the present stations' weighted residuals r = √W (y − ŷ) (thesis Eq. 2-10), J_c that of the
+series of candidate gauge c (weighted alike, with the σ a gauge of its kind would have), C_p = diag(σ_p²)
+the prior covariance of x (a parameter's ``prior_std``, else a quarter of its range: its bounds taken as
+±2σ, the convention of PEST's and pyEMU's linear analysis) and y_f = ∂f/∂x the sensitivity of a forecast
+f. For a set S of added gauges:
+
+    F(S) = J₀ᵀJ₀ + Σ_{c ∈ S} J_cᵀJ_c                      (the information of thesis Eq. 2-12)
+    Σ(S) = (F(S) + C_p⁻¹)⁻¹                                (posterior covariance; the Schur complement)
+    σ_f²(S) = y_fᵀ Σ(S) y_f                                 (forecast variance)
+
+The data worth of candidate c given S is the mean fractional reduction of the variances of the targets,
+
+    worth(c | S) = mean over t of [1 − σ_t²(S ∪ {c}) / σ_t²(S)],
+
+the targets being the chosen forecasts, or the parameters when none is chosen (for a parameter,
+y_t is its unit vector). Identifiability uses the data alone: the singular values and vectors of J_D =
+J diag(d) of the stacked Jacobian and the verdict per parameter (identifiable, only in combination, not
+identifiable) of :mod:`rivercal.analysis.identifiability` (thesis Eq. 2-11 … 2-13; Doherty and Hunt 2009).
+They depend on the stacked J only through JᵀJ, so each set is analysed from a p × p factor R with
+RᵀR = F(S) (the same singular values, vectors, covariance and correlations), never from the stacked
+series.
+
+The choice of K gauges is greedy and re-evaluated after each pick: each step takes the candidate with
+the most identifiable parameters, then the largest worth (worth per unit cost where candidates have a
+cost). Then an exchange pass (Fedorov's exchange, one gauge at a time) swaps a chosen gauge for one left
+out while that raises the set's number of identifiable parameters or, at equal numbers, lowers the
+mean fractional variance of the targets. Without K the picks go on until every parameter is
+identifiable (or no candidate adds anything), which is then the K the advice says is enough.
+
+Assumptions (docs/explanation/gauge-advice.md): the model is linear in x over the posterior's spread
+(first order), the errors of the observations are Gaussian and independent from one output time to the
+next with the σ given, and the window's flow conditions are those under which the gauges will measure (a
+weir in free flow in the window hides its downstream level's sensitivity to its crest).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import pandas as pd
+
+from rivercal.analysis.identifiability import (
+    IDENTIFIABLE,
+    Identifiability,
+    IdentifiabilityOptions,
+    analyse_jacobian,
+)
+from rivercal.analysis.jacobian import fd_jacobian, parameter_scales
+from rivercal.analysis.verdict import identifiability_index, verdict_frame
+from rivercal.optimise import covariance
+
+__all__ = [
+    "PRIOR_RANGE_SIGMAS",
+    "Advice",
+    "Assessment",
+    "Candidate",
+    "LinearWorth",
+    "Step",
+    "advice_jacobian",
+    "advise",
+    "model_candidates",
+    "posterior_covariance",
+    "prior_std",
+]
+
+log = logging.getLogger(__name__)
+
+#: A parameter without ``prior_std`` has a prior σ of its range divided by this (bounds at ±2σ), optimiser units.
+PRIOR_RANGE_SIGMAS = 4.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A place where a gauge could be added.
+
+    Attributes
+    ----------
+    id
+        Station id of the place; its series are ``"<id>.<quantity>"``.
+    series
+        The series the gauge would measure.
+    name
+        The place in words.
+    cost
+        What the gauge there costs (any unit, the same for all candidates), or None.
+    location
+        The model's :class:`~rivercal.models.contract.Location` (branch, chainage, structure, point, x, y).
+    """
+
+    id: str
+    series: tuple[str, ...]
+    name: str = ""
+    cost: float | None = None
+    location: Any = None
+
+
+def model_candidates(model: Any, where: str, measure: str) -> list[Candidate]:
+    """The places a model offers for a gauge (``points``: every calculation point; ``structures``: either side).
+
+    Asked through the optional capability :class:`~rivercal.models.contract.VirtualStations`; ``measure`` is
+    ``level``, ``discharge`` or ``both``.
+
+    Raises
+    ------
+    ValueError
+        When the model lacks the capability.
+    """
+    from rivercal.models.contract import VirtualStations
+
+    if not isinstance(model, VirtualStations):
+        raise ValueError(f"model {getattr(model, 'name', '?')!r} cannot simulate series at places where it has no "
+                         "station (it lacks the optional capability VirtualStations), so it cannot be asked where a "
+                         "new gauge would help")
+    return [Candidate(loc.id, loc.series, loc.name, None, loc) for loc in model.candidate_locations(where, measure)]
+
+
+def prior_std(parameters: Any, scale: np.ndarray | None = None) -> np.ndarray:
+    """Prior σ per parameter, optimiser units: its ``prior_std``, else (ub − lb) / :data:`PRIOR_RANGE_SIGMAS`."""
+    lb, ub = (np.asarray(b, dtype=float) for b in parameters.bounds())
+    default = (ub - lb) / PRIOR_RANGE_SIGMAS
+    given = parameters.prior_std()
+    if given is None:
+        return default
+    given = np.asarray(given, dtype=float)
+    return np.where(np.isfinite(given), given, default)
+
+
+def posterior_covariance(information: np.ndarray, prior_var: np.ndarray) -> np.ndarray:
+    """Σ = (F + C_p⁻¹)⁻¹ for information F (p × p, or a stack (n, p, p)) and prior variances (p,).
+
+    Solved in units of the prior σ (F̃ = S F S with S = diag(σ_p): F̃ + I is well conditioned), then
+    scaled back.
+    """
+    f = np.asarray(information, dtype=float)
+    s = np.sqrt(np.asarray(prior_var, dtype=float))
+    scaled = f * s[:, None] * s[None, :]
+    eye = np.eye(s.size)
+    inv = np.linalg.inv(scaled + eye)
+    inv = 0.5 * (inv + np.swapaxes(inv, -1, -2))
+    return inv * s[:, None] * s[None, :]
+
+
+def _factor(information: np.ndarray) -> np.ndarray:
+    """R (p × p) with RᵀR = F for a symmetric positive semi-definite F (eigenvalues below zero count as zero)."""
+    w, q = np.linalg.eigh(0.5 * (information + information.T))
+    return np.sqrt(np.clip(w, 0.0, None))[:, None] * q.T
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """What a set of gauges gives: identifiability and posterior uncertainty.
+
+    Attributes
+    ----------
+    gauges
+        The added candidates' ids (the present stations are always in).
+    identifiability
+        The analysis of the stacked Jacobian (:class:`~rivercal.analysis.identifiability.Identifiability`).
+    identifiable
+        Number of parameters whose verdict is identifiable.
+    smallest_singular_value
+        Smallest singular value of J_D (dimensionless: the weighted-residual change when the least-seen
+        combination of parameters moves over its scale).
+    posterior_std
+        Posterior σ per parameter, optimiser units (physical for offset parameters).
+    forecast_std
+        Posterior σ per forecast, its unit (m or m³/s).
+    relative_variance
+        Mean over the targets of σ_t²(S) / σ_t²(prior): 1 before any data, 0 for a perfectly known target.
+    """
+
+    gauges: tuple[str, ...]
+    identifiability: Identifiability
+    identifiable: int
+    smallest_singular_value: float
+    posterior_std: np.ndarray
+    forecast_std: dict[str, float]
+    relative_variance: float
+
+    @property
+    def verdicts(self) -> dict[str, str]:
+        """The verdict per parameter."""
+        ident = self.identifiability
+        return {n: str(ident.verdict.loc[n, "verdict"]) for n in ident.names}
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-friendly."""
+        ident = self.identifiability
+        return {"gauges": list(self.gauges), "identifiable": self.identifiable,
+                "parameters": len(ident.names), "verdict": self.verdicts,
+                "identifiability_index": {n: float(v) for n, v in zip(ident.names, ident.index, strict=True)},
+                "singular_values": [float(v) for v in ident.singular_values],
+                "smallest_singular_value": self.smallest_singular_value,
+                "posterior_std": {n: float(v) for n, v in zip(ident.names, self.posterior_std, strict=True)},
+                "forecast_std": dict(self.forecast_std), "relative_variance": self.relative_variance}
+
+
+@dataclass(frozen=True)
+class Step:
+    """One pick of the greedy choice.
+
+    Attributes
+    ----------
+    number
+        1 for the first gauge added.
+    candidate
+        The id picked.
+    worth
+        Its worth given the gauges picked before (mean fractional variance reduction of the targets).
+    assessment
+        The set after the pick.
+    """
+
+    number: int
+    candidate: str
+    worth: float
+    assessment: Assessment
+
+
+class LinearWorth:
+    """The linear analysis of present stations, candidate gauges and forecasts (module docstring).
+
+    Parameters
+    ----------
+    names
+        Parameter names (p).
+    base
+        J₀, the weighted Jacobian of the present stations (m₀ × p, per optimiser unit; rows in units of σ).
+    candidates
+        The candidates, in order.
+    blocks
+        Per candidate id its weighted Jacobian J_c (m_c × p).
+    prior_std
+        Prior σ per parameter (p,), optimiser units.
+    scale
+        The scales d (p,) of the identifiability analysis (default: ones).
+    forecasts
+        Per forecast name its sensitivity y_f = ∂f/∂x (p,), forecast unit per optimiser unit.
+    options
+        Thresholds of the verdict.
+    base_rows
+        Series id of every row of ``base`` (for the final analysis' station shares).
+    """
+
+    def __init__(self, names: Sequence[str], base: np.ndarray, candidates: Sequence[Candidate],
+                 blocks: Mapping[str, np.ndarray], prior_std: np.ndarray, *, scale: np.ndarray | None = None,
+                 forecasts: Mapping[str, np.ndarray] | None = None,
+                 options: IdentifiabilityOptions | None = None, base_rows: Sequence[str] | None = None):
+        self.names = tuple(names)
+        p = len(self.names)
+        self.base = np.asarray(base, dtype=float).reshape(-1, p)
+        self.candidates = tuple(candidates)
+        ids = [c.id for c in self.candidates]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"candidate ids must be unique; {sorted({i for i in ids if ids.count(i) > 1})[0]!r} "
+                             "appears twice")
+        missing = [i for i in ids if i not in blocks]
+        if missing:
+            raise ValueError(f"no Jacobian rows for candidate {missing[0]!r}")
+        self.blocks = {i: np.asarray(blocks[i], dtype=float).reshape(-1, p) for i in ids}
+        self.prior_var = np.asarray(prior_std, dtype=float) ** 2
+        if self.prior_var.shape != (p,) or not np.all(np.isfinite(self.prior_var)) or np.any(self.prior_var <= 0):
+            raise ValueError(f"prior_std must hold {p} positive finite numbers")
+        self.scale = np.ones(p) if scale is None else np.asarray(scale, dtype=float)
+        self.forecasts = {k: np.asarray(v, dtype=float).reshape(p) for k, v in (forecasts or {}).items()}
+        self.options = options or IdentifiabilityOptions()
+        self.base_rows = tuple(base_rows) if base_rows is not None else None
+        self.base_info = self.base.T @ self.base
+        self.info = {i: b.T @ b for i, b in self.blocks.items()}
+        # the targets of the worth: the forecasts' sensitivities, else the parameters' unit vectors
+        if self.forecasts:
+            self.targets = tuple(self.forecasts)
+            self.target_vectors = np.array([self.forecasts[k] for k in self.targets])
+        else:
+            self.targets = self.names
+            self.target_vectors = np.eye(p)
+        self.prior_target_var = np.einsum("tp,p,tp->t", self.target_vectors, self.prior_var, self.target_vectors)
+        if np.any(self.prior_target_var <= 0):
+            zero = [t for t, v in zip(self.targets, self.prior_target_var, strict=True) if v <= 0]
+            raise ValueError(f"forecast {zero[0]!r} does not depend on any parameter (its sensitivities are zero)")
+        self.costs = {c.id: c.cost for c in self.candidates}
+
+    # -- numbers of one set --------------------------------------------------------------------------
+
+    def information(self, gauges: Iterable[str]) -> np.ndarray:
+        """F(S) = J₀ᵀJ₀ + Σ J_cᵀJ_c (p × p)."""
+        out = self.base_info.copy()
+        for g in gauges:
+            out += self.info[g]
+        return out
+
+    def target_variance(self, information: np.ndarray) -> np.ndarray:
+        """σ_t² of every target for information F (or a stack of them: (n, targets))."""
+        cov = posterior_covariance(information, self.prior_var)
+        y = self.target_vectors
+        return np.einsum("tp,...pq,tq->...t", y, cov, y)
+
+    def assess(self, gauges: Sequence[str], *, rows: bool = False) -> Assessment:
+        """Identifiability and posterior uncertainty with ``gauges`` added.
+
+        ``rows``: analyse the stacked Jacobian itself (series shares, effects), not its p × p factor.
+        """
+        info = self.information(gauges)
+        if rows:
+            jac = np.vstack([self.base, *(self.blocks[g] for g in gauges)])
+            names = (self.base_rows or ("",) * self.base.shape[0]) + tuple(
+                s for g in gauges for s in self._row_names(g))
+            ident = analyse_jacobian(jac, self.names, scale=self.scale, rows=names, options=self.options)
+        else:
+            ident = analyse_jacobian(_factor(info), self.names, scale=self.scale, options=self.options)
+        cov = posterior_covariance(info, self.prior_var)
+        var = np.einsum("tp,pq,tq->t", self.target_vectors, cov, self.target_vectors)
+        forecast_std = {}
+        for name, y in self.forecasts.items():
+            forecast_std[name] = float(math.sqrt(max(float(y @ cov @ y), 0.0)))
+        n_id = int((ident.verdict["verdict"] == IDENTIFIABLE).sum())
+        s = ident.singular_values
+        return Assessment(gauges=tuple(gauges), identifiability=ident, identifiable=n_id,
+                          smallest_singular_value=float(s[-1]) if s.size else 0.0,
+                          posterior_std=np.sqrt(np.clip(np.diag(cov), 0.0, None)), forecast_std=forecast_std,
+                          relative_variance=float(np.mean(var / self.prior_target_var)))
+
+    def verdicts(self, information: np.ndarray) -> tuple[pd.Series, np.ndarray]:
+        """The verdict per parameter and the singular values of J_D for information F.
+
+        Steps 1-3 of the verdict of :mod:`rivercal.analysis.identifiability` on R with RᵀR = F, without the
+        cluster suggestions and words (what ranking a candidate needs).
+        """
+        r, opts = _factor(information), self.options
+        cov = covariance(r, scale=self.scale, rcond=opts.rcond)
+        s, v = cov.singular_values, cov.vectors
+        if opts.k is not None:
+            k = min(opts.k, len(self.names))
+        else:
+            k = int(np.count_nonzero((s > 0) & (s >= opts.sv_threshold * s[0]))) if s[0] > 0 else 0
+        frame = verdict_frame(r, self.names, s, v, k, identifiability_index(v, k), cov.std, opts)
+        return frame["verdict"], s
+
+    def _row_names(self, candidate: str) -> list[str]:
+        c = next(c for c in self.candidates if c.id == candidate)
+        n = self.blocks[candidate].shape[0]
+        per = n // max(len(c.series), 1)
+        return [s for s in c.series for _ in range(per)] if per * len(c.series) == n else [c.id] * n
+
+    # -- every candidate at once ----------------------------------------------------------------------
+
+    def worth_table(self, gauges: Sequence[str] = ()) -> pd.DataFrame:
+        """Every candidate not in ``gauges``, added to them: its worth and what the set then gives.
+
+        Returns
+        -------
+        DataFrame
+            Index: candidate id. Columns ``name``, ``cost``, ``worth`` (mean fractional variance reduction of
+            the targets), ``worth_per_cost``, ``identifiable`` (parameters identifiable with it),
+            ``smallest_singular_value``, ``relative_variance``, ``verdict:<parameter>``,
+            ``std:<parameter>`` (posterior σ, optimiser units), ``var:<target>`` (posterior variance of each
+            target); sorted by identifiable, then worth (per cost where there are costs), descending.
+        """
+        chosen = set(gauges)
+        left = [c for c in self.candidates if c.id not in chosen]
+        if not left:
+            return pd.DataFrame()
+        base_info = self.information(gauges)
+        now = self.target_variance(base_info)
+        stack = np.array([base_info + self.info[c.id] for c in left])
+        cov = posterior_covariance(stack, self.prior_var)
+        var = np.einsum("tp,npq,tq->nt", self.target_vectors, cov, self.target_vectors)
+        worth = np.mean(1.0 - var / now, axis=1)
+        rows = []
+        for i, c in enumerate(left):
+            verdicts, sv = self.verdicts(stack[i])
+            row: dict[str, Any] = {"candidate": c.id, "name": c.name, "cost": c.cost, "worth": float(worth[i]),
+                                   "identifiable": int((verdicts == IDENTIFIABLE).sum()),
+                                   "smallest_singular_value": float(sv[-1]),
+                                   "relative_variance": float(np.mean(var[i] / self.prior_target_var))}
+            row.update({f"verdict:{n}": str(v) for n, v in verdicts.items()})
+            row.update({f"std:{n}": float(math.sqrt(max(cov[i, j, j], 0.0))) for j, n in enumerate(self.names)})
+            row.update({f"var:{t}": float(var[i, k]) for k, t in enumerate(self.targets)})
+            rows.append(row)
+        table = pd.DataFrame(rows).set_index("candidate")
+        table["worth_per_cost"] = [w / c if c else np.nan for w, c in zip(table["worth"], table["cost"], strict=True)]
+        return table.sort_values(["identifiable", self._rank_column(), "smallest_singular_value"],
+                                 ascending=False, kind="stable")
+
+    def _rank_column(self) -> str:
+        return "worth_per_cost" if any(c is not None for c in self.costs.values()) else "worth"
+
+    # -- the choice ----------------------------------------------------------------------------------
+
+    def greedy(self, k: int | None = None, *, exchange: bool = True, max_add: int | None = None,
+               progress: Callable[[str], None] | None = None) -> list[Step]:
+        """Choose gauges one at a time, re-evaluating every candidate after each pick (module docstring).
+
+        Parameters
+        ----------
+        k
+            Number of gauges to add; None: until every parameter is identifiable (at most ``max_add``,
+            default p), or until no candidate adds anything.
+        exchange
+            Improve the chosen set by one-for-one swaps afterwards (the steps are then those of the greedy
+            order within the improved set).
+        max_add
+            Upper bound of the picks without ``k``.
+        progress
+            Called with a line per pick.
+        """
+        p = len(self.names)
+        limit = len(self.candidates) if k is None else min(k, len(self.candidates))
+        if k is None:
+            limit = min(limit, max_add if max_add is not None else p)
+        chosen: list[str] = []
+        while len(chosen) < limit:
+            now = self.assess(chosen)
+            if k is None and now.identifiable == p:
+                break
+            table = self.worth_table(chosen)
+            if table.empty:
+                break
+            best = table.index[0]
+            if k is None and table.iloc[0]["identifiable"] <= now.identifiable and table.iloc[0]["worth"] <= 1e-9:
+                break  # nothing left adds anything
+            chosen.append(str(best))
+            if progress:
+                progress(f"gauge {len(chosen)}: {best} ({table.iloc[0]['name']}), {int(table.iloc[0]['identifiable'])} "
+                         f"of {p} identifiable")
+        if exchange and chosen:
+            improved = self.exchange(chosen)
+            if set(improved) != set(chosen):
+                chosen = self._order(improved)
+        return self.steps(chosen)
+
+    def _score(self, gauges: Sequence[str]) -> tuple[int, float]:
+        """(identifiable parameters, − mean fractional variance of the targets) of a set: higher is better."""
+        info = self.information(gauges)
+        verdicts, _ = self.verdicts(info)
+        return int((verdicts == IDENTIFIABLE).sum()), -float(np.mean(self.target_variance(info)
+                                                                       / self.prior_target_var))
+
+    def exchange(self, chosen: Sequence[str], *, passes: int = 3) -> list[str]:
+        """One-for-one swaps of chosen gauges for others while the set's score improves (module docstring)."""
+        best = list(chosen)
+        score = self._score(best)
+        others = [c.id for c in self.candidates]
+        for _ in range(passes):
+            better = False
+            for i in range(len(best)):
+                for c in others:
+                    if c in best:
+                        continue
+                    trial = [*best[:i], c, *best[i + 1:]]
+                    s = self._score(trial)
+                    if s > (score[0], score[1] + 1e-9):
+                        best, score, better = trial, s, True
+            if not better:
+                break
+        return best
+
+    def _order(self, gauges: Sequence[str]) -> list[str]:
+        """``gauges`` in greedy order among themselves."""
+        left, out = list(gauges), []
+        while left:
+            table = self.worth_table(out)
+            pick = next(i for i in table.index if i in left)
+            out.append(str(pick))
+            left.remove(pick)
+        return out
+
+    def steps(self, gauges: Sequence[str]) -> list[Step]:
+        """The gain of each gauge in turn (the worth of gauge i given gauges 1 … i − 1)."""
+        out = []
+        for i, g in enumerate(gauges):
+            before = self.information(gauges[:i])
+            after = before + self.info[g]
+            v0, v1 = self.target_variance(before), self.target_variance(after)
+            worth = float(np.mean(1.0 - v1 / v0))
+            out.append(Step(i + 1, g, worth, self.assess(list(gauges[: i + 1]))))
+        return out
+
+
+@dataclass(frozen=True)
+class Advice:
+    """Outcome of :func:`advise`.
+
+    Attributes
+    ----------
+    analysis
+        The linear analysis (:class:`LinearWorth`).
+    before
+        The present stations alone.
+    table
+        Every candidate added to the present stations (:meth:`LinearWorth.worth_table`).
+    steps
+        The choice, one gauge at a time.
+    after
+        The present stations and the chosen gauges (analysed on the stacked series).
+    enough
+        The number of gauges after which every parameter is identifiable (None: not reached).
+    jacobian_runs, wall_s
+        Model runs of the Jacobian; wall time of the whole advice, s.
+    extra
+        Anything else (window, σ, the Jacobian's rows …).
+    """
+
+    analysis: LinearWorth
+    before: Assessment
+    table: pd.DataFrame
+    steps: list[Step]
+    after: Assessment
+    enough: int | None
+    jacobian_runs: int
+    wall_s: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def chosen(self) -> list[str]:
+        """The chosen candidates' ids, in order."""
+        return [s.candidate for s in self.steps]
+
+
+# --------------------------------------------------------------------------------------------------
+# the Jacobian of every candidate's series, through the model contract
+# --------------------------------------------------------------------------------------------------
+
+
+def advice_jacobian(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.Timestamp], *,
+                    candidates: Sequence[Candidate], base_series: Sequence[str] | None = None,
+                    sigma: Mapping[str, float] | None = None, forecasts: Sequence[str] = (),
+                    horizon: pd.Timedelta | str = "48h", warmup: pd.Timedelta | str = "24h", state: Any = None,
+                    rel_step: float = 0.01, scheme: Literal["forward", "central"] = "forward",
+                    workers: Any = None) -> dict[str, Any]:
+    """One finite-difference Jacobian of the present stations', the candidates' and the forecasts' series.
+
+    The candidates' places are added to the model through its optional capability
+    :class:`~rivercal.models.contract.VirtualStations` (a candidate whose series the model already
+    simulates needs none); then p + 1 runs (2p + 1 central) of the window give every row at once.
+
+    Parameters
+    ----------
+    model
+        A model of the contract.
+    parameters
+        The :class:`~rivercal.parameters.ParameterSet`; the point is their initial values.
+    window
+        (start, end) UTC; the runs start ``warmup`` earlier.
+    candidates
+        The candidates (their ``location`` is passed to ``model.with_stations`` when the model does not
+        simulate their series yet).
+    base_series
+        The present stations' series (default: every level and discharge the model simulates).
+    sigma
+        σ by series id or quantity (``h``, ``h_up``, ``h_down``, ``Q``), m and m³/s (default
+        :data:`rivercal.observations.DEFAULT_SIGMA`).
+    forecasts
+        Series ids whose mean over ``horizon`` after the window is a forecast.
+    horizon, warmup, state
+        Forecast horizon; simulated time before the window; model state at ``start − warmup`` (None: a
+        spin-up at the parameters' initial values).
+    rel_step, scheme, workers
+        As for :func:`~rivercal.analysis.jacobian.fd_jacobian`.
+
+    Returns
+    -------
+    dict
+        ``base`` (J₀), ``base_rows``, ``blocks`` (J_c per candidate id), ``forecasts`` (y_f per series id),
+        ``scale``, ``nfev``, ``model`` (the model with the candidates' stations), ``state``.
+
+    Raises
+    ------
+    ValueError
+        When a series is not simulated and the model cannot add places, the forecast horizon leaves the
+        model's period, or a σ is not positive.
+    """
+    from rivercal.models.contract import VirtualStations, spun_up
+    from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
+    from rivercal.problem import CalibrationProblem
+
+    start, end = window
+    warmup = pd.Timedelta(warmup)
+    horizon = pd.Timedelta(horizon)
+    sig = {**DEFAULT_SIGMA, **dict(sigma or {})}
+    for key, value in sig.items():
+        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ValueError(f"σ of {key} must be a positive number (m or m³/s), got {value!r}")
+    base_series = list(base_series) if base_series is not None else measurable(model.observables)
+    new = [c for c in candidates if any(s not in model.observables for s in c.series)]
+    extended = model
+    if new:
+        if not isinstance(model, VirtualStations):
+            raise ValueError(f"model {getattr(model, 'name', '?')!r} cannot simulate series at places where it has "
+                             f"no station (it lacks the optional capability VirtualStations); candidate "
+                             f"{new[0].id!r} needs one")
+        extended = model.with_stations([c.location for c in new])
+    unknown = [s for s in [*base_series, *forecasts] if s not in extended.observables]
+    if unknown:
+        raise ValueError(f"series {unknown[0]!r} is not simulated by the model")
+    if forecasts and end + horizon > extended.end:
+        raise ValueError(f"the forecast horizon reaches {end + horizon}, after the end of the model's period "
+                         f"({extended.end}); choose an earlier window or a shorter horizon")
+    last = end + horizon if forecasts else end
+    if state is None and start - warmup > extended.start:
+        state = spun_up(model, parameters.quantities({}), start - warmup)
+    dt = pd.Timedelta(seconds=float(extended.output_interval))
+    inside = pd.date_range(start, end, freq=dt)
+    after = pd.date_range(end + dt, last, freq=dt) if forecasts else inside[:0]
+
+    def sigma_of(series_id: str) -> float:
+        return float(sig.get(series_id, sig.get(series_id.rpartition(".")[2], 1.0)))
+
+    cand_series = list(dict.fromkeys(s for c in candidates for s in c.series if s not in base_series))
+    observed = [*base_series, *cand_series]
+    times = {sid: inside for sid in observed}
+    for sid in forecasts:  # a forecast is the series' mean over the horizon: rows after the window's end
+        times[sid] = times[sid].append(after) if sid in times else after
+    obs = ObservationSet(tuple(ObservationSeries(sid, t, np.zeros(t.size), sigma_of(sid)) for sid, t in times.items()))
+    problem = CalibrationProblem(extended, parameters, obs, (start, last), state=state, warmup=warmup)
+    jac = fd_jacobian(problem, rel_step=rel_step, scheme=scheme, workers=workers)
+    rows = np.asarray(jac.rows)
+    in_window = np.concatenate([np.asarray(s.times <= end) for s in problem.observations])
+    matrix = jac.matrix
+
+    def block(series_ids: Iterable[str]) -> np.ndarray:
+        mask = np.isin(rows, list(series_ids)) & in_window
+        return matrix[mask]
+
+    base = block(base_series)
+    base_rows = tuple(rows[np.isin(rows, base_series) & in_window])
+    blocks = {c.id: block(c.series) for c in candidates}
+    fc = {}
+    for sid in forecasts:  # the rows are −∂ŷ/∂x / σ
+        fc[sid] = -sigma_of(sid) * matrix[(rows == sid) & ~in_window].mean(axis=0)
+    return {"base": base, "base_rows": base_rows, "blocks": blocks, "forecasts": fc,
+            "scale": parameter_scales(problem), "nfev": jac.nfev, "model": extended, "state": problem.state,
+            "sigma": {s: sigma_of(s) for s in observed}}
+
+
+def advise(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.Timestamp], candidates: Sequence[Candidate],
+           *, add: int | None = None, base_series: Sequence[str] | None = None,
+           sigma: Mapping[str, float] | None = None, forecasts: Sequence[str] = (),
+           horizon: pd.Timedelta | str = "48h", warmup: pd.Timedelta | str = "24h", state: Any = None,
+           rel_step: float = 0.01, scheme: Literal["forward", "central"] = "forward",
+           options: IdentifiabilityOptions | None = None, exchange: bool = True, workers: Any = None,
+           progress: Callable[[str], None] | None = None) -> Advice:
+    """Where to put the next ``add`` gauges among ``candidates`` (module docstring).
+
+    Parameters
+    ----------
+    model, parameters, window, candidates, base_series, sigma, forecasts, horizon, warmup, state, rel_step,
+    scheme, workers
+        As for :func:`advice_jacobian`.
+    add
+        Gauges to add; None: as many as it takes until every parameter is identifiable (at most p).
+    options
+        Thresholds of the identifiability verdict.
+    exchange
+        Improve the greedy choice by one-for-one swaps.
+    progress
+        Called with a line at each stage.
+
+    Returns
+    -------
+    Advice
+    """
+    t0 = time.perf_counter()
+    if not candidates:
+        raise ValueError("no candidate places: every place of that kind is measured already")
+    if add is not None and (isinstance(add, bool) or not isinstance(add, int) or add < 1):
+        raise ValueError(f"the number of gauges to add must be a positive integer, got {add!r}")
+    say = progress or (lambda _line: None)
+    say(f"Jacobian of {len(parameters)} parameters over the series of {len(candidates)} candidates")
+    jac = advice_jacobian(model, parameters, window, candidates=candidates, base_series=base_series, sigma=sigma,
+                          forecasts=forecasts, horizon=horizon, warmup=warmup, state=state, rel_step=rel_step,
+                          scheme=scheme, workers=workers)
+    analysis = LinearWorth(parameters.names, jac["base"], candidates, jac["blocks"], prior_std(parameters),
+                           scale=jac["scale"], forecasts=jac["forecasts"], options=options,
+                           base_rows=jac["base_rows"])
+    say("data worth of every candidate")
+    before = analysis.assess([], rows=True)
+    table = analysis.worth_table()
+    say("choosing the gauges")
+    steps = analysis.greedy(add, exchange=exchange, progress=say)
+    chosen = [s.candidate for s in steps]
+    after = analysis.assess(chosen, rows=True)
+    p = len(parameters)
+    enough = 0 if before.identifiable == p else next(
+        (s.number for s in steps if s.assessment.identifiable == p), None)
+    wall = time.perf_counter() - t0
+    log.info("gauge advice: %d candidates, %d chosen, %d model runs, %.1f s", len(candidates), len(chosen),
+             jac["nfev"], wall)
+    return Advice(analysis=analysis, before=before, table=table, steps=steps, after=after, enough=enough,
+                  jacobian_runs=int(jac["nfev"]), wall_s=wall,
+                  extra={"model": jac["model"], "state": jac["state"], "sigma": jac["sigma"],
+                         "window": (window[0], window[1])})
