@@ -19,6 +19,9 @@ from rivercal.models import load_model
 from tests.shared_data import shared_model
 
 
+@pytest.mark.xfail(strict=True, reason="with cross-sections interpolated on its supercritical stretches the engine's "
+                   "levels alternate from point to point (a 2Δx mode) at steps other than 1 s, and the step control's "
+                   "half steps wake it (docs/mascaret.md)")
 def test_the_imported_torrent_reaches_mascarets_steady_levels(tmp_path: Path) -> None:
     folder = shared_model("oriege-mascaret-test19")
     gauges = read_gauges(folder)

@@ -21,6 +21,7 @@ from typing import Any
 import pandas as pd
 from pydantic import BaseModel, ValidationError
 
+from rivercal._time import utc
 from rivercal.case.schema import CaseFile
 from rivercal.case.series import SeriesTable, check_coverage, check_range, read_series_table, series_column
 from rivercal.errors import CaseError
@@ -60,12 +61,12 @@ class Case:
     @property
     def start(self) -> pd.Timestamp:
         """Start of the simulated period (UTC)."""
-        return pd.Timestamp(self.spec.case.start)
+        return utc(self.spec.case.start)
 
     @property
     def end(self) -> pd.Timestamp:
         """End of the simulated period (UTC)."""
-        return pd.Timestamp(self.spec.case.end)
+        return utc(self.spec.case.end)
 
     @functools.cached_property
     def network(self) -> Network:
