@@ -143,7 +143,8 @@ _SHARED = {
 
 @pytest.mark.parametrize("name", [pytest.param("dellen", marks=pytest.mark.slow), "c01", "korte-woerden"])
 def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: str) -> None:
-    """Import, simulate, calibrate (a twin of one parameter the import wrote) and one on-line cycle, exit 0 each."""
+    """Import, simulate, calibrate (a twin of one parameter the import wrote), one on-line cycle, analyse and
+    export, exit 0 each."""
     parts, extra, param, truth, window, warmup, (issue, span, online_warmup) = _SHARED[name]
     mdu = shared_model(*parts)
     extra = tuple(str(mdu.parents[1] / x) if x.endswith(".nc") else x for x in extra)
@@ -167,3 +168,8 @@ def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: 
                    "--workers", "1", "--quiet", "--json")
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["status"] == {"done": 1}
+    run = rivercal("analyse", str(case), "--params", param, "--window", window, "--warmup", warmup, "--workers", "1",
+                   "--out", str(tmp_path / "analyse"), "--json")
+    assert run.returncode == 0, run.stderr
+    run = rivercal("export", "dhydro", str(case), "--out", str(tmp_path / "exported"), "--json")
+    assert run.returncode == 0, run.stderr

@@ -41,10 +41,12 @@ log = logging.getLogger(__name__)
 WEIR_STEPS = (-0.30, -0.15, 0.0, 0.15, 0.30)
 #: Thesis Table 4-4: FA1 … FA5 relative to the base Strickler coefficient, m^(1/3)/s (20, 18, 16, 14, 12).
 FRICTION_STEPS = (4.0, 2.0, 0.0, -2.0, -4.0)
+#: The unit of a Strickler coefficient, for which FRICTION_STEPS are meant (a Manning n or a Chézy C is not).
+STRICKLER_UNIT = "m^(1/3)/s"
 #: Our choice for a cluster parameter in [0, 1] (Wc is not in Table 4-4), dimensionless.
 CLUSTER_STEPS = (-0.2, -0.1, 0.0, 0.1, 0.2)
-#: Our choice for any other quantity (a roughness factor, a quantity of an external model): these
-#: multiples of the parameter's first DuD step, kept inside its bounds.
+#: Our choice for any other quantity (a Manning or Chézy coefficient, a roughness factor, a quantity of an external
+#: model): these multiples of the parameter's first DuD step, kept inside its bounds.
 OTHER_STEPS = (-2.0, -1.0, 0.0, 1.0, 2.0)
 
 
@@ -53,8 +55,8 @@ def _kind(p: Parameter) -> str:
         return "cluster"
     if all(t.startswith("weir:") for t in p.targets):
         return "weir"
-    if all(t.startswith("friction:") for t in p.targets):
-        return "friction"
+    if all(t.startswith("friction:") for t in p.targets) and p.unit in ("", STRICKLER_UNIT):
+        return "friction"  # Table 4-4's steps are Strickler coefficients; another law's value takes OTHER_STEPS
     return "mixed"
 
 
@@ -70,6 +72,10 @@ def thesis_scenarios(parameters: ParameterSet, names: Sequence[str] | None = Non
         Parameters to include (default: all, in set order).
     custom
         Value lists (physical units) that replace the thesis' for some parameters.
+
+    A parameter for which the table's steps would leave its bounds (or a friction parameter whose unit is not
+    the Strickler coefficient's) gets five values at multiples -2 … 2 of its first DuD step instead, kept inside
+    its bounds.
 
     Returns
     -------
@@ -90,6 +96,8 @@ def thesis_scenarios(parameters: ParameterSet, names: Sequence[str] | None = Non
             out[name] = [float(v) for v in custom[name]]
             continue
         steps = {"weir": WEIR_STEPS, "friction": FRICTION_STEPS, "cluster": CLUSTER_STEPS}.get(_kind(p))
+        if steps is not None and not all(p.min <= p.initial + s <= p.max for s in steps):
+            steps = None  # the table's steps leave this parameter's range: its own steps instead
         if steps is None:
             step = p.initial_step(p.initial)
             values = [p.from_x(p.to_x(p.initial) + k * step) for k in OTHER_STEPS]

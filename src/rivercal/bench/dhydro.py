@@ -28,7 +28,7 @@ from rivercal.case import case_from_dict
 from rivercal.engine import Simulator
 from rivercal.io.dhydro import ImportOptions, import_dhydro, read_exchange
 
-__all__ = ["DellenComparison", "compare_dellen", "dellen_folder"]
+__all__ = ["DellenComparison", "compare_dellen", "dellen_folder", "ledger_counts"]
 
 ENV_VAR = "RIVERCAL_DELLEN_DIR"
 #: The first day of the run is its spin-up: the model starts from 1 m of water everywhere.
@@ -74,6 +74,10 @@ class DellenComparison:
         Relative volume-balance error of the run.
     case_folder
         The imported case.
+    imported
+        The import's summary (:attr:`rivercal.io.dhydro.ImportResult.summary`).
+    dt_s, imported_dt_s
+        The time step run (the longest, s) and the model's own.
     """
 
     table: pd.DataFrame
@@ -82,6 +86,9 @@ class DellenComparison:
     balance_error: float
     case_folder: Path
     series: pd.DataFrame = field(repr=False)
+    imported: dict = field(default_factory=dict)
+    dt_s: float = 0.0
+    imported_dt_s: float = 0.0
 
     def summary(self) -> dict:
         """The scores over the whole run and after the spin-up day.
@@ -106,7 +113,7 @@ class DellenComparison:
 
 
 def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
-                   parameters: dict[str, float] | None = None) -> DellenComparison:
+                   parameters: dict[str, float] | None = None, dt: float | None = None) -> DellenComparison:
     """Import Dellen with its exchange series, run it, and compare with D-HYDRO's levels.
 
     Parameters
@@ -117,6 +124,8 @@ def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
         Folder for the imported case (default: a temporary folder that is kept for the result).
     parameters
         Model quantities to set for the run (default: the model as imported).
+    dt
+        The longest time step of the run, s (default: the model's own).
     """
     folder = Path(folder) if folder is not None else dellen_folder()
     out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="dellen-"))
@@ -128,6 +137,8 @@ def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
     computed = read_exchange(folder / "flow_to_rtc.nc", refdate)
     computed.update(read_exchange(folder / "flow_to_rr.nc", refdate))
     targets = add_comparison_stations(data, computed)
+    imported_dt = float(data["engine"]["dt"])
+    data["engine"]["dt"] = float(dt) if dt is not None else imported_dt
     sim = Simulator(case_from_dict(data, case))
     t0 = time.perf_counter()
     run, _ = sim.simulate(parameters)
@@ -150,7 +161,14 @@ def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
     table = pd.DataFrame(rows).sort_values("rmse_m", ascending=False, ignore_index=True)
     return DellenComparison(table=table, wall_s=wall, period_s=(sim.end - sim.start).total_seconds(),
                             balance_error=run.balance.relative_error, case_folder=case,
-                            series=pd.DataFrame(columns))
+                            series=pd.DataFrame(columns), imported=ledger_counts(result.ledger),
+                            dt_s=float(data["engine"]["dt"]), imported_dt_s=imported_dt)
+
+
+def ledger_counts(ledger) -> dict[str, int]:
+    """``{"objects", "exact", "approximated", "refused"}`` of an import's ledger."""
+    return {"objects": len(ledger.entries), "exact": ledger.counts("exact"),
+            "approximated": ledger.counts("approximated"), "refused": ledger.counts("refused")}
 
 
 def add_comparison_stations(data: dict, computed: dict[str, pd.Series]) -> dict[str, str]:

@@ -183,6 +183,51 @@ def dhydro(
                       f"{after['p90']:.3f}, {after['max']:.3f} m; simulated in {summary['wall_s']:.2f} s")
 
 
+@app.command("models")
+@guard
+def models(
+    model: Annotated[list[str] | None,
+                     typer.Option("--model", help="A shared model (repeatable; default: all).")] = None,
+    steps: Annotated[str | None, typer.Option(
+        "--sweep", help="Also run each model at these longest time steps, e.g. 10,60,300,600 (s), against the "
+        "shortest one.")] = None,
+    out: Annotated[Path | None, typer.Option("--out", help="Keep the imported cases here.")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Every real model of the shared data, imported and run as imported, against its own engine's results."""
+    from rivercal.bench.models import MODELS, model_row, sweep
+
+    names = [check_choice(name, "--model", MODELS, "shared model") for name in model or list(MODELS)]
+    dts = None
+    if steps is not None:
+        try:
+            dts = tuple(float(v) for v in parse_names(steps, "--sweep"))
+        except ValueError:
+            raise OptionError(f"--sweep {steps!r}: give time steps in s, e.g. 10,60,300,600",
+                              option="--sweep") from None
+        for dt in dts:
+            check_number(dt, "--sweep", low=0.1, high=3600.0)
+    for name in names:
+        row = model_row(name, None if out is None else out / name).row()
+        if dts is not None:
+            row["sweep"] = sweep(name, dts, None if out is None else out / f"{name}-sweep")
+        if as_json:
+            emit_json(row)
+            continue
+        after = row.get("after_spinup") or {}
+        rmse = after.get("level_rmse_m") or row.get("level_rmse_m")
+        scores = (f"level RMSE median {rmse['median'] * 100:.1f} cm, p90 {rmse['p90'] * 100:.1f} cm, max "
+                  f"{rmse['max'] * 100:.1f} cm at {row['points_compared']} points" if rmse else "no reference")
+        ran = "runs as imported" if row["runs_as_imported"] else f"does not run as imported: {row.get('error')}"
+        out_console.print(f"{name} ({row['format']}): {row['objects']} objects, {row['exact']} exact, "
+                          f"{row['approximated']} approximated, {row['refused']} refused; {ran} at "
+                          f"{row['dt_s']:g} s; {scores}; {row['wall_s']:.1f} s")
+        for item in row.get("sweep", {}).get("steps", []):
+            what = (f"{item['max_diff_m'] * 100:.2f} cm from the shortest step at most ({item['where']})"
+                    if item["ok"] else f"stopped: {item['error']}")
+            out_console.print(f"    longest step {item['dt_s']:g} s: {what}")
+
+
 @app.command("online")
 @guard
 def online(

@@ -13,6 +13,7 @@ import pandas as pd
 
 from rivercal.case.load import load_case
 from rivercal.errors import CaseError, StructureOverlap
+from rivercal.io._calibration import write_parameters
 from rivercal.io.sobek3._context import Context, ImportOptions, Sobek3Ledger, load_model
 from rivercal.io.sobek3._forcing import convert_forcing
 from rivercal.io.sobek3._network import SECTION_NAMES, convert_network, unused_definitions
@@ -92,6 +93,8 @@ def import_sobek3(md1d: Path | str, out: Path | str, options: ImportOptions | No
     _engine(ctx)
     _fit_the_grid(ctx)
     _settings(ctx)
+    _stations_if_none(ctx)
+    write_parameters(ctx.case, ledger)
     out.mkdir(parents=True, exist_ok=True)
     (out / "import.md").write_text(ledger.markdown(model=str(md1d), case_folder=str(out),
                                                    partial=options.allow_partial), encoding="utf-8")
@@ -255,6 +258,28 @@ def _fit_the_grid(ctx: Context) -> None:
                             if lat.get("branch") in branches or lat.get("node") in nodes]
 
 
+def _stations_if_none(ctx: Context) -> None:
+    """A level station at the middle of each branch when the model has no observation point and no structure.
+
+    A case without stations can be simulated but not calibrated or run on-line (those compare series at
+    stations); the model's files said nothing of where its water levels are known, so the import says which
+    stations it placed, to be replaced by the water board's gauges.
+    """
+    if ctx.case.get("stations"):
+        return
+    placed = []
+    for b in ctx.case["branches"]:
+        points = b.get("points") or [0.0, b["length"]]
+        chainage = float(points[len(points) // 2])
+        sid = f"{b['id']}_middle"
+        ctx.case.setdefault("stations", []).append({"id": sid, "branch": b["id"], "chainage": chainage,
+                                                    "quantities": ["h", "Q"]})
+        placed.append(f"`{sid}` ({b['id']} at {chainage:g} m)")
+    ctx.ledger.warn("the model has no observation point: a station (level and discharge) is placed at the middle of "
+                    "each branch so that the case can be calibrated and run on-line; replace them by your gauges: "
+                    + ", ".join(placed[:10]) + (f" and {len(placed) - 10} more" if len(placed) > 10 else ""))
+
+
 def _settings(ctx: Context) -> None:
     model = ctx.model
     ctx.ledger.approximated("setting", "numerics", "rivercal's engine discretises the same equations (the staggered "
@@ -286,7 +311,8 @@ def _write(ctx: Context, out: Path) -> None:
         frame.index.name = "time"
         frame.to_csv(out / file)
     order = ["case", "engine", "initial", "friction", "friction_groups", "profiles", "nodes", "branches", "weirs",
-             "universal_weirs", "orifices", "culverts", "bridges", "pumps", "boundaries", "laterals", "stations"]
+             "universal_weirs", "orifices", "culverts", "bridges", "pumps", "boundaries", "laterals", "stations",
+             "parameters"]
     data = {k: ctx.case[k] for k in order if ctx.case.get(k) not in (None, [], {})}
     (out / "case.toml").write_text(tomli_w.dumps(_clean(data)), encoding="utf-8")
 
@@ -327,4 +353,5 @@ def _summary(ctx: Context, case) -> dict:
         "approximated": ctx.ledger.counts("approximated"),
         "refused": ctx.ledger.counts("refused"),
         "dt_s": case.spec.engine.dt,
+        "parameters": [p.name for p in case.spec.parameters],
     }
