@@ -324,3 +324,18 @@ def test_read_observations_takes_any_known_file_by_its_suffix(tmp_path: Path) ->
     assert read_observations(tmp_path / "obs.csv")["P.h"].values[0] == 1.5
     with pytest.raises(CaseError, match=r"ending in \.csv, \.xml, \.toml"):
         read_observations(tmp_path / "obs.xlsx")
+
+
+def test_a_long_table_of_many_gauges_is_read_one_gauge_at_a_time(tmp_path: Path) -> None:
+    _write(tmp_path, "export.csv", "location,time,value\nG01,2021-06-01T12:00Z,1.0\nG02,2021-06-01T12:00Z,2.0\n"
+                                   "G01,2021-06-01T12:31:07Z,1.1\nG02,2021-06-01T12:45Z,2.1\n")
+    body = ('format = "csv"\nfile = "export.csv"\ntime_column = "time"\ncolumn = "value"\n'
+            'station_column = "location"\n')
+    side = _write(tmp_path, "two.toml", f'[[series]]\nid = "G01.h"\n{body}station = "G01"\n\n'
+                                        f'[[series]]\nid = "G02.h"\n{body}station = "G02"\n')
+    obs = read_sidecar(side)
+    np.testing.assert_array_equal(obs["G01.h"].values, [1.0, 1.1])
+    assert obs["G01.h"].times[1] == pd.Timestamp("2021-06-01T12:31:07Z")
+    np.testing.assert_array_equal(obs["G02.h"].values, [2.0, 2.1])
+    wrong = _write(tmp_path, "wrong.toml", f'[[series]]\nid = "G03.h"\n{body}station = "G03"\n')
+    assert "export.csv: no row has 'G03' in column 'location' (it holds 'G01', 'G02')" in _error(wrong)

@@ -46,7 +46,9 @@ Formats
 ``csv``
     Delimited text with a header row (``header_line``, 1 = the first line), optionally ``skip_lines`` lines
     (a units row) before the data; columns by their header: ``time_column`` (default the first),
-    ``column`` (the values) and ``flag_column``. Times in ISO 8601 (a time with an offset keeps it) or by
+    ``column`` (the values) and ``flag_column``. A long table of many gauges (one row per gauge and time, as
+    databases export them) is read one gauge at a time: ``station_column`` names the column that says whose
+    row it is, ``station`` the gauge. Times in ISO 8601 (a time with an offset keeps it) or by
     ``time_format`` (:meth:`datetime.strptime` codes).
 
 Rules (each broken rule is a :class:`~rivercal.errors.CaseError` naming the file and its line)
@@ -175,6 +177,10 @@ class SensorSpec(BaseModel):
     header_line: int = Field(default=1, ge=1, description="csv: the line that holds the column headers.")
     skip_lines: int = Field(default=0, ge=0, description="csv: lines between the header and the first data line.")
     flag_column: str | None = Field(default=None, description="csv: the header of a quality-flag column.")
+    station_column: str | None = Field(
+        default=None, description="csv: the header of a column naming the gauge of each row (a long table of many "
+                                  "gauges); only the rows whose cell is station are read.")
+    station: str | None = Field(default=None, description="csv: the gauge's name in station_column.")
     flags: FlagMeaning | None = Field(default=None, description="The meaning of every flag (with flag_column).")
     drop_doubtful: bool = Field(default=False, description="Drop doubtful values too.")
     missing_values: list[float | str] = Field(default_factory=list,
@@ -407,6 +413,10 @@ def read_sensor_series(spec: SensorSpec, root: str | Path, *,
     if spec.flag_column is not None and spec.flags is None:
         raise side_error("flags", f"flag_column {spec.flag_column!r} needs flags = {{ good = [...], doubtful = "
                                   "[...], bad = [...] }}: what each code means")
+    if (spec.station_column is None) != (spec.station is None):
+        key = "station" if spec.station is None else "station_column"
+        raise side_error(key, "station_column and station go together: the column that names the gauge of each row, "
+                              "and this gauge's name in it")
     if spec.flags is not None and spec.flag_column is None:
         raise side_error("flag_column", "flags are given but no flag_column names where they are")
     zone = None
@@ -595,8 +605,10 @@ def _read_csv(lines: list[str], spec: SensorSpec, label: str) -> _Raw:
     t_col = index_of(spec.time_column, "time") if spec.time_column is not None else 0
     v_col = index_of(spec.column, "value")  # type: ignore[arg-type]
     f_col = index_of(spec.flag_column, "flag") if spec.flag_column is not None else None
-    need = max(c for c in (t_col, v_col, f_col) if c is not None) + 1
+    s_col = index_of(spec.station_column, "station") if spec.station_column is not None else None
+    need = max(c for c in (t_col, v_col, f_col, s_col) if c is not None) + 1
     out_lines, times, values, flags = [], [], [], []
+    seen: dict[str, None] = {}
     for n in range(hl + spec.skip_lines + 1, len(lines) + 1):
         line = lines[n - 1]
         if not line.strip():
@@ -605,11 +617,19 @@ def _read_csv(lines: list[str], spec: SensorSpec, label: str) -> _Raw:
         if len(cells) < need:
             raise CaseError(f"line {n}: {len(cells)} column(s), the header has {len(header)} ({line.strip()[:80]!r})",
                             file=label)
+        if s_col is not None:
+            seen.setdefault(cells[s_col], None)
+            if cells[s_col] != spec.station:
+                continue
         out_lines.append(n)
         times.append(cells[t_col])
         values.append(cells[v_col])
         if f_col is not None:
             flags.append(cells[f_col])
+    if not out_lines and s_col is not None and seen:
+        shown = ", ".join(repr(v) for v in list(seen)[:10]) + (" …" if len(seen) > 10 else "")
+        raise CaseError(f"no row has {spec.station!r} in column {spec.station_column!r} (it holds {shown})",
+                        file=label)
     if not out_lines:
         raise CaseError(f"has a header (line {hl}) but no data lines", file=label)
     return _Raw(out_lines, times, values, flags if f_col is not None else None)
