@@ -243,7 +243,7 @@ def write_case(out: str | Path, data: str | Path | None = None, *, dx: float = 5
               f"length = {x['gent']:.1f}", f"dx = {dx}", "cross_sections = [", *sections, "]", "",
               "[[boundaries]]", 'id = "cadzand"', 'node = "mouth"', 'type = "level"',
               'series = { file = "forcing.csv", column = "tide_cadzand" }', ""]
-    for place in ("cadzand", *GAUGES):
+    for place in GAUGES:  # none at Cadzand: its level is the boundary's (and a station there is never observed)
         lines += ["[[stations]]", f'id = "{place}"', 'branch = "scheldt"', f"chainage = {x[place]:.1f}", ""]
     lines += ["[[parameters]]", 'name = "KS"', 'targets = ["friction:global"]', "min = 15.0", "max = 100.0",
               f"initial = {ks}", 'transform = "offset"', "perturbation = 5.0", 'unit = "m^(1/3)/s"', "",
