@@ -339,3 +339,17 @@ def test_a_long_table_of_many_gauges_is_read_one_gauge_at_a_time(tmp_path: Path)
     np.testing.assert_array_equal(obs["G02.h"].values, [2.0, 2.1])
     wrong = _write(tmp_path, "wrong.toml", f'[[series]]\nid = "G03.h"\n{body}station = "G03"\n')
     assert "export.csv: no row has 'G03' in column 'location' (it holds 'G01', 'G02')" in _error(wrong)
+
+
+def test_the_how_to_example_logger_reads_as_the_guide_says() -> None:
+    folder = Path(__file__).resolve().parents[2] / "docs" / "howto" / "example-sensors"
+    s = read_sidecar(folder / "P0029.toml")["0029.h_up"]
+    rows = [line.split(";") for line in (folder / "logger_P0029.csv").read_text().splitlines()[2:]]
+    # every 15 minutes in UTC across the night the clocks went back (one value flagged 9 / -999 is missing)
+    steps = np.diff(s.times.asi8) // 10**9
+    assert set(steps.tolist()) == {900, 1800} and (steps == 1800).sum() == 1 and s.n_missing == 1
+    assert len(rows) == 292 + 1 and sum(r[2] == "-999" for r in rows) == 1
+    assert s.times[0] == pd.Timestamp("2010-10-29T22:00Z")         # 30-10-2010 00:00 CEST
+    first = float(rows[0][2].replace(",", "."))
+    assert s.values[0] == pytest.approx(first / 100 + 6.02)
+    assert s.sigma == 0.02
