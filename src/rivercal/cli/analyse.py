@@ -43,7 +43,8 @@ def analyse(
         help="Comma-separated analyses: sensitivity, identifiability, residuals.")] = "sensitivity,identifiability",
     window: Annotated[str, typer.Option(help="START/END (UTC dates) or a window of the case.")] = "moderate",
     observations: Annotated[Path | None, typer.Option(
-        help="Observation CSV (time + '<station>.<quantity>' columns); default: a twin truth.")] = None,
+        help="Observations: a CSV (time + '<station>.<quantity>' columns), a PI-XML file or a sidecar TOML "
+             "(docs/howto/your-gauges.md); default: a twin truth.")] = None,
     twin: Annotated[str | None, typer.Option(
         help="True values of the twin observations, e.g. 'FA=20' (default: the case's initial values).")] = None,
     start: Annotated[str | None, typer.Option(

@@ -1,7 +1,8 @@
 """``rivercal bench``: the benchmarks.
 
 The engine (alone, as a batched ensemble and beside EPA SWMM), the calibration, the rainfall-runoff model,
-the on-line service (its speed, and its figures at each realism level) and the black box.
+the on-line service (its speed, and its figures at each realism level), the black box, and real measurements
+(the Oriège's gauges, the Western Scheldt's storm surge).
 """
 
 from __future__ import annotations
@@ -373,6 +374,40 @@ def blackbox(
 
     check_number(runs, "--runs", low=3, high=10_000)
     _print_flat(bench_blackbox(runs=runs).to_dict(), "black-box overhead per run (ms)", as_json)
+
+
+@app.command("westerscheldt")
+@guard
+def westerscheldt(
+    members: Annotated[int, typer.Option(help="Ensemble members of the state updating.")] = 64,
+    seed: Annotated[int, typer.Option(help="Seed of the ensemble's perturbations (≥ 0).")] = 0,
+    out: Annotated[Path | None, typer.Option(help="Keep the stores and forecasts.csv here.")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The storm surge of December 2013 in the Western Scheldt: held-out Bath by lead, with and without updating."""
+    from rivercal.bench.westerscheldt import bench_westerscheldt
+
+    check_number(members, "--members", low=2, high=10_000)
+    check_number(seed, "--seed", low=0)
+    watch_compilation(True)
+    result = bench_westerscheldt(members=members, seed=seed, out=out)
+    if as_json:
+        emit_json(result)
+        return
+    table = Table(title=f"Bath (held out), RMSE by lead, m; friction KS = {result['calibration']['ks']:g} from the "
+                        "calm tide")
+    for col in ("lead h", "without", "with", "ratio"):
+        table.add_column(col, justify="right")
+    for h, wo, w, r in zip(result["lead_h"], result["bath_rmse_without_m"], result["bath_rmse_with_m"],
+                           result["ratio_with_to_without"], strict=True):
+        table.add_row(str(h), f"{wo:.3f}", f"{w:.3f}", f"{r:.2f}")
+    out_console.print(table)
+    peak = result["surge_peak"]
+    out_console.print(f"peak level {peak['measured_level_m']} m NAP: error at lead 1 h "
+                      f"{peak['level_error_m']['1h']:+.3f} m; peak surge {peak['measured_surge_m']} m: error at "
+                      f"lead 1 h {peak['surge_error_m']['1h']:+.3f} m")
+    for note in result["workarounds"]:
+        out_console.print(f"note: {note}")
 
 
 def _print_flat(result: dict, title: str, as_json: bool) -> None:

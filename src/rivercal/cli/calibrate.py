@@ -45,7 +45,8 @@ def calibrate(
     params: Annotated[str, typer.Option("--params", help="Parameters to estimate, e.g. FA,Wc (defined by the case).")],
     window: Annotated[str, typer.Option(help="START/END (UTC dates) or a window of the case (e.g. moderate).")],
     observations: Annotated[Path | None, typer.Option(
-        help="Observation CSV (time + '<station>.<quantity>' columns).")] = None,
+        help="Observations: a CSV (time + '<station>.<quantity>' columns), a PI-XML file, or a sidecar TOML "
+             "describing gauge files (docs/howto/your-gauges.md).")] = None,
     twin: Annotated[str | None, typer.Option(help="Twin experiment: true values, e.g. 'FA=20,Wc=0.8'.")] = None,
     start: Annotated[str | None, typer.Option(help="Start values, e.g. 'FA=14,Wc=0.1' (default: the case's).")] = None,
     bounds: Annotated[list[str], typer.Option("--bounds", help="Override bounds NAME=MIN:MAX; repeatable.")] = [],  # noqa: B006

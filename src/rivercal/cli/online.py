@@ -56,7 +56,8 @@ def online(
         help="Twin observations of a scenario of thesis ch. 5: PI-0, PI-Fg, PI-Wg, PI-Fl, PI-Wl; of the "
         "controlled case: PI-SF.")] = None,
     observations: Annotated[list[Path], typer.Option(
-        "--observations", help="Observation file to ingest (CSV or PI-XML); repeatable.")] = [],  # noqa: B006
+        "--observations", help="Observation file to ingest (CSV, PI-XML, or a sidecar TOML describing gauge files); "
+                                "repeatable.")] = [],  # noqa: B006
     follow: Annotated[Path | None, typer.Option(
         help="Watch this folder for new CSV / PI-XML files and run each cycle when its data are in.")] = None,
     poll: Annotated[float, typer.Option(help="With --follow: seconds between looks at the folder.")] = 10.0,

@@ -431,13 +431,14 @@ def input_file(path: Path, option: str, suffixes: Iterable[str] | None = None) -
 
 
 def read_observations(path: Path, option: str = "--observations") -> Any:
-    """The observations of a CSV or PI-XML file; a bad file names the option, the file and the line."""
+    """The observations of a CSV, PI-XML or sidecar TOML file; a bad file names the option, the file and the line."""
     from rivercal.errors import CaseError
+    from rivercal.io.observations import read_observations as read_any
     from rivercal.workflows.online import read_observation_file
 
-    input_file(path, option, (".csv", ".xml"))
+    input_file(path, option, (".csv", ".xml", ".toml"))
     try:
-        return read_observation_file(path)
+        return read_any(path) if path.suffix.lower() == ".toml" else read_observation_file(path)
     except CaseError as exc:
         raise OptionError(f"{option} {exc}", option=option) from None
 

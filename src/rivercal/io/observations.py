@@ -5,6 +5,11 @@ cell is a missing observation: it is dropped and counted, never read as zero. Te
 number, an unparsable or repeated time, or times out of order are errors that name the file, the line
 and the column (the checks of the case's series files, :mod:`rivercal.case.series`, without the gap
 rule: observations may have gaps).
+
+:func:`read_observations` reads any observation file rivercal knows by its suffix: such a CSV file, a
+Delft-FEWS PI-XML file (:func:`rivercal.io.read_pixml`), or a sidecar TOML that describes gauge files as
+they were delivered (:func:`rivercal.io.read_sidecar`: MATROOS/NOOS exports, loggers' CSV with local time,
+depths, units and quality flags).
 """
 
 from __future__ import annotations
@@ -18,7 +23,10 @@ from rivercal.case.series import read_series_table, series_column
 from rivercal.errors import CaseError
 from rivercal.observations import ObservationSet
 
-__all__ = ["read_observations_csv", "write_observations_csv"]
+__all__ = ["OBSERVATION_SUFFIXES", "read_observations", "read_observations_csv", "write_observations_csv"]
+
+#: The suffixes of the observation files :func:`read_observations` reads.
+OBSERVATION_SUFFIXES = (".csv", ".xml", ".toml")
 
 
 def read_observations_csv(path: str | Path, *, sigma: Mapping[str, float | None] | None = None) -> ObservationSet:
@@ -44,6 +52,33 @@ def read_observations_csv(path: str | Path, *, sigma: Mapping[str, float | None]
         return ObservationSet.from_frame(frame, sigma=sigma, source=str(path))
     except ValueError as exc:
         raise CaseError(str(exc), file=str(path)) from None
+
+
+def read_observations(path: str | Path) -> ObservationSet:
+    """Observations from a file, by its suffix.
+
+    ``.csv`` (:func:`read_observations_csv`), ``.xml`` (Delft-FEWS PI-XML, :func:`rivercal.io.read_pixml`) or
+    ``.toml`` (a sidecar describing gauge files, :func:`rivercal.io.read_sidecar`).
+
+    Raises
+    ------
+    CaseError
+        For a file of another kind, or naming the file (and line) of the first problem.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return read_observations_csv(path)
+    if suffix == ".xml":
+        from rivercal.io.pixml import read_pixml
+
+        return read_pixml(path)
+    if suffix == ".toml":
+        from rivercal.io.sensors import read_sidecar
+
+        return read_sidecar(path)
+    raise CaseError(f"expected an observation file ending in {', '.join(OBSERVATION_SUFFIXES)} (CSV, PI-XML, or a "
+                    "sidecar TOML describing gauge files)", file=str(path))
 
 
 def write_observations_csv(observations: ObservationSet, path: str | Path) -> Path:

@@ -1,0 +1,150 @@
+"""What real gauges need of the on-line service, shown on its own parts (the failing ones are marked xfail).
+
+Real telemetry has readings at any time stamp (every 10 minutes, every 31 minutes with second offsets), and a
+tidal river is driven by a level at its mouth. Three things of the service do not cope yet; each test states
+what it should do and is marked ``xfail(strict=True)`` until it does (the change is described in the reason):
+
+- the ensemble filter analyses only readings that fall exactly on a whole hour;
+- the ensemble perturbs inflows and laterals only, so a model driven by a level boundary has no spread and its
+  analyses change nothing;
+- forecast scores pair forecasts and readings only at equal time stamps.
+
+The passing controls show that each setting works when the readings are on the hour, or with the stand-in
+filter of the Western Scheldt benchmark (:class:`rivercal.bench.westerscheldt.BoundaryLevelFilter`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rivercal.analysis.forecast import score_forecasts
+from rivercal.models import load_model
+from rivercal.models.contract import spun_up
+from rivercal.online.assimilation import AssimilationConfig, EnsembleFilter
+
+IRREGULAR = ("EnsembleFilter.assimilate analyses only readings at the end of an interval ('if t in observed.index'); "
+             "it should use every reading inside the interval, each against the members interpolated to its time")
+LEVELS = ("EnsembleFilter perturbs inflows and laterals only (multiplicative factors): a level boundary should get "
+          "an additive AR(1) error in the augmented state, localised at its point")
+SCORES = ("score_forecasts merges forecasts and readings on equal times; it should pair each reading with the "
+          "forecast interpolated to its time")
+
+
+def _point(filt: EnsembleFilter, series: str) -> int:
+    """The calculation point of a level series of the filter's model."""
+    a = filt.model.compiled.arrays
+    return int(a.ob_i1[filt.columns[filt.series.index(series)]])
+
+
+# -- readings off the whole hour -------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def synthetic():
+    model = load_model("synthetic")
+    series = ["S1.h_up"]
+    t0 = pd.Timestamp("2020-01-05T00:00Z")
+    state = spun_up(model, {}, t0)
+    free, _ = model.simulate({}, start=t0, end=t0 + pd.Timedelta("3h"), state=state, output_interval=60.0)
+    return model, series, t0, state, free.series[series[0]]
+
+
+def _assimilate(synthetic, stamps: pd.DatetimeIndex) -> tuple[int, float]:
+    """Analyses made and the shift of the members' mean at the gauge, for readings 10 cm above the model's run."""
+    model, series, t0, state, free = synthetic
+    filt = EnsembleFilter(model, AssimilationConfig(mode="states", members=8, seed=1), series)
+    observed = pd.DataFrame({series[0]: free.reindex(stamps, method="nearest").to_numpy() + 0.10}, index=stamps)
+    rng = np.random.default_rng(2)
+    members, errors = filt.initial(state, rng)
+    end = t0 + pd.Timedelta("3h")
+    done, _, analyses = filt.assimilate(members, errors, {}, end, observed, rng)
+    k = _point(filt, series[0])
+    return analyses, float(np.mean([m.z[k] for m in done]) - free.loc[end])
+
+
+def test_readings_on_the_whole_hours_move_the_ensemble_towards_them(synthetic) -> None:
+    t0 = synthetic[2]
+    analyses, shift = _assimilate(synthetic, pd.DatetimeIndex([t0 + pd.Timedelta(hours=h) for h in (1, 2, 3)]))
+    assert analyses == 3 and shift > 0.02
+
+
+@pytest.mark.xfail(strict=True, reason=IRREGULAR)
+def test_readings_at_31_minute_stamps_with_second_offsets_are_assimilated_too(synthetic) -> None:
+    t0 = synthetic[2]
+    _, on_the_hour = _assimilate(synthetic, pd.DatetimeIndex([t0 + pd.Timedelta(hours=h) for h in (1, 2, 3)]))
+    stamps = pd.DatetimeIndex([t0 + pd.Timedelta(minutes=31 * k, seconds=s) for k, s in ((1, 7), (2, 13), (3, 2),
+                                                                                       (4, 41), (5, 19))])
+    analyses, shift = _assimilate(synthetic, stamps)
+    assert analyses >= 3 and shift > 0.5 * on_the_hour
+
+
+# -- a river driven by a level at its mouth ---------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def estuary():
+    from rivercal.bench.westerscheldt import case_folder
+
+    model = load_model(case_folder())
+    t0 = pd.Timestamp("2013-12-05T18:00Z")
+    return model, t0, spun_up(model, {}, t0)
+
+
+def _surge_analysis(estuary, filter_class) -> float:
+    """The shift of the members' mean at Vlissingen after analysing a reading 0.5 m above the model's (m)."""
+    model, t0, state = estuary
+    series = ["vlissingen.h"]
+    filt = filter_class(model, AssimilationConfig(mode="states", members=8, seed=1), series)
+    end = t0 + pd.Timedelta("1h")
+    free, _ = model.simulate({}, start=t0, end=end, state=state)
+    observed = pd.DataFrame({series[0]: [free.series[series[0]].loc[end] + 0.5]}, index=[end])
+    rng = np.random.default_rng(3)
+    members, errors = filt.initial(state, rng)
+    done, _, analyses = filt.assimilate(members, errors, {}, end, observed, rng)
+    assert analyses == 1
+    k = _point(filt, series[0])
+    return float(np.mean([m.z[k] for m in done]) - free.series[series[0]].loc[end])
+
+
+def test_the_benchmarks_stand_in_filter_carries_a_surge_in_from_the_mouth(estuary) -> None:
+    from rivercal.bench.westerscheldt import BoundaryLevelFilter
+
+    assert _surge_analysis(estuary, BoundaryLevelFilter) > 0.25
+
+
+@pytest.mark.xfail(strict=True, reason=LEVELS)
+def test_the_services_filter_corrects_a_river_driven_by_a_level_at_its_mouth(estuary) -> None:
+    assert _surge_analysis(estuary, EnsembleFilter) > 0.25
+
+
+# -- forecast scores ---------------------------------------------------------------------------------------------
+
+
+def _forecast_table() -> pd.DataFrame:
+    issue = pd.Timestamp("2021-06-01T00:00Z")
+    leads = np.arange(1, 7)
+    return pd.DataFrame({"cycle": 0, "kind": "updated", "series": "S.h", "lead_h": leads.astype(float),
+                         "time": issue + pd.to_timedelta(leads, unit="h"), "value": 1.0 + 0.1 * leads})
+
+
+def _truth(times: pd.DatetimeIndex) -> np.ndarray:
+    """A level that the forecast misses by exactly 5 cm everywhere (the forecast is linear in time)."""
+    hours = (times - pd.Timestamp("2021-06-01T00:00Z")).total_seconds() / 3600.0
+    return 1.0 + 0.1 * hours.to_numpy() - 0.05
+
+
+def test_scores_pair_readings_on_the_forecasts_hours() -> None:
+    times = pd.DatetimeIndex(_forecast_table()["time"])
+    observed = pd.DataFrame({"series": "S.h", "time": times, "value": _truth(times)})
+    scores = score_forecasts(_forecast_table(), observed)
+    assert scores["rmse"].iloc[0] == pytest.approx(0.05) and int(scores["n"].iloc[0]) == 6
+
+
+@pytest.mark.xfail(strict=True, reason=SCORES)
+def test_scores_pair_readings_a_minute_off_the_hour_with_the_forecast_at_their_time() -> None:
+    times = pd.DatetimeIndex(_forecast_table()["time"])[:-1] + pd.Timedelta(minutes=1, seconds=7)
+    observed = pd.DataFrame({"series": "S.h", "time": times, "value": _truth(times)})
+    scores = score_forecasts(_forecast_table(), observed)
+    assert len(scores) == 1 and scores["rmse"].iloc[0] == pytest.approx(0.05) and int(scores["n"].iloc[0]) == 5
