@@ -189,7 +189,8 @@ def _korte_woerden(root: Path, out: Path, dt: float | None) -> ModelRun:
     data, counts, folder = _dhydro_import(mdu, out, None, realtime_lateral=0.001)
     _, result, error, wall, own = _run(data, folder, dt)
     levels = pd.DataFrame() if result is None else result.levels
-    return ModelRun("dhydro-korte-woerden-1d", "dhydro", counts, dt or own, own, error, levels, None, None, wall,
+    spinup = None if result is None else levels.index[0] + (levels.index[-1] - levels.index[0]) / 10
+    return ModelRun("dhydro-korte-woerden-1d", "dhydro", counts, dt or own, own, error, levels, None, spinup, wall,
                     {"reference": "none published (72 realtime laterals at a constant 1 l/s each)"})
 
 
@@ -280,7 +281,8 @@ def sweep(name: str, steps: tuple[float, ...] = (10.0, 60.0, 300.0, 600.0), out:
 
     Returns ``{"model", "steps": [{"dt_s", "ok", "error", "max_diff_m", "where", "points_over_1cm", "wall_s"}],
     "within_1cm"}``: the largest absolute level difference (m) at a compared point (every point where the model
-    has no reference), after the spin-up, from the run at the shortest step that ran.
+    has no reference), after the spin-up (the first day; the first tenth of a run of hours), from the run at the
+    shortest step that ran.
     """
     out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"sweep-{name}-"))
     runs = [model_row(name, out / f"dt{dt:g}", dt=dt) for dt in sorted(steps)]
