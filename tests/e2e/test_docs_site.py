@@ -38,6 +38,9 @@ pytestmark = pytest.mark.slow
 def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     source = tmp_path_factory.mktemp("docs") / "docs"
     shutil.copytree(DOCS, source, ignore=_generated)
+    # the pages include files of the packaged cases (../../src/rivercal/cases/...): one source for both
+    shutil.copytree(ROOT / "src" / "rivercal" / "cases", source.parent / "src" / "rivercal" / "cases",
+                    ignore=shutil.ignore_patterns("__pycache__"))
     html = source / "_build" / "html"
     run = subprocess.run([sys.executable, "-m", "sphinx", "-b", "html", "-E", "-W", "--keep-going", "-q",
                           str(source), str(html)], capture_output=True, text=True, cwd=source)

@@ -133,3 +133,24 @@ def plot(
     path = plot_network(c.network, out, title=f"{c.name}: {c.spec.case.description}"[:110],
                         weir_labels=case_weir_labels(c))
     out_console.print(f"wrote {path}")
+
+
+@app.command("copy")
+@guard
+def copy(
+    name: Annotated[str, typer.Argument(help="A packaged case (e.g. 'westerscheldt').", show_default=False)],
+    out: Annotated[Path, typer.Argument(help="The folder to write (must not exist).", show_default=False)],
+) -> None:
+    """Copy a packaged case into a folder of your own, to read its files or start from it."""
+    import shutil
+
+    from rivercal.case.load import available_cases, resolve_case_path
+    from rivercal.errors import OptionError
+
+    if name not in available_cases():
+        raise OptionError(f"{name!r} is not a packaged case (packaged: {', '.join(available_cases())})",
+                          option="NAME")
+    if out.exists():
+        raise OptionError(f"{out} exists; give a new folder", option="OUT")
+    shutil.copytree(resolve_case_path(name), out, ignore=shutil.ignore_patterns("__pycache__", "__init__.py"))
+    out_console.print(f"copied the packaged case {name!r} into {out}")
