@@ -6,11 +6,12 @@ import hashlib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import pandas as pd
 
 from rivercal.errors import CaseError
-from rivercal.io.dhydro import Ledger
+from rivercal.io.ledger import Ledger
 from rivercal.io.sobek3._ini import Section, read_ini
 
 __all__ = ["FILE_KEYS", "Context", "ImportOptions", "Sobek3Ledger", "load_model"]
@@ -40,13 +41,9 @@ FILE_KEYS = {
 
 
 class Sobek3Ledger(Ledger):
-    """The import's account (:class:`rivercal.io.dhydro.Ledger`), titled for a SOBEK 3 model in ``import.md``."""
+    """The import's account (:class:`rivercal.io.ledger.Ledger`), titled for a SOBEK 3 model in ``import.md``."""
 
-    def markdown(self, *, model: str, case_folder: str, partial: bool) -> str:
-        """``import.md`` (see :meth:`rivercal.io.dhydro.Ledger.markdown`)."""
-        text = super().markdown(model=model, case_folder=case_folder, partial=partial)
-        return (text.replace("# Import of a D-Flow FM model", "# Import of a SOBEK 3 model", 1)
-                .replace("| kind | D-Flow FM id | case id |", "| kind | SOBEK 3 id | case id |", 1))
+    MODEL: ClassVar[str] = "SOBEK 3"
 
 
 @dataclass(frozen=True)
