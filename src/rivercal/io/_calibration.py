@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from rivercal.io.dhydro._ledger import Ledger
+    from rivercal.io.ledger import Ledger
 
 __all__ = ["write_parameters"]
 
