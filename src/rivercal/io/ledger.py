@@ -12,10 +12,17 @@ only listed.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import ClassVar, Literal
+from pathlib import Path
+from typing import TYPE_CHECKING, ClassVar, Literal
 
-__all__ = ["Entry", "Ledger", "Status"]
+from rivercal.errors import CaseError
+
+if TYPE_CHECKING:
+    from rivercal.case import Case
+
+__all__ = ["Entry", "Ledger", "Status", "conclude", "remove_case"]
 
 Status = Literal["exact", "approximated", "refused"]
 
@@ -170,6 +177,84 @@ class Ledger:
             if ids:
                 lines.append(f"- {k} ({len(ids)}): " + ", ".join(f"`{i}`" for i in ids))
         return "\n".join(lines) + "\n"
+
+
+def conclude(ledger: Ledger, out: Path, source: Path, *, allow_partial: bool, write: Callable[[], None],
+             locate: Callable[[str, str], str] | None = None, nothing_left: bool = False) -> Case:
+    """The end of every import: ``import.md``, then the case, or the reasons there is none.
+
+    Writes ``out/import.md`` from the ledger; then, when values of the model files cannot be used, or objects that
+    change the hydraulics were refused (and partial imports are not allowed, or nothing would be left), removes
+    an earlier import's case from ``out`` and raises a :class:`~rivercal.errors.CaseError` naming ``source``; else
+    calls ``write`` (which writes ``case.toml`` and its series) and loads the case.
+
+    Parameters
+    ----------
+    ledger
+        The import's account.
+    out
+        The case folder.
+    source
+        The model's main file, named in the errors.
+    allow_partial
+        Whether refused objects that change the hydraulics may be left out.
+    write
+        Writes the case into ``out``.
+    locate
+        ``(kind, id) -> "file:line"`` of an object in the model's files, for the message (or none).
+    nothing_left
+        Whether leaving the refused objects out would leave nothing to run (then even a partial import fails).
+
+    Raises
+    ------
+    CaseError
+        For values that cannot be used or refusals that block (the message lists the first few).
+    RuntimeError
+        When the case written does not validate: every value read was checked, so that is a bug of the import.
+    """
+    from rivercal.case import load_case
+
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "import.md").write_text(ledger.markdown(model=str(source), case_folder=str(out), partial=allow_partial),
+                                   encoding="utf-8")
+    if ledger.errors:
+        remove_case(out)
+        shown = "; ".join(f"{where}: {text}" for where, text in ledger.errors[:3])
+        more = f" (and {len(ledger.errors) - 3} more)" if len(ledger.errors) > 3 else ""
+        raise CaseError(f"{len(ledger.errors)} value(s) in the model files cannot be used: {shown}{more}; no case was "
+                        f"written; see {out / 'import.md'}", file=str(source))
+    if ledger.blocking and (not allow_partial or nothing_left):
+        remove_case(out)
+        groups: dict[tuple[str, str], list[str]] = {}
+        for e in ledger.blocking:
+            groups.setdefault((e.kind, e.note), []).append(e.id)
+
+        def where(kind: str, ident: str) -> str:
+            found = locate(kind, ident) if locate is not None else ""
+            return f"{found}: " if found else ""
+
+        shown = "; ".join(f"{where(kind, ids[0])}{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1
+                                                                        else "") + f": {note}"
+                          for (kind, note), ids in list(groups.items())[:4])
+        more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
+        raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "
+                        f"{shown}{more}; no case was written; see {out / 'import.md'}"
+                        + ("" if allow_partial else ", or import with --allow-partial to leave them out"),
+                        file=str(source))
+    write()
+    try:
+        return load_case(out)
+    except CaseError as exc:
+        remove_case(out)
+        raise RuntimeError(f"the case made from {source.name} does not validate, which is a bug of the import (every "
+                           f"value read was checked): {exc}") from None
+
+
+def remove_case(out: Path) -> None:
+    """An earlier import's case files, so that a failed import leaves no case that would run without what failed."""
+    for old in [out / "case.toml", *out.glob("*.csv")]:
+        if old.is_file():
+            old.unlink()
 
 
 def _cell(text: str) -> str:

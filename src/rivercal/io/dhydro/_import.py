@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rivercal.case.load import load_case
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io._calibration import write_parameters
 from rivercal.io.dhydro._compound import place_compounds
@@ -22,6 +21,7 @@ from rivercal.io.dhydro._ledger import Ledger
 from rivercal.io.dhydro._network import convert_network
 from rivercal.io.dhydro._read import load_fm_model
 from rivercal.io.dhydro._structures import convert_structures
+from rivercal.io.ledger import conclude
 from rivercal.network import Branch, Bridge, Culvert, Orifice, Pump, UniversalWeir, Weir
 from rivercal.network.grid import branch_layout
 
@@ -109,41 +109,11 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
                     and not k.endswith("/water_level"))
     for key in unused:
         ledger.warn(f"exchange series {key} matches no object of the model and was not used")
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "import.md").write_text(ledger.markdown(model=str(mdu), case_folder=str(out),
-                                                   partial=options.allow_partial), encoding="utf-8")
-    if ledger.errors:
-        _remove_old_case(out)
-        shown = "; ".join(f"{where}: {text}" for where, text in ledger.errors[:3])
-        more = f" (and {len(ledger.errors) - 3} more)" if len(ledger.errors) > 3 else ""
-        raise CaseError(f"{len(ledger.errors)} value(s) in the model files cannot be used: {shown}{more}; no case was "
-                        f"written; see {out / 'import.md'}", file=str(mdu))
-    if ledger.blocking and (not options.allow_partial or not ctx.case.get("branches")):
-        # no case that would run without these objects
-        _remove_old_case(out)
-        groups: dict[tuple[str, str], list[str]] = {}
-        for e in ledger.blocking:
-            groups.setdefault((e.kind, e.note), []).append(e.id)
-        def where(kind: str, ident: str) -> str:
-            found = model.sources.find_block(ident) if kind != "file" else ""
-            return f"{found}: " if found else ""
+    def where(kind: str, ident: str) -> str:
+        return model.sources.find_block(ident) if kind != "file" else ""
 
-        shown = "; ".join(f"{where(kind, ids[0])}{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1
-                                                                        else "") + f": {note}"
-                          for (kind, note), ids in list(groups.items())[:4])
-        more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
-        raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "
-                        f"{shown}{more}; no case was written"
-                        f"; see {out / 'import.md'}" + ("" if options.allow_partial else
-                                                          ", or import with --allow-partial to leave them out"),
-                        file=str(mdu))
-    _write(ctx, out)
-    try:
-        case = load_case(out)
-    except CaseError as exc:
-        _remove_old_case(out)
-        raise RuntimeError(f"the case made from {mdu.name} does not validate, which is a bug of the import (every "
-                           f"value read was checked): {exc}") from None
+    case = conclude(ledger, out, mdu, allow_partial=options.allow_partial, write=lambda: _write(ctx, out),
+                    locate=where, nothing_left=not ctx.case.get("branches"))
     return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger)
 
 
@@ -172,13 +142,6 @@ def _check_out(out: Path) -> None:
     if out.is_dir() and any(out.iterdir()) and not (out / "import.md").is_file():
         raise CaseError("is a folder with other files in it and not the folder of an earlier import: give a new or "
                         "empty folder (an import replaces the case files it finds)", field="--out", file=str(out))
-
-
-def _remove_old_case(out: Path) -> None:
-    """An earlier import's case files, so that a failed import leaves no case that would run without what failed."""
-    for old in [out / "case.toml", *out.glob("*.csv")]:
-        if old.is_file():
-            old.unlink()
 
 
 def _period(model) -> tuple[pd.Timestamp, pd.Timestamp, pd.Timestamp]:

@@ -44,6 +44,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal.errors import CaseError
+from rivercal.io.ledger import conclude
 from rivercal.io.mascaret._files import LAW_NAMES, Geometry, GeoProfile, Law, read_geometry, read_law
 from rivercal.io.mascaret._ledger import Ledger
 from rivercal.io.mascaret._xcas import Element, Xcas, read_xcas
@@ -1091,27 +1092,7 @@ def import_mascaret(xcas: Path | str, out: Path | str, options: ImportOptions | 
     converter.run()
     ledger = converter.ledger
     _branches(converter)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "import.md").write_text(ledger.markdown(model=str(xcas), case_folder=str(out),
-                                                   partial=options.allow_partial), encoding="utf-8")
-    if ledger.blocking and not options.allow_partial:
-        groups: dict[tuple[str, str], list[str]] = {}
-        for e in ledger.blocking:
-            groups.setdefault((e.kind, e.note), []).append(e.id)
-        shown = "; ".join(f"{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1 else "") + f": {note}"
-                          for (kind, note), ids in list(groups.items())[:4])
-        more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
-        raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: {shown}"
-                        f"{more}; no case was written; see {out / 'import.md'}, or import with --allow-partial to "
-                        "leave them out", file=str(xcas))
-    _write(converter, out)
-    from rivercal.case import load_case
-
-    try:
-        case = load_case(out)
-    except CaseError as exc:
-        raise CaseError(f"the imported case does not validate, which is a bug of the import: {exc}",
-                        file=str(xcas)) from None
+    case = conclude(ledger, out, xcas, allow_partial=options.allow_partial, write=lambda: _write(converter, out))
     net = case.network
     summary = {
         "branches": len(net.branches),

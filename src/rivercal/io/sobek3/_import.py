@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rivercal.case.load import load_case
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io._calibration import write_parameters
+from rivercal.io.ledger import conclude
 from rivercal.io.sobek3._context import Context, ImportOptions, Sobek3Ledger, load_model
 from rivercal.io.sobek3._forcing import convert_forcing
 from rivercal.io.sobek3._network import SECTION_NAMES, convert_network, unused_definitions
@@ -95,25 +95,7 @@ def import_sobek3(md1d: Path | str, out: Path | str, options: ImportOptions | No
     _settings(ctx)
     _stations_if_none(ctx)
     write_parameters(ctx.case, ledger)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "import.md").write_text(ledger.markdown(model=str(md1d), case_folder=str(out),
-                                                   partial=options.allow_partial), encoding="utf-8")
-    if ledger.blocking and not options.allow_partial:
-        groups: dict[tuple[str, str], list[str]] = {}
-        for e in ledger.blocking:
-            groups.setdefault((e.kind, e.note), []).append(e.id)
-        shown = "; ".join(f"{kind} {ids[0]!r}" + (f" and {len(ids) - 1} more" if len(ids) > 1 else "") + f": {note}"
-                          for (kind, note), ids in list(groups.items())[:4])
-        more = f" (and {len(groups) - 4} more reasons)" if len(groups) > 4 else ""
-        raise CaseError(f"{len(ledger.blocking)} object(s) that change the hydraulics cannot be converted: "
-                        f"{shown}{more}; no case was written; see {out / 'import.md'}, or import with "
-                        "--allow-partial to leave them out", file=str(md1d))
-    _write(ctx, out)
-    try:
-        case = load_case(out)
-    except CaseError as exc:
-        raise CaseError(f"the imported case does not validate, which is a bug of the import: {exc}",
-                        file=str(md1d)) from None
+    case = conclude(ledger, out, md1d, allow_partial=options.allow_partial, write=lambda: _write(ctx, out))
     return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger)
 
 
