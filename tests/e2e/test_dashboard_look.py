@@ -208,3 +208,24 @@ def test_every_axis_and_column_says_its_unit_and_no_number_is_shown_raw(served) 
     units = {r.get_attribute("data-parameter"): r.find_elements(By.CSS_SELECTOR, "td")[4].text
              for r in driver.find_elements(By.CSS_SELECTOR, "#estimates tbody tr")}
     assert units == {"FA": "m^(1/3)/s", "Wd": "m"}
+
+
+def test_the_map_labels_stay_apart_on_a_narrow_screen(served) -> None:
+    """At 700 px the stations 0028 and 0040 (and 0030 and 0031) lie closer than their labels are wide: the page
+    moves the labels apart (without that, both pairs overlap on both maps)."""
+    _, url, driver, shots = served
+    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                           {"width": 700, "height": HEIGHT, "deviceScaleFactor": 1, "mobile": False})
+    try:
+        _open(driver, url + "/map?run=dash")
+        driver.save_screenshot(str(shots / "map-700.png"))
+        labels = 0
+        for plot, boxes in driver.execute_script(_FIGURE_TEXTS):
+            for i, a in enumerate(boxes):
+                for b in boxes[i + 1:]:
+                    assert not _overlaps(a, b), f"#{plot}: {a[0]!r} overlaps {b[0]!r}"
+            labels += sum(1 for box in boxes if re.fullmatch(r"\d{4}", box[0]))
+        assert labels == 10
+    finally:
+        driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                               {"width": WIDTH, "height": HEIGHT, "deviceScaleFactor": 1, "mobile": False})
