@@ -78,13 +78,18 @@ def format_cm(error_m: float | None, *, signed: bool = False) -> str:
 
 
 def plural(n: int, noun: str, nouns: str | None = None) -> str:
-    """``1 weir``, ``13 weirs``, ``1 boundary``, ``2 boundaries``: a count with its noun in the right number.
+    """A count with its noun in the right number: ``1 weir``, ``13 weirs``, ``2 boundaries``, ``2 branches``.
 
-    ``nouns`` is the plural where adding ``s`` (or ``y`` → ``ies``) is wrong, e.g. ``plural(n, "series",
-    "series")``.
+    ``nouns`` is the plural where the rules (``s``; ``es`` after s, x, z, ch, sh; ``y`` → ``ies``) are wrong,
+    e.g. ``plural(n, "series", "series")``.
     """
     if n == 1:
         return f"{n} {noun}"
     if nouns is None:
-        nouns = noun[:-1] + "ies" if noun.endswith("y") and noun[-2:-1] not in "aeiou" else noun + "s"
+        if noun.endswith("y") and noun[-2:-1] not in "aeiou":
+            nouns = noun[:-1] + "ies"
+        elif noun.endswith(("s", "x", "z", "ch", "sh")):
+            nouns = noun + "es"
+        else:
+            nouns = noun + "s"
     return f"{n} {nouns}"

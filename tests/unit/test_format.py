@@ -50,7 +50,8 @@ def test_level_errors_are_shown_in_cm() -> None:
 @pytest.mark.parametrize(("n", "noun", "nouns", "text"), [
     (1, "weir", None, "1 weir"), (13, "weir", None, "13 weirs"), (1, "boundary", None, "1 boundary"),
     (2, "boundary", None, "2 boundaries"), (0, "day", None, "0 days"), (3, "series", "series", "3 series"),
-    (2, "quantity", None, "2 quantities"),
+    (2, "quantity", None, "2 quantities"), (2, "branch", None, "2 branches"), (1, "branch", None, "1 branch"),
+    (3, "universal weir", None, "3 universal weirs"), (2, "pass", None, "2 passes"),
 ])
 def test_a_count_takes_the_right_number_of_its_noun(n, noun, nouns, text) -> None:
     assert plural(n, noun, nouns) == text
