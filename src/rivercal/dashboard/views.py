@@ -95,7 +95,7 @@ def _issued_words(kind: str, skill_updated: Any, skill_dss: Any, skill_cycles: i
             return f"a fallback: {compared}"
         return compared
     if kind == "dss":
-        return "a fallback: none of rivercal's forecasts has been scored yet"
+        return "none of rivercal's forecasts has been scored yet, so the DSS's is issued (not a fallback)"
     if skill_cycles == 0:
         return "rivercal's forecast is always issued in this run (no comparison with the DSS)"
     return ("a transition was found and none of the forecasts made since has been scored yet: the change "
@@ -488,15 +488,18 @@ def cycles_view(store: Any, run: Any) -> dict[str, Any]:
     rows = []
     for c in cycles.iloc[::-1].itertuples():
         issued = c.issued_forecast if isinstance(c.issued_forecast, str) else ""
+        if issued == "dss":
+            issued = "DSS (fallback)" if _num(c.skill_updated) is not None else "DSS (nothing scored yet)"
         rows.append({"cycle": int(c.cycle), "issue_time": _t(c.issue_time), "status": c.status,
-                     "issued": {"dss": "DSS (fallback)", "updated": "rivercal"}.get(issued, "–"),
+                     "issued": {"updated": "rivercal", "": "–"}.get(issued, issued),
                      "algorithm": c.algorithm if isinstance(c.algorithm, str) else "",
                      "model_runs": _cell(c.model_runs, digits=6), "wall_time_s": _cell(c.wall_time_s, digits=3),
                      "cost_before": _cell(c.cost_before, _cost(c.cost_before)),
                      "cost_after": _cell(c.cost_after, _cost(c.cost_after)),
                      "message": c.message if isinstance(c.message, str) else "", "finished": _t(c.finished)})
     wall = cycles["wall_time_s"].dropna()
-    fallbacks = int((cycles["issued_forecast"] == "dss").sum())
+    # as the glossary (and the run's headline figures) count them: the DSS's issued although rivercal had a score
+    fallbacks = int(((cycles["issued_forecast"] == "dss") & cycles["skill_updated"].notna()).sum())
     return {"rows": rows, "median_wall_s": _cell(wall.median() if len(wall) else None, digits=3),
             "total_runs": int(cycles["model_runs"].fillna(0).sum()), "fallbacks": fallbacks,
             "summary": f"{plural(len(rows), 'cycle')}, {plural(int(cycles['model_runs'].fillna(0).sum()), 'model run')}"

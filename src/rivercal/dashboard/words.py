@@ -25,7 +25,8 @@ DECISIONS = {
                   "transition estimator found after a jump",
     "jump alert": "a probable intervention: raised once, by the cycle that found a transition",
     "fallback": "the cycle issued the DSS's forecast instead of rivercal's, because rivercal's recent "
-                "forecasts scored worse (or none was scored yet)",
+                "forecasts scored worse (the first cycles, before anything was scored, issue the DSS's too; "
+                "that is no fallback)",
 }
 
 #: How an alert kind of the store is called on the pages.
