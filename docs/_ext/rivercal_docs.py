@@ -269,8 +269,27 @@ def _limits(spec: dict[str, Any]) -> str:
     return "; ".join(dict.fromkeys(parts))
 
 
+#: In a schema's description: an option (``--set``) or a token in single quotes without spaces (``'variable@id'``).
+_CODE_IN_TEXT = re.compile(r"(?<![\w`])(--?[A-Za-z][\w-]*|'[^'\s]+')(?![\w`])")
+
+
 def _cell(text: str) -> str:
-    return " ".join(str(text).split()) or " "
+    """A description as one line of reST.
+
+    Options and quoted tokens become literals (no en dash from ``--``, no mail link from ``a@b``); any other
+    ``@`` between letters is escaped.
+    """
+    line = " ".join(str(text).split())
+    if not line:
+        return " "
+    parts = _CODE_IN_TEXT.split(line)
+    out = []
+    for k, part in enumerate(parts):
+        if k % 2:
+            out.append(f"``{part.strip(chr(39))}``")
+        else:
+            out.append(re.sub(r"(?<=\w)@(?=\w)", r"\\@", part))
+    return "".join(out)
 
 
 def schema_rst(schema: dict[str, Any], kind: str) -> list[str]:
@@ -364,6 +383,23 @@ class StoreSchemaDirective(SphinxDirective):
 
 # -- the command line ------------------------------------------------------------------------------------
 
+#: In help text: an option (``--verbose``, ``-v``), written as a literal so that it is copied as typed.
+_OPTION = re.compile(r"(?<![\w-])(--?[A-Za-z][\w-]*)")
+
+
+def _inline(text: str) -> nodes.paragraph:
+    """One paragraph of help text (never parsed as reST): options as literals, the rest as plain text.
+
+    A literal is left alone by Sphinx's smart quotes, which would turn the ``--`` of ``--verbose`` into an en
+    dash in plain text (and break copying it).
+    """
+    para = nodes.paragraph()
+    for k, part in enumerate(_OPTION.split(" ".join(text.split()))):
+        if part:
+            para += nodes.literal(text=part) if k % 2 else nodes.Text(part)
+    return para
+
+
 def _paragraphs(text: str) -> list[nodes.Node]:
     r"""Help text as paragraphs (literal blocks for click's ``\b`` blocks and indented lines), never parsed as reST."""
     out: list[nodes.Node] = []
@@ -373,7 +409,7 @@ def _paragraphs(text: str) -> list[nodes.Node]:
         if block.lstrip().startswith("\b") or any(line.startswith("  ") for line in block.splitlines()[1:]):
             out.append(nodes.literal_block(text=block.replace("\b", "").strip("\n")))
         else:
-            out.append(nodes.paragraph(text=" ".join(block.split())))
+            out.append(_inline(block))
     return out
 
 
@@ -391,7 +427,7 @@ def cli_section(command: Any, ctx: Any, path: str) -> nodes.section:
         term = nodes.term()
         term += nodes.literal(text=record[0])
         definition = nodes.definition()
-        definition += nodes.paragraph(text=" ".join(record[1].split()) or " ")
+        definition += _inline(record[1] or " ")
         items += nodes.definition_list_item("", term, definition)
     if len(items):
         section += nodes.rubric(text="Arguments and options")

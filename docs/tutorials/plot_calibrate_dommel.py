@@ -44,7 +44,8 @@ model
 
 # %%
 # The model declares the quantities a calibration may set, with their units and bounds: the crest
-# level of every weir (m AD) and the bed friction (Strickler k_s in m^(1/3)/s).
+# level of every weir (m AD; no bound of its own, ±inf: the case refuses a crest below the bed) and the bed
+# friction (Strickler k_s in m^(1/3)/s; a branch without its own friction shows the global value it inherits).
 
 model.quantities_frame()
 
@@ -56,7 +57,7 @@ model.quantities_frame()
 # parameters up to the end of the case's "moderate" calibration window.
 
 window = model.calibration.windows["moderate"]
-result, state = model.simulate(end=window[1])
+result, state = model.simulate(end=window.end)
 levels = result.series[["0028.h_up", "0029.h_up", "0030.h_up", "0031.h_up"]]
 ax = levels.plot(figsize=(8, 3.5), ylabel="level upstream of the weir (m AD)", xlabel="")
 ax.set_title("dommel: simulated levels with the case's parameters")
@@ -147,8 +148,8 @@ fitted = problem.simulate(x_hat).series
 station = "0030.h_up"
 fig, ax = plt.subplots(figsize=(8, 3))
 observations[station].to_series().plot(ax=ax, style=".", ms=3, color="grey", label="observed (twin)")
-problem.simulate(problem.x0).series[station].loc[window[0]:].plot(ax=ax, label="initial parameters")
-fitted[station].loc[window[0]:].plot(ax=ax, label="calibrated")
+problem.simulate(problem.x0).series[station].loc[window.start:].plot(ax=ax, label="initial parameters")
+fitted[station].loc[window.start:].plot(ax=ax, label="calibrated")
 ax.set_ylabel("level (m AD)")
 ax.set_title(f"{station}: before and after calibration")
 ax.legend()

@@ -12,13 +12,15 @@ refused, not guessed: it is 10 November to a Dutch reader and October 11 to pand
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator, Mapping
 from datetime import datetime
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["ISO_EXAMPLE", "interpolate_at", "iso_datetime", "parse_iso", "seconds_since", "utc", "utc_index"]
+__all__ = ["ISO_EXAMPLE", "Window", "Windows", "interpolate_at", "iso_datetime", "parse_iso", "seconds_since", "utc",
+           "utc_index"]
 
 #: How messages show the expected form of a time.
 ISO_EXAMPLE = "ISO 8601, YYYY-MM-DD with an optional time, e.g. 2010-10-18 or 2010-10-18T06:00Z"
@@ -141,3 +143,54 @@ def interpolate_at(index: Any, values: Any, times: Any, origin: pd.Timestamp | N
     """
     origin = pd.DatetimeIndex(index)[0] if origin is None else origin
     return np.interp(seconds_since(times, origin), seconds_since(index, origin), np.asarray(values, dtype=float))
+
+
+class Window(NamedTuple):
+    """A period [start, end] in UTC, e.g. a named calibration window of a case; unpacks as ``start, end``."""
+
+    start: pd.Timestamp
+    end: pd.Timestamp
+
+    def __repr__(self) -> str:
+        return f"Window({self.start:%Y-%m-%d %H:%M} … {self.end:%Y-%m-%d %H:%M} UTC)"
+
+    @property
+    def duration(self) -> pd.Timedelta:
+        """``end - start``."""
+        return self.end - self.start
+
+
+class Windows(Mapping[str, Window]):
+    """Named windows (name → :class:`Window`), read-only; a name that is not there is a KeyError naming those that are.
+
+    Parameters
+    ----------
+    windows
+        Name → (start, end); the times are taken as UTC (:func:`utc`).
+    owner
+        What holds the windows, for the message of a missing name (e.g. ``"case dommel"``).
+    """
+
+    def __init__(self, windows: Mapping[str, tuple[Any, Any]] | None = None, owner: str = ""):
+        self._items = {str(k): Window(utc(a), utc(b)) for k, (a, b) in (windows or {}).items()}
+        self._owner = owner
+
+    def __getitem__(self, name: str) -> Window:
+        try:
+            return self._items[name]
+        except KeyError:
+            pass
+        folded = [k for k in self._items if isinstance(name, str) and k.lower() == name.lower()]
+        hint = f"; did you mean {folded[0]!r}?" if len(folded) == 1 else ""
+        where = f"{self._owner} has" if self._owner else "the windows are"
+        raise KeyError(f"no window {name!r}: {where} {', '.join(map(repr, self._items)) or 'none'}{hint}") from None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        inner = ", ".join(f"{k!r}: {v!r}" for k, v in self._items.items())
+        return f"Windows({{{inner}}})"

@@ -34,15 +34,20 @@ def test_case_schema_is_json_schema() -> None:
     assert {"case", "branches", "weirs", "parameters", "catchments"} <= set(schema["properties"])
 
 
-def test_compile_fills_the_cache_that_the_next_process_loads() -> None:
-    """``rivercal compile`` leaves each variant of the time loop in numba's cache: a second process compiles nothing."""
+def test_compile_fills_the_cache_that_the_next_process_loads(tmp_path: Path) -> None:
+    """``rivercal compile`` leaves each variant of the time loop and the rainfall-runoff model in numba's cache: a
+    second process compiles nothing, and a run of the default case (whose laterals come from the rainfall-runoff
+    model, as the demo's do) says nothing of compiling."""
     first = process("compile", "--json")
     assert first.returncode == 0, first.stderr
     second = process("compile", "--json")
     assert second.returncode == 0, second.stderr
     ready = json.loads(second.stdout)
-    assert set(ready) == {"plain", "structures", "controlled"}
+    assert set(ready) == {"plain", "structures", "controlled", "rainfall-runoff"}
     assert all(r["from_cache"] for r in ready.values()), ready
+    run = process("simulate", "dommel", "--end", "2010-09-01T06:00", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    assert "compiling" not in run.stderr
 
 
 def test_simulate_writes_csv_and_cf_netcdf(tmp_path: Path) -> None:

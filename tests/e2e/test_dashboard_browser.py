@@ -10,6 +10,7 @@ from pathlib import Path
 from urllib.parse import urlparse
 
 import numpy as np
+import pandas as pd
 import pytest
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
@@ -19,7 +20,7 @@ from tests.dashboard_store import add_cycle, build_store
 from tests.e2e.browser import chrome, request, start_dashboard
 
 N_CYCLES = 12
-PAGES = ("/", "/estimates", "/forecasts", "/map", "/cycles")
+PAGES = ("/", "/forecast", "/estimates", "/forecasts", "/map", "/cycles")
 
 
 @pytest.fixture(scope="module")
@@ -76,33 +77,67 @@ def test_the_numbers_on_the_pages_are_the_stores(served) -> None:
         run = store.get_run("dash")
         cycles, est, scores = store.cycles(run), store.estimates(run), store.scores(run)
         fc = store.forecasts(run, series=["0029.Q"])
+        accepted_values = store.last_accepted(run)
+        issued_fc = store.forecasts(run, cycle=int(cycles["cycle"].max()))
+        observed = store.observation_table(["0029.Q"], "2010-01-01", "2010-02-01")
     last = est[est["cycle"] == cycles["cycle"].max()].set_index("parameter")
+    latest = cycles.iloc[-1]
+    kind = latest["issued_forecast"]
+    dss = {"FA": 16.0, "Wd": 0.0}  # the case's own friction and crests, which the DSS keeps
     _open(driver, url + "/")
     for name, row in last.iterrows():
         cells = driver.find_elements(By.CSS_SELECTOR, f'tr[data-parameter="{name}"] td')
-        assert float(cells[0].get_attribute("data-raw")) == row["value"]
-        assert cells[0].text == f"{row['value']:.4g}"
-        assert float(cells[1].get_attribute("data-raw")) == row["std"]
+        accepted = accepted_values[name]
+        # in use: the values behind the forecast the latest cycle issued (the DSS's after a fallback)
+        assert float(cells[0].get_attribute("data-raw")) == (dss[name] if kind == "dss" else accepted)
+        assert float(cells[1].get_attribute("data-raw")) == accepted
+        assert cells[1].text == (f"{accepted:.1f}" if name == "FA" else f"{accepted:.2f}")
+        assert float(cells[2].get_attribute("data-raw")) == row["std"]
+        assert float(cells[3].get_attribute("data-raw")) == pytest.approx(dss[name], abs=1e-9)
+        assert cells[5].text == ("accepted" if row["accepted"] else "held")
     assert driver.find_element(By.CSS_SELECTOR, "div.alert").get_attribute("data-cycle") == "10"
-    # the forecast the latest cycle issued, and why (the DSS's, as a fallback, unless a cycle was added)
-    latest = cycles.iloc[-1]
+    change = driver.find_element(By.ID, "change")
+    assert change.get_attribute("data-parameter") == "FA" and change.get_attribute("data-found") == "10"
+    assert "changed from 16.0 to" in change.text and "2010-01-17 06:00" in change.text
+    # the forecast the latest cycle issued (the DSS's, as a fallback, unless a cycle was added)
     issued = driver.find_element(By.ID, "issued")
-    kind = latest["issued_forecast"]
     assert issued.get_attribute("data-kind") == kind
-    whose = "the DSS's" if kind == "dss" else "the updated parameters'"
-    assert issued.text == f"Forecast issued: {whose} — {latest['issued_reason']}."
+    whose = "the DSS's" if kind == "dss" else "rivercal's"
+    assert issued.text.startswith(f"Forecast in use: {whose}, issued {latest['issue_time']:%Y-%m-%d %H:%M} by cycle "
+                                  f"{latest['cycle']} — ")
+    # the forecast page: 48 h of observations before the issue time, the issued forecast and the other one
+    _open(driver, url + "/forecast")
+    plot = driver.find_element(By.CSS_SELECTOR, '.plot[data-series="0029.Q"]')
+    traces = dict(driver.execute_script("return arguments[0].data.map(t => [t.name, t.y])", plot))
+    mine = issued_fc[issued_fc["series"] == "0029.Q"]
+    issued_name = "DSS (issued)" if kind == "dss" else "rivercal (issued)"
+    other_name = "rivercal (not issued)" if kind == "dss" else "DSS (not issued)"
+    assert traces[issued_name] == mine[mine["kind"] == kind]["value"].tolist()
+    assert traces[other_name] == mine[mine["kind"] != kind]["value"].tolist()
+    t0 = latest["issue_time"]
+    obs = observed[(observed["series"] == "0029.Q") & (observed["time"] >= t0 - pd.Timedelta("48h"))
+                   & (observed["time"] <= t0)]
+    assert traces["observed"] == obs["value"].tolist() and len(obs) == 49
+    assert "jump alert" in driver.find_element(By.ID, "events").text  # cycle 10's, within the four days
     # the cycle log: one row per cycle, newest first, model runs and wall time as stored
     _open(driver, url + "/cycles")
     rows = driver.find_elements(By.CSS_SELECTOR, "#cycles tbody tr")
     assert [int(r.get_attribute("data-cycle")) for r in rows] == cycles["cycle"].tolist()[::-1]
     assert _raw(driver, "#cycles tbody tr td:nth-of-type(4)") == cycles["model_runs"].astype(float).tolist()[::-1]
     assert _raw(driver, "#cycles tbody tr td:nth-of-type(5)") == cycles["wall_time_s"].tolist()[::-1]
-    # estimates over time: the plotted points are the stored estimates
+    # estimates over time: the plotted points are the stored estimates (accepted and held), the DSS's value a line
     _open(driver, url + "/estimates")
+    dss = {"FA": 16.0, "Wd": 0.0}
     for plot in driver.find_elements(By.CSS_SELECTOR, ".plot"):
         name = plot.get_attribute("data-parameter")
-        ys = driver.execute_script("return arguments[0].data.flatMap(t => t.y)", plot)
+        traces = dict(driver.execute_script("return arguments[0].data.map(t => [t.name, t.y])", plot))
+        ys = traces["rivercal, accepted (±σ)"] + traces.get("held (not used)", [])
         assert sorted(ys) == sorted(est.loc[est["parameter"] == name, "value"].tolist())
+        assert traces["DSS"] == pytest.approx([dss[name]] * 2, abs=1e-9)
+        marks = driver.execute_script("return arguments[0].layout.annotations.map(a => [a.text, a.x])", plot)
+        # FA's jump alert (cycle 10) and the time of its change; the Wd plot has neither
+        assert sorted(marks) == ([["jump alert", "2010-01-18 00:00"], ["transition", "2010-01-17 06:00"]]
+                                 if name == "FA" else [])
     # forecasts at 12 h ahead against the observations, and the scores per lead time
     _open(driver, url + "/forecasts?run=dash&series=0029.Q&lead=12")
     plot = driver.find_element(By.ID, "forecast-plot")
@@ -110,7 +145,7 @@ def test_the_numbers_on_the_pages_are_the_stores(served) -> None:
     at12 = fc[np.isclose(fc["lead_h"], 12.0)]
     by_name = dict(traces)
     assert by_name["rivercal, 12 h ahead"] == at12[at12["kind"] == "updated"]["value"].tolist()
-    assert by_name["fixed DSS, 12 h ahead"] == at12[at12["kind"] == "dss"]["value"].tolist()
+    assert by_name["DSS, 12 h ahead"] == at12[at12["kind"] == "dss"]["value"].tolist()
     mine = scores[scores["series"] == "0029.Q"].groupby(["lead_from_h", "kind"])["rmse"].mean().unstack("kind")
     assert _raw(driver, "#scores tbody tr td:nth-of-type(2)") == pytest.approx(mine["updated"].tolist(), rel=1e-12)
     assert _raw(driver, "#scores tbody tr td:nth-of-type(3)") == pytest.approx(mine["dss"].tolist(), rel=1e-12)

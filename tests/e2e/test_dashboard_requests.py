@@ -89,3 +89,39 @@ def test_a_port_in_use_is_a_bad_option(store: Path) -> None:
         run = rivercal("dashboard", "--db", str(store), "--port", str(port))
     assert run.returncode == 2, run.stderr
     assert f"--port {port}: already in use on 127.0.0.1; give another port" in run.stderr
+
+
+def _get(port: int, path: str, **headers: str) -> tuple[int, dict[str, str], bytes]:
+    import http.client
+
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    try:
+        conn.request("GET", path, headers=headers)
+        answer = conn.getresponse()
+        return answer.status, {k.lower(): v for k, v in answer.getheaders()}, answer.read()
+    finally:
+        conn.close()
+
+
+def test_plotly_is_sent_compressed_under_an_address_a_browser_may_keep(server: int) -> None:
+    import gzip
+    import importlib.resources
+    import re
+
+    plain = (importlib.resources.files("plotly") / "package_data" / "plotly.min.js").read_bytes()
+    status, _, page = _get(server, "/map")
+    assert status == 200
+    address = re.search(rb'src="(/static/plotly\.min\.js\?v=[0-9a-f]{16})"', page).group(1).decode()
+    status, headers, body = _get(server, address, **{"Accept-Encoding": "gzip, deflate, br"})
+    assert status == 200 and headers["content-encoding"] == "gzip" and headers["vary"] == "accept-encoding"
+    assert gzip.decompress(body) == plain
+    assert len(body) < 0.4 * len(plain)  # 4.8 MB → about 1.5 MB
+    assert headers["cache-control"] == "public, max-age=31536000, immutable"
+    # a browser that asks again with the tag gets 304 and no body; one that takes no gzip gets the file itself
+    status, _, body = _get(server, address, **{"If-None-Match": headers["etag"], "Accept-Encoding": "gzip"})
+    assert status == 304 and body == b""
+    status, headers, body = _get(server, address, **{"Accept-Encoding": "gzip;q=0"})
+    assert status == 200 and "content-encoding" not in headers and body == plain
+    # the address without the content's hash (an old page, a hand-typed address) must be checked every time
+    status, headers, _ = _get(server, "/static/plotly.min.js", **{"Accept-Encoding": "gzip"})
+    assert status == 200 and headers["cache-control"] == "no-cache"

@@ -15,6 +15,7 @@ import typer
 
 from rivercal.cli.common import CaseArg, DaskOpt, JsonOpt, QuietOpt, Reporter, emit_json, out_console
 from rivercal.cli.options import (
+    WINDOW_HELP,
     check_choice,
     check_number,
     check_truth,
@@ -41,7 +42,7 @@ def analyse(
         "--params", help="Parameters to analyse, e.g. W1,W2,FA (default: every single-target parameter).")] = None,
     what: Annotated[str, typer.Option(
         help="Comma-separated analyses: sensitivity, identifiability, residuals.")] = "sensitivity,identifiability",
-    window: Annotated[str, typer.Option(help="START/END (UTC dates) or a window of the case.")] = "moderate",
+    window: Annotated[str, typer.Option(help=WINDOW_HELP)] = "moderate",
     observations: Annotated[Path | None, typer.Option(
         help="Observations: a CSV (time + '<station>.<quantity>' columns), a PI-XML file or a sidecar TOML "
              "(docs/howto/your-gauges.md); default: a twin truth.")] = None,

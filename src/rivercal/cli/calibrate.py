@@ -18,8 +18,10 @@ from rivercal.cli.common import (
     Reporter,
     emit_json,
     out_console,
+    stop_words,
 )
 from rivercal.cli.options import (
+    WINDOW_HELP,
     check_choice,
     check_number,
     check_truth,
@@ -37,13 +39,32 @@ from rivercal.cli.options import (
 )
 from rivercal.errors import OptionError
 
-__all__ = ["calibrate"]
+__all__ = ["DEFAULT_OUT", "calibrate", "new_folder"]
+
+#: Where calibrations go without ``--out``: each into a new folder of its own below this one.
+DEFAULT_OUT = Path("out/calibrate")
+
+
+def new_folder(parent: Path, name: str) -> Path:
+    """A folder that does not exist yet below ``parent``: ``<name>-<UTC time>`` (``-2``, ``-3`` … when taken)."""
+    import datetime
+
+    stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%SZ")
+    base = parent / f"{Path(name).name}-{stamp}"
+    folder, n = base, 1
+    while True:
+        try:
+            folder.mkdir(parents=True)
+            return folder
+        except FileExistsError:
+            n += 1
+            folder = base.with_name(f"{base.name}-{n}")
 
 
 def calibrate(
     case: CaseArg,
     params: Annotated[str, typer.Option("--params", help="Parameters to estimate, e.g. FA,Wc (defined by the case).")],
-    window: Annotated[str, typer.Option(help="START/END (UTC dates) or a window of the case (e.g. moderate).")],
+    window: Annotated[str, typer.Option(help=WINDOW_HELP)],
     observations: Annotated[Path | None, typer.Option(
         help="Observations: a CSV (time + '<station>.<quantity>' columns), a PI-XML file, or a sidecar TOML "
              "describing gauge files (docs/howto/your-gauges.md).")] = None,
@@ -62,7 +83,9 @@ def calibrate(
     max_nfev: Annotated[int | None, typer.Option("--max-nfev", help="Cap on model runs.")] = None,
     deadline: Annotated[float | None, typer.Option(help="Wall-clock limit, s.")] = None,
     on_failure: Annotated[str, typer.Option(help="Failed model run: raise or penalty.")] = "raise",
-    out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/calibrate"),
+    out: Annotated[Path | None, typer.Option(
+        "--out", help="Output folder (files of an earlier calibration there are replaced). Default: a new folder "
+                      "out/calibrate/<case>-<UTC time> for each calibration, so none replaces another.")] = None,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -91,7 +114,7 @@ def calibrate(
         check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
     truth = parse_assignments(twin, "--twin") if twin is not None else None
     start_values = parse_assignments(start, "--start")
-    output_dir(out)
+    output_dir(out if out is not None else DEFAULT_OUT)  # a folder that cannot be written fails before any run
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
     setup = model.calibration
@@ -105,6 +128,8 @@ def calibrate(
     check_truth(pset, truth or {})
     obs = window_observations(observations, model, win) if observations is not None else None
 
+    if out is None:
+        out = new_folder(DEFAULT_OUT, model.name)
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("calibrating"), workers_for(workers, address) as where:
         summary, cal = calibrate_window(model, pset, win, out, observations=obs, truth=truth, noise=noise, seed=seed,
@@ -134,5 +159,5 @@ def _print(summary: dict, cal, pset, win) -> None:
     out_console.print(table)
     r = cal.result
     out_console.print(f"cost {r.cost:.4g} after {r.nit} iterations, {r.nfev} model runs, {cal.wall_time:.1f} s; "
-                      f"{r.message}" + (" [aborted]" if r.aborted else ""), highlight=False)
-    out_console.print("wrote " + ", ".join(summary["files"].values()))
+                      f"{stop_words(r)}", highlight=False, markup=False)
+    out_console.print("wrote " + ", ".join(summary["files"].values()), highlight=False, markup=False)

@@ -68,16 +68,13 @@ def check(case: CaseArg, as_json: JsonOpt = False) -> None:
     """Validate a case and summarise it (a model.toml: what the model declares, as ``rivercal model check``)."""
     model = open_model(case)
     if not hasattr(model, "case"):
-        from rivercal.cli.model import model_summary
+        from rivercal.cli.model import model_summary, print_summary
 
         summary = model_summary(model)
         if as_json:
             emit_json(summary)
         else:
-            table = Table(title=f"model {model.name} — valid", show_header=False)
-            for key, value in summary.items():
-                table.add_row(key, ", ".join(map(str, value)) if isinstance(value, list | dict) else str(value))
-            out_console.print(table)
+            print_summary(summary, f"model {model.name} — valid")
         return
     c = model.case
     net = c.network

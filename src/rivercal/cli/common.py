@@ -22,7 +22,7 @@ from rich.console import Console
 from rivercal.errors import CaseError, ModelRunError, OptionError, RivercalError
 
 __all__ = ["CaseArg", "DaskOpt", "JsonOpt", "QuietOpt", "Reporter", "debug_enabled", "emit_json", "err_console",
-           "guard", "out_console", "set_debug", "watch_compilation"]
+           "guard", "out_console", "set_debug", "set_verbose", "stop_words", "verbose_enabled", "watch_compilation"]
 
 out_console = Console(emoji=False)  # ":100:" in a message is text, not an emoji
 err_console = Console(stderr=True, soft_wrap=True, emoji=False)
@@ -41,7 +41,43 @@ DependencyThresholdOpt = Annotated[float, typer.Option(
     "--dependency-threshold", help="With --dependency: the effect of a first step, in σ of a series, above which "
                                    "the series depends on the parameter.")]
 
-_DEBUG = {"on": False}
+_DEBUG = {"on": False, "verbose": False}
+
+
+def set_verbose(on: bool) -> None:
+    """``rivercal --verbose``: the commands also print the optimiser's own words (stopping rule, status)."""
+    _DEBUG["verbose"] = on
+
+
+def verbose_enabled() -> bool:
+    """Whether ``--verbose`` was given."""
+    return _DEBUG["verbose"]
+
+
+def stop_words(result: Any) -> str:
+    """Why a calibration stopped, in words for the person who ran it (the optimiser's own terms are for ``--verbose``).
+
+    ``result`` is an :class:`~rivercal.optimise.OptimiseResult`: ``success``, ``status`` (its code) and
+    ``message`` (the algorithm's termination message, e.g. "T2: … at most rel_tol").
+    """
+    from rivercal.optimise.result import STATUS_CALLBACK, STATUS_DEADLINE, STATUS_MAX_ITER, STATUS_MAX_NFEV
+
+    status = getattr(result, "status", None)
+    if getattr(result, "success", False):
+        words = "converged: another iteration would not lower the misfit noticeably"
+    elif status == STATUS_DEADLINE:
+        words = "stopped at the time limit (--deadline) before converging; the best values found so far are shown"
+    elif status == STATUS_MAX_NFEV:
+        words = "stopped at the cap on model runs (--max-nfev) before converging; the best values so far are shown"
+    elif status == STATUS_MAX_ITER:
+        words = "stopped after the most iterations the optimiser allows, before converging"
+    elif status == STATUS_CALLBACK:
+        words = "stopped on request before converging"
+    else:
+        words = "did not converge (rivercal --verbose … says the optimiser's reason)"
+    if verbose_enabled():
+        words += f" [optimiser: {getattr(result, 'message', '')} (status {status})]"
+    return words
 
 
 def set_debug(on: bool) -> None:
@@ -101,12 +137,18 @@ def guard(func):
 # -- the first run compiles the engine ------------------------------------------------------------
 
 
+#: What a compilation in a rivercal module is called on the terminal, by the module's package.
+_COMPILED_WHAT = {"rivercal.engine": "the engine's time loop", "rivercal.hydrology": "the rainfall-runoff model"}
+
+
 def watch_compilation(show: bool) -> None:
     """Say on stderr when numba starts compiling rivercal's kernels (a cold cache: the first run only).
 
     numba announces a compilation (the ``numba:compile`` event) only when it compiles, never when it
-    loads a kernel from its cache, so the note appears exactly when the wait is long. Printed once per
-    process, also under ``--json`` (on stderr), not under ``--quiet``.
+    loads a kernel from its cache, so the note appears exactly when the wait is long. It names what is
+    compiled (the engine's time loop, the rainfall-runoff model): after ``rivercal compile`` nothing
+    is left to compile, and nothing is said. Printed once per kind and process, also under ``--json`` (on
+    stderr), not under ``--quiet``.
     """
     if not show or _COMPILE["watching"]:
         return
@@ -114,13 +156,18 @@ def watch_compilation(show: bool) -> None:
 
     class CompileNotice(event.Listener):
         def on_start(self, ev: Any) -> None:
-            if _COMPILE["shown"] or os.getpid() != _COMPILE["pid"]:  # forked workers inherit this; the parent speaks
+            if os.getpid() != _COMPILE["pid"]:  # forked workers inherit this; the parent speaks
                 return
             module = getattr(getattr((ev.data or {}).get("dispatcher"), "py_func", None), "__module__", None) or ""
-            if module.startswith("rivercal."):
-                _COMPILE["shown"] = True
-                err_console.print("compiling the engine (first run only; later runs load it from the cache) …",
-                                  highlight=False)
+            if not module.startswith("rivercal."):
+                return
+            package = ".".join(module.split(".")[:2])
+            what = _COMPILED_WHAT.get(package, "rivercal's numerical kernels")
+            if what in _COMPILE["shown"]:
+                return
+            _COMPILE["shown"].add(what)
+            err_console.print(f"compiling {what} (once per version of rivercal; later runs load it from the cache; "
+                              "'rivercal compile' does it ahead) …", highlight=False)
 
         def on_end(self, ev: Any) -> None:
             pass
@@ -129,7 +176,7 @@ def watch_compilation(show: bool) -> None:
     event.register("numba:compile", CompileNotice())
 
 
-_COMPILE: dict[str, Any] = {"watching": False, "shown": False, "pid": None}
+_COMPILE: dict[str, Any] = {"watching": False, "shown": set(), "pid": None}
 
 
 # -- progress -------------------------------------------------------------------------------------
@@ -139,13 +186,16 @@ class Reporter:
     """Renders a workflow's progress on stderr (a spinner, a bar with totals) unless it is off.
 
     Implements :class:`rivercal.workflows.Progress`: ``stage`` (what happens now), ``step`` (done of
-    total, with a bar) and ``note`` (a line that stays above the display).
+    total, with a bar) and ``note`` (a line that stays above the display). Without a terminal (stderr to a
+    file or a pipe: a log, CI) there is no bar to show the count, so a note that follows a step starts with
+    it: ``3/29 cycle 2 …``.
     """
 
     def __init__(self, show: bool):
         self.show = show
         self._progress = None
         self._task = None
+        self._count = ""  # the count of the latest step, until a note has shown it
 
     @contextmanager
     def running(self, first: str = "starting"):
@@ -172,11 +222,16 @@ class Reporter:
 
     def step(self, done: int, total: int | None, text: str) -> None:
         """``done`` of ``total`` units of work (a bar when the total is known), e.g. '3/10 cycles'."""
+        count = f"{done}/{total}" if total else f"{done}"
+        self._count = count
         if self._progress is not None:
-            count = f"{done}/{total}" if total else f"{done}"
             self._progress.update(self._task, description=text, total=total, completed=done, count=count)
 
     def note(self, text: str) -> None:
-        """A line that stays (a finished cycle, a skipped file)."""
-        if self.show:
-            err_console.print(text, highlight=False, markup=False)
+        """A line that stays (a finished cycle, a skipped file); without a terminal, after the step's count."""
+        if not self.show:
+            return
+        if self._count and not err_console.is_terminal:
+            text = f"{self._count} {text}"
+        self._count = ""
+        err_console.print(text, highlight=False, markup=False)

@@ -20,7 +20,11 @@ def dashboard(
     port: Annotated[int, typer.Option(help="Port to listen on.")] = 8050,
     poll: Annotated[float, typer.Option(help="Seconds between an open page's looks for a new cycle.")] = 2.0,
 ) -> None:
-    """Serve the live dashboard of a store: estimates, alerts, forecasts, the network map, the cycle log."""
+    """Serve the live dashboard of a store: the forecast in use and why, the latest forecast per station, more.
+
+    Also the estimates against the DSS, the alerts, the forecast skill, the network map of the level error and
+    the cycle log.
+    """
     try:
         from rivercal.dashboard import serve
         from rivercal.dashboard.app import create_app  # noqa: F401 - fails here when the extra is missing

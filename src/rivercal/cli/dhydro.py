@@ -5,6 +5,7 @@ from typing import Annotated
 
 import typer
 
+from rivercal._format import plural
 from rivercal.cli.common import CaseArg, JsonOpt, emit_json, guard, out_console
 
 __all__ = ["export_app", "import_app"]
@@ -52,10 +53,11 @@ def import_dhydro_cmd(
         emit_json(result.summary)
         return
     s = result.summary
-    kinds = ", ".join(f"{n} {k}" for k, n in s["structures"].items()) or "no structures"
-    out_console.print(f"imported [bold]{model.name}[/] into {out}: {s['branches']} branches, {s['points']} points, "
-                      f"{s['profiles']} profiles, {kinds}, {s['boundaries']} boundaries, {s['laterals']} laterals, "
-                      f"{s['stations']} stations, {len(s['parameters'])} calibration parameters; {s['approximated']} "
+    kinds = ", ".join(plural(n, k.replace("_", " ")) for k, n in s["structures"].items()) or "no structures"
+    parts = [plural(s["branches"], "branch"), plural(s["points"], "point"), plural(s["profiles"], "profile"), kinds,
+             plural(s["boundaries"], "boundary"), plural(s["laterals"], "lateral"), plural(s["stations"], "station"),
+             plural(len(s["parameters"]), "calibration parameter")]
+    out_console.print(f"imported [bold]{model.name}[/] into {out}: {', '.join(parts)}; {s['approximated']} "
                       f"approximated, {s['refused']} refused (see {out / 'import.md'})")
 
 

@@ -18,11 +18,25 @@ import typer
 from rivercal import __version__
 from rivercal._options import options
 from rivercal.cli import advise, analyse, bench, calibrate, case, dashboard, dhydro, fews, model, online, simulate, twin
-from rivercal.cli.common import guard, out_console, set_debug
+from rivercal.cli.common import guard, out_console, set_debug, set_verbose
 from rivercal.cli.mascaret import import_mascaret_cmd
 from rivercal.cli.sobek3 import import_sobek3_cmd
 
 __all__ = ["app", "main"]
+
+def _help_width() -> None:
+    """Help printed without a terminal (into a file, a pager, a CI log) is laid out 120 columns wide.
+
+    rich takes 80 columns when it cannot ask a terminal, and cuts the option table's long names to fit
+    (``--dependency-th…``); a terminal's own width (or ``COLUMNS``, ``TERMINAL_WIDTH``) still rules.
+    """
+    import typer.rich_utils
+
+    if typer.rich_utils.MAX_WIDTH is None and not os.environ.get("COLUMNS") and not sys.stdout.isatty():
+        typer.rich_utils.MAX_WIDTH = 120
+
+
+_help_width()
 
 app = typer.Typer(
     name="rivercal",
@@ -44,11 +58,14 @@ def _main(
     ctx: typer.Context,
     version: Annotated[bool, typer.Option("--version", help="Show the version and exit (with --verbose: also the "
                                                             "versions of Python, numpy, numba …).")] = False,
-    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log progress details on stderr.")] = False,
+    verbose: Annotated[bool, typer.Option(
+        "--verbose", "-v", help="Log progress details on stderr, and print the optimiser's own terms (stopping rule, "
+                                "status) beside the words.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show the traceback of an error (also RIVERCAL_DEBUG=1).")]
     = False,
 ) -> None:
     set_debug(debug)
+    set_verbose(verbose)
     if version:
         out_console.print(version_text(verbose), highlight=False)
         raise typer.Exit(0)

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from rivercal._format import plural
 from rivercal.cli.common import JsonOpt, emit_json, guard, out_console
 from rivercal.errors import RivercalError
 
@@ -67,9 +68,10 @@ def import_mascaret_cmd(
         emit_json({"folder": str(result.folder), **result.summary})
         return
     s = result.summary
-    out_console.print(f"imported [bold]{model.name}[/] into {out}: {s['branches']} branches, {s['points']} points, "
-                      f"{s['profiles']} profiles, {s['friction_groups']} friction groups, {s['boundaries']} "
-                      f"boundaries, {s['laterals']} laterals, {s['stations']} stations, {s['start']} .. {s['end']}; "
+    parts = [plural(s["branches"], "branch"), plural(s["points"], "point"), plural(s["profiles"], "profile"),
+             plural(s["friction_groups"], "friction group"), plural(s["boundaries"], "boundary"),
+             plural(s["laterals"], "lateral"), plural(s["stations"], "station")]
+    out_console.print(f"imported [bold]{model.name}[/] into {out}: {', '.join(parts)}, {s['start']} .. {s['end']}; "
                       f"{s['approximated']} approximated, {s['refused']} refused (see {out / 'import.md'})")
 
 

@@ -16,6 +16,7 @@ from typing import Any
 from rivercal.errors import OptionError
 
 __all__ = [
+    "WINDOW_HELP",
     "check_choice",
     "check_number",
     "check_truth",
@@ -255,25 +256,46 @@ def parse_duration(text: str, option: str, *, allow_zero: bool = False) -> Any:
     return value
 
 
+#: What ``--window`` of calibrate, analyse, twin and advise takes, for the help and the messages.
+WINDOW_HELP = ("The calibration window: a date range START/END in UTC (ISO 8601, e.g. 2010-09-27/2010-10-04, or "
+               "START/DURATION, e.g. 2010-09-27/7D) or the name of a window of the case (e.g. moderate). Not a "
+               "length alone: that is what 'rivercal online --window' takes (each cycle's window, e.g. 7D).")
+
+
 def parse_window(model: Any, text: str, *, option: str = "--window", warmup: Any = None,
                  warmup_option: str | None = "--warmup") -> tuple[Any, Any]:
-    """A window of the model (case) by name, or ``START/END``, as UTC timestamps inside its period.
+    """A window of the model (case) by name, or ``START/END`` or ``START/DURATION``, as UTC timestamps in its period.
 
+    A name matches regardless of case when only one window has it. A duration alone (``7D``) is refused
+    with what it would mean elsewhere: ``rivercal online --window`` is a length, here a window is a range.
     With ``warmup`` (a Timedelta) the runs start that long before the window; that start must lie in
     the period too (``warmup_option`` names the option that sets it, None when none does).
     """
     import pandas as pd
 
     named = dict(model.calibration.windows)
-    if text in named:
-        a, b = (parse_time(str(t), option) for t in named[text])
+    folded = [n for n in named if n.lower() == text.strip().lower()]
+    known = ", ".join(named) or "none"
+    if text in named or len(folded) == 1:
+        a, b = (parse_time(str(t), option) for t in named[text if text in named else folded[0]])
     else:
         first, sep, second = text.partition("/")
         if not sep:
-            known = ", ".join(named) or "none"
+            if _duration(text) is not None:
+                raise OptionError(f"{option} {text!r}: a length, not a window; give a date range START/END (e.g. "
+                                  f"2010-09-27/2010-10-04), START/DURATION (e.g. 2010-09-27/{text.strip()}) or a "
+                                  f"window of the case ({known}). ('rivercal online --window' is the length of each "
+                                  "cycle's window.)", option=option)
             raise OptionError(f"{option} {text!r}: expected START/END (e.g. 2010-09-27/2010-10-04) or a window of "
                               f"the case ({known})", option=option)
-        a, b = parse_time(first, option), parse_time(second, option)
+        a = parse_time(first, option)
+        length = _duration(second)
+        if length is not None:
+            if length <= pd.Timedelta(0):
+                raise OptionError(f"{option} {text!r}: the duration after the start must be positive", option=option)
+            b = a + length
+        else:
+            b = parse_time(second, option)
     if not b > a:
         raise OptionError(f"{option} {text!r}: the end is not after the start", option=option)
     if a < model.start or b > model.end:
@@ -288,6 +310,22 @@ def parse_window(model: Any, text: str, *, option: str = "--window", warmup: Any
                           f"start the window at {model.start + warmup:%Y-%m-%d %H:%M} or later"
                           + (f", or shorten {warmup_option}" if warmup_option else ""), option=option)
     return a, b
+
+
+def _duration(text: str) -> Any:
+    """``text`` as a duration when it is written as one (``7D``, ``48h``, ``P7D``), else None (a date is not)."""
+    import re
+
+    import pandas as pd
+
+    stripped = text.strip()
+    if not re.fullmatch(r"(P[0-9WDTHMS.]+|[0-9.]+\s*[A-Za-z]+(\s*[0-9.]+\s*[A-Za-z]+)*)", stripped):
+        return None
+    try:
+        value = pd.Timedelta(stripped)
+    except (ValueError, TypeError, OverflowError):
+        return None
+    return None if value is pd.NaT else value
 
 
 def _check_on_output_times(model: Any, a: Any, b: Any, option: str, text: str, warmup: Any,

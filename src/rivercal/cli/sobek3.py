@@ -5,6 +5,7 @@ from typing import Annotated
 
 import typer
 
+from rivercal._format import plural
 from rivercal.cli.common import JsonOpt, emit_json, guard, out_console
 
 __all__ = ["import_sobek3_cmd"]
@@ -37,8 +38,8 @@ def import_sobek3_cmd(
         emit_json(result.summary)
         return
     s = result.summary
-    kinds = ", ".join(f"{n} {k}" for k, n in s["structures"].items()) or "no structures"
-    out_console.print(f"imported [bold]{model.name}[/] into {out}: {s['branches']} branches, {s['points']} points, "
-                      f"{s['profiles']} profiles, {kinds}, {s['boundaries']} boundaries, {s['laterals']} laterals, "
-                      f"{s['stations']} stations, time step {s['dt_s']:g} s; {s['approximated']} approximated, "
-                      f"{s['refused']} refused (see {out / 'import.md'})")
+    kinds = ", ".join(plural(n, k.replace("_", " ")) for k, n in s["structures"].items()) or "no structures"
+    parts = [plural(s["branches"], "branch"), plural(s["points"], "point"), plural(s["profiles"], "profile"), kinds,
+             plural(s["boundaries"], "boundary"), plural(s["laterals"], "lateral"), plural(s["stations"], "station")]
+    out_console.print(f"imported [bold]{model.name}[/] into {out}: {', '.join(parts)}, time step {s['dt_s']:g} s; "
+                      f"{s['approximated']} approximated, {s['refused']} refused (see {out / 'import.md'})")

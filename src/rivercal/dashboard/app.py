@@ -1,9 +1,15 @@
 """The dashboard's web application: a read-only Starlette app over one store.
 
-Pages (server-rendered from the Jinja2 templates shared with the reports): ``/`` now, ``/estimates``,
-``/forecasts``, ``/map``, ``/cycles``; ``/api/version`` tells the page's script when a cycle was stored
-(it then fetches the page again and swaps its content, without a reload). Static files: only the
-page script and the plotly.js that the ``plotly`` package ships (no CDN, nothing from the internet).
+Pages (server-rendered from the Jinja2 templates shared with the reports): ``/`` now (the forecast in
+use and why, what changed, the parameters behind it, open alerts), ``/forecast`` (the latest issued
+forecast per series with the observations of the 48 h before), ``/estimates``, ``/forecasts`` (forecast
+skill by lead time), ``/map``, ``/cycles``; ``/api/version`` tells the page's script when a cycle was
+stored (it then fetches the page again and swaps its content, without a reload). Static files: only the
+page script and the plotly.js that the ``plotly`` package ships (no CDN, nothing from the internet),
+gzip-compressed once in memory and sent compressed to every browser that accepts it (plotly.js: 4.8 MB,
+1.5 MB compressed), under an address that carries a hash of the content, so that a browser keeps them
+for a year (``cache-control: immutable``) and asks again only when rivercal or plotly is updated; an
+``ETag`` answers a revalidation with 304.
 
 Read-only by construction: every request opens the store with :class:`~rivercal.store.Store` in
 read-only mode (SQLite ``mode=ro``; in WAL mode a reader sees each committed cycle and never blocks the
@@ -15,6 +21,9 @@ the dashboard itself only.
 from __future__ import annotations
 
 import contextlib
+import functools
+import gzip
+import hashlib
 import importlib.resources
 import logging
 import math
@@ -23,9 +32,10 @@ from pathlib import Path
 from typing import Any
 
 from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
 from starlette.middleware import Middleware
 from starlette.requests import Request
-from starlette.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, Response
+from starlette.responses import HTMLResponse, JSONResponse, PlainTextResponse, Response
 from starlette.routing import Route
 
 from rivercal.dashboard import views
@@ -44,16 +54,53 @@ _SECURITY_HEADERS = {
     "referrer-policy": "no-referrer",
     "x-frame-options": "DENY",
 }
-_PAGES = (("/", "Now"), ("/estimates", "Estimates"), ("/forecasts", "Forecasts"), ("/map", "Network map"),
-          ("/cycles", "Cycle log"))
+_PAGES = (("/", "Now"), ("/forecast", "Forecast"), ("/estimates", "Estimates"), ("/forecasts", "Forecast skill"),
+          ("/map", "Network map"), ("/cycles", "Cycle log"))
+#: How long a browser may keep a static file: a year; its address changes with its content.
+_IMMUTABLE = "public, max-age=31536000, immutable"
+
+
+class Asset:
+    """A static file as served: its bytes, a content hash (the ETag and the address' ``v``), and gzipped once.
+
+    Parameters
+    ----------
+    path
+        The file.
+    media
+        Its media type.
+    """
+
+    def __init__(self, path: Path, media: str):
+        self.media = media
+        self.body = path.read_bytes()
+        self.digest = hashlib.sha256(self.body).hexdigest()[:16]
+
+    @functools.cached_property
+    def gzipped(self) -> bytes:
+        """The body compressed with gzip (level 6: plotly.js 4.8 MB → 1.4 MB in about a second), once."""
+        return gzip.compress(self.body, compresslevel=6, mtime=0)
 
 
 def _static_files() -> dict[str, tuple[Path, str]]:
     """The only files the dashboard serves: name -> (path, media type)."""
     plotly = importlib.resources.files("plotly") / "package_data" / "plotly.min.js"
     script = importlib.resources.files("rivercal.dashboard") / "static" / "dashboard.js"
-    return {"plotly.min.js": (Path(str(plotly)), "text/javascript"),
-            "dashboard.js": (Path(str(script)), "text/javascript")}
+    return {"plotly.min.js": (Path(str(plotly)), "text/javascript; charset=utf-8"),
+            "dashboard.js": (Path(str(script)), "text/javascript; charset=utf-8")}
+
+
+def _accepts_gzip(request: Request) -> bool:
+    """Whether the request's Accept-Encoding allows gzip (a q=0 refuses it)."""
+    for part in request.headers.get("accept-encoding", "").split(","):
+        name, _, params = part.strip().partition(";")
+        if name.strip().lower() in ("gzip", "*"):
+            q = params.strip().removeprefix("q=") if params.strip().startswith("q=") else "1"
+            try:
+                return float(q) > 0
+            except ValueError:
+                return False
+    return False
 
 
 #: Largest request body the dashboard reads (and drops) before it answers, bytes: it takes none.
@@ -165,7 +212,19 @@ def create_app(db: str | Path, *, poll_s: float = 2.0) -> Starlette:
     """
     db = Path(db)
     env = environment("rivercal.dashboard")
-    static = _static_files()
+    files = _static_files()
+    assets: dict[str, Asset] = {}
+
+    def asset_of(name: str) -> Asset:
+        """The static file ``name``, read and compressed at its first request (then kept)."""
+        if name not in assets:
+            path, media = files[name]
+            assets[name] = Asset(path, media)
+        return assets[name]
+
+    def static_url(name: str) -> str:
+        return f"/static/{name}?v={asset_of(name).digest}"
+
 
     @contextlib.contextmanager
     def opened(request: Request) -> Iterator[tuple[Store, Any, list[str]]]:
@@ -193,7 +252,7 @@ def create_app(db: str | Path, *, poll_s: float = 2.0) -> Starlette:
                 html = env.get_template(template).render(
                     title=f"rivercal — {run.name}", run=run.name, runs=names, case=run.case, pages=_PAGES,
                     path=request.url.path, version=views.run_version(store, run), poll_ms=int(poll_s * 1000),
-                    stamp="live", **data, **context)
+                    stamp="live", static_url=static_url, **data, **context)
         except _Problem as exc:
             html = env.get_template("problem.html").render(title="rivercal dashboard", text=exc.text, pages=_PAGES,
                                                            path=request.url.path, stamp="live")
@@ -202,6 +261,9 @@ def create_app(db: str | Path, *, poll_s: float = 2.0) -> Starlette:
 
     async def now(request: Request) -> Response:
         return page(request, "now.html", view=lambda s, r, q: views.now_view(s, r))
+
+    async def forecast(request: Request) -> Response:
+        return page(request, "forecast.html", view=lambda s, r, q: views.forecast_view(s, r))
 
     async def estimates(request: Request) -> Response:
         return page(request, "estimates.html", view=lambda s, r, q: views.estimates_view(s, r))
@@ -242,12 +304,20 @@ def create_app(db: str | Path, *, poll_s: float = 2.0) -> Starlette:
 
     async def asset(request: Request) -> Response:
         name = request.path_params["name"]
-        if name not in static:
+        if name not in files:
             return PlainTextResponse("not found", status_code=404)
-        path, media = static[name]
-        return FileResponse(path, media_type=media, headers={"cache-control": "max-age=3600"})
+        item = asset_of(name)
+        current = request.query_params.get("v") == item.digest
+        headers = {"cache-control": _IMMUTABLE if current else "no-cache", "etag": f'"{item.digest}"',
+                   "vary": "accept-encoding"}
+        if request.headers.get("if-none-match", "").strip() in (f'"{item.digest}"', f'W/"{item.digest}"'):
+            return Response(status_code=304, headers=headers)
+        if _accepts_gzip(request):
+            body = await run_in_threadpool(lambda: item.gzipped)  # the first time: compress off the event loop
+            return Response(body, media_type=item.media, headers={**headers, "content-encoding": "gzip"})
+        return Response(item.body, media_type=item.media, headers=headers)
 
-    routes = [Route("/", now), Route("/estimates", estimates), Route("/forecasts", forecasts),
-              Route("/map", network_map), Route("/cycles", cycles), Route("/api/version", version),
-              Route("/static/{name}", asset)]
+    routes = [Route("/", now), Route("/forecast", forecast), Route("/estimates", estimates),
+              Route("/forecasts", forecasts), Route("/map", network_map), Route("/cycles", cycles),
+              Route("/api/version", version), Route("/static/{name}", asset)]
     return Starlette(routes=routes, middleware=[Middleware(_ReadOnly)])

@@ -623,10 +623,11 @@ class Simulator:
     def quantities_frame(self) -> pd.DataFrame:
         """The model quantities as a table, one row per quantity name.
 
-        Columns: the case's ``value`` (NaN where the case sets none, e.g. a branch that inherits the global
-        friction) and, where the model declares them (an :class:`~rivercal.models.EmbeddedModel` does),
-        ``unit``, ``min``, ``max`` and ``description``. Values in the unit of each quantity: m AD for crest
-        levels, the friction law's unit for friction.
+        Columns: the ``value`` the model runs with unless it is set (a branch that inherits the global friction
+        shows the global value and says so; ``friction:scale`` is 1, no scaling) and, where the model declares
+        them (an :class:`~rivercal.models.EmbeddedModel` does), ``unit``, ``min``, ``max`` (±inf where the
+        quantity has no bound, e.g. a crest level) and ``description``. Values in the unit of each quantity:
+        m AD for crest levels, the friction law's unit for friction.
 
         Examples
         --------
@@ -637,16 +638,28 @@ class Simulator:
         """
         declared = getattr(self, "quantities", {})
         values = self.default_parameters()
+        inherited = {f"friction:branch:{b}" for b in self.compiled.branch_inherits}
         rows = []
         for name in sorted({*values, *declared}):
             q = declared.get(name)
-            rows.append({"quantity": name, "value": values.get(name, np.nan), "unit": q.unit if q else "",
-                         "min": np.nan if q is None or q.min is None else q.min,
-                         "max": np.nan if q is None or q.max is None else q.max,
-                         "description": q.description if q else ""})
+            value, note = values.get(name, np.nan), ""
+            if name in inherited and "friction:global" in values:
+                value, note = values["friction:global"], " (inherits friction:global)"
+            elif name == "friction:scale":
+                value = 1.0
+            rows.append({"quantity": name, "value": value, "unit": q.unit if q else "",
+                         "min": _shown_bound(None if q is None else q.min, -np.inf),
+                         "max": _shown_bound(None if q is None else q.max, np.inf),
+                         "description": (q.description if q else "") + note})
         columns = ["quantity", "value", "unit", "min", "max", "description"]
         return pd.DataFrame(rows, columns=columns).set_index("quantity")
 
+
+def _shown_bound(value: float | None, none: float) -> float:
+    """A declared bound for a table: ``none`` (±inf) where there is none (None, or the stand-in ±MAX_LEVEL)."""
+    if value is None or abs(float(value)) >= MAX_LEVEL:
+        return none
+    return float(value)
 
 
 def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, state: tuple, forcing: np.ndarray,

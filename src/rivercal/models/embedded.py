@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rivercal._time import Windows
 from rivercal.case.load import Case, load_case
 from rivercal.engine.compile import FRICTION_CODES
 from rivercal.engine.kernels.codes import OBS_FLUX, OBS_LEVEL
@@ -124,8 +125,8 @@ class EmbeddedModel(Simulator):
     def calibration(self) -> CalibrationSetup:
         """Parameters, windows and optimiser defaults of ``case.toml``."""
         spec = self.case.spec
-        return CalibrationSetup(parameters=tuple(spec.parameters),
-                                windows={w.name: (utc(w.start), utc(w.end)) for w in spec.windows},
+        windows = Windows({w.name: (w.start, w.end) for w in spec.windows}, f"case {self.case.name}")
+        return CalibrationSetup(parameters=tuple(spec.parameters), windows=windows,
                                 algorithm=spec.calibration.algorithm, options=dict(spec.calibration.options))
 
     # -- virtual stations (the optional capability VirtualStations) ----------------------------------

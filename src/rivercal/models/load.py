@@ -11,9 +11,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from rivercal._time import Windows
 from rivercal.case.load import CASE_FILE, available_cases
 from rivercal.models.config import MODEL_FILE, ModelFile, ModelFileError, read_model_file
-from rivercal.models.contract import CalibrationSetup, utc
+from rivercal.models.contract import CalibrationSetup
 from rivercal.models.embedded import load_case_model
 
 __all__ = ["available_models", "load_model", "load_model_file", "model_file_path"]
@@ -72,8 +73,8 @@ def load_model_file(path: str | Path) -> Any:
     spec = read_model_file(path)
     root = path.parent
     label = str(path)
-    setup = CalibrationSetup(parameters=tuple(spec.parameters),
-                             windows={w.name: (utc(w.start), utc(w.end)) for w in spec.windows},
+    windows = Windows({w.name: (w.start, w.end) for w in spec.windows}, f"model {spec.model.name}")
+    setup = CalibrationSetup(parameters=tuple(spec.parameters), windows=windows,
                              algorithm=spec.calibration.algorithm, options=dict(spec.calibration.options))
     try:
         model = _build(spec, root, setup)

@@ -1,16 +1,64 @@
-// rivercal dashboard: draws the page's plotly figures and follows the store without reloading the page.
+// rivercal dashboard: draws the page's plotly figures, keeps map labels apart, and follows the store without
+// reloading the page.
 (function () {
   "use strict";
+  // where a label may sit around its marker, tried in this order until it overlaps nothing
+  var POSITIONS = ["top center", "bottom center", "middle right", "middle left", "top right", "top left",
+                   "bottom right", "bottom left"];
+
+  function overlaps(a, b) {
+    return a.left < b.right && b.left < a.right && a.top < b.bottom && b.top < a.bottom;
+  }
+
+  // Move the labels of the text trace of a drawn figure until no label overlaps another label or another
+  // station's marker (at most a few rounds; a crowded map keeps what it has then).
+  async function declutter(target, fig) {
+    var trace = fig.data.findIndex(function (t) { return (t.mode || "").indexOf("text") >= 0; });
+    if (trace < 0 || !Array.isArray(fig.data[trace].text)) { return; }
+    var n = fig.data[trace].text.length;
+    var chosen = new Array(n).fill(0);
+    for (var round = 0; round < 2 * POSITIONS.length; round++) {
+      var layer = target.querySelectorAll(".scatterlayer .trace")[trace];
+      if (!layer) { return; }
+      var labels = Array.from(layer.querySelectorAll(".textpoint text")).map(function (e) {
+        return e.getBoundingClientRect();
+      });
+      var markers = Array.from(layer.querySelectorAll("path.point")).map(function (e) {
+        return e.getBoundingClientRect();
+      });
+      if (labels.length !== n) { return; }
+      var moved = false;
+      for (var i = 0; i < n; i++) {
+        var clash = false;
+        for (var j = 0; j < n && !clash; j++) {
+          if (j === i) { continue; }
+          clash = (j < i && overlaps(labels[i], labels[j])) || (markers[j] && overlaps(labels[i], markers[j]));
+        }
+        if (clash && chosen[i] < POSITIONS.length - 1) {
+          chosen[i] += 1;
+          moved = true;
+        }
+      }
+      if (!moved) { break; }
+      await Plotly.restyle(target, {textposition: [chosen.map(function (k) { return POSITIONS[k]; })]}, [trace]);
+    }
+  }
+
   function draw(root) {
-    if (typeof Plotly === "undefined") { return; }
+    if (typeof Plotly === "undefined") { return Promise.resolve(); }
+    var done = [];
     root.querySelectorAll("script.figure").forEach(function (node) {
       var fig = JSON.parse(node.textContent);
       var target = document.getElementById(node.dataset.target);
       if (target) {
-        Plotly.react(target, fig.data, fig.layout, {displaylogo: false, responsive: true});
+        done.push(Plotly.react(target, fig.data, fig.layout, {displaylogo: false, displayModeBar: false, responsive: true})
+          .then(function () { return target.dataset.declutter ? declutter(target, fig) : null; })
+          .then(function () { target.dataset.drawn = "1"; }));
       }
     });
+    return Promise.all(done);
   }
+
   async function follow() {
     var main = document.getElementById("main");
     if (!main) { return; }
@@ -23,17 +71,20 @@
       var fresh = doc.getElementById("main");
       if (fresh) {
         main.replaceWith(fresh);
-        draw(fresh);
+        await draw(fresh);
         document.body.dataset.updates = String(Number(document.body.dataset.updates || 0) + 1);
       }
     } catch (err) {
       console.info("rivercal dashboard: store not reachable, trying again", err);
     }
   }
+
   document.addEventListener("DOMContentLoaded", function () {
-    draw(document);
-    window.rivercalReady = performance.now();
-    document.body.dataset.ready = "1";
+    draw(document).catch(function (err) { console.error("rivercal dashboard: a figure failed", err); })
+      .finally(function () {
+        window.rivercalReady = performance.now();
+        document.body.dataset.ready = "1";
+      });
     window.setInterval(follow, Number(document.body.dataset.poll || 2000));
   });
 })();

@@ -230,6 +230,11 @@ class BlackBoxModel:
 
     # -- contract facts ---------------------------------------------------------------------------
 
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}({self.name!r}, {self.start:%Y-%m-%d %H:%M} … {self.end:%Y-%m-%d %H:%M} UTC, "
+                f"Δt {self.dt:g} s, {len(self.quantities)} quantities, {len(self.observables)} series, "
+                f"program {' '.join(self.spec.command)!r})")
+
     @property
     def start(self) -> pd.Timestamp:
         """Start of the model's period (UTC)."""

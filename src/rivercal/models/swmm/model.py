@@ -128,6 +128,10 @@ class SwmmModel:
 
     # -- contract facts ---------------------------------------------------------------------------
 
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}({self.name!r}, {self.start:%Y-%m-%d %H:%M} … {self.end:%Y-%m-%d %H:%M} UTC, "
+                f"Δt {self.dt:g} s, {len(self.quantities)} quantities, {len(self.observables)} series" + ")")
+
     @property
     def start(self) -> pd.Timestamp:
         """Start of the model's period (UTC)."""

@@ -1,0 +1,45 @@
+"""What the dashboard says of a model's parameters and of the DSS, from the packaged case dommel itself."""
+
+from __future__ import annotations
+
+import pytest
+
+from rivercal.case import load_case
+from rivercal.dashboard.facts import ModelFacts, dss_values, model_facts
+from rivercal.dashboard.words import describe_parameter, describe_series
+
+
+@pytest.fixture(scope="module")
+def dommel() -> ModelFacts:
+    return model_facts("dommel")
+
+
+def test_parameters_are_said_in_words(dommel: ModelFacts) -> None:
+    assert dommel.describe("FA") == "bed friction of the whole network"
+    assert dommel.describe("F1") == "bed friction of branch ZL1_3030_3990"
+    assert dommel.describe("W2") == "crest level of weir ZL1-3014"
+    assert dommel.describe("Wd") == "common shift of the crests of 9 weirs"
+    assert dommel.describe("Wc") == "crest levels of 9 weirs, as a share of their ranges"
+    assert dommel.describe("nothing") == ""
+    assert describe_series("0028.h_up") == "0028, level upstream" and describe_series("0029.Q") == "0029, discharge"
+
+
+def test_the_dss_values_are_the_cases_own(dommel: ModelFacts) -> None:
+    spec = load_case("dommel").spec
+    crest = {w.id: w.crest_level for w in spec.weirs}
+    values = dss_values(dommel, {}, ["FA", "Wd", "W2", "Wc"])
+    assert values["FA"] == pytest.approx(spec.friction.value)  # 16 m^(1/3)/s
+    assert values["Wd"] == pytest.approx(0.0, abs=1e-12)  # no shift of the crests
+    assert values["W2"] == pytest.approx(crest["ZL1-3014"])
+    wc = dommel.parameters["Wc"]  # the share of each crest's range, averaged over the cluster
+    shares = [(crest[c.target.removeprefix("weir:").removesuffix(".crest_level")] - c.min) / (c.max - c.min)
+              for c in wc.cluster]
+    assert values["Wc"] == pytest.approx(sum(shares) / len(shares))
+    # a run whose DSS was given its own friction: that value
+    assert dss_values(dommel, {"friction:global": 18.5}, ["FA"])["FA"] == pytest.approx(18.5)
+
+
+def test_a_model_that_cannot_be_loaded_leaves_the_facts_empty_and_says_why() -> None:
+    facts = model_facts("no-such-model-anywhere")
+    assert facts.parameters == {} and facts.network is None and "cannot be loaded" in facts.problem
+    assert describe_parameter(object()) == ""
