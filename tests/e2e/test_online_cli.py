@@ -129,10 +129,10 @@ def test_a_dependency_map_is_checked_before_any_run(tmp_path: Path) -> None:
     bad.write_text("station,FA\n0028.h_up,1.0\n", encoding="utf-8")
     base = ["online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
             "--db", str(tmp_path / "x.sqlite")]
-    for args, message in ((["--dependency", str(good)], "serves --algorithm sparse_dud only, not dud"),
+    for args, message in ((["--dependency", str(good)], "serves the algorithm sparse_dud only, not dud"),
                           (["--algorithm", "sparse_dud", "--dependency", str(bad)], f"{bad}: a dependency map has"),
                           (["--algorithm", "sparse_dud", "--dependency", str(good), "--params", "FA"],
-                           "names none of --params (FA); it names W2")):
+                           "names none of the parameters estimated (FA); it names W2")):
         run = rivercal(*base, *args)
         assert run.returncode == 2, run.stderr
         assert message in run.stderr and "Traceback" not in run.stderr

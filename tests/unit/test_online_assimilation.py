@@ -13,7 +13,8 @@ import pandas as pd
 import pytest
 
 from rivercal.model import load_model
-from rivercal.online.assimilation import AssimilationConfig, mae_by_lead
+from rivercal.online.assimilation import AssimilationConfig
+from rivercal.online.metrics import mae_by_lead
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.store import Store
 from rivercal.twin.forcing_error import rain_error_model
@@ -66,7 +67,7 @@ def test_members_are_stored_and_the_next_cycle_continues_from_them(twin):
     assert (when, cycle, n) == (outcomes[1].issue_time, 1, 16) and len(data) > 0
     assert store.model_state(service.run, "ensemble:0") is None   # no longer one model state per member
     members, errors = service.filter.from_store(store, service.run, outcomes[1].issue_time)
-    assert len(members) == 16 and errors.shape == (16, int(service.filter.perturbed.sum()))
+    assert len(members) == 16 and errors.shape == (16, service.filter.n_forcing)
     spread = np.std([m.z for m in members], axis=0)
     assert spread.max() > 0.0            # the members differ
     # the bands stored with each cycle are the ensemble forecast's

@@ -21,8 +21,8 @@ import pandas as pd
 
 from rivercal.model import load_model
 from rivercal.observations import ScreenRule
+from rivercal.online.metrics import run_figures
 from rivercal.online.service import OnlineConfig, OnlineService
-from rivercal.report.online_figures import run_figures
 from rivercal.store import Store
 from rivercal.twin.practical import PRACTICAL_SCENARIOS, practical_truth
 from rivercal.twin.realism import REALISM_LEVELS, get_realism

@@ -26,17 +26,12 @@ from rivercal.cli.common import (
 from rivercal.cli.options import (
     check_choice,
     check_number,
-    check_overlap,
     check_workers,
     dask_address,
     open_model,
     output_dir,
     output_file,
-    parse_assignments,
-    parse_duration,
-    parse_names,
     parse_time,
-    read_dependency,
     read_observations,
     workers_for,
 )
@@ -109,10 +104,6 @@ def online(
 ) -> None:
     """Run the on-line service: every cycle re-estimates the parameters and forecasts against the DSS."""
     from rivercal.online.assimilation import ASSIMILATE_MODES, AssimilationConfig
-    from rivercal.online.service import OnlineConfig
-    from rivercal.optimise import OPTIMISERS
-    from rivercal.optimise.registry import RENAMED
-    from rivercal.problem import LOSSES
     from rivercal.twin import NOISE_MODELS
     from rivercal.twin.practical import SCENARIOS
     from rivercal.workflows.online import run_online
@@ -145,25 +136,13 @@ def online(
     if follow is not None and not follow.is_dir():
         raise OptionError(f"--follow {follow}: no such folder", option="--follow")
     check_number(poll, "--poll", low=0, low_open=True)
-    names = parse_names(params, "--params")
-    if not names:
-        raise OptionError("--params: give at least one parameter name", option="--params")
-    for option, text in (("--window", window), ("--cycle", cycle), ("--horizon", horizon)):
-        parse_duration(text, option)
-    parse_duration(warmup, "--warmup", allow_zero=True)
-    check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
-    check_number(deadline, "--deadline", low=0, low_open=True)
-    read_dependency(dependency, dependency_threshold, algorithm, names)
-    change = parse_assignments(max_change, "--max-change", example="FA=5,Wd=0.1")
-    for name, value in change.items():
-        if name not in names:
-            raise OptionError(f"--max-change {name}={value:g}: {name!r} is not in --params", option="--max-change")
-        if not value > 0:
-            raise OptionError(f"--max-change {name}={value:g}: the largest change must be positive",
-                              option="--max-change")
-    check_number(alert_k, "--alert-k", low=0, low_open=True)
-    check_choice(loss, "--loss", LOSSES)
-    check_number(skill_cycles, "--skill-cycles", low=0)
+    # the configuration's own checks (rivercal.online.config), each problem named by its option
+    settings = {"parameters": params, "window": window, "period": cycle, "horizon": horizon, "warmup": warmup,
+                "algorithm": algorithm, "deadline_s": deadline, "max_change": max_change, "alert_k": alert_k,
+                "loss": loss, "transition": transition, "skill_cycles": skill_cycles,
+                "dependency": str(dependency) if dependency is not None else None,
+                "dependency_threshold": dependency_threshold}
+    config = _config(None, settings)
     check_number(seed, "--seed", low=0)
     check_number(max_cycles, "--max-cycles", low=1)
     check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
@@ -180,17 +159,7 @@ def online(
         output_dir(out)
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
-    known = model.calibration.names
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise OptionError(f"--params: unknown parameter {unknown[0]!r}; {model.name!r} defines {', '.join(known)}",
-                          option="--params")
-    check_overlap(model, names)
-    config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
-                          algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
-                          loss=loss, transition=transition, skill_cycles=skill_cycles, workers=None,
-                          dependency=str(dependency) if dependency is not None else None,
-                          dependency_threshold=dependency_threshold)
+    config = _config(model, settings)
     check_times(model, config, first, last, {"first": date_from, "last": date_to})
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("starting"), workers_for(workers, address) as where:
@@ -207,6 +176,24 @@ def online(
         print_summary(summary)
     if summary["cycles_done_now"] and not summary["cycles_succeeded_now"]:
         raise NoCycleSucceeded(summary)
+
+
+#: The option that sets each field of the on-line configuration (for the messages of its checks).
+_OPTION_OF = {"parameters": "--params", "window": "--window", "period": "--cycle", "horizon": "--horizon",
+              "warmup": "--warmup", "algorithm": "--algorithm", "deadline_s": "--deadline",
+              "max_change": "--max-change", "alert_k": "--alert-k", "loss": "--loss", "skill_cycles": "--skill-cycles",
+              "dependency": "--dependency", "dependency_threshold": "--dependency-threshold", "workers": "--workers"}
+
+
+def _config(model: Any, settings: dict[str, Any]) -> Any:
+    """:meth:`rivercal.online.config.OnlineConfig.from_options`; a problem is named by its option."""
+    from rivercal.online.config import OnlineConfig, OnlineConfigError
+
+    try:
+        return OnlineConfig.from_options(model, **settings)
+    except OnlineConfigError as exc:
+        option = _OPTION_OF.get(exc.field, f"--{exc.field.replace('_', '-')}")
+        raise OptionError(exc.describe(option), option=option) from None
 
 
 class NoCycleSucceeded(RivercalError):

@@ -30,11 +30,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.engine.state import SimulationResult
 from rivercal.errors import ModelRunError
 from rivercal.models.blackbox.templates import Template
 from rivercal.models.config import BmiSection, ModelFile, ModelFileError
 from rivercal.models.contract import CalibrationSetup, Quantity, check_run, utc
+from rivercal.results import SimulationResult
 
 __all__ = ["BmiModel", "BmiState"]
 
@@ -300,7 +300,8 @@ class BmiModel:
                 values[name] = bmi.get_value(name, buffer).copy()
             new_state = BmiState(end, values)
         series = pd.DataFrame(rows, index=pd.DatetimeIndex(times, name="time"), columns=self.observables)
-        return SimulationResult(series=series, balance=None, wall_time=_time.perf_counter() - t0), new_state
+        return SimulationResult(series=series, wall_time=_time.perf_counter() - t0,
+                                source=f"BMI component {self.section.component}"), new_state
 
 
 def _get(bmi: Any, var: str, index: int | None) -> float:

@@ -44,10 +44,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.engine.state import SimulationResult
 from rivercal.models.contract import CalibrationSetup, ExternalRunError, FileState, Quantity, check_run, utc
 from rivercal.models.swmm.inp import InpFile, seconds, swmm_date, swmm_step
 from rivercal.models.swmm.output import parse_element, read_swmm_output
+from rivercal.results import SimulationResult
 
 __all__ = ["SwmmModel", "SwmmRunError"]
 
@@ -319,7 +319,7 @@ class SwmmModel:
             raise SwmmRunError(str(run_dir), f"no finite value of {series.columns[col]} at {series.index[row]} "
                                              "(the output is missing or truncated there)")
         shutil.rmtree(run_dir, ignore_errors=True)
-        result = SimulationResult(series=series, balance=None, wall_time=wall)
+        result = SimulationResult(series=series, wall_time=wall, source="EPA SWMM 5 (swmm-toolkit)")
         return result, FileState(time=end, files={HOTSTART: hotstart}, origin=self._origin)
 
     def _base_dir(self) -> str | None:
