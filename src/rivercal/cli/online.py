@@ -83,9 +83,9 @@ def online(
         help="Errors of the twin of --scenario: ideal, noisy, realistic, or a TOML file of error models "
              "(docs/realism.md).")] = None,
     max_cycles: Annotated[int | None, typer.Option("--max-cycles", help="Stop after this many cycles.")] = None,
-    assimilate: Annotated[str, typer.Option(
-        help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both.")]
-    = "parameters",
+    assimilate: Annotated[str | None, typer.Option(
+        help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both (default "
+             "where the model can update its states, else parameters).")] = None,
     members: Annotated[int, typer.Option(help="With --assimilate states|both: ensemble members.")] = 64,
     ensemble_filter: Annotated[str, typer.Option(
         "--filter", help="With --assimilate states|both: etkf (square root) or enkf (perturbed observations).")]
@@ -103,7 +103,14 @@ def online(
     quiet: QuietOpt = False,
 ) -> None:
     """Run the on-line service: every cycle re-estimates the parameters and forecasts against the DSS."""
-    from rivercal.online.assimilation import ASSIMILATE_MODES, AssimilationConfig
+    from rivercal.models.contract import require
+    from rivercal.online.assimilation import (
+        ASSIMILATE_MODES,
+        NEEDS,
+        AssimilationConfig,
+        can_update_states,
+        default_mode,
+    )
     from rivercal.twin import NOISE_MODELS
     from rivercal.twin.practical import SCENARIOS
     from rivercal.workflows.online import run_online
@@ -145,7 +152,8 @@ def online(
     config = _config(None, settings)
     check_number(seed, "--seed", low=0)
     check_number(max_cycles, "--max-cycles", low=1)
-    check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
+    if assimilate is not None:
+        check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
     check_number(members, "--members", low=2, high=10_000)
     check_choice(ensemble_filter, "--filter", ("etkf", "enkf"))
     check_number(rain_error, "--rain-error", low=0, high=2)
@@ -160,6 +168,12 @@ def online(
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
     config = _config(model, settings)
+    mode = assimilate if assimilate is not None else default_mode(model)
+    if mode != "parameters" and not can_update_states(model):
+        try:
+            require(model, *NEEDS, purpose=f"--assimilate {mode}")
+        except ValueError as exc:
+            raise OptionError(f"{exc}; use --assimilate parameters", option="--assimilate") from None
     check_times(model, config, first, last, {"first": date_from, "last": date_to})
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("starting"), workers_for(workers, address) as where:
@@ -167,7 +181,7 @@ def online(
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter,
-                             assimilation=AssimilationConfig(mode=assimilate, members=members, method=ensemble_filter,
+                             assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
                                                              seed=seed),
                              rain_error=rain_error, take_over=take_over)
     if as_json:

@@ -60,7 +60,7 @@ if TYPE_CHECKING:
     from rivercal.online.service import OnlineService
 
 __all__ = ["ASSIMILATE_MODES", "NEEDS", "AssimilationConfig", "EnsembleFilter", "EnsembleForecast",
-           "assimilation_cycle", "can_update_states"]
+           "assimilation_cycle", "can_update_states", "default_mode"]
 
 log = logging.getLogger(__name__)
 
@@ -81,6 +81,15 @@ def can_update_states(model: Model) -> bool:
     except ValueError:
         return False
     return True
+
+
+def default_mode(model: Model) -> str:
+    """The service's default: ``both`` where the model can update its states, else ``parameters``.
+
+    Under realistic errors most of a forecast's error is in the state (wrong rain, wrong runoff), which no
+    parameter estimate corrects; states and parameters together do (docs/realism.md).
+    """
+    return "both" if can_update_states(model) else "parameters"
 
 
 @dataclass(frozen=True)
