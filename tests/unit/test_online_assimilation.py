@@ -160,3 +160,26 @@ def test_a_model_without_the_capabilities_is_refused_with_what_it_lacks(tmp_path
     assert "state updating (--assimilate states or both) needs a model with 'state arrays' and 'perturbable " \
            "forcing'; model 'synthetic-bmi' (BmiModel) lacks 'state arrays' and 'perturbable forcing'" \
            == str(refused.value)
+
+
+def test_a_failed_member_is_replaced_by_a_copy_of_a_survivor_and_all_failed_stops_the_filter(twin):
+    from rivercal.errors import ModelRunError
+    from rivercal.models.contract import MemberRuns
+
+    _, service, _, _ = twin
+    filt = service.filter
+    times = pd.date_range("2010-10-18", periods=2, freq="h", tz="UTC")
+    states = ("a", None, "c")
+    values = np.arange(3 * 2 * len(service.model.observables), dtype=float).reshape(3, 2, -1)
+    values[1] = np.nan
+    errors = np.arange(3.0)[:, None] * np.ones((3, filt.n_forcing))
+    runs = MemberRuns(times, tuple(service.model.observables), values, states, failures={1: "diverged"})
+    members, new_errors, new_values = filt._survivors(runs, errors, np.random.default_rng(0))
+    assert members[1] in ("a", "c") and members[0] == "a" and members[2] == "c"
+    donor = 0 if members[1] == "a" else 2
+    assert np.array_equal(new_values[1], values[donor]) and np.array_equal(new_errors[1], errors[donor])
+    assert np.isnan(values[1]).all() and errors[1, 0] == 1.0   # the inputs are not changed
+    dead = MemberRuns(times, tuple(service.model.observables), values, (None,) * 3,
+                      failures={0: "diverged", 1: "diverged", 2: "diverged"})
+    with pytest.raises(ModelRunError, match="every member of the ensemble failed; the first: diverged"):
+        filt._survivors(dead, errors, np.random.default_rng(0))

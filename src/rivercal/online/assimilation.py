@@ -44,6 +44,7 @@ import pandas as pd
 
 from rivercal.assimilate import FILTERS, gaspari_cohn, network_distances
 from rivercal.assimilate.perturb import ar1_series, multiplicative_factors
+from rivercal.errors import ModelRunError
 from rivercal.evaluate import Tasks, Workers
 from rivercal.models.contract import (
     EnsembleRuns,
@@ -113,7 +114,9 @@ class AssimilationConfig:
     forcing_error
         σ of the log of the factors on inflows and laterals (0.3: about 30 %).
     forcing_tau
-        Correlation time of the forcing errors.
+        Correlation time of the forcing errors: 96 h, as much of a model's inflow error is a bias that persists
+        for days (a catchment's runoff parameters, an event's rain); measured on the realistic PI-Fg twin,
+        the issued forecasts' MAE ratio is 1.93 at 24 h, 2.11 at 48 h, 2.23 at 96 h and 2.27 at 168 h.
     seed
         Seed of the perturbations (per cycle, the seed and the cycle number).
     threads
@@ -127,7 +130,7 @@ class AssimilationConfig:
     inflation: float = 1.0
     localisation_m: float = 20_000.0
     forcing_error: float = 0.3
-    forcing_tau: str = "24h"
+    forcing_tau: str = "96h"
     seed: int = 0
     threads: int | None = None
 
@@ -288,7 +291,33 @@ class EnsembleFilter:
             mapper = lambda fn, items: [f.result() for f in tasks.submit_all(fn, items)]  # noqa: E731
         return run_members(self.model, parameters, start, end, members, factors=factors,
                            interval=self.interval.total_seconds(), output_interval=output_interval,
-                           threads=self.config.threads, mapper=mapper)
+                           threads=self.config.threads, mapper=mapper, on_failure="report")
+
+    def _survivors(self, result: MemberRuns, errors: np.ndarray,
+                   rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray, np.ndarray]:
+        """The members' states, forcing errors and values, a failed member replaced by a copy of a surviving one.
+
+        A member whose run fails (a perturbation that made the model diverge) would otherwise stop the cycle;
+        the filter goes on with the others, one of them drawn to take its place (its state and its errors).
+
+        Raises
+        ------
+        ModelRunError
+            When every member failed.
+        """
+        states, values, errors = list(result.states), result.values.copy(), errors.copy()
+        if not result.failures:
+            return states, errors, values
+        alive = [m for m in range(len(states)) if m not in result.failures]
+        first = result.failures[min(result.failures)]
+        if not alive:
+            raise ModelRunError(f"every member of the ensemble failed; the first: {first}")
+        log.warning("%d of %d members failed and were replaced by copies of others (the first: %s)",
+                    len(result.failures), len(states), first)
+        for m in result.failures:
+            donor = int(rng.choice(alive))
+            states[m], values[m], errors[m] = states[donor], values[donor], errors[donor]
+        return states, errors, values
 
     def close(self) -> None:
         """Stop the worker processes of the members' runs, if any were started."""
@@ -311,12 +340,12 @@ class EnsembleFilter:
             nxt = min(t + self.interval, end)
             factors, errors = self._factors(1, errors, rng)
             result = self._run(parameters, t, nxt, members, factors, (nxt - t).total_seconds())
-            members = list(result.states)
+            members, errors, values = self._survivors(result, errors, rng)
             t = nxt
             if t in observed.index:
                 y = observed.loc[t, self.series].to_numpy(dtype=float)
                 if np.isfinite(y).any():
-                    predicted = result.values[:, -1, self.columns].T
+                    predicted = values[:, -1, self.columns].T
                     members, errors = self._analyse(members, errors, predicted, y, analysis, rng)
                     analyses += 1
         return members, errors, analyses
@@ -338,7 +367,13 @@ class EnsembleFilter:
         n_int = int(np.ceil(horizon / self.interval))
         factors, _ = self._factors(n_int, errors, rng)
         result = self._run(parameters, t0, t0 + horizon, members, factors, output_interval)
-        values = result.values[:, :, self.columns]                       # (N, T, m)
+        alive = [m for m in range(result.members) if m not in result.failures]
+        if not alive:
+            raise ModelRunError(f"every member's forecast failed; the first: {result.failures[min(result.failures)]}")
+        if result.failures:
+            log.warning("%d of %d members' forecasts failed and are left out of the forecast (the first: %s)",
+                        len(result.failures), result.members, result.failures[min(result.failures)])
+        values = result.values[alive][:, :, self.columns]                # (N, T, m)
         noisy = values[None] + self.sigma * rng.standard_normal((max(1, 2048 // len(members)), *values.shape))
         flat = noisy.reshape(-1, *values.shape[1:])
         frame = lambda v: pd.DataFrame(v, index=result.times, columns=self.series)  # noqa: E731

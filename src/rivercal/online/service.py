@@ -275,9 +275,15 @@ class OnlineService:
         if self.filter is not None:
             from rivercal.online.assimilation import assimilation_cycle
 
-            bands, ensemble, analyses = assimilation_cycle(self, spec, run_start, state, accepted)
-            forecasts["updated"] = bands.mean
-            est.message += f"; {analyses} state analyses of {self.filter.config.members} members"
+            try:
+                bands, ensemble, analyses = assimilation_cycle(self, spec, run_start, state, accepted)
+            except ModelRunError as exc:  # the cycle goes on with the parameters' forecast; the next starts anew
+                log.warning("cycle %d: state updating failed (%s); the parameters' forecast is issued", spec.cycle,
+                            exc)
+                est.message += f"; state updating failed ({exc}): the parameters' forecast is issued"
+            else:
+                forecasts["updated"] = bands.mean
+                est.message += f"; {analyses} state analyses of {self.filter.config.members} members"
         records = tuple(
             EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
                            std=float(est.std[n]) if n in est.std and math.isfinite(est.std[n]) else None,
