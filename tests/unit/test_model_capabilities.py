@@ -60,7 +60,8 @@ def test_the_embedded_engine_has_every_capability_and_a_wrapper_none(dommel) -> 
 def test_embedded_levels_written_into_a_state_set_their_volumes_and_the_balance_holds(dommel) -> None:
     from rivercal.engine.kernels.batch import volumes  # the engine's own geometry, as the reference
 
-    state = dommel.state_at(None, T0)
+    t0 = dommel.start + pd.Timedelta("2D")
+    state = dommel.state_at(None, t0)
     z, q = dommel.state_arrays(state)
     raised = dommel.with_state_arrays(state, z + 0.05, 1.1 * q)
     z2, q2 = dommel.state_arrays(raised)
@@ -71,16 +72,17 @@ def test_embedded_levels_written_into_a_state_set_their_volumes_and_the_balance_
     moving = np.abs(state.u) > 1e-9
     assert np.allclose(q2[moving], 1.1 * q[moving]) and np.allclose(raised.u[moving], 1.1 * state.u[moving])
     assert np.array_equal(state.z, z)  # the state itself is not changed
-    result, _ = dommel.simulate(None, start=T0, end=T0 + pd.Timedelta("6h"), state=raised)
+    result, _ = dommel.simulate(None, start=t0, end=t0 + pd.Timedelta("6h"), state=raised)
     assert abs(result.balance.relative_error) < 1e-9
 
 
 def test_perturbed_members_in_one_call_equal_their_runs_one_by_one(dommel) -> None:
-    state = dommel.state_at(None, T0)
+    t0 = dommel.start + pd.Timedelta("2D")
+    state = dommel.state_at(None, t0)
     k = len(dommel.perturbable_forcing())
     factors = np.stack([np.full((3, k), 1.0), np.full((3, k), 1.5)])
-    end = T0 + pd.Timedelta("3h")
-    together = dommel.run_members(None, T0, end, [state, state], factors=factors, interval=3600.0)
+    end = t0 + pd.Timedelta("3h")
+    together = dommel.run_members(None, t0, end, [state, state], factors=factors, interval=3600.0)
 
     class OneByOne:  # the contract's fallback for a model without ensemble runs: simulate_perturbed per member
         def __init__(self, model):
@@ -93,7 +95,7 @@ def test_perturbed_members_in_one_call_equal_their_runs_one_by_one(dommel) -> No
         def simulate_perturbed(self, *args, **kwargs):
             return self.model.simulate_perturbed(*args, **kwargs)
 
-    alone = run_members(OneByOne(dommel), None, T0, end, [state, state], factors=factors, interval=3600.0)
+    alone = run_members(OneByOne(dommel), None, t0, end, [state, state], factors=factors, interval=3600.0)
     assert np.array_equal(together.values, alone.values)
     q = dommel.observables.index("0029.Q")
     assert (together.values[1, 1:, q] > together.values[0, 1:, q]).all()  # 50 % more inflow, more discharge

@@ -314,6 +314,12 @@ def _print_figures(summary: dict[str, Any]) -> None:
              else f"— ({summary.get('time_to_correct_reason')})")
     out_console.print(f"time to correct the changed parameters: {words}; jump alerts: {summary.get('jump_alerts', 0)}; "
                       f"fallbacks to the DSS's forecast: {summary.get('fallbacks', 0)}", highlight=False)
+    mode = summary.get("assimilate", "parameters")
+    what = {"both": "states (hourly, ensemble Kalman filter) and parameters (daily)", "states": "states only",
+            "parameters": "parameters only"}.get(mode, mode)
+    band = summary.get("band_coverage_90") or {}
+    out_console.print(f"updated: {what}" + (f"; the 90 % band held {band['fraction']:.0%} of {band['n']} level "
+                                            "observations" if band.get("n") else ""), highlight=False)
 
 
 def _ratio_words(ratio: float | None) -> str:

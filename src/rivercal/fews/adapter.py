@@ -76,6 +76,8 @@ from rivercal.observations import ObservationSet
 if TYPE_CHECKING:
     from rivercal.models.contract import Model
     from rivercal.online.config import OnlineConfig
+    from rivercal.online.service import CycleOutcome, OnlineService
+    from rivercal.store import Run, Store
 
 __all__ = ["PROPERTIES", "AdapterError", "FewsOutcome", "run_module"]
 
@@ -553,7 +555,7 @@ def _is_pi(path: Path, root: str) -> bool:
 # -- outputs --------------------------------------------------------------------------------------
 
 
-def _forecast_series(store: Any, run: Any, cycle: int) -> list[PiSeries]:
+def _forecast_series(store: Store, run: Run, cycle: int) -> list[PiSeries]:
     fc = store.forecasts(run, cycle=cycle)
     out = []
     for (kind, series_id), part in fc.groupby(["kind", "series"], sort=True):
@@ -564,7 +566,7 @@ def _forecast_series(store: Any, run: Any, cycle: int) -> list[PiSeries]:
     return out
 
 
-def _estimate_series(store: Any, run: Any, cycle: int, used: Mapping[str, float], location: str,
+def _estimate_series(store: Store, run: Run, cycle: int, used: Mapping[str, float], location: str,
                      t0: pd.Timestamp) -> list[PiSeries]:
     est = store.estimates(run)
     est = est[est["cycle"] == cycle]
@@ -585,7 +587,7 @@ def _estimate_series(store: Any, run: Any, cycle: int, used: Mapping[str, float]
 # -- the module -----------------------------------------------------------------------------------
 
 
-def _check_times(run: RunFile, model: Any, config: Any) -> None:
+def _check_times(run: RunFile, model: Model, config: OnlineConfig) -> None:
     """time0 and the durations fit the case's period and the forecasts' time step (seconds: no overflow).
 
     The service runs the model from ``time0 - window - warmup``, takes the state for the next run's hot start
@@ -734,7 +736,7 @@ def _observables(case: Any) -> list[str]:
     return [o for s in case.network.stations for o in s.observables]
 
 
-def _report_cycle(outcome: Any, service: Any, diag: Diagnostics) -> None:
+def _report_cycle(outcome: CycleOutcome, service: OnlineService, diag: Diagnostics) -> None:
     units = {p.name: p.unit for p in service.parameters}
     diag.add("info", f"forecast {outcome.cycle} issued at {outcome.issue_time:%Y-%m-%d %H:%M} UTC: {outcome.status}, "
                      f"{outcome.model_runs} model runs, {outcome.wall_s:.1f} s"
@@ -754,7 +756,8 @@ def _report_cycle(outcome: Any, service: Any, diag: Diagnostics) -> None:
         diag.add("warn", f"alert ({alert.kind}): {alert.message}")
 
 
-def _write_outputs(run: RunFile, store: Any, service: Any, outcome: Any, case_name: str) -> list[str]:
+def _write_outputs(run: RunFile, store: Store, service: OnlineService, outcome: CycleOutcome,
+                   case_name: str) -> list[str]:
     files = list(run.output_series_files)
     if not files:
         return []
