@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rivercal.analysis.forecast import score_forecasts
 from rivercal.observations import ObservationSet
+from rivercal.online.metrics import score_forecasts
 from rivercal.store import AlertRecord, CycleRecord, EstimateRecord, Store, TransitionRecord
 
 SERIES = ["0028.h_up", "0028.h_down", "0040.h_up", "0040.h_down", "0029.h_up", "0029.h_down", "0029.Q", "0030.h_up",

@@ -227,7 +227,8 @@ def _not_a_duration(text: str) -> bool:
 @given(data=st.data())
 def test_online(data, paths) -> None:
     base = ["online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-            "--db", str(paths["root"] / "online.sqlite"), "--max-cycles", "1", "--workers", "1"]
+            "--db", str(paths["root"] / "online.sqlite"), "--max-cycles", "1", "--workers", "1", "--assimilate",
+            "parameters"]
     strategies = {
         "--from": BAD_DATE, "--to": BAD_DATE, "--params": BAD_PARAMS,
         "--window": NOT_A_TIME.filter(_not_a_duration), "--cycle": NOT_A_TIME.filter(_not_a_duration),

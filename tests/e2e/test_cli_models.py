@@ -59,7 +59,8 @@ def test_online_replays_seven_daily_cycles_on_swmm_from_hotstart_files(tmp_path)
     db = tmp_path / "run.sqlite"
     run = rivercal("online", "dommel-swmm", "--scenario", "PI-Wg", "--params", "FR,Wd", "--from", "2010-11-01",
                    "--to", "2010-11-07", "--window", "1D", "--warmup", "12h", "--horizon", "12h", "--workers", "1",
-                   "--no-transition", "--db", str(db), "--out", str(tmp_path / "report"), "--json", "--quiet")
+                   "--no-transition", "--assimilate", "parameters", "--db", str(db), "--out", str(tmp_path / "report"),
+                   "--json", "--quiet")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 7 and summary["status"] == {"done": 7} and summary["case"] == "dommel-swmm"

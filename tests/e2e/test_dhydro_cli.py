@@ -165,7 +165,7 @@ def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: 
     run = rivercal("online", str(case), "--observations", str(tmp_path / "observed.csv"), "--params", param,
                    "--from", issue, "--to", issue, "--max-cycles", "1", "--window", span, "--cycle", span,
                    "--horizon", span, "--warmup", online_warmup, "--db", str(tmp_path / "run.sqlite"),
-                   "--workers", "1", "--quiet", "--json")
+                   "--workers", "1", "--assimilate", "parameters", "--quiet", "--json")
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["status"] == {"done": 1}
     run = rivercal("analyse", str(case), "--params", param, "--window", window, "--warmup", warmup, "--workers", "1",

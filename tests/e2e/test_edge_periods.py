@@ -29,7 +29,7 @@ pytestmark = pytest.mark.slow
 def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:
     db, out = tmp_path / "run.sqlite", tmp_path / "x"
     args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-04", "--to", "2010-11-06", "--params", "FA",
-            "--no-transition", "--db", str(db), "--out", str(out), "--workers", "2")
+            "--no-transition", "--assimilate", "parameters", "--db", str(db), "--out", str(out), "--workers", "2")
     run = rivercal(*args, "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
@@ -54,7 +54,7 @@ def test_a_single_cycle_on_observations_that_end_at_its_issue_time(tmp_path: Pat
     assert sim.returncode == 0, sim.stderr
     run = rivercal("online", "dommel", "--observations", str(tmp_path / "o" / "series.csv"), "--from", "2010-11-10",
                    "--to", "2010-11-10", "--db", str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"),
-                   "--workers", "2", "--json")
+                   "--workers", "2", "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
@@ -65,7 +65,7 @@ def test_a_single_cycle_on_observations_that_end_at_its_issue_time(tmp_path: Pat
 
 def test_the_first_window_touching_the_case_start(tmp_path: Path) -> None:
     run = rivercal("online", "dommel", "--scenario", "PI-0", "--from", "2010-09-09", "--to", "2010-09-09", "--db",
-                   str(tmp_path / "run.sqlite"), "--workers", "2", "--json")
+                   str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
@@ -78,7 +78,8 @@ def test_the_first_window_touching_the_case_start(tmp_path: Path) -> None:
 
 def test_a_replay_whose_last_forecast_ends_at_the_case_end(tmp_path: Path) -> None:
     run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-28", "--to", "2010-11-29", "--db",
-                   str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2", "--json")
+                   str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2", "--assimilate",
+                   "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 2 and summary["status"] == {"done": 2}

@@ -240,7 +240,7 @@ def _problem(tmp_path: Path, truth: pd.DataFrame, **change) -> tuple[int, list[t
     ({"props": {"parameters": "FA,XX"}}, "unknown parameter 'XX'"),
     ({"props": {"parameters": "FA,W1,Wc"}}, "W1 and Wc both set weir:ZL1-5.crest_level; give only one of them"),
     ({"props": {"case": ""}}, "property 'case' is required"),
-    ({"props": {"window": "seven days"}}, "property 'window': 'seven days' is not a positive duration"),
+    ({"props": {"window": "seven days"}}, "property 'window' 'seven days': not a positive duration"),
     ({"obs": "unknown_location"}, "unknown location 'NOPE'"),
     ({"obs": "unknown_parameter"}, "unknown parameter 'WQ' at station 0028"),
     ({"obs": "no_data"}, "no observations of"),

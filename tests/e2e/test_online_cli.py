@@ -21,7 +21,8 @@ pytestmark = pytest.mark.slow
 def pifg(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     folder = tmp_path_factory.mktemp("online")
     run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--db", str(folder / "run.sqlite"), "--out", str(folder / "report"), "--workers", "2", "--json")
+                   "--db", str(folder / "run.sqlite"), "--out", str(folder / "report"), "--workers", "2",
+                   "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     return folder, json.loads(run.stdout)
 
@@ -65,7 +66,7 @@ def test_report_command_rewrites_from_the_store_alone(pifg, tmp_path: Path) -> N
 def test_restart_with_the_same_arguments_computes_nothing_again(pifg) -> None:
     folder, _ = pifg
     run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--db", str(folder / "run.sqlite"), "--workers", "2", "--json")
+                   "--db", str(folder / "run.sqlite"), "--workers", "2", "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles_done_now"] == 0 and summary["cycles"] == 2
@@ -91,7 +92,8 @@ def test_bad_input_exits_2_and_names_the_problem(tmp_path: Path, args: list[str]
 def test_realistic_crest_lowering_is_dated_once_and_its_value_taken(tmp_path: Path) -> None:
     """PI-Wg under realistic errors: the cycle two days after the change dates it and takes −0.15 m, one alert."""
     run = rivercal("online", "dommel", "--scenario", "PI-Wg", "--realism", "realistic", "--from", "2010-11-01",
-                   "--to", "2010-11-03", "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--json")
+                   "--to", "2010-11-03", "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate",
+                   "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["realism"] == "realistic" and summary["status"] == {"done": 3}
@@ -114,7 +116,7 @@ def test_sparse_dud_with_the_dependency_map_of_analyse_finds_the_local_friction(
     dependency = tmp_path / "analyse" / "dependency.csv"
     run = rivercal("online", "dommel", "--scenario", "PI-Fl", "--from", "2010-11-09", "--to", "2010-11-10",
                    "--params", "FA,F1,FL,W2", "--algorithm", "sparse_dud", "--dependency", str(dependency),
-                   "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--json")
+                   "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["status"] == {"done": 2}
@@ -129,10 +131,10 @@ def test_a_dependency_map_is_checked_before_any_run(tmp_path: Path) -> None:
     bad.write_text("station,FA\n0028.h_up,1.0\n", encoding="utf-8")
     base = ["online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
             "--db", str(tmp_path / "x.sqlite")]
-    for args, message in ((["--dependency", str(good)], "serves --algorithm sparse_dud only, not dud"),
+    for args, message in ((["--dependency", str(good)], "serves the algorithm sparse_dud only, not dud"),
                           (["--algorithm", "sparse_dud", "--dependency", str(bad)], f"{bad}: a dependency map has"),
                           (["--algorithm", "sparse_dud", "--dependency", str(good), "--params", "FA"],
-                           "names none of --params (FA); it names W2")):
+                           "names none of the parameters estimated (FA); it names W2")):
         run = rivercal(*base, *args)
         assert run.returncode == 2, run.stderr
         assert message in run.stderr and "Traceback" not in run.stderr

@@ -57,7 +57,8 @@ def test_follow_runs_each_cycle_when_its_data_arrive(tmp_path: Path) -> None:
     (inbox / "notes.csv").write_text("this is not an observation file\n", encoding="utf-8")
     proc = subprocess.Popen(
         [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--from", str(FIRST.date()), "--to",
-         str(LAST.date()), "--window", "3D", "--db", str(db), "--follow", str(inbox), "--poll", "0.5", "--workers", "2",
+         str(LAST.date()), "--window", "3D", "--assimilate", "parameters", "--db", str(db), "--follow", str(inbox),
+         "--poll", "0.5", "--workers", "2",
          "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

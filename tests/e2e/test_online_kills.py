@@ -71,7 +71,8 @@ CONTENT = {
 
 def command(db: str) -> list[str]:
     return [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-02",
-            "--to", "2010-11-05", "--window", "3D", "--params", "FA", "--db", db, "--workers", "2", "--quiet"]
+            "--to", "2010-11-05", "--window", "3D", "--params", "FA", "--db", db, "--workers", "2", "--quiet",
+            "--assimilate", "parameters"]
 
 
 @contextlib.contextmanager

@@ -40,6 +40,7 @@ def delivered(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 def _online(db: Path, observations: Path, *extra: str):
     return rivercal("online", "dommel", "--observations", str(observations), "--db", str(db), "--workers", "1",
+                    "--assimilate", "parameters",
                     "--quiet", *extra)
 
 

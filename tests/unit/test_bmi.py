@@ -16,7 +16,17 @@ from bmipy import Bmi
 
 from rivercal.models import load_model
 from rivercal.models.bmi import BmiModel, RivercalBmi
-from rivercal.models.bmi.engine import CREST, DISCHARGE, FRICTION, LEVEL, LEVEL_CHANGE, VELOCITY, VOLUME
+from rivercal.models.bmi.engine import (
+    BED,
+    CREST,
+    DISCHARGE,
+    FRICTION,
+    INFLOW_FACTOR,
+    LEVEL,
+    LEVEL_CHANGE,
+    VELOCITY,
+    VOLUME,
+)
 from rivercal.observations import ObservationSet
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
@@ -84,7 +94,7 @@ def test_update_until_reproduces_the_engine_and_set_value_changes_it(config, syn
     assert bmi.get_var_units(FRICTION) == "m1/3 s-1" and bmi.get_var_units(DISCHARGE) == "m3 s-1"
     assert [bmi.get_var_location(v) for v in (LEVEL, VOLUME, LEVEL_CHANGE, DISCHARGE, VELOCITY)] == [
         "node", "node", "node", "edge", "edge"]
-    assert bmi.get_var_type(LEVEL) == "float64" and bmi.get_input_item_count() == bmi.get_output_item_count() == 7
+    assert bmi.get_var_type(LEVEL) == "float64" and bmi.get_input_item_count() + 1 == bmi.get_output_item_count() == 9
     with pytest.raises(ValueError, match="past the end"):
         bmi.update_until(3 * 86400.0)
     bmi.finalize()
@@ -115,7 +125,7 @@ def test_the_grid_is_the_network(config, synthetic) -> None:
         bmi.get_var_grid("water")
 
 
-def _bmi_model(tmp_path: Path, synthetic) -> BmiModel:
+def _bmi_model(tmp_path: Path, synthetic, *, assimilate: bool = False) -> BmiModel:
     c = synthetic.compiled
     link = c.structure_link["W2"]
     (tmp_path / "engine.toml.tmpl").write_text('case = "synthetic"\nstart = "{{run_start}}"\nend = "{{end}}"\n')
@@ -149,8 +159,31 @@ def _bmi_model(tmp_path: Path, synthetic) -> BmiModel:
         "S1.h_up" = {{ var = "{LEVEL}", index = {c.arrays.lk_k1[link]} }}
         "S1.h_down" = {{ var = "{LEVEL}", index = {c.arrays.lk_k2[link]} }}
         "S1.Q" = {{ var = "{DISCHARGE}", index = {link} }}
-        ''').replace("'", '"'))
+        ''').replace("'", '"') + _PARAMETERS + (_ASSIMILATE if assimilate else ""))
     return load_model(tmp_path / "model.toml")
+
+
+#: The variables of state updating, and the scale factor of every inflow and lateral of the synthetic case.
+_ASSIMILATE = textwrap.dedent(f'''\
+    [bmi.assimilate]
+    levels = "{LEVEL}"
+    discharges = "{DISCHARGE}"
+    floor = "{BED}"
+    derived = ["{VOLUME}", "{VELOCITY}"]
+    ''') + "".join(f'[bmi.assimilate.forcing."{key}"]\nvar = "{INFLOW_FACTOR}"\nindex = {k}\n'
+                     for k, key in enumerate(("boundary:Qup", "boundary:Qtrib",
+                                              *(f"lateral:L{i}" for i in range(1, 11)))))
+#: A calibration parameter of the model (the on-line service estimates the model's own parameters).
+_PARAMETERS = textwrap.dedent('''\
+    [[parameters]]
+    name = "W2"
+    targets = ["crest_W2"]
+    min = 12.5
+    max = 13.5
+    initial = 12.85
+    perturbation = 0.05
+    unit = "m"
+    ''')
 
 
 def test_any_bmi_component_is_calibrated_through_the_adapter(tmp_path, synthetic) -> None:
@@ -184,3 +217,33 @@ def model_state(model: BmiModel, synthetic, state):
 
     return BmiState(state.time, {LEVEL: state.z, VOLUME: state.vol, LEVEL_CHANGE: state.dz, DISCHARGE: state.q,
                                  VELOCITY: state.u})
+
+
+def test_a_bmi_model_updates_its_state_as_the_engine_does(tmp_path, synthetic) -> None:
+    """[bmi.assimilate]: the levels and discharges through get_value/set_value are the engine's own arrays."""
+    from rivercal.models.contract import CAPABILITIES, has_capability
+
+    plain = _bmi_model(tmp_path, synthetic)
+    assert not has_capability(plain, "state arrays") and not has_capability(plain, "perturbable forcing")
+    model = _bmi_model(tmp_path, synthetic, assimilate=True)
+    assert {n for n in CAPABILITIES if has_capability(model, n)} == {"state arrays", "perturbable forcing"}
+    assert model.perturbable_forcing() == synthetic.perturbable_forcing()
+    layout, engine = model.state_layout(), synthetic.state_layout()
+    assert np.array_equal(layout.link_ends, engine.link_ends) and np.array_equal(layout.floor, engine.floor)
+    assert layout.places == {k: engine.places[k] for k in model.observables}
+    assert layout.forcing_places == engine.forcing_places
+    _, state = synthetic.simulate({}, end=START)
+    bmi_state = model_state(model, synthetic, state)
+    z, q = model.state_arrays(bmi_state)
+    assert np.array_equal(z, state.z) and np.array_equal(q, state.q)
+    # written back: levels 5 cm up, discharges 10 % up; through BMI and in the engine, the runs agree
+    written = model.with_state_arrays(bmi_state, z + 0.05, 1.1 * q)
+    assert VOLUME not in written.values and VELOCITY not in written.values   # the component derives them
+    engine_written = synthetic.with_state_arrays(state, state.z + 0.05, 1.1 * state.q)
+    factors = np.full((6, len(synthetic.perturbable_forcing())), 1.3)
+    end = START + pd.Timedelta("6h")
+    got, _ = model.simulate_perturbed({}, START, end, written, factors, 3600.0)
+    want, _ = synthetic.simulate_perturbed({}, START, end, engine_written, factors, 3600.0)
+    np.testing.assert_allclose(got.series.to_numpy(), want.series[model.observables].to_numpy(), atol=1e-6)
+    base, _ = synthetic.simulate({}, start=START, end=end, state=engine_written)
+    assert (want.series["S1.Q"].iloc[1:] > base.series["S1.Q"].iloc[1:]).all()   # 30 % more inflow arrives

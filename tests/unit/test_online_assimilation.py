@@ -13,7 +13,8 @@ import pandas as pd
 import pytest
 
 from rivercal.model import load_model
-from rivercal.online.assimilation import AssimilationConfig, mae_by_lead
+from rivercal.online.assimilation import AssimilationConfig
+from rivercal.online.metrics import mae_by_lead
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.store import Store
 from rivercal.twin.forcing_error import rain_error_model
@@ -66,7 +67,7 @@ def test_members_are_stored_and_the_next_cycle_continues_from_them(twin):
     assert (when, cycle, n) == (outcomes[1].issue_time, 1, 16) and len(data) > 0
     assert store.model_state(service.run, "ensemble:0") is None   # no longer one model state per member
     members, errors = service.filter.from_store(store, service.run, outcomes[1].issue_time)
-    assert len(members) == 16 and errors.shape == (16, int(service.filter.perturbed.sum()))
+    assert len(members) == 16 and errors.shape == (16, service.filter.n_forcing)
     spread = np.std([m.z for m in members], axis=0)
     assert spread.max() > 0.0            # the members differ
     # the bands stored with each cycle are the ensemble forecast's
@@ -89,3 +90,96 @@ def test_state_updating_refuses_a_bad_configuration():
         AssimilationConfig(mode="everything")
     with pytest.raises(ValueError, match="members must be between"):
         AssimilationConfig(mode="both", members=1)
+
+
+def _states_twin(model, truth_model, tmp_path, *, members: int, first: str, series=None, name="run") -> tuple:
+    """One cycle of state updating alone on ``model``, observing ``truth_model`` (a truth with wrong rain)."""
+    first_issue = pd.Timestamp(first, tz="UTC")
+    config = OnlineConfig(parameters=tuple(model.calibration.names[:1]), window="1D", warmup="12h", horizon="6h",
+                          workers=1, series=series)
+    store = Store(tmp_path / f"{name}.sqlite")
+    service = OnlineService(model, store, "twin", config, first_issue,
+                            assimilation=AssimilationConfig(mode="states", members=members, seed=3))
+    truth = practical_truth(truth_model, "PI-0", *service.data_period(first_issue), noise="gaussian", seed=5,
+                            series=service.series)
+    store.ingest(truth.observations, source="twin")
+    outcome = service.replay(first_issue)
+    service.close()
+    return store, service, truth, outcome
+
+
+@pytest.mark.slow  # about 20 s: 8 members × 42 one-hour SWMM runs, one after another
+def test_state_updating_corrects_a_swmm_model_through_its_hotstart_file(tmp_path):
+    """SWMM: the members' states are hotstart files, their analysed heads written back into them."""
+    model = load_model("dommel-swmm")
+    store, service, truth, (outcome,) = _states_twin(model, rain_error_model(model, 0.3, seed=5), tmp_path,
+                                                     members=8, first="2010-09-22")
+    assert outcome.status == "done" and "36 state analyses of 8 members" in outcome.message
+    mae = mae_by_lead(store, service.run, service.series, truth.series)
+    assert mae["updated"]["0-6h"] < 0.8 * mae["dss"]["0-6h"], mae
+    store.close()
+
+
+@pytest.mark.slow  # about 20 s: two services, 6 members each (the BMI one through 250 BMI runs)
+def test_state_updating_through_bmi_is_the_engine_s_own(tmp_path):
+    """BMI: the engine as a BMI component, updated through get_value/set_value, filters as the engine itself does."""
+    from rivercal.case import case_from_dict
+    from rivercal.models import build_model
+    from tests.unit.test_bmi import _bmi_model
+
+    synthetic = load_model("synthetic")
+    model = _bmi_model(tmp_path, synthetic, assimilate=True)
+    data = synthetic.case.spec.model_dump(mode="json", exclude_unset=True, by_alias=True)
+    data["parameters"] = [{"name": "W2", "targets": ["weir:W2.crest_level"], "min": 12.5, "max": 13.5,
+                           "initial": 12.85, "perturbation": 0.05, "unit": "m"}]  # as the BMI model's W2
+    engine = build_model(case_from_dict(data, synthetic.case.root))
+    truth_model = rain_error_model(synthetic, 0.4, seed=5)
+    runs = {name: _states_twin(m, truth_model, tmp_path, members=6, first="2020-01-04", series=model.observables,
+                               name=name) for name, m in (("bmi", model), ("engine", engine))}
+    forecasts = {name: store.forecasts(service.run, kind="updated").set_index(["series", "time"])["value"]
+                 for name, (store, service, _, _) in runs.items()}
+    bmi, engine = forecasts["bmi"], forecasts["engine"].loc[forecasts["bmi"].index]
+    # the same filter on the same runs: the engine hot-starts its members through the run, BMI hour by hour, and
+    # spins the first state up through its component (measured: 0.4 mm of level, 3 l/s of discharge apart)
+    assert len(bmi) == 3 * 7 and np.allclose(bmi.to_numpy(), engine.to_numpy(), atol=5e-3)
+    store, service, truth, _ = runs["bmi"]
+    mae = mae_by_lead(store, service.run, service.series, truth.series)
+    assert mae["updated"]["0-6h"] < mae["dss"]["0-6h"], mae
+    for store, *_ in runs.values():
+        store.close()
+
+
+def test_a_model_without_the_capabilities_is_refused_with_what_it_lacks(tmp_path):
+    from rivercal.models.contract import MissingCapability
+    from tests.unit.test_bmi import _bmi_model
+
+    model = _bmi_model(tmp_path, load_model("synthetic"))
+    with Store(tmp_path / "run.sqlite") as store, pytest.raises(MissingCapability) as refused:
+        OnlineService(model, store, "x", OnlineConfig(parameters=("W2",), window="1D", warmup="12h", workers=1),
+                      "2020-01-04", assimilation=AssimilationConfig(mode="both"))
+    assert "state updating (--assimilate states or both) needs a model with 'state arrays' and 'perturbable " \
+           "forcing'; model 'synthetic-bmi' (BmiModel) lacks 'state arrays' and 'perturbable forcing'" \
+           == str(refused.value)
+
+
+def test_a_failed_member_is_replaced_by_a_copy_of_a_survivor_and_all_failed_stops_the_filter(twin):
+    from rivercal.errors import ModelRunError
+    from rivercal.models.contract import MemberRuns
+
+    _, service, _, _ = twin
+    filt = service.filter
+    times = pd.date_range("2010-10-18", periods=2, freq="h", tz="UTC")
+    states = ("a", None, "c")
+    values = np.arange(3 * 2 * len(service.model.observables), dtype=float).reshape(3, 2, -1)
+    values[1] = np.nan
+    errors = np.arange(3.0)[:, None] * np.ones((3, filt.n_forcing))
+    runs = MemberRuns(times, tuple(service.model.observables), values, states, failures={1: "diverged"})
+    members, new_errors, new_values = filt._survivors(runs, errors, np.random.default_rng(0))
+    assert members[1] in ("a", "c") and members[0] == "a" and members[2] == "c"
+    donor = 0 if members[1] == "a" else 2
+    assert np.array_equal(new_values[1], values[donor]) and np.array_equal(new_errors[1], errors[donor])
+    assert np.isnan(values[1]).all() and errors[1, 0] == 1.0   # the inputs are not changed
+    dead = MemberRuns(times, tuple(service.model.observables), values, (None,) * 3,
+                      failures={0: "diverged", 1: "diverged", 2: "diverged"})
+    with pytest.raises(ModelRunError, match="every member of the ensemble failed; the first: diverged"):
+        filt._survivors(dead, errors, np.random.default_rng(0))

@@ -19,6 +19,7 @@ import pytest
 from rivercal.engine.state import EngineState, SimulationResult
 from rivercal.models import CalibrationSetup, Quantity
 from rivercal.observations import ObservationSeries, ObservationSet
+from rivercal.online.config import OnlineConfigError
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.parameters import Parameter
 from rivercal.store import Store
@@ -244,8 +245,14 @@ def test_a_window_without_observations_fails_but_still_forecasts(tmp_path) -> No
 
 
 def test_bad_configurations_are_refused_before_any_run(tmp_path) -> None:
-    with pytest.raises(ValueError, match="window must be positive"):
+    with pytest.raises(OnlineConfigError, match="online window '0D': not a positive duration") as bad:
         OnlineConfig(window="0D")
+    assert (bad.value.field, bad.value.value) == ("window", "0D")
+    assert bad.value.describe("property 'window'") == ("property 'window' '0D': not a positive duration (e.g. 7D, "
+                                                        "48h, 90min)")
+    with pytest.raises(OnlineConfigError) as bad:
+        OnlineConfig.from_options(parameters="FA,Wd", max_change="FA=-1")
+    assert bad.value.describe("--max-change") == "--max-change 'FA=-1': the value of FA must be a positive number"
     with Store(tmp_path / "s.sqlite") as store:
         with pytest.raises(ValueError, match="unknown parameter 'Fx'"):
             OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("Fx",)), "2010-10-25")

@@ -4,7 +4,7 @@ The rule (:func:`rivercal.online.skill.choose_forecast`) is checked on score tab
 end to end on the toy river of ``test_online_service``: a gauge whose sensor read 5 cm high for a
 while pulls the friction estimate away, the updated forecasts lose to the DSS's (which is the truth
 there) and the service falls back; the mowed river of thesis §5-2-1 (PI-Fg's change on the toy) gives
-the headline figures of :func:`rivercal.report.online_figures.run_figures`.
+the headline figures of :func:`rivercal.online.metrics.run_figures`.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 
 from rivercal.observations import ObservationSeries, ObservationSet
+from rivercal.online.metrics import run_figures
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.online.skill import choose_forecast
-from rivercal.report.online_figures import run_figures
 from rivercal.store import Store
 from tests.unit.test_online_service import CHANGE, IDS, MOWED, ToyRiver, _observations
 
@@ -88,9 +88,16 @@ def test_headline_figures_of_the_mowed_river(tmp_path) -> None:
     with Store(tmp_path / "run.sqlite") as store:
         store.ingest(_observations(ToyRiver(), MOWED), "truth")
         # the toy's mowing is PI-Fg's (16 → 25 on 2010-11-01), so the scenario's truth applies
-        svc = OnlineService(ToyRiver(), store, "toy", config, first_issue="2010-10-27", meta={"scenario": "PI-Fg"})
+        from rivercal.twin.practical import SCENARIOS
+
+        meta = {"scenario": "PI-Fg", "truth": SCENARIOS["PI-Fg"].facts()}
+        svc = OnlineService(ToyRiver(), store, "toy", config, first_issue="2010-10-27", meta=meta)
         out = svc.replay("2010-11-08")
         f = run_figures(store, svc.run)
+        # the service stored these figures with its last cycle: readers read that value, not their own
+        stored = store.metrics(svc.run)
+        assert {k: stored[k] for k in f} == f and store.metrics(svc.run, cycle=out[-1].cycle) == stored
+        assert stored["forecast_errors"]["n"] > 0 and store.metrics(svc.run, cycle=0)["jump_alerts"] == 0
         second = [o for o in out if o.issue_time > CHANGE][1]
         assert f["jump_alerts"] == 1 and f["time_to_correct_cycles"] == 2 and f["time_to_settle_cycles"] == 2
         assert abs(second.accepted["FA"] - 25.0) <= 0.45  # 5 % of the change

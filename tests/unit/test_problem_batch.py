@@ -75,7 +75,7 @@ def test_a_calibration_with_batches_is_the_serial_calibration(synthetic) -> None
             return super()._batched(points)
 
     serial = calibrate(_problem(synthetic), "dud", workers=1)
-    import rivercal.problem as problem_module
+    import rivercal.problem.fit as problem_module
 
     original = problem_module.Evaluator
     problem_module.Evaluator = Counting

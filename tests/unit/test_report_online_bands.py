@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from rivercal.observations import ObservationSet
-from rivercal.online.assimilation import band_coverage
+from rivercal.online.metrics import band_coverage
 from rivercal.report.html import Page
 from rivercal.report.online_bands import band_blocks, band_figure
 from rivercal.store import BandRecord, CycleRecord, Schedule, Store

@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from rivercal.analysis.forecast import score_forecasts
 from rivercal.observations import ObservationSet
+from rivercal.online.metrics import score_forecasts
 from rivercal.store import (
     AlertRecord,
     CycleRecord,

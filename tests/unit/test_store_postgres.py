@@ -40,8 +40,8 @@ def test_a_plain_sql_step_migrates_a_store_on_either_server(location, monkeypatc
         store.ingest(ObservationSet.from_frame(frame), "telemetry")
     new = SCHEMA_VERSION + 1
     step = store_schema.Migration(new, "quality of observations, station notes", store_schema._statements(*PLAIN_STEP))
-    monkeypatch.setattr("rivercal.store.sqlite.MIGRATIONS", (*store_schema.MIGRATIONS, step))
-    monkeypatch.setattr("rivercal.store.sqlite.SCHEMA_VERSION", new)
+    monkeypatch.setattr("rivercal.store.base.MIGRATIONS", (*store_schema.MIGRATIONS, step))
+    monkeypatch.setattr("rivercal.store.base.SCHEMA_VERSION", new)
     with Store(location) as store:
         assert store.schema_version == new
         conn = store._conn

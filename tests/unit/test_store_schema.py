@@ -73,8 +73,8 @@ def test_a_new_store_has_wal_foreign_keys_full_sync_and_the_current_schema(tmp_p
         assert [r[0] for r in rows] == list(range(1, SCHEMA_VERSION + 1))
         assert store_schema.user_tables(store._conn) == ["alerts", "cycles", "ensembles", "estimates",
                                                          "forecast_bands", "forecast_scores", "forecasts",
-                                                         "model_states", "observation_gaps", "observations", "runs",
-                                                         "schema_version", "transitions"]
+                                                         "model_states", "observation_gaps", "observations",
+                                                         "run_products", "runs", "schema_version", "transitions"]
     with Store(tmp_path / "s.db", synchronous="NORMAL") as store:
         assert store._conn.execute("PRAGMA synchronous").fetchone()[0] == 1
 
@@ -84,7 +84,7 @@ def test_a_version_1_file_migrates_forward_and_keeps_its_data(tmp_path: Path) ->
     with Store(path) as store:
         assert store.schema_version == SCHEMA_VERSION
         history = store._conn.execute("SELECT version, applied FROM schema_version ORDER BY version").fetchall()
-        assert [v for v, _ in history] == [1, 2, 3, 4, 5, 6]
+        assert [v for v, _ in history] == [1, 2, 3, 4, 5, 6, 7]
         assert history[0][1] == "2026-01-05T10:00:00.000Z"  # the old row stays
         run = store.get_run("dommel-2010")
         assert run.config == {"window_days": 7}
@@ -99,6 +99,7 @@ def test_a_version_1_file_migrates_forward_and_keeps_its_data(tmp_path: Path) ->
         assert cycles["issued_forecast"].isna().all() and store.transitions(run.id).empty
         assert store.gaps().empty and store.flag_counts().empty
         assert store.ensemble(run.id) is None and store.forecast_bands(run.id).empty  # version 6
+        assert store.metrics(run.id) is None and store.product(run.id, "twin-fields") is None  # version 7
         assert store.integrity_check() == []
     with Store(path) as store:  # opening again changes nothing
         assert len(store._conn.execute("SELECT * FROM schema_version").fetchall()) == SCHEMA_VERSION
@@ -113,7 +114,7 @@ def test_a_failing_migration_leaves_the_file_at_its_last_whole_version(tmp_path:
 
     steps = list(MIGRATIONS)
     steps[1] = store_schema.Migration(2, "broken", broken)
-    monkeypatch.setattr("rivercal.store.sqlite.MIGRATIONS", tuple(steps))
+    monkeypatch.setattr("rivercal.store.base.MIGRATIONS", tuple(steps))
     with pytest.raises(RuntimeError, match="disk on fire"):
         Store(path)
     conn = sqlite3.connect(path)

@@ -273,9 +273,12 @@ def realism(
     seed: Annotated[int, typer.Option(help="Seed of the realism errors (≥ 0).")] = 0,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
     keep: Annotated[Path | None, typer.Option(help="Keep the stores in this folder (for reports).")] = None,
+    assimilate: Annotated[str, typer.Option(help="Comma-separated modes of the service: both, parameters, states.")]
+    = "both,parameters",
+    members: Annotated[int, typer.Option(help="Ensemble members of state updating.")] = 64,
     as_json: JsonOpt = False,
 ) -> None:
-    """The on-line service's four weeks (2010-10-18 .. 11-15) per practical scenario × realism level on dommel."""
+    """The on-line service's four weeks (2010-10-18 .. 11-15) per scenario × realism level × mode on dommel."""
     from rivercal.bench.realism import bench_realism
     from rivercal.twin.practical import PRACTICAL_SCENARIOS
     from rivercal.twin.realism import REALISM_LEVELS
@@ -288,23 +291,29 @@ def realism(
         check_choice(name, "--levels", REALISM_LEVELS, "realism level")
     check_number(seed, "--seed", low=0)
     check_workers(workers)
+    modes = parse_names(assimilate, "--assimilate")
+    for mode in modes:
+        check_choice(mode, "--assimilate", ("both", "parameters", "states"), "mode")
+    check_number(members, "--members", low=2, high=10_000)
     watch_compilation(True)
-    result = bench_realism(scenarios=names, levels=kinds, seed=seed, workers=workers, keep=keep)
+    result = bench_realism(scenarios=names, levels=kinds, seed=seed, workers=workers, keep=keep, modes=modes,
+                           members=members)
     if as_json:
         emit_json(result)
         return
     table = Table(title=f"on-line service on {result['case']}, {result['from']} .. {result['to']} (seed {seed})")
-    for col in ("scenario", "realism", "MAE ratio", "rivercal cm", "DSS cm", "time to correct", "jump alerts",
-                "fallbacks", "wall s"):
+    for col in ("scenario", "realism", "updates", "MAE ratio", "rivercal cm", "DSS cm", "time to correct",
+                "jump alerts", "fallbacks", "90 % band", "wall s"):
         table.add_column(col, justify="right")
     for r in result["rows"]:
         ratio = r["forecast_mae_ratio"]
         ttc = r["time_to_correct_cycles"]
-        table.add_row(r["scenario"], r["realism"], "-" if ratio is None else f"{ratio:.2f}",
+        band = r.get("band_coverage_90")
+        table.add_row(r["scenario"], r["realism"], r["assimilate"], "-" if ratio is None else f"{ratio:.2f}",
                       "-" if r["rivercal_mae_m"] is None else f"{r['rivercal_mae_m'] * 100:.2f}",
                       "-" if r["dss_mae_m"] is None else f"{r['dss_mae_m'] * 100:.2f}",
                       "-" if ttc is None else str(ttc), str(r["jump_alerts"]), str(r["fallbacks"]),
-                      f"{r['wall_s']:.0f}")
+                      "-" if band is None else f"{band:.0%}", f"{r['wall_s']:.0f}")
     out_console.print(table)
 
 

@@ -26,17 +26,12 @@ from rivercal.cli.common import (
 from rivercal.cli.options import (
     check_choice,
     check_number,
-    check_overlap,
     check_workers,
     dask_address,
     open_model,
     output_dir,
     output_file,
-    parse_assignments,
-    parse_duration,
-    parse_names,
     parse_time,
-    read_dependency,
     read_observations,
     workers_for,
 )
@@ -89,9 +84,9 @@ def online(
         help="Errors of the twin of --scenario: ideal, noisy, realistic, or a TOML file of error models "
              "(docs/realism.md).")] = None,
     max_cycles: Annotated[int | None, typer.Option("--max-cycles", help="Stop after this many cycles.")] = None,
-    assimilate: Annotated[str, typer.Option(
-        help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both.")]
-    = "parameters",
+    assimilate: Annotated[str | None, typer.Option(
+        help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both (default "
+             "where the model can update its states, else parameters).")] = None,
     members: Annotated[int, typer.Option(help="With --assimilate states|both: ensemble members.")] = 64,
     ensemble_filter: Annotated[str, typer.Option(
         "--filter", help="With --assimilate states|both: etkf (square root) or enkf (perturbed observations).")]
@@ -109,11 +104,14 @@ def online(
     quiet: QuietOpt = False,
 ) -> None:
     """Run the on-line service: every cycle re-estimates the parameters and forecasts against the DSS."""
-    from rivercal.online.assimilation import ASSIMILATE_MODES, AssimilationConfig
-    from rivercal.online.service import OnlineConfig
-    from rivercal.optimise import OPTIMISERS
-    from rivercal.optimise.registry import RENAMED
-    from rivercal.problem import LOSSES
+    from rivercal.models.contract import require
+    from rivercal.online.assimilation import (
+        ASSIMILATE_MODES,
+        NEEDS,
+        AssimilationConfig,
+        can_update_states,
+        default_mode,
+    )
     from rivercal.twin import NOISE_MODELS
     from rivercal.twin.practical import SCENARIOS
     from rivercal.workflows.online import run_online
@@ -146,28 +144,17 @@ def online(
     if follow is not None and not follow.is_dir():
         raise OptionError(f"--follow {follow}: no such folder", option="--follow")
     check_number(poll, "--poll", low=0, low_open=True)
-    names = parse_names(params, "--params")
-    if not names:
-        raise OptionError("--params: give at least one parameter name", option="--params")
-    for option, text in (("--window", window), ("--cycle", cycle), ("--horizon", horizon)):
-        parse_duration(text, option)
-    parse_duration(warmup, "--warmup", allow_zero=True)
-    check_choice(algorithm, "--algorithm", sorted(OPTIMISERS), former=RENAMED)
-    check_number(deadline, "--deadline", low=0, low_open=True)
-    read_dependency(dependency, dependency_threshold, algorithm, names)
-    change = parse_assignments(max_change, "--max-change", example="FA=5,Wd=0.1")
-    for name, value in change.items():
-        if name not in names:
-            raise OptionError(f"--max-change {name}={value:g}: {name!r} is not in --params", option="--max-change")
-        if not value > 0:
-            raise OptionError(f"--max-change {name}={value:g}: the largest change must be positive",
-                              option="--max-change")
-    check_number(alert_k, "--alert-k", low=0, low_open=True)
-    check_choice(loss, "--loss", LOSSES)
-    check_number(skill_cycles, "--skill-cycles", low=0)
+    # the configuration's own checks (rivercal.online.config), each problem named by its option
+    settings = {"parameters": params, "window": window, "period": cycle, "horizon": horizon, "warmup": warmup,
+                "algorithm": algorithm, "deadline_s": deadline, "max_change": max_change, "alert_k": alert_k,
+                "loss": loss, "transition": transition, "skill_cycles": skill_cycles,
+                "dependency": str(dependency) if dependency is not None else None,
+                "dependency_threshold": dependency_threshold}
+    config = _config(None, settings)
     check_number(seed, "--seed", low=0)
     check_number(max_cycles, "--max-cycles", low=1)
-    check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
+    if assimilate is not None:
+        check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
     check_number(members, "--members", low=2, high=10_000)
     check_choice(ensemble_filter, "--filter", ("etkf", "enkf"))
     check_number(rain_error, "--rain-error", low=0, high=2)
@@ -181,17 +168,13 @@ def online(
         output_dir(out)
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
-    known = model.calibration.names
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise OptionError(f"--params: unknown parameter {unknown[0]!r}; {model.name!r} defines {', '.join(known)}",
-                          option="--params")
-    check_overlap(model, names)
-    config = OnlineConfig(parameters=tuple(names), window=window, period=cycle, horizon=horizon, warmup=warmup,
-                          algorithm=algorithm, deadline_s=deadline, max_change=change, alert_k=alert_k,
-                          loss=loss, transition=transition, skill_cycles=skill_cycles, workers=None,
-                          dependency=str(dependency) if dependency is not None else None,
-                          dependency_threshold=dependency_threshold)
+    config = _config(model, settings)
+    mode = assimilate if assimilate is not None else default_mode(model)
+    if mode != "parameters" and not can_update_states(model):
+        try:
+            require(model, *NEEDS, purpose=f"--assimilate {mode}")
+        except ValueError as exc:
+            raise OptionError(f"{exc}; use --assimilate parameters", option="--assimilate") from None
     check_times(model, config, first, last, {"first": date_from, "last": date_to})
     reporter = Reporter(not (quiet or as_json))
     with reporter.running("starting"), workers_for(workers, address) as where:
@@ -199,7 +182,7 @@ def online(
         summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter,
-                             assimilation=AssimilationConfig(mode=assimilate, members=members, method=ensemble_filter,
+                             assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
                                                              seed=seed),
                              rain_error=rain_error, take_over=take_over)
     if as_json:
@@ -208,6 +191,24 @@ def online(
         print_summary(summary)
     if summary["cycles_done_now"] and not summary["cycles_succeeded_now"]:
         raise NoCycleSucceeded(summary)
+
+
+#: The option that sets each field of the on-line configuration (for the messages of its checks).
+_OPTION_OF = {"parameters": "--params", "window": "--window", "period": "--cycle", "horizon": "--horizon",
+              "warmup": "--warmup", "algorithm": "--algorithm", "deadline_s": "--deadline",
+              "max_change": "--max-change", "alert_k": "--alert-k", "loss": "--loss", "skill_cycles": "--skill-cycles",
+              "dependency": "--dependency", "dependency_threshold": "--dependency-threshold", "workers": "--workers"}
+
+
+def _config(model: Any, settings: dict[str, Any]) -> Any:
+    """:meth:`rivercal.online.config.OnlineConfig.from_options`; a problem is named by its option."""
+    from rivercal.online.config import OnlineConfig, OnlineConfigError
+
+    try:
+        return OnlineConfig.from_options(model, **settings)
+    except OnlineConfigError as exc:
+        option = _OPTION_OF.get(exc.field, f"--{exc.field.replace('_', '-')}")
+        raise OptionError(exc.describe(option), option=option) from None
 
 
 class NoCycleSucceeded(RivercalError):
@@ -314,6 +315,12 @@ def _print_figures(summary: dict[str, Any]) -> None:
              else f"— ({summary.get('time_to_correct_reason')})")
     out_console.print(f"time to correct the changed parameters: {words}; jump alerts: {summary.get('jump_alerts', 0)}; "
                       f"fallbacks to the DSS's forecast: {summary.get('fallbacks', 0)}", highlight=False)
+    mode = summary.get("assimilate", "parameters")
+    what = {"both": "states (hourly, ensemble Kalman filter) and parameters (daily)", "states": "states only",
+            "parameters": "parameters only"}.get(mode, mode)
+    band = summary.get("band_coverage_90") or {}
+    out_console.print(f"updated: {what}" + (f"; the 90 % band held {band['fraction']:.0%} of {band['n']} level "
+                                            "observations" if band.get("n") else ""), highlight=False)
 
 
 def _ratio_words(ratio: float | None) -> str:

@@ -23,6 +23,7 @@ and carries the controllers' state in :class:`EngineState` (``ctl``).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import logging
 import time as _time
@@ -58,6 +59,7 @@ from rivercal.engine.kernels.codes import (
 )
 from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import make_work, run, run_ext
+from rivercal.engine.quantities import Settable, settable_table
 from rivercal.engine.state import EngineState, Shortfall, SimulationResult, VolumeBalance
 from rivercal.errors import EngineDivergedError
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
@@ -93,6 +95,9 @@ def parse_target(target: str) -> tuple[str, str]:
         "'friction:branch:<id>', 'friction:group:<id>', 'friction:scale' or 'control:<id>.<quantity>'"
     )
 
+
+_LAWS = {code: name for name, code in FRICTION_CODES.items()}
+_MANNING = FRICTION_CODES["manning"]
 
 #: How many spun-up states a Simulator keeps for :meth:`Simulator.state_at`.
 SPUN_UP_KEPT = 8
@@ -202,70 +207,66 @@ class Simulator:
             return None
         return self.controls.values(parameters)
 
+    @functools.cached_property
+    def settable(self) -> dict[str, Settable]:
+        """The settable quantities of the case, by name (:func:`rivercal.engine.quantities.settable_table`)."""
+        return settable_table(self.compiled, self.case.spec.friction.type, self.controls)
+
     def parameter_arrays(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray]:
-        """Crest levels (m AD, per weir) and friction values (per friction slot) for a set of targets."""
+        """Crest levels (m AD, per weir) and friction values (per friction slot) for a set of targets.
+
+        The targets are names of :attr:`settable`; the controllers' are taken by :meth:`control_values`.
+        """
         c = self.compiled
         crest = c.crest_levels.copy()
         fric = c.friction_values.copy()
-        ftype = {code: name for name, code in FRICTION_CODES.items()}
-        weir_pos = {w: i for i, w in enumerate(c.weir_ids)}
-        branch_pos = {b: i for i, b in enumerate(c.branch_ids)}
+        table = self.settable
         # Global first, so that a branch-specific value given in the same call wins; the scale last.
         items = sorted((parameters or {}).items(),
                        key=lambda kv: (kv[0] == "friction:scale", kv[0] != "friction:global"))
-        slots = {key: i for i, key in enumerate(c.friction_slots)}
         for target, value in items:
             if target.startswith("control:"):
                 continue  # control_values
-            kind, ident = parse_target(target)
+            entry = table.get(target)
+            if entry is None or entry.kind == "control":
+                self._unknown_quantity(target)
             value = float(value)
             if not np.isfinite(value):
                 raise ValueError(f"{target}: value {value} is not finite")
-            if kind == "scale":
-                if not 0.05 <= value <= 20.0:
-                    raise ValueError(f"{target}: factor {value:g} is outside 0.05-20")
-                used = set(np.unique(c.arrays.lk_fric).tolist())
+            if entry.kind == "scale":
+                if not entry.low <= value <= entry.high:
+                    raise ValueError(f"{target}: factor {value:g} is outside {entry.low:g}-{entry.high:g}")
                 for i, code in enumerate(c.arrays.fr_type):
-                    name = ftype[int(code)]
-                    if name == "white-colebrook" and i in used:
-                        raise KeyError(f"{target}: case {self.case.name!r} has White-Colebrook friction, whose "
-                                       "conveyance a factor on the coefficient does not scale")
-                    fric[i] = fric[i] / value if name == "manning" else fric[i] * value
+                    fric[i] = fric[i] / value if int(code) == _MANNING else fric[i] * value
                 continue
-            if kind == "group":
-                if ("group", ident) not in slots:
-                    raise KeyError(f"{target}: no friction group {ident!r} in case {self.case.name!r}")
-                i = slots[("group", ident)]
-                name = ftype[int(c.arrays.fr_type[i])]
-                low, high, unit = FRICTION_RANGES[name]
-                if not low <= value <= high:
-                    raise ValueError(f"{target}: {name} value {value:g} {unit} is outside the plausible range "
-                                     f"{low:g}-{high:g} {unit}")
-                fric[i] = value
-                continue
-            if kind == "weir":
-                if ident not in weir_pos:
-                    raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")
+            if entry.kind == "weir":
                 if abs(value) > MAX_LEVEL:
                     raise ValueError(f"{target}: crest level {value:g} m AD is outside ±{MAX_LEVEL:g} m AD")
-                crest[weir_pos[ident]] = value
+                crest[entry.slots[0]] = value
                 continue
-            if kind == "friction":
-                branches = list(c.branch_inherits)
-                if not branches:
-                    raise KeyError(f"{target}: every branch of case {self.case.name!r} has its own friction")
-            else:
-                if ident not in branch_pos:
-                    raise KeyError(f"{target}: no branch {ident!r} in case {self.case.name!r}")
-                branches = [ident]
-            for b in branches:
-                name = ftype[int(c.arrays.fr_type[branch_pos[b]])]
-                low, high, unit = FRICTION_RANGES[name]
+            for slot in entry.slots:  # friction: global, branch or group
+                law = _LAWS[int(c.arrays.fr_type[slot])]
+                low, high, unit = FRICTION_RANGES[law]
                 if not low <= value <= high:
-                    raise ValueError(f"{target}: {name} value {value:g} {unit} is outside the plausible range "
+                    raise ValueError(f"{target}: {law} value {value:g} {unit} is outside the plausible range "
                                      f"{low:g}-{high:g} {unit}")
-                fric[branch_pos[b]] = value
+                fric[slot] = value
         return crest, fric
+
+    def _unknown_quantity(self, target: str) -> None:
+        """KeyError saying why ``target`` is not a settable quantity of the case."""
+        kind, ident = parse_target(target)  # a malformed name: KeyError naming the forms
+        c = self.compiled
+        if kind == "scale":
+            raise KeyError(f"{target}: case {self.case.name!r} has White-Colebrook friction, whose "
+                           "conveyance a factor on the coefficient does not scale")
+        if kind == "group":
+            raise KeyError(f"{target}: no friction group {ident!r} in case {self.case.name!r}")
+        if kind == "weir":
+            raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")
+        if kind == "friction" and not c.branch_inherits:
+            raise KeyError(f"{target}: every branch of case {self.case.name!r} has its own friction")
+        raise KeyError(f"{target}: no branch {ident!r} in case {self.case.name!r}")
 
     # -- state ---------------------------------------------------------------------------------
 

@@ -38,7 +38,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -59,7 +59,7 @@ from rivercal.fews.pi import (
     write_diag,
     write_state_description,
 )
-from rivercal.fews.properties import PROPERTIES, AdapterError, duration, number, prop
+from rivercal.fews.properties import PROPERTIES, AdapterError, prop
 from rivercal.io.pixml import (
     EXPECTED_UNITS,
     PI_NAMESPACE,
@@ -72,7 +72,12 @@ from rivercal.io.pixml import (
 )
 from rivercal.network import MAX_DISCHARGE, MAX_LEVEL
 from rivercal.observations import ObservationSet
-from rivercal.parameters import shared_quantity
+
+if TYPE_CHECKING:
+    from rivercal.models.contract import Model
+    from rivercal.online.config import OnlineConfig
+    from rivercal.online.service import CycleOutcome, OnlineService
+    from rivercal.store import Run, Store
 
 __all__ = ["PROPERTIES", "AdapterError", "FewsOutcome", "run_module"]
 
@@ -142,49 +147,27 @@ class FewsOutcome:
     summary: dict[str, Any]
 
 
-def _config(run: RunFile, model: Any) -> Any:
-    """The on-line service configuration from the properties, checked against the case."""
-    from rivercal.online.service import OnlineConfig
-    from rivercal.optimise import OPTIMISERS
+#: The run-file property of each field of the on-line configuration that the module sets.
+_PROPERTY_OF = {"parameters": "parameters", "window": "window", "period": "period", "horizon": "horizon",
+                "warmup": "warmup", "algorithm": "algorithm", "deadline_s": "deadline", "max_change": "maxChange",
+                "alert_k": "alertK", "workers": "workers"}
 
-    names = [n.strip() for n in prop(run, "parameters").split(",") if n.strip()]
-    known = [p.name for p in model.calibration.parameters]
-    unknown = [n for n in names if n not in known]
-    if not names or unknown:
-        what = f"unknown parameter {unknown[0]!r}" if unknown else "no parameter named"
-        raise AdapterError(f"property 'parameters': {what}; the case defines {', '.join(known)}", file=str(run.path),
-                           field="properties")
-    shared = shared_quantity(model.calibration.parameter(n) for n in names)
-    if shared is not None:
-        raise AdapterError(f"property 'parameters': {shared[0]} and {shared[1]} both set {shared[2]}; give only one of "
-                           "them", file=str(run.path), field="properties")
-    algorithm = prop(run, "algorithm")
-    if algorithm not in OPTIMISERS:
-        raise AdapterError(f"property 'algorithm': unknown optimiser {algorithm!r}; choose one of "
-                           f"{', '.join(sorted(OPTIMISERS))}", file=str(run.path), field="properties")
-    change: dict[str, float] = {}
-    for item in filter(None, (part.strip() for part in prop(run, "maxChange").split(","))):
-        name, _, value = item.partition("=")
-        if name.strip() in change:
-            raise AdapterError(f"property 'maxChange': {name.strip()!r} is given more than once", file=str(run.path),
-                               field="properties")
-        try:
-            change[name.strip()] = float(value)
-        except ValueError:
-            change[name.strip()] = math.nan
-        if name.strip() not in names or not change[name.strip()] > 0:
-            raise AdapterError(f"property 'maxChange': {item!r} must be NAME=VALUE with NAME among the estimated "
-                               f"parameters ({', '.join(names)}) and VALUE > 0", file=str(run.path),
-                               field="properties")
-    workers = _workers(run)
-    values = dict(parameters=tuple(names), window=duration(run, "window"), period=duration(run, "period"),
-                  horizon=duration(run, "horizon"), warmup=duration(run, "warmup", allow_zero=True),
-                  algorithm=algorithm, deadline_s=number(run, "deadline"), max_change=change,
-                  alert_k=number(run, "alertK"), workers=workers)
+
+def _config(run: RunFile, model: Model) -> OnlineConfig:
+    """The on-line service configuration from the properties, checked against the model.
+
+    The checks are the configuration's own (:meth:`OnlineConfig.from_options
+    <rivercal.online.config.OnlineConfig.from_options>`), as for the command line; a problem names the property.
+    """
+    from rivercal.online.config import OnlineConfig, OnlineConfigError
+
+    values: dict[str, Any] = {field: prop(run, key) for field, key in _PROPERTY_OF.items() if field != "workers"}
+    values["max_change"] = values["max_change"] or None
     try:
-        return OnlineConfig(**values)
-    except ValueError as exc:  # the service's own rules, beyond the checks above
-        raise AdapterError(str(exc), file=str(run.path), field="properties") from None
+        return OnlineConfig.from_options(model, **values, workers=_workers(run))
+    except OnlineConfigError as exc:
+        key = _PROPERTY_OF.get(exc.field, exc.field)
+        raise AdapterError(exc.describe(f"property {key!r}"), file=str(run.path), field="properties") from None
 
 
 def _workers(run: RunFile) -> int:
@@ -572,7 +555,7 @@ def _is_pi(path: Path, root: str) -> bool:
 # -- outputs --------------------------------------------------------------------------------------
 
 
-def _forecast_series(store: Any, run: Any, cycle: int) -> list[PiSeries]:
+def _forecast_series(store: Store, run: Run, cycle: int) -> list[PiSeries]:
     fc = store.forecasts(run, cycle=cycle)
     out = []
     for (kind, series_id), part in fc.groupby(["kind", "series"], sort=True):
@@ -583,7 +566,7 @@ def _forecast_series(store: Any, run: Any, cycle: int) -> list[PiSeries]:
     return out
 
 
-def _estimate_series(store: Any, run: Any, cycle: int, used: Mapping[str, float], location: str,
+def _estimate_series(store: Store, run: Run, cycle: int, used: Mapping[str, float], location: str,
                      t0: pd.Timestamp) -> list[PiSeries]:
     est = store.estimates(run)
     est = est[est["cycle"] == cycle]
@@ -604,7 +587,7 @@ def _estimate_series(store: Any, run: Any, cycle: int, used: Mapping[str, float]
 # -- the module -----------------------------------------------------------------------------------
 
 
-def _check_times(run: RunFile, model: Any, config: Any) -> None:
+def _check_times(run: RunFile, model: Model, config: OnlineConfig) -> None:
     """time0 and the durations fit the case's period and the forecasts' time step (seconds: no overflow).
 
     The service runs the model from ``time0 - window - warmup``, takes the state for the next run's hot start
@@ -670,7 +653,7 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
     """
     from rivercal.case import load_case
     from rivercal.online.service import OnlineService
-    from rivercal.store import CycleSpec, Store, StoreError
+    from rivercal.store import Store, StoreError
 
     t_start = time.perf_counter()
     handed, loc = _state_locations(run)
@@ -711,23 +694,17 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
             service = OnlineService(model, store, name, config, first or run.time0)
         except ValueError as exc:
             raise AdapterError(str(exc), file=str(run.path), field="properties") from None
-        cycles = store.cycles(service.run)
-        unfinished = store.first_unfinished(service.run)
-        if unfinished is not None and unfinished.issue_time != run.time0:
-            raise AdapterError(f"the state holds an unfinished forecast issued at "
-                               f"{unfinished.issue_time:%Y-%m-%d %H:%M} UTC, not at time0", file=str(db), field="state")
-        if unfinished is None and len(cycles) and run.time0 <= cycles["issue_time"].max():
-            raise AdapterError(f"time0 {run.time0:%Y-%m-%d %H:%M} UTC is not after the last forecast in the state "
-                               f"({cycles['issue_time'].max():%Y-%m-%d %H:%M} UTC); FEWS must hand over an older "
-                               "state, or use another run name", file=str(run.path), field="time0")
-        index = unfinished.cycle if unfinished is not None else len(cycles)
-        spec = CycleSpec(index, run.time0 - service.window, run.time0, run.time0)
-        window = store.observations(service.series, spec.window_start, spec.window_end)
-        if window.n_values == 0:
-            raise AdapterError(f"no observations of {', '.join(service.series)} in the window "
-                               f"{spec.window_start:%Y-%m-%d %H:%M} – {spec.window_end:%Y-%m-%d %H:%M} UTC (neither in "
-                               "the exported time series nor in the state)", file=str(run.path),
-                               field="inputTimeSeriesFile")
+        try:
+            spec = service.cycle_at(run.time0)  # the service's own choice of the cycle, as in a replay
+        except ValueError as exc:
+            text = str(exc)
+            if text.startswith("no observations"):
+                raise AdapterError(f"{text} (neither in the exported time series nor in the state)",
+                                   file=str(run.path), field="inputTimeSeriesFile") from None
+            if "unfinished" in text:
+                raise AdapterError(text, file=str(db), field="state") from None
+            raise AdapterError(f"time0: {text}; FEWS must hand over an older state, or use another run name",
+                               file=str(run.path), field="time0") from None
         outcome = service.run_cycle(spec)
         _report_cycle(outcome, service, diag)
         files = _write_outputs(run, store, service, outcome, case.name)
@@ -759,7 +736,7 @@ def _observables(case: Any) -> list[str]:
     return [o for s in case.network.stations for o in s.observables]
 
 
-def _report_cycle(outcome: Any, service: Any, diag: Diagnostics) -> None:
+def _report_cycle(outcome: CycleOutcome, service: OnlineService, diag: Diagnostics) -> None:
     units = {p.name: p.unit for p in service.parameters}
     diag.add("info", f"forecast {outcome.cycle} issued at {outcome.issue_time:%Y-%m-%d %H:%M} UTC: {outcome.status}, "
                      f"{outcome.model_runs} model runs, {outcome.wall_s:.1f} s"
@@ -779,7 +756,8 @@ def _report_cycle(outcome: Any, service: Any, diag: Diagnostics) -> None:
         diag.add("warn", f"alert ({alert.kind}): {alert.message}")
 
 
-def _write_outputs(run: RunFile, store: Any, service: Any, outcome: Any, case_name: str) -> list[str]:
+def _write_outputs(run: RunFile, store: Store, service: OnlineService, outcome: CycleOutcome,
+                   case_name: str) -> list[str]:
     files = list(run.output_series_files)
     if not files:
         return []

@@ -25,8 +25,8 @@ from rivercal.case.schema import CalibrationSettings, Window
 from rivercal.errors import CaseError
 from rivercal.parameters import TARGET_PATTERN, Parameter
 
-__all__ = ["MODEL_FILE", "BlackBoxSection", "BmiSection", "ModelFile", "ModelFileError", "ModelMeta", "OutputSpec",
-           "QuantitySpec", "SwmmSection", "read_model_file"]
+__all__ = ["MODEL_FILE", "BlackBoxSection", "BmiAssimilation", "BmiSection", "ModelFile", "ModelFileError",
+           "ModelMeta", "OutputSpec", "QuantitySpec", "SwmmSection", "read_model_file"]
 
 MODEL_FILE = "model.toml"
 #: An observable's name: ``<station>.<quantity>`` with quantity h, h_up, h_down or Q.
@@ -224,6 +224,24 @@ class BmiVariable(_Model):
     max: float | None = Field(default=None, description="highest allowed value")
 
 
+class BmiAssimilation(_Model):
+    """``[bmi.assimilate]``: the variables that state updating reads and writes (:mod:`rivercal.online.assimilation`).
+
+    ``levels`` holds the water levels at the nodes of an unstructured grid and ``discharges`` the discharges on
+    its edges; both must be state variables (``[bmi] state``). ``derived`` names state variables the component
+    computes from them when they are set (e.g. volumes, velocities): a state written back leaves them out.
+    ``forcing`` names, per inflow or lateral, a variable (and element) that scales it (a factor, 1: as it is).
+    """
+
+    levels: str = Field(min_length=1, description="BMI variable of the levels at the grid's nodes, m")
+    discharges: str = Field(min_length=1, description="BMI variable of the discharges on the grid's edges, m3/s")
+    floor: str | None = Field(default=None, description="BMI variable of the lowest level at each node (the bed), m")
+    derived: list[str] = Field(default_factory=list, description="state variables the component derives from the "
+                                                                 "levels and discharges")
+    forcing: dict[str, BmiVariable] = Field(default_factory=dict, description="inflow or lateral → the variable (and "
+                                                                              "element) of its scale factor")
+
+
 class BmiSection(_Model):
     """``[bmi]``: a Python class that implements the Basic Model Interface."""
 
@@ -233,9 +251,15 @@ class BmiSection(_Model):
     quantities: dict[str, BmiVariable] = Field(default_factory=dict, description="settable quantities")
     stations: dict[str, BmiVariable] = Field(min_length=1, description="'<station>.<quantity>' → variable and index")
     state: list[str] = Field(default_factory=list, description="BMI variables that make up the state (hot starts)")
+    assimilate: BmiAssimilation | None = Field(default=None, description="the variables of state updating")
 
     @model_validator(mode="after")
     def _checks(self) -> BmiSection:
+        if self.assimilate is not None:
+            lacking = [v for v in (self.assimilate.levels, self.assimilate.discharges, *self.assimilate.derived)
+                       if v not in self.state]
+            if lacking:
+                raise ValueError(f"assimilate: {lacking[0]!r} is not one of the state variables ([bmi] state)")
         for name in self.quantities:
             if not _QUANTITY.match(name):
                 raise ValueError(f"quantity name {name!r}: use letters, digits and _ . : - / (starting with a letter)")

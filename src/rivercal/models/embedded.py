@@ -24,26 +24,36 @@ Virtual stations (the optional capability :class:`~rivercal.models.contract.Virt
 offers every calculation point and either side of every structure as a place for a new gauge, and
 :meth:`EmbeddedModel.with_stations` returns the same model with those places added to the case's
 ``[[stations]]`` (the same grid, forcing and quantities; only the written series differ).
+
+It has every optional capability of the contract (:data:`~rivercal.models.contract.CAPABILITIES`): batches of
+parameter sets and ensembles of members in one batched engine call on threads (the compiled time loop releases
+the interpreter lock; :func:`rivercal.engine.ensemble.run_ensemble`, each member bit-identical to its single
+run), its laterals and discharge boundaries as perturbable forcing, its state as the levels at the
+calculation points and the discharges at the links, snapshots of both, and the case it was built from.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any, Literal
 
+import numba
 import numpy as np
 import pandas as pd
 
 from rivercal._time import Windows
 from rivercal.case.load import Case, load_case
-from rivercal.engine.compile import FRICTION_CODES
-from rivercal.engine.kernels.codes import OBS_FLUX, OBS_LEVEL
+from rivercal.engine.ensemble import run_ensemble
+from rivercal.engine.kernels.batch import volumes
+from rivercal.engine.kernels.codes import BOUNDARY_DISCHARGE, OBS_FLUX, OBS_LEVEL
 from rivercal.engine.simulator import Simulator
 from rivercal.engine.state import EngineState
 from rivercal.hydrology.catchments import catchment_forcing
-from rivercal.models.contract import CalibrationSetup, Location, Quantity, utc
-from rivercal.network import FRICTION_RANGES, MAX_LEVEL, Station
+from rivercal.models.contract import CalibrationSetup, Location, MemberRuns, Quantity, StateLayout, VariantInputs, utc
+from rivercal.network import Station
+from rivercal.results import SimulationResult
 
 __all__ = ["EmbeddedModel", "build_model", "load_case_model"]
 
@@ -90,36 +100,13 @@ class EmbeddedModel(Simulator):
 
     @functools.cached_property
     def quantities(self) -> dict[str, Quantity]:
-        """The settable quantities (module docstring)."""
-        c = self.compiled
-        controlled = {spec.weir for spec in self.controls.specs} if self.controls else set()
-        out = {f"weir:{w}.crest_level": Quantity(f"weir:{w}.crest_level", "m AD", -MAX_LEVEL, MAX_LEVEL,
-                                                  f"crest level of weir {w}")
-               for w in c.weir_ids if w not in controlled}
-        names = {code: name for name, code in FRICTION_CODES.items()}
-        if c.branch_inherits:
-            low, high, unit = FRICTION_RANGES[self.case.spec.friction.type]
-            out["friction:global"] = Quantity("friction:global", unit, low, high,
-                                              f"{self.case.spec.friction.type} friction of the branches that "
-                                              "inherit the case's friction")
-        for i, b in enumerate(c.branch_ids):
-            kind = names[int(c.arrays.fr_type[i])]
-            low, high, unit = FRICTION_RANGES[kind]
-            out[f"friction:branch:{b}"] = Quantity(f"friction:branch:{b}", unit, low, high,
-                                                   f"{kind} friction of branch {b}")
-        for i, key in enumerate(c.friction_slots):
-            if key[0] == "group" and len(key) == 2:
-                kind = names[int(c.arrays.fr_type[i])]
-                low, high, unit = FRICTION_RANGES[kind]
-                out[f"friction:group:{key[1]}"] = Quantity(f"friction:group:{key[1]}", unit, low, high,
-                                                           f"{kind} friction of friction group {key[1]}")
-        used = set(np.unique(c.arrays.lk_fric).tolist())  # the friction slots some link uses
-        if all(names[int(code)] != "white-colebrook" for i, code in enumerate(c.arrays.fr_type) if i in used):
-            out["friction:scale"] = Quantity("friction:scale", "-", 0.05, 20.0,
-                                             "factor on the conveyance of every channel friction coefficient")
-        for name, (unit, low, high, text) in (self.controls.describe() if self.controls else {}).items():
-            out[name] = Quantity(name, unit, low, high, text)
-        return out
+        """The settable quantities (module docstring): the engine's table, without the controlled crests.
+
+        One table (:func:`rivercal.engine.quantities.settable_table`) defines the names the engine takes and
+        those the model declares, with the same units and bounds.
+        """
+        return {name: Quantity(name, q.unit, q.low, q.high, q.description)
+                for name, q in self.settable.items() if not q.controlled}
 
     @functools.cached_property
     def calibration(self) -> CalibrationSetup:
@@ -319,6 +306,159 @@ class EmbeddedModel(Simulator):
                              f"{state.signature[1]} links; case {self.name!r} has {self.compiled.n_hpoints} and "
                              f"{self.compiled.n_links})")
         return state
+
+
+    # -- optional capabilities (rivercal.models.contract) ------------------------------------------
+
+    def run_batch(self, parameters: Sequence[Mapping[str, float] | None], start: Any = None, end: Any = None,
+                  states: Sequence[EngineState] | None = None, *, output_interval: float | None = None,
+                  threads: int | None = None, on_failure: Literal["raise", "report"] = "raise") -> MemberRuns:
+        """One member per parameter set in one batched engine call (``threads``: None all, else at most all)."""
+        ens = run_ensemble(self, list(parameters), start, end, None if states is None else list(states),
+                           output_interval=output_interval, n_threads=_threads(threads), on_failure=on_failure)
+        return _member_runs(ens)
+
+    def perturbable_forcing(self) -> tuple[str, ...]:
+        """The laterals and the discharge boundaries, in the order of the compiled forcing columns."""
+        return tuple(self.compiled.forcing_keys[col] for col in self._perturbable_columns)
+
+    @functools.cached_property
+    def _perturbable_columns(self) -> np.ndarray:
+        c = self.compiled
+        a = c.arrays
+        mask = np.array([k.startswith("lateral:") for k in c.forcing_keys], dtype=bool)
+        for bnd in range(a.b_hp.size):
+            if a.b_type[bnd] == BOUNDARY_DISCHARGE and a.b_col[bnd] >= 0:
+                mask[a.b_col[bnd]] = True
+        return np.flatnonzero(mask)
+
+    def _perturbed_forcing(self, start: pd.Timestamp, end: pd.Timestamp, factors: np.ndarray,
+                           interval: float) -> np.ndarray:
+        """Per-member forcing matrices (members, steps, columns): the case's forcing with ``factors`` applied."""
+        factors = np.asarray(factors, dtype=float)
+        n_steps = round((end - start).total_seconds() / self.dt)
+        per = round(float(interval) / self.dt)
+        if per < 1 or abs(per * self.dt - float(interval)) > 1e-6:
+            raise ValueError(f"the factors' interval ({interval:g} s) must be a whole number of time steps "
+                             f"({self.dt:g} s)")
+        cols = self._perturbable_columns
+        if factors.ndim != 3 or factors.shape[2] != cols.size or factors.shape[1] * per < n_steps:
+            raise ValueError(f"factors must have shape (members, intervals >= {-(-n_steps // per)}, {cols.size}), "
+                             f"got {factors.shape}")
+        base = self.forcing_matrix(start, n_steps)
+        forcing = np.repeat(base[None], factors.shape[0], axis=0)
+        forcing[:, :, cols] *= np.repeat(factors, per, axis=1)[:, :n_steps]
+        return forcing
+
+    def run_members(self, parameters: Mapping[str, float] | None, start: Any, end: Any,
+                    states: Sequence[EngineState], *, factors: np.ndarray | None = None, interval: float | None = None,
+                    output_interval: float | None = None, threads: int | None = None,
+                    on_failure: Literal["raise", "report"] = "raise") -> MemberRuns:
+        """Every member from its state, with its forcing scaled by its ``factors``, in one batched engine call."""
+        start, end = utc(start), utc(end)
+        forcing = None if factors is None else self._perturbed_forcing(start, end, factors, float(interval))
+        ens = run_ensemble(self, [parameters] * len(states), start, end, list(states), forcing=forcing,
+                           output_interval=output_interval, n_threads=_threads(threads), on_failure=on_failure)
+        return _member_runs(ens)
+
+    def simulate_perturbed(self, parameters: Mapping[str, float] | None, start: Any, end: Any,
+                           state: EngineState | None, factors: np.ndarray, interval: float, *,
+                           output_interval: float | None = None) -> tuple[SimulationResult, EngineState]:
+        """One run with the forcing scaled by ``factors`` (intervals, forcing) from a state at ``start``."""
+        start, end = utc(start), utc(end)
+        if state is None:
+            state = self.start_state(start, parameters)
+        runs = self.run_members(parameters, start, end, [state], factors=np.asarray(factors)[None],
+                                interval=interval, output_interval=output_interval, threads=1)
+        return SimulationResult(series=runs.series(0), wall_time=runs.wall_time), runs.states[0]
+
+    def state_layout(self) -> StateLayout:
+        """Levels at the calculation points, discharges at the links (a :class:`~.contract.StateLayout`)."""
+        return self._layout
+
+    @functools.cached_property
+    def _layout(self) -> StateLayout:
+        c = self.compiled
+        a = c.arrays
+        places = {}
+        for col, name in enumerate(c.observables):
+            i = int(a.ob_i1[col])
+            places[name] = i if a.ob_type[col] == OBS_LEVEL else int(a.lk_k1[i])
+        entry = {}
+        for lat in range(a.lat_col.size):
+            entry[int(a.lat_col[lat])] = int(a.lat_hp[lat])
+        for bnd in range(a.b_hp.size):
+            if a.b_col[bnd] >= 0:
+                entry[int(a.b_col[bnd])] = int(a.b_hp[bnd])
+        forcing_places = {c.forcing_keys[col]: entry[int(col)] for col in self._perturbable_columns}
+        return StateLayout(levels=tuple(c.hp_label), discharges=tuple(c.link_label),
+                           link_ends=np.column_stack([a.lk_k1, a.lk_k2]).astype(np.int64),
+                           link_length=np.maximum(np.asarray(a.lk_len, dtype=float), 1.0),
+                           floor=np.asarray(a.hp_bed, dtype=float).copy(), places=places, forcing_places=forcing_places)
+
+    def state_arrays(self, state: EngineState) -> tuple[np.ndarray, np.ndarray]:
+        """Levels at the calculation points (m AD) and discharges at the links (m³/s)."""
+        return state.z, state.q
+
+    def with_state_arrays(self, state: EngineState, levels: np.ndarray, discharges: np.ndarray) -> EngineState:
+        """A copy of ``state`` with these levels (never below the bed) and discharges.
+
+        The volumes follow from the levels; each link keeps its flow area (discharge over velocity), so its
+        velocity follows the new discharge; a link at rest keeps its discharge and velocity.
+        """
+        a = self.compiled.arrays
+        out = state.copy()
+        z = np.maximum(np.asarray(levels, dtype=float), a.hp_bed)
+        out.z = z
+        out.vol = np.empty_like(z)
+        volumes(a, z, out.vol)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            area = np.where(np.abs(state.u) > 1e-9, state.q / state.u, np.nan)
+        moving = np.isfinite(area) & (area > 0)
+        out.u = np.where(moving, discharges / area, state.u)
+        out.q = np.where(moving, discharges, state.q)
+        return out
+
+    def simulate_fields(self, parameters: Mapping[str, float] | None = None, start: Any = None, end: Any = None,
+                        state: EngineState | None = None, *,
+                        output_interval: float | None = None) -> tuple[SimulationResult, EngineState]:
+        """:meth:`simulate` with the levels and discharges at every point (``snapshots``)."""
+        return self.simulate(parameters, start, end, state, output_interval=output_interval, snapshots=True)
+
+
+    def source_case(self) -> Case:
+        """The case the model was built from."""
+        return self.case
+
+    def variant_inputs(self) -> VariantInputs:
+        """The case's branches (lengths, m), those that inherit its friction, its catchments and their rain."""
+        from rivercal.hydrology.catchments import hourly_weather
+
+        spec = self.case.spec
+        rain = hourly_weather(self.case)["P"] if spec.catchments else None
+        return VariantInputs(branches={b.id: float(b.length) for b in spec.branches},
+                             inherit=tuple(self.compiled.branch_inherits),
+                             catchments=tuple(c.id for c in spec.catchments), rain=rain)
+
+    def variant(self, *, branch_factors: Mapping[str, float] | None = None, grid_factor: float = 1.0,
+                rain_factor: pd.Series | None = None, runoff_factors: Mapping[str, Mapping[str, float]] | None = None,
+                forcing_factors: Mapping[str, pd.Series] | None = None) -> EmbeddedModel:
+        """The embedded model of a variant of the case (:func:`rivercal.models.variants.variant_of`)."""
+        from rivercal.models.variants import variant_of
+
+        return variant_of(self, branch_factors=branch_factors, grid_factor=grid_factor, rain_factor=rain_factor,
+                          runoff_factors=runoff_factors, forcing_factors=forcing_factors)
+
+
+def _threads(threads: int | None) -> int:
+    """Threads of a batched call: None all of numba's, else at least 1 and at most those."""
+    n = numba.config.NUMBA_NUM_THREADS
+    return n if threads is None else max(1, min(int(threads), n))
+
+
+def _member_runs(ens: Any) -> MemberRuns:
+    return MemberRuns(times=ens.times, observables=ens.observables, values=ens.values, states=ens.states,
+                      failures=dict(ens.failures), wall_time=ens.wall_time)
 
 
 def _wanted(measure: str) -> tuple[bool, bool]:

@@ -1,5 +1,12 @@
 """The configuration of the on-line service (:class:`OnlineConfig`), stored with its run.
 
+The configuration is checked in one place, whoever makes it — the command line, the Delft-FEWS module or a
+script: :meth:`OnlineConfig.from_options` reads it from text (``"FA,Wd"``, ``"7D"``, ``"FA=5,Wd=0.1"``) or
+values, the dataclass checks every value when it is made, and :meth:`OnlineConfig.check_model` checks it
+against a model (its parameters, their quantities, a dependency map). Every problem is an
+:class:`OnlineConfigError` that names the field, the value and what is wrong; a caller names the field its own
+way (``--window``, ``property 'window'``) with :meth:`OnlineConfigError.describe`.
+
 :func:`check_schedule` checks the times of a run against its model before anything runs: the window,
 the cycle, the horizon and the warm-up are whole numbers of the output interval, cycles are issued at the
 model's output times, and every window and forecast lies inside the model's period.
@@ -7,18 +14,48 @@ model's output times, and every window and forecast lies inside the model's peri
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field, replace
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Literal
 
 import pandas as pd
 
 from rivercal._time import utc
 from rivercal.evaluate import DaskCluster, Workers, check_workers
+from rivercal.models.contract import FromCase, Model
 from rivercal.problem import LOSSES
 from rivercal.store import Schedule
 
-__all__ = ["DEFAULT_RESOLUTION", "SETTING_NAMES", "OnlineConfig", "check_schedule", "span"]
+__all__ = ["DEFAULT_RESOLUTION", "SETTING_NAMES", "OnlineConfig", "OnlineConfigError", "check_schedule", "span"]
+
+
+class OnlineConfigError(ValueError):
+    """A field of the on-line configuration is invalid.
+
+    Attributes
+    ----------
+    field
+        The :class:`OnlineConfig` field (``window``, ``max_change`` …).
+    value
+        The value as given (None when the problem is not one value's, e.g. two fields that contradict).
+    problem
+        What is wrong, in words.
+    """
+
+    def __init__(self, field: str, problem: str, value: Any = None):
+        self.field = field
+        self.value = value
+        self.problem = problem
+        super().__init__(self.describe(f"online {field}"))
+
+    def describe(self, label: str) -> str:
+        """The message with the field named ``label`` (``--window``, ``property 'window'``)."""
+        shown = f"{self.value!r}" if isinstance(self.value, str) else f"{self.value}"
+        return f"{label} {shown}: {self.problem}" if self.value is not None else f"{label}: {self.problem}"
+
+    def __reduce__(self):  # keep the fields when the error crosses a process boundary
+        return (type(self), (self.field, self.problem, self.value))
 
 
 #: Resolution d of the identifiability gate and alert floor for the parameters of the packaged cases,
@@ -135,42 +172,128 @@ class OnlineConfig:
 
     def __post_init__(self) -> None:
         for name in ("window", "period", "horizon"):
-            if not pd.Timedelta(getattr(self, name)) > pd.Timedelta(0):
-                raise ValueError(f"online {name} must be positive, got {getattr(self, name)!r}")
-        if pd.Timedelta(self.warmup) < pd.Timedelta(0):
-            raise ValueError(f"online warmup must not be negative, got {self.warmup!r}")
+            _duration(name, getattr(self, name))
+        _duration("warmup", self.warmup, zero=True)
         if not self.parameters:
-            raise ValueError("online: give at least one parameter to estimate")
-        if self.deadline_s is not None and not self.deadline_s > 0:
-            raise ValueError(f"online deadline_s must be positive, got {self.deadline_s}")
-        for name, value in {**self.max_change, **self.resolution}.items():
-            if not value > 0:
-                raise ValueError(f"online: the change bound or resolution of {name} must be positive, got {value}")
-        if not self.alert_k > 0 or self.gate_sv < 0 or not 0 < self.gate_index <= 1:
-            raise ValueError("online: alert_k must be > 0, gate_sv >= 0 and gate_index in (0, 1]")
+            raise OnlineConfigError("parameters", "give at least one parameter to estimate")
+        twice = sorted({n for n in self.parameters if list(self.parameters).count(n) > 1})
+        if twice:
+            raise OnlineConfigError("parameters", f"{twice[0]!r} is named twice", ",".join(self.parameters))
+        from rivercal.optimise import OPTIMISERS
+        from rivercal.optimise.registry import RENAMED
+
+        if self.algorithm in RENAMED:
+            raise OnlineConfigError("algorithm", f"it is now called {RENAMED[self.algorithm]}", self.algorithm)
+        if self.algorithm not in OPTIMISERS:
+            raise OnlineConfigError("algorithm", f"unknown optimiser; choose one of {', '.join(sorted(OPTIMISERS))}",
+                                    self.algorithm)
+        if self.deadline_s is not None:
+            _number("deadline_s", self.deadline_s, above=0)
+        for name in ("max_change", "resolution"):
+            for key, value in getattr(self, name).items():
+                if key not in self.parameters:
+                    raise OnlineConfigError(name, f"{key!r} is not among the estimated parameters "
+                                                  f"({', '.join(self.parameters)})", f"{key}={value:g}")
+                if not (math.isfinite(value) and value > 0):
+                    raise OnlineConfigError(name, f"the value of {key} must be a positive number", f"{key}={value:g}")
+        _number("alert_k", self.alert_k, above=0)
+        _number("gate_sv", self.gate_sv, low=0)
+        if not 0 < self.gate_index <= 1:
+            raise OnlineConfigError("gate_index", "must be in (0, 1]", self.gate_index)
         if not 0 <= self.min_coverage <= 1:
-            raise ValueError(f"online min_coverage must be in [0, 1], got {self.min_coverage}")
+            raise OnlineConfigError("min_coverage", "must be in [0, 1]", self.min_coverage)
         if self.on_failure not in ("raise", "penalty"):
-            raise ValueError(f"online on_failure must be 'raise' or 'penalty', got {self.on_failure!r}")
+            raise OnlineConfigError("on_failure", "must be 'raise' or 'penalty'", self.on_failure)
         if self.loss not in LOSSES:
-            raise ValueError(f"online loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
-        if self.loss_scale is not None and not self.loss_scale > 0:
-            raise ValueError(f"online loss_scale must be positive, got {self.loss_scale}")
-        if not 0 < self.transition_alpha < 1 or not 0 <= self.transition_min_reduction < 1:
-            raise ValueError("online: transition_alpha must be in (0, 1) and transition_min_reduction in [0, 1)")
-        if not self.transition_min_after_h >= 0:
-            raise ValueError(f"online: transition_min_after_h must be >= 0, got {self.transition_min_after_h}")
+            raise OnlineConfigError("loss", f"unknown loss; choose one of {', '.join(LOSSES)}", self.loss)
+        if self.loss_scale is not None:
+            _number("loss_scale", self.loss_scale, above=0)
+        if not 0 < self.transition_alpha < 1:
+            raise OnlineConfigError("transition_alpha", "must be in (0, 1)", self.transition_alpha)
+        if not 0 <= self.transition_min_reduction < 1:
+            raise OnlineConfigError("transition_min_reduction", "must be in [0, 1)", self.transition_min_reduction)
+        _number("transition_min_after_h", self.transition_min_after_h, low=0)
         if self.dependency is not None and self.algorithm != "sparse_dud":
-            raise ValueError(f"online: a dependency map serves Sparse DuD only; the algorithm is {self.algorithm!r} "
-                             "(use 'sparse_dud', or no map)")
-        if not self.dependency_threshold >= 0:
-            raise ValueError(f"online dependency_threshold must be >= 0 (σ), got {self.dependency_threshold}")
-        if self.skill_cycles < 0 or not self.skill_lead_h > 0 or self.skill_tolerance < 0:
-            raise ValueError("online: skill_cycles must be >= 0, skill_lead_h > 0 and skill_tolerance >= 0")
-        if not self.output_interval_s > 0:
-            raise ValueError(f"online output_interval_s must be positive, got {self.output_interval_s}")
+            raise OnlineConfigError("dependency", f"a dependency map serves the algorithm sparse_dud only, not "
+                                                  f"{self.algorithm} (use sparse_dud, or no map)", self.dependency)
+        _number("dependency_threshold", self.dependency_threshold, low=0)
+        if isinstance(self.skill_cycles, bool) or int(self.skill_cycles) != self.skill_cycles or self.skill_cycles < 0:
+            raise OnlineConfigError("skill_cycles", "must be a whole number, 0 or more", self.skill_cycles)
+        _number("skill_lead_h", self.skill_lead_h, above=0)
+        _number("skill_tolerance", self.skill_tolerance, low=0)
+        _number("output_interval_s", self.output_interval_s, above=0)
         if not isinstance(self.workers, DaskCluster):
-            check_workers(self.workers, "online workers")
+            try:
+                check_workers(self.workers, "online workers")
+            except ValueError as exc:
+                raise OnlineConfigError("workers", str(exc).removeprefix("online workers: "), self.workers) from None
+
+    # -- made from options, checked against a model ------------------------------------------------------
+
+    @classmethod
+    def from_options(cls, model: Model | None = None, **options: Any) -> OnlineConfig:
+        """A configuration from options as a user gives them, checked (against ``model`` when given).
+
+        ``options`` are fields of the class; ``parameters``, ``series`` and ``sources`` may be comma-separated
+        text (``"FA,Wd"``), ``max_change`` and ``resolution`` text such as ``"FA=5,Wd=0.1"``, numbers text.
+        Options left out (or None, except those whose default is None) take the defaults.
+
+        Raises
+        ------
+        OnlineConfigError
+            Naming the field, the value and what is wrong.
+        """
+        known = {f.name: f for f in fields(cls)}
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise TypeError(f"unknown option(s) of the on-line configuration: {', '.join(unknown)}")
+        values: dict[str, Any] = {}
+        for name, value in options.items():
+            if value is None and known[name].default is not None:
+                continue
+            if name in ("parameters", "series", "sources") and value is not None:
+                value = _names(name, value)
+            elif name in ("max_change", "resolution", "dss") and value is not None:
+                value = _assignments(name, value)
+            elif name in _NUMBERS and isinstance(value, str):
+                value = _number(name, value)
+            values[name] = value
+        config = cls(**values)
+        if model is not None:
+            config.check_model(model)
+        return config
+
+    def check_model(self, model: Model) -> None:
+        """The configuration against a model: its parameters, the quantities they set, a dependency map.
+
+        Raises
+        ------
+        OnlineConfigError
+            For a parameter the model does not define, two parameters that set one quantity, or a dependency
+            map that cannot be read or names none of the parameters.
+        """
+        from rivercal.parameters import shared_quantity
+
+        known = model.calibration.names
+        unknown = [n for n in self.parameters if n not in known]
+        if unknown:
+            raise OnlineConfigError("parameters", f"unknown parameter {unknown[0]!r}; {model.name!r} defines "
+                                                  f"{', '.join(known) or 'none'}", ",".join(self.parameters))
+        shared = shared_quantity(model.calibration.parameter(n) for n in self.parameters)
+        if shared is not None:
+            raise OnlineConfigError("parameters", f"{shared[0]} and {shared[1]} both set {shared[2]}; give only one "
+                                                  "of them", ",".join(self.parameters))
+        if self.dependency is not None:
+            from rivercal.analysis.dependency import DependencyMap
+
+            try:
+                named = list(DependencyMap.from_csv(self.dependency, self.dependency_threshold).effects.columns)
+            except ValueError as exc:
+                raise OnlineConfigError("dependency", str(exc), self.dependency) from None
+            if not set(named) & set(self.parameters):
+                raise OnlineConfigError("dependency", f"the map names none of the parameters estimated "
+                                                      f"({', '.join(self.parameters)}); it names {', '.join(named)}",
+                                        self.dependency)
 
     def schedule(self, first_issue: Any) -> Schedule:
         """The cycle schedule whose cycle 0 is issued at ``first_issue``."""
@@ -210,7 +333,7 @@ def span(value: Any) -> str:
     return sign + "".join(parts)
 
 
-def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | None = None, *,
+def check_schedule(model: Model, config: OnlineConfig, first: Any, last: Any | None = None, *,
                    names: Mapping[str, str] | None = None, shown: Mapping[str, str] | None = None) -> None:
     """Check the times of a run of ``config`` on ``model`` from issue time ``first`` to ``last`` (UTC).
 
@@ -244,7 +367,7 @@ def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | Non
     grid = f"the output interval ({span(step)})"
     start, end = utc(model.start), utc(model.end)
     length = end - start
-    whose = "the case" if getattr(model, "case", None) is not None else "the model's period"
+    whose = "the case" if isinstance(model, FromCase) else "the model's period"
     values = {key: pd.Timedelta(getattr(config, key)) for key in ("window", "period", "horizon", "warmup")}
     for key, value in values.items():
         smallest = pd.Timedelta(0) if key == "warmup" else step
@@ -295,6 +418,71 @@ def check_schedule(model: Any, config: OnlineConfig, first: Any, last: Any | Non
         raise ValueError(f"{name['horizon']} {config.horizon}: the last cycle, issued at {final:%Y-%m-%d %H:%M}, "
                          f"would forecast to {final + values['horizon']:%Y-%m-%d %H:%M}, after the end of {whose} "
                          f"({end:%Y-%m-%d %H:%M}), where its forcing ends; " + ", or ".join(ways))
+
+
+#: Fields that hold a number (given as text, they are read as one).
+_NUMBERS = ("deadline_s", "alert_k", "gate_sv", "gate_index", "loss_scale", "transition_alpha",
+            "transition_min_reduction", "transition_min_after_h", "skill_cycles", "skill_lead_h", "skill_tolerance",
+            "min_coverage", "output_interval_s", "dependency_threshold")
+
+
+def _duration(name: str, value: Any, *, zero: bool = False) -> pd.Timedelta:
+    """A duration field, checked: positive (``zero``: zero or more)."""
+    try:
+        out = pd.Timedelta(value)
+    except (ValueError, TypeError, OverflowError):
+        out = None
+    if out is None or pd.isna(out) or out < pd.Timedelta(0) or (out == pd.Timedelta(0) and not zero):
+        raise OnlineConfigError(name, f"not a {'duration of zero or more' if zero else 'positive duration'} (e.g. "
+                                      f"{'24h, 0h' if zero else '7D, 48h, 90min'})", value)
+    return out
+
+
+def _number(name: str, value: Any, *, above: float | None = None, low: float | None = None) -> float:
+    """A number field (text is read), finite, and above ``above`` or at least ``low``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise OnlineConfigError(name, "not a number", value) from None
+    if not math.isfinite(number):
+        raise OnlineConfigError(name, "must be a finite number", value)
+    if above is not None and not number > above:
+        raise OnlineConfigError(name, f"must be above {above:g}", value)
+    if low is not None and number < low:
+        raise OnlineConfigError(name, f"must be {low:g} or more", value)
+    return int(number) if name == "skill_cycles" and number == int(number) else number
+
+
+def _names(name: str, value: str | Iterable[str]) -> tuple[str, ...]:
+    """'FA, Wd' or ['FA', 'Wd'] → ('FA', 'Wd'): blanks dropped, no name twice."""
+    items = value.split(",") if isinstance(value, str) else list(value)
+    names = tuple(str(n).strip() for n in items if str(n).strip())
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise OnlineConfigError(name, f"{twice[0]!r} is named twice", value if isinstance(value, str) else None)
+    return names
+
+
+def _assignments(name: str, value: str | Mapping[str, Any]) -> dict[str, float]:
+    """'FA=5,Wd=0.1' (or a mapping) → {'FA': 5.0, 'Wd': 0.1}: finite numbers, each name once."""
+    if not isinstance(value, str):
+        return {str(k): float(v) for k, v in dict(value).items()}
+    out: dict[str, float] = {}
+    for item in filter(None, (part.strip() for part in value.split(","))):
+        key, sep, number = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise OnlineConfigError(name, "expected NAME=VALUE, e.g. FA=5,Wd=0.1", item)
+        try:
+            out_value = float(number)
+        except ValueError:
+            raise OnlineConfigError(name, f"{number.strip()!r} is not a number", item) from None
+        if not math.isfinite(out_value):
+            raise OnlineConfigError(name, "the value must be a finite number", item)
+        if key in out:
+            raise OnlineConfigError(name, f"{key!r} is given twice", item)
+        out[key] = out_value
+    return out
 
 
 def _when(time: pd.Timestamp) -> str:

@@ -36,7 +36,7 @@ import numpy as np
 from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
 from rivercal.errors import ModelRunError
 from rivercal.problem import CalibrationProblem
-from rivercal.store import AlertRecord, CycleSpec
+from rivercal.store import AlertRecord, CycleSpec, Run, Store
 
 __all__ = ["accepted_at", "data_alerts", "gate", "jump_alert", "jumps", "limit_alerts"]
 
@@ -98,7 +98,7 @@ def jumps(warm: Mapping[str, float], accepted: Mapping[str, float], sigma: Mappi
     return out
 
 
-def accepted_at(store: Any, run: Any, at: Any) -> dict[str, float]:
+def accepted_at(store: Store, run: Run, at: Any) -> dict[str, float]:
     """Per parameter, the value accepted one window earlier: by the last cycle issued at or before ``at``.
 
     A cycle that carried a transition (:mod:`rivercal.online.intervention`) after ``at`` takes its place:

@@ -33,13 +33,13 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import Any
 
 import pandas as pd
 
+from rivercal.models.contract import Model
 from rivercal.models.transition import AFTER, BEFORE, TIME, TransitionModel
 from rivercal.parameters import Parameter, ParameterSet
-from rivercal.store import Store, TransitionRecord
+from rivercal.store import Run, Store, TransitionRecord
 
 __all__ = ["active_transition", "after_parameters", "carried", "fixed_transition", "transition_model",
            "transition_quantities"]
@@ -47,7 +47,7 @@ __all__ = ["active_transition", "after_parameters", "carried", "fixed_transition
 log = logging.getLogger(__name__)
 
 
-def active_transition(store: Store, run: Any, run_start: pd.Timestamp,
+def active_transition(store: Store, run: Run, run_start: pd.Timestamp,
                       window_end: pd.Timestamp) -> TransitionRecord | None:
     """The transition the previous cycle carried, if its time still lies in (run_start, window_end]."""
     table = store.transitions(run)
@@ -62,7 +62,7 @@ def active_transition(store: Store, run: Any, run_start: pd.Timestamp,
                             after=float(r["after"]), unit=str(r["unit"]), found_cycle=int(r["found_cycle"]))
 
 
-def transition_model(model: Any, parameter: Parameter, run_start: pd.Timestamp) -> TransitionModel:
+def transition_model(model: Model, parameter: Parameter, run_start: pd.Timestamp) -> TransitionModel:
     """The model whose ``parameter`` switches from before to after; τ in h since ``run_start``."""
     return TransitionModel(model, parameter, reference=run_start)
 

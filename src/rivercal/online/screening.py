@@ -27,14 +27,17 @@ import logging
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from rivercal.errors import CaseError
-from rivercal.models.contract import spun_up
+from rivercal.models.contract import Model, spun_up
 from rivercal.observations import ObservationSet
+
+if TYPE_CHECKING:
+    from rivercal.online.config import OnlineConfig
 
 __all__ = ["DISCHARGE_FACTOR", "DISCHARGE_FLOOR", "LEVEL_MARGIN_M", "REFUSE_SHARE", "PlausibleRange",
            "check_delivery", "check_series", "data_end", "plausible_ranges"]
@@ -96,7 +99,7 @@ class PlausibleRange:
         return f"{self.low:.4g} to {self.high:.4g} {self.unit} ({what})"
 
 
-def plausible_ranges(model: Any, series: Iterable[str], start: Any, end: Any, quantities: Mapping[str, float],
+def plausible_ranges(model: Model, series: Iterable[str], start: Any, end: Any, quantities: Mapping[str, float],
                      output_interval: float) -> dict[str, PlausibleRange]:
     """The plausible range of each series from the model's run of [start, end] (UTC) with ``quantities``.
 
@@ -217,7 +220,7 @@ def _unit_hint(rng: PlausibleRange, median: float) -> str:
     return ""
 
 
-def data_end(model: Any, config: Any, first: pd.Timestamp, last: pd.Timestamp) -> pd.Timestamp:
+def data_end(model: Model, config: OnlineConfig, first: pd.Timestamp, last: pd.Timestamp) -> pd.Timestamp:
     """The end of the observations the cycles from ``first`` to ``last`` use: the last forecast's, within the model."""
     period = pd.Timedelta(config.period)
     final = first + ((last - first) // period) * period if last >= first else first

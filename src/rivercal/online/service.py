@@ -41,12 +41,13 @@ import pandas as pd
 
 from rivercal._time import utc
 from rivercal.analysis.dependency import DependencyMap
-from rivercal.analysis.forecast import score_forecasts
 from rivercal.errors import ModelRunError
-from rivercal.models.contract import spun_up
-from rivercal.observations import DEFAULT_SIGMA, measurable
+from rivercal.models.contract import Model, ModelState, spun_up
+from rivercal.observations import DEFAULT_SIGMA, ObservationSet, measurable
 from rivercal.online import guardrails, intervention
+from rivercal.online.assimilation import AssimilationConfig, EnsembleFilter
 from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig, check_schedule
+from rivercal.online.metrics import ChangeFacts, run_metrics, score_forecasts
 from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
@@ -141,22 +142,17 @@ class OnlineService:
         If the run exists with another model or configuration.
     """
 
-    def __init__(self, model: Any, store: Store, run_name: str, config: OnlineConfig, first_issue: Any,
-                 meta: Mapping[str, Any] | None = None, assimilation: Any = None, take_over: bool = False):
+    def __init__(self, model: Model, store: Store, run_name: str, config: OnlineConfig, first_issue: Any,
+                 meta: Mapping[str, Any] | None = None, assimilation: AssimilationConfig | None = None,
+                 take_over: bool = False):
         self.model = model
         self.take_over = take_over
         self.store = store
         self.config = config
         self.schedule = config.schedule(first_issue)
+        config.check_model(model)  # the one check of a configuration against a model (rivercal.online.config)
         known = {p.name: p for p in model.calibration.parameters}
-        unknown = [n for n in config.parameters if n not in known]
-        if unknown:
-            raise ValueError(f"online: unknown parameter {unknown[0]!r}; model {model.name!r} defines "
-                             f"{', '.join(known) or 'none'}")
         self.parameters = ParameterSet(known[n] for n in config.parameters)
-        for name in [*config.max_change, *config.resolution]:
-            if name not in self.parameters.names:
-                raise ValueError(f"online: {name!r} has a change bound or resolution but is not estimated")
         self.series = list(config.series) if config.series is not None else measurable(model.observables)
         missing = [s for s in self.series if s not in model.observables]
         if missing:
@@ -172,16 +168,12 @@ class OnlineService:
         self.dependency = None
         if config.dependency is not None:
             self.dependency = DependencyMap.from_csv(config.dependency, config.dependency_threshold)
-            if not set(self.dependency.effects.columns) & set(config.parameters):
-                raise ValueError(f"online: the dependency map {config.dependency} names none of the parameters "
-                                 f"estimated ({', '.join(config.parameters)}); it names "
-                                 f"{', '.join(self.dependency.effects.columns)}")
         stored = {**config.stored(), "first_issue": self.schedule.first_issue.isoformat(), "meta": dict(meta or {})}
-        self.filter = None  # state updating (rivercal.online.assimilation), for modes 'states' and 'both'
+        self.facts = ChangeFacts.from_meta(meta)  # a twin's change, for the run metrics
+        self.filter: EnsembleFilter | None = None  # state updating, for modes 'states' and 'both'
+        self.assimilate = "parameters" if assimilation is None else assimilation.mode
         if assimilation is not None and assimilation.mode != "parameters":
-            from rivercal.online.assimilation import EnsembleFilter
-
-            self.filter = EnsembleFilter(model, assimilation, self.series, config.sigma)
+            self.filter = EnsembleFilter(model, assimilation, self.series, config.sigma, workers=config.workers)
             stored["assimilation"] = assimilation.stored()
         self.run = store.ensure_run(run_name, model.name, stored)
 
@@ -219,7 +211,7 @@ class OnlineService:
             out.append(p.model_copy(update={"initial": warm[p.name], "min": lo, "max": hi}))
         return ParameterSet(out)
 
-    def _state(self, name: str, at: pd.Timestamp, quantities: Mapping[str, float]) -> tuple[Any, bool]:
+    def _state(self, name: str, at: pd.Timestamp, quantities: Mapping[str, float]) -> tuple[ModelState, bool]:
         """The stored state ``name`` if it is at ``at``; else a cold spin-up to ``at`` (returns hot=False)."""
         stored = self.store.model_state(self.run, name)
         if stored is not None:
@@ -283,9 +275,15 @@ class OnlineService:
         if self.filter is not None:
             from rivercal.online.assimilation import assimilation_cycle
 
-            bands, ensemble, analyses = assimilation_cycle(self, spec, run_start, state, accepted)
-            forecasts["updated"] = bands.mean
-            est.message += f"; {analyses} state analyses of {self.filter.config.members} members"
+            try:
+                bands, ensemble, analyses = assimilation_cycle(self, spec, run_start, state, accepted)
+            except ModelRunError as exc:  # the cycle goes on with the parameters' forecast; the next starts anew
+                log.warning("cycle %d: state updating failed (%s); the parameters' forecast is issued", spec.cycle,
+                            exc)
+                est.message += f"; state updating failed ({exc}): the parameters' forecast is issued"
+            else:
+                forecasts["updated"] = bands.mean
+                est.message += f"; {analyses} state analyses of {self.filter.config.members} members"
         records = tuple(
             EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
                            std=float(est.std[n]) if n in est.std and math.isfinite(est.std[n]) else None,
@@ -303,6 +301,7 @@ class OnlineService:
             transitions=(change,) if change is not None else (), issued=choice.issued, issued_reason=choice.reason,
             skill_updated=choice.rmse_updated, skill_dss=choice.rmse_dss, ensemble=ensemble,
             bands=None if bands is None else BandRecord(bands.low, bands.high, probability=0.9)))
+        self.store.put_metrics(self.run, spec.cycle, self.metrics())
         log.info("cycle %d (%s): %s, %s in %.1f s, %d runs; issued %s", spec.cycle, t0, est.status,
                  ", ".join(f"{k}={v:.4g}" for k, v in accepted.items()), wall, est.model_runs, choice.issued)
         return CycleOutcome(cycle=spec.cycle, issue_time=t0, status=est.status, estimates=estimates,
@@ -311,7 +310,8 @@ class OnlineService:
                             hot_start=hot, transition=change, issued=choice.issued, issued_reason=choice.reason,
                             bands=bands)
 
-    def _estimate(self, est: _Estimation, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any, *,
+    def _estimate(self, est: _Estimation, spec: CycleSpec, warm: Mapping[str, float], state: ModelState | None,
+                  obs: ObservationSet, *,
                   first: bool) -> None:
         """Calibrate, gate, test for jumps and look for a transition; fills ``est``."""
         try:
@@ -386,12 +386,12 @@ class OnlineService:
         n = int(counts.loc[counts["flag"] != "ok", "n"].sum()) if len(counts) else 0
         return [f"{n} value{'s' if n != 1 else ''} flagged as outlier{'s' if n != 1 else ''} left out"] if n else []
 
-    def _calibrate(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any,
+    def _calibrate(self, spec: CycleSpec, warm: Mapping[str, float], state: ModelState | None, obs: ObservationSet,
                    change: TransitionRecord | None) -> tuple[CalibrationProblem, Calibration]:
         """The cycle's calibration, on the transition model when a change lies in the run."""
         run_start = spec.window_start - self.warmup
         box = self._box(warm)
-        model: Any = self.model
+        model: Model = self.model
         fixed = dict(self.config.dss)
         if change is not None:
             model = intervention.transition_model(self.model, self.parameters[change.parameter], run_start)
@@ -406,7 +406,7 @@ class OnlineService:
                         deadline=self.config.deadline_s, **extra)
         return problem, cal
 
-    def _retry(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any,
+    def _retry(self, spec: CycleSpec, warm: Mapping[str, float], state: ModelState | None, obs: ObservationSet,
                change: TransitionRecord) -> tuple[CalibrationProblem, Calibration] | None:
         """The cycle's calibration again, with the change just found (None if it failed or was aborted)."""
         try:
@@ -416,7 +416,8 @@ class OnlineService:
             return None
         return None if cal.result.aborted else (problem, cal)
 
-    def _search(self, spec: CycleSpec, warm: Mapping[str, float], state: Any, obs: Any, name: str,
+    def _search(self, spec: CycleSpec, warm: Mapping[str, float], state: ModelState | None, obs: ObservationSet,
+                name: str,
                 k: float) -> tuple[TransitionRecord | None, int, str]:
         """Run the transition estimator on ``name`` (it jumped by ``k`` σ); the change if the window holds one."""
         p = self.parameters[name]
@@ -494,7 +495,8 @@ class OnlineService:
                                gate_index=self.config.gate_index, algorithm=self.config.algorithm,
                                workers=self.config.workers)
 
-    def _forecasts(self, spec: CycleSpec, run_start: pd.Timestamp, state: Any, accepted: Mapping[str, float],
+    def _forecasts(self, spec: CycleSpec, run_start: pd.Timestamp, state: ModelState | None,
+                   accepted: Mapping[str, float],
                    change: TransitionRecord | None) -> tuple[dict[str, pd.DataFrame], dict[str, tuple]]:
         """Run the accepted model to t₀ and on to the horizon, and the DSS from its own state at t₀.
 
@@ -504,7 +506,7 @@ class OnlineService:
         t0 = spec.issue_time
         interval = self.config.output_interval_s
         q = self._quantities(accepted)
-        model: Any = self.model
+        model: Model = self.model
         if change is not None:
             model = intervention.transition_model(self.model, self.parameters[change.parameter], run_start)
             q = intervention.transition_quantities(model, q, change, accepted[change.parameter])
@@ -522,6 +524,44 @@ class OnlineService:
         states = {"updated": (next_start, fmt, self.model.save_state(s_next)),
                   "dss": (t0, fmt, self.model.save_state(dss_t0))}
         return forecasts, states
+
+    def cycle_at(self, issue_time: Any) -> CycleSpec:
+        """The cycle issued at ``issue_time`` (UTC): the unfinished cycle, which must be at that time, else the next.
+
+        For a caller that runs one cycle at a time at times it chooses (the Delft-FEWS module, its time zero);
+        a replay follows the schedule instead (:meth:`replay`).
+
+        Raises
+        ------
+        ValueError
+            When an unfinished cycle is issued at another time, ``issue_time`` is not after the last cycle, or
+            the window holds no observations of the used series.
+        """
+        t0 = utc(issue_time)
+        cycles = self.store.cycles(self.run)
+        unfinished = self.store.first_unfinished(self.run)
+        if unfinished is not None and unfinished.issue_time != t0:
+            raise ValueError(f"the store holds an unfinished cycle issued at {unfinished.issue_time:%Y-%m-%d %H:%M} "
+                             f"UTC, not at {t0:%Y-%m-%d %H:%M} UTC")
+        if unfinished is None and len(cycles) and t0 <= cycles["issue_time"].max():
+            raise ValueError(f"the issue time {t0:%Y-%m-%d %H:%M} UTC is not after the last cycle's "
+                             f"({cycles['issue_time'].max():%Y-%m-%d %H:%M} UTC)")
+        spec = CycleSpec(unfinished.cycle if unfinished is not None else len(cycles), t0 - self.window, t0, t0)
+        window = self.store.observations(self.series, spec.window_start, spec.window_end,
+                                         sources=list(self.config.sources) if self.config.sources else None)
+        if window.n_values == 0:
+            raise ValueError(f"no observations of {', '.join(self.series)} in the window "
+                             f"{spec.window_start:%Y-%m-%d %H:%M} – {spec.window_end:%Y-%m-%d %H:%M} UTC")
+        return spec
+
+    def close(self) -> None:
+        """Stop the worker processes of state updating, if any were started (the store stays open)."""
+        if self.filter is not None:
+            self.filter.close()
+
+    def metrics(self) -> dict[str, Any]:
+        """The run metrics as of the last finished cycle (:func:`rivercal.online.metrics.run_metrics`)."""
+        return run_metrics(self.store, self.run, self.series, sources=self.config.sources, facts=self.facts)
 
     # -- many cycles --------------------------------------------------------------------------------
 

@@ -2,7 +2,9 @@
 
 Every cycle forecasts twice, with its updated parameters and with the fixed parameters of the DSS, and
 scores the forecasts of earlier cycles when their observations have arrived
-(:func:`~rivercal.analysis.forecast.score_forecasts`). :func:`choose_forecast` compares the two kinds over
+(:func:`~rivercal.online.metrics.score_forecasts`). The updated forecast is the one the service would issue:
+with state updating (``--assimilate states|both``) the analysed ensemble's mean, so the rule judges that
+forecast, not the parameters' deterministic run. :func:`choose_forecast` compares the two kinds over
 the last ``cycles`` cycles whose level forecasts have been scored up to ``lead_h`` hours ahead: the
 pooled RMSE √(Σ n·RMSE² / Σ n) over stations and lead-time buckets, each kind over the same
 (cycle, series, bucket) cells. The cycle issues the updated forecast while its RMSE is at most the

@@ -24,6 +24,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from rivercal.models.contract import Model, ModelState
 from rivercal.models.transition import AFTER, BEFORE, TIME, TransitionModel
 from rivercal.observations import ObservationSet
 from rivercal.online.transition_search import TransitionTest, effective_size, transition_start, transition_test
@@ -89,8 +90,9 @@ class TransitionEstimate:
                 "model_runs": self.model_runs, "wall_s": round(self.wall_time, 3)}
 
 
-def estimate_transition(model: Any, parameter: Parameter, observations: ObservationSet, window: tuple[Any, Any], *,
-                        state: Any = None, warmup: pd.Timedelta | str = "24h", fixed: Mapping[str, float] | None = None,
+def estimate_transition(model: Model, parameter: Parameter, observations: ObservationSet, window: tuple[Any, Any], *,
+                        state: ModelState | None = None, warmup: pd.Timedelta | str = "24h",
+                        fixed: Mapping[str, float] | None = None,
                         initial: Mapping[str, float] | None = None, algorithm: str = "dud",
                         options: Mapping[str, Any] | None = None, workers: int | None = 1,
                         max_nfev: int | None = None, smoothing: Literal["substep", "none"] = "substep",

@@ -1,14 +1,11 @@
 """The report of an on-line run, rendered from its store (thesis chapter 5: Tables 5-1 … 5-5, Figs 5-2 … 5-15).
 
-Everything comes from the store: cycles, estimates, alerts, forecasts and their scores. For a run on
-twin observations of a practical scenario (the run's stored ``meta.scenario``), the report also
-re-runs the truth and two continuous model runs over the replayed period to draw what the stations
-cannot show: the levels at the weir of Fig. 5-4 and the average level error at every calculation
-point (Figs 5-2/5-3). The continuous runs are
-
-- the **DSS**: the case's fixed parameters throughout, from a cold start;
-- **rivercal**: the model as the on-line service keeps it, with each cycle's accepted parameters
-  from its issue time until the next cycle's (a piecewise-constant parameter history, one run).
+Everything comes from the store, and the report runs no model: cycles, estimates, alerts, forecasts, their
+scores and the run metrics the service stored with its cycles (:mod:`rivercal.online.metrics`). For a run on
+twin observations of a practical scenario (the run's stored ``meta.scenario``), the levels at every point of
+the truth, the DSS and rivercal that the run stored (:mod:`rivercal.twin.fields`) show what the stations
+cannot: the levels at the weir of Fig. 5-4 and the average level error at every calculation point
+(Figs 5-2/5-3).
 
 Errors are model − truth (m); Δŷ_avg of a point is the mean error over a period, as in the thesis
 (positive: the model is too high).
@@ -16,7 +13,6 @@ Errors are model − truth (m); Δŷ_avg of a point is the mean error over a per
 
 from __future__ import annotations
 
-import itertools
 import logging
 from pathlib import Path
 from typing import Any
@@ -27,14 +23,15 @@ import pandas as pd
 from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
-from rivercal.models.contract import spun_up
+from rivercal.models.contract import FromCase, Model
 from rivercal.report.figures import mark_change
 from rivercal.report.html import Page, bullets, figure, paragraph, table
 from rivercal.report.online_bands import band_blocks
-from rivercal.report.online_figures import figure_blocks
+from rivercal.report.online_figures import figure_blocks, stored_metrics
+from rivercal.store import Run, Store
 from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_xarray
 
-__all__ = ["continuous_runs", "forecast_errors", "write_online_report"]
+__all__ = ["write_online_report"]
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +41,7 @@ _RED, _BLUE, _GREY = "#c53030", "#2b6cb0", "#718096"
 
 
 
-def _meta(run: Any) -> dict[str, Any]:
+def _meta(run: Run) -> dict[str, Any]:
     return dict(run.config.get("meta") or {})
 
 
@@ -72,156 +69,13 @@ def _truth_words(perturbed: list[str]) -> list[str]:
             "against that truth; the forecast scores above are against the observations."]
 
 
-def _change_time(run: Any) -> pd.Timestamp | None:
+def _change_time(run: Run) -> pd.Timestamp | None:
     scenario = _meta(run).get("scenario")
     if not scenario:
         return None
     from rivercal.twin.practical import SCENARIOS
 
     return utc(SCENARIOS[scenario].change_time)
-
-
-# -- forecast errors -------------------------------------------------------------------------------------
-
-
-def forecast_errors(store: Any, run: Any, *, after: Any | None = None, lead_h: float = 24.0) -> dict[str, Any]:
-    """Mean absolute error of the level forecasts at the stations: rivercal (updated) against the fixed DSS.
-
-    Parameters
-    ----------
-    store, run
-        The store and the run (or its name).
-    after
-        Only cycles whose calibration window starts at or after this time (UTC); default: for a twin
-        scenario its change time (the transition has left the window), else every cycle.
-    lead_h
-        Lead times (0, lead_h] h are scored.
-
-    Returns
-    -------
-    dict
-        ``n`` (compared values per kind), ``lead_h``, ``from`` (ISO time or None), ``updated_mae_m`` and
-        ``dss_mae_m`` (m), ``ratio`` (DSS / rivercal; None when rivercal's error is zero or nothing was
-        compared), and ``reason``: why nothing could be compared (None when ``n`` > 0).
-    """
-    run = store.get_run(run) if isinstance(run, str) else run
-    if after is None:
-        after = _change_time(run)
-    out: dict[str, Any] = {"n": 0, "lead_h": lead_h, "from": None if after is None else utc(after).isoformat(),
-                           "updated_mae_m": None, "dss_mae_m": None, "ratio": None, "reason": None}
-    cycles = store.cycles(run)
-    if cycles.empty:
-        out["reason"] = "the run has no finished cycle yet"
-        return out
-    keep = cycles if after is None else cycles[cycles["window_start"] >= utc(after)]
-    if keep.empty:
-        out["reason"] = _no_cycle_after(run, cycles, utc(after))
-        return out
-    fc = store.forecasts(run)
-    fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] > 0) & (fc["lead_h"] <= lead_h)]
-    if not fc.empty:
-        fc = fc[fc["series"].str.rpartition(".")[2].isin(_LEVELS)]
-    if fc.empty:
-        out["reason"] = f"the scored cycles stored no level forecast with a lead time of at most {lead_h:g} h"
-        return out
-    series = sorted(fc["series"].unique())
-    obs = [s for s in store.observations(series, fc["time"].min(), fc["time"].max()) if len(s)]
-    joined = fc.iloc[:0]
-    if obs:
-        observed = pd.concat({s.id: pd.Series(s.values, index=s.times) for s in obs}, names=["series", "time"])
-        joined = fc.join(observed.rename("observed"), on=["series", "time"], how="inner")
-    if joined.empty:
-        out["reason"] = _no_observations(store, series, fc)
-        return out
-    joined["abs_error"] = (joined["value"] - joined["observed"]).abs()
-    mae = joined.groupby("kind")["abs_error"].mean()
-    n = joined.groupby("kind").size()
-    if "updated" not in mae or "dss" not in mae:
-        missing = "rivercal's" if "updated" not in mae else "the DSS's"
-        out["reason"] = f"no observation falls on {missing} forecasts, so the two cannot be compared"
-        return out
-    out.update(n=int(n.min()), updated_mae_m=float(mae["updated"]), dss_mae_m=float(mae["dss"]),
-               ratio=float(mae["dss"] / mae["updated"]) if mae["updated"] > 0 else None)
-    return out
-
-
-def _no_cycle_after(run: Any, cycles: pd.DataFrame, after: pd.Timestamp) -> str:
-    """Why no cycle counts: none has a calibration window that starts at or after ``after``."""
-    window = pd.Timedelta(run.config["window"])
-    period = pd.Timedelta(run.config["period"])
-    first = utc(run.config.get("first_issue") or cycles["issue_time"].min())
-    k = max(0, -(-(after + window - first) // period))  # the first cycle whose window starts at or after
-    return (f"the comparison counts only cycles whose calibration window ({_span(run.config['window'])}) starts at or "
-            f"after the change at {after:%Y-%m-%d %H:%M}; the first such cycle is issued at "
-            f"{first + k * period:%Y-%m-%d %H:%M}, the last cycle of this run at "
-            f"{cycles['issue_time'].max():%Y-%m-%d %H:%M}")
-
-
-def _no_observations(store: Any, series: list[str], fc: pd.DataFrame) -> str:
-    """Why no forecast meets an observation: the observations end (or start) outside the forecasts' times."""
-    table = store.availability(series)
-    first_fc = fc["time"].min()
-    if table.empty:
-        return "the store holds no observation of the forecast series"
-    last_obs = pd.Timestamp(table["last"].max())
-    if last_obs < first_fc:
-        return (f"the observations end at {last_obs:%Y-%m-%d %H:%M}, before the forecasts' first lead time "
-                f"({first_fc:%Y-%m-%d %H:%M})")
-    return (f"no observation falls on a forecast time between {first_fc:%Y-%m-%d %H:%M} and "
-            f"{fc['time'].max():%Y-%m-%d %H:%M}")
-
-
-# -- continuous runs (twin scenarios) --------------------------------------------------------------------
-
-
-def continuous_runs(model: Any, store: Any, run: Any, start: Any, end: Any) -> dict[str, pd.DataFrame]:
-    """Levels at every calculation point, hourly, of the truth, the DSS and rivercal (module docstring).
-
-    Returns
-    -------
-    dict
-        ``truth``, ``dss``, ``rivercal``: DataFrames indexed by time (UTC), one column per calculation
-        point, m AD; ``truth_series``, ``dss_series``, ``rivercal_series``: the observable series.
-    """
-    from rivercal.parameters import ParameterSet
-    from rivercal.twin.practical import practical_truth
-
-    run = store.get_run(run) if isinstance(run, str) else run
-    meta, config = _meta(run), run.config
-    start, end = utc(start), utc(end)
-    truth = practical_truth(model, meta["scenario"], start, end, levels=True)
-    dss_q = dict(config.get("dss") or {})
-    state = spun_up(model, dss_q, start)
-    dss, _ = model.simulate(dss_q, start=start, end=end, state=state, output_interval=3600, snapshots=True)
-    known = {p.name: p for p in model.calibration.parameters}
-    params = ParameterSet(known[n] for n in config["parameters"])
-    est = store.estimates(run)
-    cycles = store.cycles(run)
-    accepted: dict[str, float] = {p.name: p.initial for p in params}
-    segments: list[tuple[pd.Timestamp, dict[str, float]]] = []
-    for c in cycles.itertuples():
-        rows = est[(est["cycle"] == c.cycle) & est["accepted"]]
-        accepted = {**accepted, **dict(zip(rows["parameter"], rows["value"], strict=True))}
-        segments.append((c.issue_time, dict(accepted)))
-    first = [q for t, q in segments if t <= start]
-    values = first[-1] if first else {p.name: p.initial for p in params}
-    state = spun_up(model, {**dss_q, **params.quantities(values)}, start)
-    bounds = [t for t, _ in segments if start < t < end]
-    edges = [start, *bounds, end]
-    level_parts, series_parts = [], []
-    for a, b in itertools.pairwise(edges):
-        later = [q for t, q in segments if t <= a]
-        values = later[-1] if later else values
-        res, state = model.simulate({**dss_q, **params.quantities(values)}, start=a, end=b, state=state,
-                                    output_interval=3600, snapshots=True)
-        level_parts.append(res.levels.iloc[:-1])
-        series_parts.append(res.series.iloc[:-1])
-    rivercal_levels = pd.concat(level_parts)
-    rivercal_series = pd.concat(series_parts)
-    idx = rivercal_levels.index
-    return {"truth": truth.levels.loc[idx], "dss": dss.levels.loc[idx], "rivercal": rivercal_levels,
-            "truth_series": truth.series.loc[idx], "dss_series": dss.series.loc[idx],
-            "rivercal_series": rivercal_series}
 
 
 # -- figures -----------------------------------------------------------------------------------------------
@@ -311,7 +165,7 @@ def _error_time_figure(errors: dict[str, pd.DataFrame], change: pd.Timestamp | N
 # -- tables ------------------------------------------------------------------------------------------------
 
 
-def _parameter_table(model: Any, run: Any, est: pd.DataFrame, change: pd.Timestamp | None) -> pd.DataFrame:
+def _parameter_table(model: Model, run: Run, est: pd.DataFrame, change: pd.Timestamp | None) -> pd.DataFrame:
     """Thesis Tables 5-1 … 5-5: crest per adjustable weir and friction — true, DSS and rivercal.
 
     Rows: every single-target parameter of the case that the DSS or the truth sets, plus the quantities
@@ -413,7 +267,7 @@ def _ratio_words(ratio: float | None) -> str:
 # -- the report --------------------------------------------------------------------------------------------
 
 
-def write_online_report(store: Any, run_name: str, out: str | Path, *, model: Any) -> dict[str, str]:
+def write_online_report(store: Store, run_name: str, out: str | Path, *, model: Model) -> dict[str, str]:
     """Write ``index.html`` with the tables and figures of an on-line run, plus CSV/NetCDF exports.
 
     Parameters
@@ -425,7 +279,8 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     out
         Folder for the report (created).
     model
-        The run's model (for the parameter table and, for twin scenarios, the continuous runs).
+        The run's model: its calibration setup names the parameters and the DSS's values; a model built from a
+        case (:class:`~rivercal.models.contract.FromCase`) places the stations and draws the maps. It is not run.
 
     Returns
     -------
@@ -448,7 +303,7 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     files["estimates_csv"] = str(export_estimates_csv(store, run, out / "estimates.csv"))
     files["forecasts_csv"] = str(export_forecasts_csv(store, run, out / "forecasts.csv"))
     dataset = to_xarray(store, run)
-    case = getattr(model, "case", None)  # an embedded model knows its stations' places; other models do not
+    case = model.source_case() if isinstance(model, FromCase) else None  # the stations' places, the maps
     if case is not None:
         dataset = add_stations(dataset, case)
     files["netcdf"] = str(write_netcdf(dataset, out / "run.nc"))
@@ -511,7 +366,7 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
         if len(held):
             page.section("Held estimates", table(held[["cycle", "parameter", "value", "reason"]].set_index("cycle"),
                                                  "Estimates not accepted, and why"))
-    errors = forecast_errors(store, run)
+    errors = stored_metrics(store, run)["forecast_errors"]
     if len(scores):
         fig_scores = _scores_figure(scores, out / "forecast_scores.png")
         files["scores_figure"] = str(fig_scores)
@@ -534,42 +389,42 @@ def write_online_report(store: Any, run_name: str, out: str | Path, *, model: An
     bands = band_blocks(store, run, out, files)
     if bands:
         page.section("Ensemble forecast and its 90 % band", *bands)
-    if scenario is not None and len(cycles) and hasattr(model, "compiled"):  # the maps need every point's level
-        _twin_sections(page, model, store, run, cycles, change, out, files, perturbed)
+    if scenario is not None and len(cycles):
+        _twin_sections(page, case, store, run, change, out, files, perturbed)
     page.write(out / "index.html")
     files["report"] = str(out / "index.html")
     return files
 
 
-def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.DataFrame, change: pd.Timestamp,
-                   out: Path, files: dict[str, str], perturbed: list[str]) -> None:
-    """Figs 5-2 … 5-15: the levels at weir ZL1-5930, the error maps, the error over time."""
+def _twin_sections(page: Page, case: Any, store: Store, run: Run, change: pd.Timestamp, out: Path,
+                   files: dict[str, str], perturbed: list[str]) -> None:
+    """Figs 5-2 … 5-15 from the stored twin fields: the levels at weir ZL1-5930, the error maps, the error over time."""
     from rivercal.report.figures import plot_network_pair, plot_transition_levels
+    from rivercal.twin.fields import load_twin_fields
     from rivercal.twin.practical import LOCAL_WEIR
 
-    period = pd.Timedelta(run.config["period"])
-    start, end = cycles["issue_time"].min(), min(cycles["issue_time"].max() + period, utc(model.end))
-    if not end > start:  # the only cycle is issued at the case's end: no model time follows it
+    fields = load_twin_fields(store, run)
+    if fields is None or fields.levels["truth"].empty:
         page.section("Errors over the network (thesis Figs 5-2, 5-3, 5-5 … 5-15)", paragraph(
-            f"Not shown: the replayed cycles are issued at the end of the case ({end:%Y-%m-%d %H:%M}), so no model "
-            "time follows them in which to compare the levels of the truth, the DSS and rivercal."))
+            "Not shown: the run stored no levels at every point of the truth, the DSS and rivercal (the service "
+            "stores them after a twin run on a model that gives them, e.g. the embedded engine; not when the replayed "
+            "cycles end at the end of the model's period, where no model time follows them)."))
         return
-    runs = continuous_runs(model, store, run, start, end)
+    runs = {**fields.levels, **{f"{k}_series": v for k, v in fields.series.items()}}
+    start, end = runs["truth"].index[0], runs["truth"].index[-1] + pd.Timedelta("1h")
     errors = {k: runs[k] - runs["truth"] for k in ("dss", "rivercal")}
     fig_time = _error_time_figure(errors, change, out / "error_over_time.png")
     files["error_time_figure"] = str(fig_time)
-    compiled = model.compiled
-    link = compiled.structure_link[LOCAL_WEIR]
-    a = compiled.arrays
-    up, down = compiled.hp_label[int(a.lk_k1[link])], compiled.hp_label[int(a.lk_k2[link])]
-    names = {up: f"{LOCAL_WEIR} upstream", down: f"{LOCAL_WEIR} downstream"}
-    observed = runs["truth"][[up, down]].rename(columns=names)
-    fig_weir = plot_transition_levels(observed, runs["dss"][[up, down]].rename(columns=names),
-                                      runs["rivercal"][[up, down]].rename(columns=names),
-                                      series=list(names.values()), change_time=change,
-                                      title=f"Levels at weir {LOCAL_WEIR} (thesis Fig. 5-4)")
-    fig_weir.savefig(out / "weir_levels.png", dpi=110)
-    files["weir_figure"] = str(out / "weir_levels.png")
+    if fields.weir_points is not None:
+        up, down = fields.weir_points
+        names = {up: f"{LOCAL_WEIR} upstream", down: f"{LOCAL_WEIR} downstream"}
+        observed = runs["truth"][[up, down]].rename(columns=names)
+        fig_weir = plot_transition_levels(observed, runs["dss"][[up, down]].rename(columns=names),
+                                          runs["rivercal"][[up, down]].rename(columns=names),
+                                          series=list(names.values()), change_time=change,
+                                          title=f"Levels at weir {LOCAL_WEIR} (thesis Fig. 5-4)")
+        fig_weir.savefig(out / "weir_levels.png", dpi=110)
+        files["weir_figure"] = str(out / "weir_levels.png")
     window = pd.Timedelta(run.config["window"])
     periods = {"before the transition": (start, change), "after the transition has left the window":
                (change + window, end)}
@@ -578,14 +433,15 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
         if not a1 > a0:
             continue
         sel = {k: e.loc[a0:a1 - pd.Timedelta(seconds=1)].mean() for k, e in errors.items()}
-        path = out / f"error_map_{'before' if 'before' in label else 'after'}.png"
-        fig = plot_network_pair(model.case, sel["dss"], sel["rivercal"], titles=("fixed DSS", "rivercal"),
-                                label="Δŷ_avg [m]", suptitle=f"Average level error per calculation point, {label}")
-        fig.savefig(path, dpi=110)
-        files[f"error_map_{'before' if 'before' in label else 'after'}"] = str(path)
         worst = sel["dss"].abs().sort_values(ascending=False).head(5)
-        blocks.append(figure(path, f"Average level error Δŷ_avg (model − truth, m) per calculation point, {label} "
-                                   f"({a0:%Y-%m-%d %H:%M} – {a1:%Y-%m-%d %H:%M}); thesis Figs 5-2/5-3."))
+        if case is not None:
+            path = out / f"error_map_{'before' if 'before' in label else 'after'}.png"
+            fig = plot_network_pair(case, sel["dss"], sel["rivercal"], titles=("fixed DSS", "rivercal"),
+                                    label="Δŷ_avg [m]", suptitle=f"Average level error per calculation point, {label}")
+            fig.savefig(path, dpi=110)
+            files[f"error_map_{'before' if 'before' in label else 'after'}"] = str(path)
+            blocks.append(figure(path, f"Average level error Δŷ_avg (model − truth, m) per calculation point, "
+                                       f"{label} ({a0:%Y-%m-%d %H:%M} – {a1:%Y-%m-%d %H:%M}); thesis Figs 5-2/5-3."))
         blocks.append(paragraph(
             f"{label.capitalize()}: mean |Δŷ_avg| over all points: DSS {sel['dss'].abs().mean() * 100:.2f} cm, "
             f"rivercal {sel['rivercal'].abs().mean() * 100:.2f} cm. Largest DSS errors at "
@@ -607,11 +463,12 @@ def _twin_sections(page: Page, model: Any, store: Any, run: Any, cycles: pd.Data
                if len(visible) else "No station series differs by more than 1 cm: the stations cannot see this "
                "change, so no estimator fed by them can follow it; a station at the points with the largest DSS "
                "errors above would.")))
-    page.section("Levels at weir ZL1-5930 (thesis Fig. 5-4)",
-                 figure(out / "weir_levels.png", f"Levels just up- and downstream of weir {LOCAL_WEIR}: the truth "
-                                                 "(grey; no station there), the DSS (red) and rivercal (blue); "
-                                                 "dashed: the transition (named under the time axis when it lies "
-                                                 "outside the period shown)."))
+    if "weir_figure" in files:
+        page.section("Levels at weir ZL1-5930 (thesis Fig. 5-4)",
+                     figure(out / "weir_levels.png", f"Levels just up- and downstream of weir {LOCAL_WEIR}: the "
+                                                     "truth (grey; no station there), the DSS (red) and rivercal "
+                                                     "(blue); dashed: the transition (named under the time axis when "
+                                                     "it lies outside the period shown)."))
     page.section("Errors over the network (thesis Figs 5-2, 5-3, 5-5 … 5-15)",
                  figure(fig_time, "Mean absolute level error over all calculation points, hourly."), *blocks,
                  bullets([f"DSS: the case's fixed parameters throughout (run {run.name}).",

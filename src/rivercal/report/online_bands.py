@@ -15,6 +15,7 @@ from typing import Any
 import pandas as pd
 
 from rivercal._figure import subplots
+from rivercal.store import Run, Store
 
 __all__ = ["band_blocks", "band_figure"]
 
@@ -28,7 +29,7 @@ def _levels(bands: pd.DataFrame) -> pd.DataFrame:
     return bands[bands["series"].str.rpartition(".")[2].isin(_LEVELS)] if len(bands) else bands
 
 
-def band_figure(store: Any, run: Any, path: Path, *, cycle: int | None = None) -> Path | None:
+def band_figure(store: Store, run: Run, path: Path, *, cycle: int | None = None) -> Path | None:
     """The level forecasts of one cycle (default the last with a band) with their band; None without bands."""
     bands = _levels(store.forecast_bands(run))
     if bands.empty:
@@ -67,16 +68,16 @@ def band_figure(store: Any, run: Any, path: Path, *, cycle: int | None = None) -
     return path
 
 
-def band_blocks(store: Any, run: Any, out: Path, files: dict[str, str]) -> list[Any]:
+def band_blocks(store: Store, run: Run, out: Path, files: dict[str, str]) -> list[Any]:
     """Report blocks of the band figure and the band's coverage (empty when the run stored no bands)."""
-    from rivercal.online.assimilation import band_coverage
     from rivercal.report.html import figure, paragraph
+    from rivercal.report.online_figures import stored_metrics
 
     path = band_figure(store, run, out / "forecast_band.png")
     if path is None:
         return []
     files["band_figure"] = str(path)
-    cover = band_coverage(store, run, sources=run.config.get("sources"))  # the sources the service used
+    cover = stored_metrics(store, run).get("band_coverage_90") or {"n": 0}  # as the service measured it
     words = ("The updated forecast is the mean of an ensemble of model states analysed with the observations up "
              "to the issue time; the band holds the observation with the stated probability (the members' spread "
              "plus the observation error).")

@@ -1,17 +1,19 @@
-"""The store of the on-line service (layer 6): runs, cycles, estimates, alerts, forecasts, observations.
+"""The store of the on-line service (layer 7): runs, cycles, estimates, alerts, forecasts, observations.
 
-An SQLite file by default (:mod:`rivercal.store.sqlite`); ``Store("postgresql://…")`` keeps the same records
-in a PostgreSQL database that several services and readers share (:mod:`rivercal.store.postgres`).
+One abstract store (:mod:`rivercal.store.base`) with two back-ends beside it: an SQLite file by default
+(:mod:`rivercal.store.sqlite`); ``Store("postgresql://…")`` keeps the same records in a PostgreSQL database that
+several services and readers share (:mod:`rivercal.store.postgres`).
 
 ``import rivercal`` does not import this package (it loads :mod:`sqlite3`); import it where needed::
 
     from rivercal.store import Store, Schedule, CycleRecord, EstimateRecord, AlertRecord, TransitionRecord
 
-See :mod:`rivercal.store.sqlite` for the crash-safety design, :mod:`rivercal.store.schema` for the tables
+See :mod:`rivercal.store.base` for the crash-safety design, :mod:`rivercal.store.schema` for the tables
 and their units, and :mod:`rivercal.store.export` for the CSV and NetCDF exports (functions over a store).
-Forecast scores are computed by :mod:`rivercal.analysis.forecast` and kept here.
+The run metrics (forecast scores and the rest) are computed by :mod:`rivercal.online.metrics` and kept here.
 """
 
+from rivercal.store.base import Store, is_url
 from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_netcdf, to_xarray
 from rivercal.store.records import (
     CYCLE_STATUSES,
@@ -33,7 +35,6 @@ from rivercal.store.records import (
     TransitionRecord,
 )
 from rivercal.store.schema import SCHEMA_VERSION
-from rivercal.store.sqlite import Store, is_url
 
 __all__ = [
     "CYCLE_STATUSES",

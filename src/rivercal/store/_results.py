@@ -1,15 +1,16 @@
-"""Results of the on-line service's cycles: estimates, alerts, forecasts and forecast scores.
+"""Results of the on-line service's cycles: estimates, alerts, forecasts, scores, run metrics and products.
 
-The scores are computed by :mod:`rivercal.analysis.forecast`; the store only keeps them.
+The scores and the run metrics are computed by :mod:`rivercal.online.metrics`; the store only keeps them.
 
-Part of :class:`rivercal.store.Store` (this module holds the queries; the connection, transactions and
-cycle bookkeeping are in :mod:`rivercal.store.sqlite`, the only module that imports :mod:`sqlite3`).
+Part of :class:`rivercal.store.Store` (this module holds the queries; the cycle bookkeeping is in
+:mod:`rivercal.store.base`, the connections and transactions in the back-ends beside it).
 """
 
 from __future__ import annotations
 
+import json
 import logging
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import pandas as pd
@@ -24,7 +25,49 @@ log = logging.getLogger("rivercal.store")
 
 
 class ResultTables(StoreBase):
-    """Queries over the estimates, alerts, forecasts, forecast_scores, forecast_bands and ensembles tables."""
+    """Queries over the estimates, alerts, forecasts, scores, bands, ensembles, metrics and products tables."""
+
+    # -- run metrics (rivercal.online.metrics) and products of a run -------------------------------------------
+
+    def put_metrics(self, run: int | Run, cycle: int, metrics: Mapping[str, Any]) -> None:
+        """Store the run metrics as of a finished cycle (a JSON object; replaces what the cycle held).
+
+        Raises
+        ------
+        CycleStateError
+            When the run has no such finished cycle.
+        """
+        text = fr.config_json(metrics)
+        with self._transaction() as conn:
+            done = conn.execute("UPDATE cycles SET metrics = ? WHERE run_id = ? AND cycle = ? AND finished IS NOT "
+                                "NULL", (text, self._run_id(run), int(cycle))).rowcount
+            if done != 1:
+                raise CycleStateError(f"{self.path}: run {self._run_id(run)} has no finished cycle {cycle}")
+
+    def metrics(self, run: int | Run, cycle: int | None = None) -> dict[str, Any] | None:
+        """The run metrics stored with ``cycle`` (None: the latest cycle that has them), or None."""
+        if cycle is None:
+            rows = self._query("SELECT metrics FROM cycles WHERE run_id = ? AND metrics IS NOT NULL ORDER BY cycle "
+                               "DESC LIMIT 1", (self._run_id(run),))
+        else:
+            rows = self._query("SELECT metrics FROM cycles WHERE run_id = ? AND cycle = ? AND metrics IS NOT NULL",
+                               (self._run_id(run), int(cycle)))
+        return json.loads(rows[0][0]) if rows else None
+
+    def put_product(self, run: int | Run, name: str, fmt: str, data: bytes) -> None:
+        """Store a product of a run as a whole (bytes in format ``fmt``), replacing one of the same name."""
+        if not name or not fmt:
+            raise ValueError("a run product needs a name and a format")
+        with self._transaction() as conn:
+            conn.execute("INSERT INTO run_products (run_id, name, format, data, created) VALUES (?, ?, ?, ?, ?) "
+                         "ON CONFLICT (run_id, name) DO UPDATE SET format = excluded.format, data = excluded.data, "
+                         "created = excluded.created", (self._run_id(run), name, fmt, bytes(data), fr.now_stamp()))
+
+    def product(self, run: int | Run, name: str) -> tuple[str, bytes] | None:
+        """A stored product of a run: (format, data), or None."""
+        rows = self._query("SELECT format, data FROM run_products WHERE run_id = ? AND name = ?",
+                           (self._run_id(run), name))
+        return (str(rows[0][0]), bytes(rows[0][1])) if rows else None
 
     def estimates(self, run: int | Run, *, accepted_only: bool = False) -> pd.DataFrame:
         """Every stored estimate of a run (long format), in cycle and parameter order.
@@ -181,7 +224,7 @@ class ResultTables(StoreBase):
             Run id.
         scores
             Columns cycle, kind, series, lead_from_h, lead_to_h (h), rmse, bias (m or m³/s), n, as
-            :func:`rivercal.analysis.forecast.score_forecasts` computes them. Cycles not in the table keep
+            :func:`rivercal.online.metrics.score_forecasts` computes them. Cycles not in the table keep
             their scores.
         """
         run_id = self._run_id(run)

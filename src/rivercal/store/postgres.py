@@ -31,9 +31,9 @@ import re
 from collections.abc import Iterator, Sequence
 from typing import Any, Literal
 
+from rivercal.store.base import Store
 from rivercal.store.records import StoreError
 from rivercal.store.schema import APPLICATION_ID, PG_SCHEMA_VERSION_DDL, for_postgresql
-from rivercal.store.sqlite import Store
 
 __all__ = ["PostgresStore"]
 
@@ -81,7 +81,7 @@ class _Connection:
 
 
 class PostgresStore(Store):
-    """The on-line service's store in a PostgreSQL database (see the module docstring).
+    """The on-line service's store in a PostgreSQL database (see the module docstring); ``Store(url)`` opens it.
 
     Parameters
     ----------
@@ -97,6 +97,8 @@ class PostgresStore(Store):
     StoreVersionError
         As :class:`rivercal.store.Store`.
     """
+
+    backend = "postgresql"
 
     def __init__(self, path: str, *, readonly: bool = False, synchronous: Literal["FULL", "NORMAL"] = "FULL",
                  timeout_s: float = 30.0):
@@ -155,7 +157,7 @@ class PostgresStore(Store):
         return int(row[0]) if row and row[0] is not None else 0
 
     def _steps(self) -> tuple:
-        return for_postgresql(super()._steps())
+        return for_postgresql(self._migrations())
 
     def _first_step(self, conn: Any) -> None:
         conn.execute(PG_SCHEMA_VERSION_DDL)

@@ -339,7 +339,7 @@ class CycleRecord:
         keeps them opaque (see :meth:`EngineState.to_bytes <rivercal.engine.EngineState.to_bytes>`).
     scores
         Scores of the forecasts of earlier cycles, computed by this cycle (columns cycle, kind, series,
-        lead_from_h, lead_to_h, rmse, bias, n, as :func:`rivercal.analysis.forecast.score_forecasts` gives
+        lead_from_h, lead_to_h, rmse, bias, n, as :func:`rivercal.online.metrics.score_forecasts` gives
         them); stored in the same transaction, replacing the earlier scores of each cycle listed, so that
         a kill between the commit and the scoring cannot leave a cycle unscored.
     transitions

@@ -62,6 +62,14 @@ Tables (current version)
   The uncertainty band of the cycle's ``updated`` forecast (an ensemble's): the observation at ``time`` is
   expected between ``low`` and ``high`` with the given ``probability`` (0.9: the 5 % and 95 % quantiles).
   PRIMARY KEY (cycle_id, series, time).
+- ``cycles.metrics``:
+  The run metrics as of the cycle (a JSON object: forecast errors, the headline figures, the error by lead
+  time, the band coverage; :mod:`rivercal.online.metrics`), written after the cycle's commit; NULL for a cycle
+  stored before they were (readers then compute them from the other tables).
+- ``run_products(run_id → runs, name, format, data BLOB, created)``:
+  What was computed for a run as a whole, for its readers (e.g. ``twin-fields``: a twin's levels at every
+  point of the truth, the DSS and rivercal, for the report's maps); ``data`` is opaque to the store
+  (``format`` says how it was written). PRIMARY KEY (run_id, name); a new product replaces the old.
 
 Every child row is deleted with its cycle and every cycle with its run (ON DELETE CASCADE; the store
 turns foreign keys on for each connection).
@@ -319,6 +327,25 @@ def _v6_statements(blob: str) -> tuple[str, ...]:
 
 _V6 = _statements(*_v6_statements("BLOB"))
 
+# --- version 7: the run metrics with each cycle, products of a run ---------------------------------------------
+def _v7_statements(blob: str) -> tuple[str, ...]:
+    """The statements of version 7 with the dialect's binary type."""
+    return (
+        "ALTER TABLE cycles ADD COLUMN metrics TEXT",
+        f"""
+        CREATE TABLE run_products (
+            run_id  BIGINT NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+            name    TEXT NOT NULL CHECK (length(name) > 0),
+            format  TEXT NOT NULL CHECK (length(format) > 0),
+            data    {blob} NOT NULL,
+            created TEXT NOT NULL,
+            PRIMARY KEY (run_id, name)
+        )""",
+    )
+
+
+_V7 = _statements(*_v7_statements("BLOB"))
+
 #: The forward steps, in order. Append only; never edit a released step.
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "runs, cycles, estimates, alerts", _V1),
@@ -327,6 +354,7 @@ MIGRATIONS: tuple[Migration, ...] = (
     Migration(4, "model states for hot starts", _V4),
     Migration(5, "observation flags and gaps, transitions, the issued forecast and its skill", _V5),
     Migration(6, "the latest ensemble per run, forecast uncertainty bands", _V6),
+    Migration(7, "the run metrics with each cycle, products of a run", _V7),
 )
 #: The version this rivercal writes.
 SCHEMA_VERSION = MIGRATIONS[-1].version
@@ -336,7 +364,7 @@ SCHEMA_VERSION = MIGRATIONS[-1].version
 # (Unix seconds) and ids (an identity column where SQLite has INTEGER PRIMARY KEY), DOUBLE PRECISION for REAL
 # (PostgreSQL's REAL is 4 bytes), BYTEA for BLOB, the JSON check through PostgreSQL's json type. A step here
 # always matches the step of the same version above. Steps after version 4 are written once, in plain SQL that
-# both servers run; version 6 differs only in its binary type and is written once with that as a parameter.
+# both servers run; versions 6 and 7 differ only in their binary type and are written once with it as a parameter.
 
 PG_SCHEMA_VERSION_DDL = """
 CREATE TABLE IF NOT EXISTS schema_version (
@@ -459,7 +487,8 @@ _PG_V4 = _statements(
 #: ROWID, json_valid). Every later step is plain SQL both servers run (BIGINT, DOUBLE PRECISION, TEXT, CHECK,
 #: ALTER TABLE … ADD COLUMN) and is used as it stands; a step that cannot be written so adds its form here.
 _PG_STEPS: dict[int, Callable[[_Connection], None]] = {1: _PG_V1, 2: _PG_V2, 3: _PG_V3, 4: _PG_V4,
-                                                       6: _statements(*_v6_statements("BYTEA"))}
+                                                       6: _statements(*_v6_statements("BYTEA")),
+                                                       7: _statements(*_v7_statements("BYTEA"))}
 
 
 

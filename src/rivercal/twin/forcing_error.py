@@ -8,34 +8,32 @@ error of the rain and the runoff, which state updating is there to correct.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import pandas as pd
 
 from rivercal.assimilate.perturb import ar1_series, multiplicative_factors
+from rivercal.models.contract import Model, require
 
 __all__ = ["rain_error_model"]
 
 
-def rain_error_model(model: Any, sigma: float, seed: int, tau: str = "24h") -> Any:
+def rain_error_model(model: Model, sigma: float, seed: int, tau: str = "24h") -> Model:
     """A twin's truth whose inflows and laterals are the model's times log-normal AR(1) factors.
 
     The model that the service and the DSS run keeps the case's forcing, so it carries the error of the
     rain and the runoff: σ of the log of the factors (0.3: about 30 %), correlation time ``tau``, hourly
-    values, one series per inflow and lateral.
+    values, one series per inflow and lateral (the model's perturbable forcing). The truth is a variant of
+    the model (:class:`~rivercal.models.contract.Variants`).
+
+    Raises
+    ------
+    MissingCapability
+        For a model without perturbable forcing or variants.
     """
-    compiled = model.compiled
+    require(model, "perturbable forcing", "variants", purpose="a twin with a rain error")
     rng = np.random.default_rng([seed, 20])
-    forcing = dict(model.forcing)
-    keys = [k for k in compiled.forcing_keys if k.startswith("lateral:") or
-            (k.startswith("boundary:") and not compiled.forcing_is_level[compiled.forcing_keys.index(k)])]
+    keys = list(model.perturbable_forcing())
     hours = pd.date_range(model.start - pd.Timedelta("7D"), model.end + pd.Timedelta("1D"), freq="1h")
     errors = ar1_series(rng, hours.size, (len(keys),), sigma, pd.Timedelta(tau) / pd.Timedelta("1h"))
     factors = multiplicative_factors(errors, sigma)
-    for j, key in enumerate(keys):
-        series = forcing[key]
-        f = np.interp((series.index - hours[0]).total_seconds(), (hours - hours[0]).total_seconds(), factors[:, j])
-        forcing[key] = series * f
-    truth = type(model)(model.case, forcing={k: v for k, v in forcing.items() if k in compiled.forcing_keys})
-    return truth
+    return model.variant(forcing_factors={key: pd.Series(factors[:, j], index=hours) for j, key in enumerate(keys)})

@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.models.contract import spun_up
+from rivercal.models.contract import Model, ModelState, capability, spun_up
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import NOISE_MODELS, add_noise
 from rivercal.twin.realism import REALISM_LEVELS, Realism, apply_sensor_errors, get_realism
@@ -154,6 +154,15 @@ class PracticalScenario:
         changes = self.after if after else self.before
         return {c.target: c.resolve(defaults) for c in changes}
 
+    def facts(self) -> dict[str, Any]:
+        """What a run's ``meta["truth"]`` keeps of the scenario for its metrics: the change time and the true values.
+
+        The on-line service reads them there (:class:`rivercal.online.metrics.ChangeFacts`), so that its run
+        metrics know the truth of a twin without the twin package.
+        """
+        return {"change_time": utc(self.change_time).isoformat(), "true_before": dict(self.true_before),
+                "true_after": dict(self.true_after)}
+
 
 def _dss() -> dict[str, float | None]:
     return {"FA": 16.0, "Wd": 0.0}
@@ -238,7 +247,7 @@ class PracticalTruth:
     observations: ObservationSet
     series: pd.DataFrame
     levels: pd.DataFrame | None
-    state: Any
+    state: ModelState | None
     start: pd.Timestamp
     end: pd.Timestamp
     change_time: pd.Timestamp
@@ -257,7 +266,7 @@ def _on_grid(what: str, t: pd.Timestamp, origin: pd.Timestamp, interval: float) 
                          f"model start {origin.isoformat()}")
 
 
-def _on_model_grid(model: Any, span: pd.Timedelta) -> bool:
+def _on_model_grid(model: Model, span: pd.Timedelta) -> bool:
     """Whether ``span`` from the model's start is a whole number of the model's own output intervals."""
     step = float(getattr(model, "output_interval", 0.0) or 0.0)
     return step > 0 and span.total_seconds() % step == 0
@@ -271,7 +280,7 @@ def _legs(model_start: pd.Timestamp, start: pd.Timestamp, end: pd.Timestamp,
     return [(a, b, a >= change) for a, b in pairwise(edges)]
 
 
-def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, end: Any, *, noise: str = "none",
+def practical_truth(model: Model, scenario: str | PracticalScenario, start: Any, end: Any, *, noise: str = "none",
                     seed: int = 0, sigma: Mapping[str, float | None] | None = None,
                     series: Sequence[str] | None = None, output_interval: float = 3600.0,
                     levels: bool = False, realism: str | Realism | None = None) -> PracticalTruth:
@@ -280,8 +289,8 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
     Parameters
     ----------
     model
-        A model following the model protocol with ``start``, ``end``, ``observables`` and
-        ``default_parameters()`` (the embedded :class:`~rivercal.engine.Simulator`).
+        A model of the model contract (:mod:`rivercal.models.contract`); with ``levels``, one with snapshots
+        (e.g. the embedded engine).
     scenario
         A name of :data:`SCENARIOS` or a scenario (e.g. one with another ``change_time``).
     start, end
@@ -364,8 +373,10 @@ def practical_truth(model: Any, scenario: str | PracticalScenario, start: Any, e
             if b == start:
                 start_state = state
             continue
-        extra = {"snapshots": True} if levels and keep else {}  # the embedded engine's full fields
-        result, state = truth_of.simulate(values[after], a, b, state, output_interval=interval, **extra)
+        run = truth_of.simulate
+        if levels and keep:  # the levels at every point: a model with snapshots
+            run = capability(truth_of, "snapshots", purpose="the truth's levels at every point").simulate_fields
+        result, state = run(values[after], a, b, state, output_interval=interval)
         if b == start:
             start_state = state
         if keep:

@@ -43,6 +43,7 @@ from rivercal.analysis import (
     thesis_scenarios,
 )
 from rivercal.evaluate import Tasks, Workers, as_completed
+from rivercal.models.contract import Model
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate, problem_evaluator
 from rivercal.twin.truth import TwinTruth, twin_truth
@@ -204,7 +205,7 @@ _WINDOWS: dict[str, tuple[pd.Timestamp, pd.Timestamp]] = {}
 _OPTIONS: dict[str, Any] = {}
 
 
-def _setup(model: Any) -> None:
+def _setup(model: Model) -> None:
     global _MODEL, _PARAMS, _WINDOWS, _OPTIONS
     _MODEL = model
     _PARAMS = {p.name: p for p in model.calibration.parameters}
@@ -258,17 +259,17 @@ def _expected_work(scenario: Scenario) -> int:
     return len(scenario.truth) + (1 if scenario.noise != "none" else 0)
 
 
-def _truth_on(model: Any, scenario: Scenario) -> TwinTruth:
+def _truth_on(model: Model, scenario: Scenario) -> TwinTruth:
     _setup(model)
     return _truth(scenario)
 
 
-def _calibrate_on(model: Any, scenario: Scenario, truth: TwinTruth) -> ScenarioResult:
+def _calibrate_on(model: Model, scenario: Scenario, truth: TwinTruth) -> ScenarioResult:
     _setup(model)
     return _calibrate(scenario, truth)
 
 
-def run_scenarios(model: Any, scenarios: Sequence[Scenario], *, workers: Workers = None,
+def run_scenarios(model: Model, scenarios: Sequence[Scenario], *, workers: Workers = None,
                   progress: Callable[[ScenarioResult], None] | None = None) -> list[ScenarioResult]:
     """Run scenarios on ``model`` (the packaged ``dommel`` case or one with the same parameters and windows).
 
@@ -359,7 +360,7 @@ def _kind(p: Any) -> str:
     return "other"
 
 
-def initial_analysis(model: Any, names: Sequence[str] = SENSITIVITY_PARAMETERS, window: str = "moderate", *,
+def initial_analysis(model: Model, names: Sequence[str] = SENSITIVITY_PARAMETERS, window: str = "moderate", *,
                      workers: Workers = None, identifiability_too: bool = True,
                      options: IdentifiabilityOptions | None = None) -> InitialAnalysis:
     """Sensitivity (thesis Table 4-4) and identifiability of ``names`` at the base point, one worker pool.

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.models.contract import spun_up
+from rivercal.models.contract import Model, ModelState, spun_up
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import add_noise
 
@@ -41,13 +41,13 @@ class TwinTruth:
     """
 
     observations: ObservationSet
-    state: Any
+    state: ModelState | None
     run_start: pd.Timestamp
     truth: dict[str, float]
     series: pd.DataFrame
 
 
-def twin_truth(model: Any, truth: Mapping[str, float], window: tuple[Any, Any], *,
+def twin_truth(model: Model, truth: Mapping[str, float], window: tuple[Any, Any], *,
                warmup: pd.Timedelta | str = "24h", series: Sequence[str] | None = None, noise: str = "none",
                seed: int = 0, sigma: Mapping[str, float | None] | None = None) -> TwinTruth:
     """Run the truth and make the observations of a twin experiment.

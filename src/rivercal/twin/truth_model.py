@@ -1,7 +1,8 @@
 """The truth of a twin experiment under a realism level: rainfall, runoff-parameter and structural errors.
 
 :func:`truth_model` returns the model itself for a level that leaves the truth alone (``ideal``,
-``noisy``), and otherwise a :class:`PerturbedTruth`: the model's case run on the embedded engine with
+``noisy``), and otherwise a :class:`PerturbedTruth`: a variant of the model (its ``variants`` capability,
+:class:`~rivercal.models.contract.Variants`; the embedded engine builds it from its case) with
 
 - the lateral inflows of the rainfall-runoff model fed with the measured rain times one factor per rain
   event (:func:`~rivercal.twin.realism.event_factors`) and with rainfall-runoff parameters times a
@@ -25,6 +26,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal.models.contract import Model, ModelState, Variants, require
+from rivercal.results import SimulationResult
 from rivercal.twin.realism import Realism, event_factors, generator, get_realism
 
 __all__ = ["PerturbedTruth", "truth_model"]
@@ -32,21 +35,19 @@ __all__ = ["PerturbedTruth", "truth_model"]
 log = logging.getLogger(__name__)
 
 
-def truth_model(model: Any, realism: str | Realism, seed: int = 0) -> Any:
+def truth_model(model: Model, realism: str | Realism, seed: int = 0) -> Model:
     """The truth of a twin of ``model`` under ``realism`` (the model itself when the level leaves the truth alone).
 
     Raises
     ------
-    ValueError
-        When the level changes the truth but the model is not the embedded engine of a case (rainfall,
-        runoff and structural errors need the case's network and catchments).
+    MissingCapability
+        When the level changes the truth but the model cannot make variants of itself (rainfall, runoff and
+        structural errors need a model built from a case, e.g. the embedded engine).
     """
     realism = get_realism(realism)
     if not realism.changes_truth:
         return model
-    if getattr(model, "case", None) is None or not hasattr(model, "compiled"):
-        raise ValueError(f"realism {realism.name!r} changes the truth's rain, runoff or structure, which needs a case "
-                         f"on the embedded engine; model {getattr(model, 'name', '?')!r} is not one")
+    require(model, "variants", purpose=f"realism {realism.name!r} (it changes the truth's rain, runoff or structure)")
     return PerturbedTruth(model, realism, seed)
 
 
@@ -56,7 +57,7 @@ class PerturbedTruth:
     Parameters
     ----------
     model
-        An embedded model (:class:`~rivercal.models.EmbeddedModel`).
+        A model that makes variants of itself (:class:`~rivercal.models.contract.Variants`).
     realism
         The realism level (its ``rain``, ``runoff`` and ``structure`` tables).
     seed
@@ -65,7 +66,7 @@ class PerturbedTruth:
     Attributes
     ----------
     truth
-        The embedded model of the perturbed case.
+        The model's variant with the errors.
     branch_factors
         f_b per branch id (-): the truth's friction of a branch over the model's (1 without structural error).
     rain_factor
@@ -74,46 +75,35 @@ class PerturbedTruth:
         Per catchment, the factors on its rainfall-runoff parameters (-).
     """
 
-    def __init__(self, model: Any, realism: Realism, seed: int = 0):
-        from rivercal.case.load import case_from_dict
-        from rivercal.hydrology.catchments import catchment_forcing, hourly_weather
-        from rivercal.models.embedded import EmbeddedModel
-
+    def __init__(self, model: Variants, realism: Realism, seed: int = 0):
         self.model = model
         self.realism = realism
         self.seed = int(seed)
-        case = model.case
-        spec = case.spec
-        self.branch_factors = {b.id: 1.0 for b in spec.branches}
-        data = spec.model_dump(mode="json", exclude_unset=True, by_alias=True)
+        inputs = model.variant_inputs()
+        self.branch_factors = dict.fromkeys(inputs.branches, 1.0)
+        grid_factor = 1.0
         if realism.structure is not None:
             s = realism.structure
             rng = generator(seed, "friction")
-            raw = np.exp(s.friction_sigma_ln * rng.standard_normal(len(spec.branches)))
-            lengths = np.array([b.length for b in spec.branches], dtype=float)
+            raw = np.exp(s.friction_sigma_ln * rng.standard_normal(len(inputs.branches)))
+            lengths = np.array(list(inputs.branches.values()), dtype=float)
             raw /= float(np.sum(raw * lengths) / np.sum(lengths))
-            self.branch_factors = {b.id: float(f) for b, f in zip(spec.branches, raw, strict=True)}
-            glob = spec.friction
-            for b, item in zip(spec.branches, data["branches"], strict=True):
-                if b.points is None:
-                    item["dx"] = float(b.dx) * s.grid_factor
-                base = b.friction if b.friction is not None else glob
-                item["friction"] = {"type": base.type, "value": float(base.value) * self.branch_factors[b.id]}
-        perturbed = case_from_dict(data, case.root)
+            self.branch_factors = {b: float(f) for b, f in zip(inputs.branches, raw, strict=True)}
+            grid_factor = s.grid_factor
         self.rain_factor = None
         self.runoff_factors: dict[str, dict[str, float]] = {}
-        if realism.rain is not None and spec.catchments:
-            self.rain_factor = event_factors(hourly_weather(case)["P"], realism.rain, seed)
-        if realism.runoff is not None and spec.catchments:
+        if realism.rain is not None and inputs.catchments and inputs.rain is not None:
+            self.rain_factor = event_factors(inputs.rain, realism.rain, seed)
+        if realism.runoff is not None and inputs.catchments:
             r = realism.runoff
-            for c in spec.catchments:
-                rng = generator(seed, "runoff", c.id)
-                self.runoff_factors[c.id] = {p: float(np.exp(r.sigma_ln * rng.standard_normal())) for p in r.parameters}
-        forcing = catchment_forcing(perturbed, rain_factor=self.rain_factor, parameter_factors=self.runoff_factors)
-        self.truth = EmbeddedModel(perturbed, forcing=forcing)
-        self._inherit = list(model.compiled.branch_inherits)
-        log.info("perturbed truth of %s (%s, seed %d): %d points (model %d)", model.name, realism.name, seed,
-                 self.truth.compiled.n_hpoints, model.compiled.n_hpoints)
+            for c in inputs.catchments:
+                rng = generator(seed, "runoff", c)
+                self.runoff_factors[c] = {p: float(np.exp(r.sigma_ln * rng.standard_normal())) for p in r.parameters}
+        self.truth = model.variant(branch_factors=self.branch_factors if realism.structure is not None else None,
+                                   grid_factor=grid_factor, rain_factor=self.rain_factor,
+                                   runoff_factors=self.runoff_factors or None)
+        self._inherit = list(inputs.inherit)
+        log.info("perturbed truth of %s (%s, seed %d)", model.name, realism.name, seed)
 
     # -- what the twin machinery asks of a model --------------------------------------------------------
 
@@ -166,6 +156,15 @@ class PerturbedTruth:
         return {**out, **branch}
 
     def simulate(self, parameters: Mapping[str, float] | None = None, start: Any = None, end: Any = None,
-                 state: Any = None, **options: Any) -> tuple[Any, Any]:
+                 state: ModelState | None = None, *,
+                 output_interval: float | None = None) -> tuple[SimulationResult, ModelState]:
         """Run the truth with the model's quantities (see :meth:`quantities_of`)."""
-        return self.truth.simulate(self.quantities_of(parameters or {}), start, end, state, **options)
+        return self.truth.simulate(self.quantities_of(parameters or {}), start, end, state,
+                                   output_interval=output_interval)
+
+    def simulate_fields(self, parameters: Mapping[str, float] | None = None, start: Any = None, end: Any = None,
+                        state: ModelState | None = None, *,
+                        output_interval: float | None = None) -> tuple[SimulationResult, ModelState]:
+        """:meth:`simulate` with the levels and discharges at every point of the truth's (finer) grid."""
+        return self.truth.simulate_fields(self.quantities_of(parameters or {}), start, end, state,
+                                          output_interval=output_interval)

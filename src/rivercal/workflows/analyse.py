@@ -26,6 +26,8 @@ from typing import Any
 
 import pandas as pd
 
+from rivercal.models.contract import Model
+from rivercal.parameters import ParameterSet
 from rivercal.workflows.progress import NO_PROGRESS, Progress, jsonable
 
 __all__ = ["ANALYSES", "analyse_window"]
@@ -34,7 +36,8 @@ __all__ = ["ANALYSES", "analyse_window"]
 ANALYSES = ("sensitivity", "identifiability", "residuals")
 
 
-def analyse_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.Timestamp], out: str | Path, *,
+def analyse_window(model: Model, parameters: ParameterSet, window: tuple[pd.Timestamp, pd.Timestamp],
+                   out: str | Path, *,
                    analyses: Sequence[str] = ("sensitivity", "identifiability"), observations: Any = None,
                    source: Mapping[str, Any] | None = None, truth: Mapping[str, float] | None = None,
                    noise: str = "none", seed: int = 0, warmup: pd.Timedelta | str = "24h",

@@ -13,12 +13,15 @@ from typing import Any
 
 import pandas as pd
 
+from rivercal.models.contract import Model
+from rivercal.parameters import ParameterSet
 from rivercal.workflows.progress import NO_PROGRESS, Progress, jsonable
 
 __all__ = ["calibrate_window"]
 
 
-def calibrate_window(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.Timestamp], out: str | Path, *,
+def calibrate_window(model: Model, parameters: ParameterSet, window: tuple[pd.Timestamp, pd.Timestamp],
+                     out: str | Path, *,
                      observations: Any = None, truth: Mapping[str, float] | None = None, noise: str = "none",
                      seed: int = 0, warmup: pd.Timedelta | str = "24h", algorithm: str = "dud",
                      options: Mapping[str, Any] | None = None, workers: int | None = None,

@@ -16,19 +16,29 @@ import logging
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
-from rivercal.observations import ScreenRule
+from rivercal._time import utc
+from rivercal.observations import ObservationSet, ScreenRule
 from rivercal.workflows.progress import NO_PROGRESS, Progress
+
+if TYPE_CHECKING:
+    from rivercal.models.contract import Model
+    from rivercal.online.assimilation import AssimilationConfig
+    from rivercal.online.config import OnlineConfig
+    from rivercal.online.screening import PlausibleRange
+    from rivercal.online.service import CycleOutcome, OnlineService
+    from rivercal.store import IngestResult, Store
+    from rivercal.twin.realism import Realism
 
 __all__ = ["format_value", "ingest_file", "online_summary", "read_observation_file", "run_online"]
 
 log = logging.getLogger(__name__)
 
 
-def read_observation_file(path: str | Path) -> Any:
+def read_observation_file(path: str | Path) -> ObservationSet:
     """Observations from a CSV file or a Delft-FEWS PI-XML file (by its suffix).
 
     Raises
@@ -66,11 +76,13 @@ def _cut(text: str) -> str:
                   lambda m: f"{m.group(0)[:60]}… ({len(m.group(0))} characters)", text)
 
 
-def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Timestamp, last: pd.Timestamp, *,
-               scenario: str | None = None, noise: str = "none", seed: int = 0, realism: Any = None,
-               observations: Sequence[tuple[str, Any]] = (), follow: str | Path | None = None, poll: float = 10.0,
+def run_online(model: Model, db: str | Path, run: str, config: OnlineConfig, first: pd.Timestamp,
+               last: pd.Timestamp, *, scenario: str | None = None, noise: str = "none", seed: int = 0,
+               realism: str | Realism | None = None, observations: Sequence[tuple[str, ObservationSet]] = (),
+               follow: str | Path | None = None, poll: float = 10.0,
                max_cycles: int | None = None, report: str | Path | None = None,
-               progress: Progress = NO_PROGRESS, assimilation: Any = None, rain_error: float = 0.0,
+               progress: Progress = NO_PROGRESS, assimilation: AssimilationConfig | None = None,
+               rain_error: float = 0.0,
                take_over: bool = False) -> dict[str, Any]:
     """Run the cycles issued from ``first`` to ``last`` and return the summary (:func:`online_summary`).
 
@@ -123,6 +135,10 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     t_start = time.perf_counter()
     truth_series = None
     meta: dict[str, Any] = {"scenario": scenario, "noise": noise, "seed": seed} if scenario else {}
+    if scenario:
+        from rivercal.twin.practical import SCENARIOS
+
+        meta["truth"] = SCENARIOS[scenario].facts()  # for the run metrics the service stores
     level = None
     if scenario and realism is not None:
         from rivercal.twin.realism import get_realism
@@ -132,7 +148,7 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             meta["realism"] = level.summary()
     if scenario and rain_error:
         meta["rain_error"] = rain_error
-    ranges: dict[str, Any] = {}
+    ranges: dict[str, PlausibleRange] = {}
     if observations or follow is not None:
         ranges = _screen_deliveries(model, config, first, last, observations, progress)
     if not is_url(db):
@@ -164,10 +180,10 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
         total = int((last - service.schedule.first_issue) // service.period) + 1
         if max_cycles is not None:
             total = min(total, finished + max_cycles)
-        outcomes: list[Any] = []
+        outcomes: list[CycleOutcome] = []
         units = {p.name: p.unit for p in model.calibration.parameters}
 
-        def on_cycle(o: Any) -> None:
+        def on_cycle(o: CycleOutcome) -> None:
             outcomes.append(o)
             values = ", ".join(f"{k} {format_value(v, units.get(k, ''))}" + ("*" if k in o.held else "")
                                for k, v in o.accepted.items())
@@ -182,6 +198,9 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
             service.replay(last, progress=on_cycle, max_cycles=max_cycles)
         else:
             _follow(service, store, Path(follow), last, poll, on_cycle, max_cycles, progress, ranges)
+        if scenario is not None:
+            _store_twin_fields(model, store, service, progress)
+        service.close()
         summary = online_summary(store, service, outcomes, time.perf_counter() - t_start, truth=truth_series)
         if report is not None:
             from rivercal.report.online import write_online_report
@@ -191,7 +210,8 @@ def run_online(model: Any, db: str | Path, run: str, config: Any, first: pd.Time
     return summary
 
 
-def ingest_file(store: Any, path: str | Path, model: Any, ranges: Any, progress: Progress = NO_PROGRESS) -> Any:
+def ingest_file(store: Store, path: str | Path, model: Model, ranges: dict[str, PlausibleRange],
+                progress: Progress = NO_PROGRESS) -> IngestResult:
     """Read, check and store one delivered observation file, as ``--follow`` does with each new file.
 
     Parameters
@@ -229,8 +249,9 @@ def ingest_file(store: Any, path: str | Path, model: Any, ranges: Any, progress:
                         plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
 
 
-def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Timestamp,
-                       observations: Sequence[tuple[str, Any]], progress: Progress) -> dict[str, Any]:
+def _screen_deliveries(model: Model, config: OnlineConfig, first: pd.Timestamp, last: pd.Timestamp,
+                       observations: Sequence[tuple[str, ObservationSet]],
+                       progress: Progress) -> dict[str, PlausibleRange]:
     """Check the given files against the model; the plausible range of each series (for the files to come too).
 
     The series of every file are checked first (no model run); then the model runs the data period once
@@ -252,8 +273,9 @@ def _screen_deliveries(model: Any, config: Any, first: pd.Timestamp, last: pd.Ti
     return ranges
 
 
-def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: float, on_cycle: Callable[[Any], None],
-            max_cycles: int | None, progress: Progress, ranges: Any) -> None:
+def _follow(service: OnlineService, store: Store, folder: Path, last: pd.Timestamp, poll: float,
+            on_cycle: Callable[[CycleOutcome], None], max_cycles: int | None, progress: Progress,
+            ranges: dict[str, PlausibleRange]) -> None:
     """Ingest new files from ``folder`` and run each cycle when the newest data reach its issue time.
 
     A file that cannot be read, names a series the model does not simulate or holds mostly implausible
@@ -291,32 +313,34 @@ def _follow(service: Any, store: Any, folder: Path, last: pd.Timestamp, poll: fl
         progress.note("stopped; the store holds every finished cycle, a restart resumes after the last one")
 
 
-def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: float,
+def online_summary(store: Store, service: OnlineService, outcomes: Sequence[CycleOutcome], wall: float,
                    truth: pd.DataFrame | None = None) -> dict[str, Any]:
-    """JSON-friendly summary of a run: cycles, estimates, alerts and forecast errors (updated vs DSS).
+    """JSON-friendly summary of a run: cycles, estimates, alerts and the run metrics (updated vs DSS).
 
     ``cycles_done_now`` counts the cycles this call computed, ``cycles_succeeded_now`` those of them that
     ended ``done`` (not failed or aborted), ``status_now`` counts them by status and ``first_message_now`` is
     the message of the first that did not end ``done``.
 
-    ``forecast_errors`` is :func:`rivercal.report.online.forecast_errors` (with its ``reason`` when
-    nothing could be compared yet); the headline figures (``forecast_mae_ratio``,
-    ``time_to_correct_cycles``, ``jump_alerts``, ``fallbacks`` …) are
-    :func:`rivercal.report.online_figures.run_figures`; ``wall_s`` in s; estimates in the parameters' units.
-    ``forecast_mae_by_lead`` is :func:`rivercal.online.assimilation.mae_by_lead` (against a twin's noise-free
-    ``truth`` when given); with state updating also ``band_coverage_90``.
+    The metrics are those the service stored with the run's last cycle (:mod:`rivercal.online.metrics`):
+    ``forecast_errors``, the headline figures (``forecast_mae_ratio``, ``time_to_correct_cycles``,
+    ``jump_alerts``, ``fallbacks`` …), ``forecast_mae_by_lead`` and, with state updating, ``band_coverage_90``.
+    For a twin the error by lead is measured against its noise-free ``truth`` instead of the observations
+    (:func:`rivercal.online.metrics.mae_by_lead`). ``wall_s`` in s; estimates in the parameters' units.
     """
-    from rivercal.report.online import forecast_errors
-    from rivercal.report.online_figures import run_figures
+    from rivercal.online.metrics import mae_by_lead
 
     cycles = store.cycles(service.run)
     est = store.estimates(service.run)
     flags = store.flag_counts(service.series)
     alerts = store.alerts(service.run)
+    metrics = store.metrics(service.run) or service.metrics()
+    if truth is not None:
+        metrics = {**metrics, "forecast_mae_by_lead": mae_by_lead(store, service.run, service.series, truth)}
     return {
         "run": service.run.name,
         "case": service.model.name,
         "db": str(store.path),
+        "assimilate": service.assimilate,
         "cycles_done_now": len(outcomes),
         "cycles_succeeded_now": sum(o.status == "done" for o in outcomes),
         "status_now": {k: sum(o.status == k for o in outcomes) for k in sorted({o.status for o in outcomes})},
@@ -335,26 +359,27 @@ def online_summary(store: Any, service: Any, outcomes: Sequence[Any], wall: floa
         "alerts": [{"cycle": int(r.cycle), "kind": r.kind, "parameter": r.parameter, "message": r.message}
                    for r in alerts.itertuples()],
         "observations_flagged": {str(k): int(v) for k, v in flags.groupby("flag")["n"].sum().items()},
-        "forecast_errors": forecast_errors(store, service.run),
-        **run_figures(store, service.run),
-        "forecast_mae_by_lead": _mae_by_lead(store, service, truth),
-        **({} if service.filter is None else
-           {"band_coverage_90": _band_coverage(store, service)}),
+        **metrics,
     }
 
 
-def _mae_by_lead(store: Any, service: Any, truth: pd.DataFrame | None) -> dict[str, Any]:
-    """Level forecast error by lead (:func:`rivercal.online.assimilation.mae_by_lead`)."""
-    from rivercal.online.assimilation import mae_by_lead
+def _store_twin_fields(model: Model, store: Store, service: OnlineService, progress: Progress) -> None:
+    """The twin's levels at every point of the truth, the DSS and rivercal, kept with the run for its report.
 
-    return mae_by_lead(store, service.run, service.series, truth)
+    Only for a model with snapshots; nothing when the cycles end at the end of the model's period.
+    """
+    from rivercal.models.contract import has_capability
+    from rivercal.twin.fields import store_twin_fields, twin_fields
 
-
-def _band_coverage(store: Any, service: Any) -> dict[str, Any]:
-    """The share of observations inside the stored 90 % bands of the ensemble forecasts."""
-    from rivercal.online.assimilation import band_coverage
-
-    return band_coverage(store, service.run, sources=service.config.sources)
+    cycles = store.cycles(service.run)
+    if cycles.empty or not has_capability(model, "snapshots"):
+        return
+    start = cycles["issue_time"].min()
+    end = min(cycles["issue_time"].max() + service.period, utc(model.end))
+    if not end > start:
+        return
+    progress.stage("running the truth, the DSS and rivercal at every point for the report")
+    store_twin_fields(store, service.run, twin_fields(model, store, service.run, start, end))
 
 
 def format_value(value: float, unit: str) -> str:

@@ -7,12 +7,13 @@ from pathlib import Path
 from typing import Any
 
 from rivercal.io.cf import add_stations, write_netcdf
+from rivercal.models.contract import FromCase, Model
 from rivercal.workflows.progress import NO_PROGRESS, Progress
 
 __all__ = ["simulate_case"]
 
 
-def simulate_case(model: Any, quantities: Mapping[str, float], out: str | Path, *, start: Any = None, end: Any = None,
+def simulate_case(model: Model, quantities: Mapping[str, float], out: str | Path, *, start: Any = None, end: Any = None,
                   plot: bool = False, progress: Progress = NO_PROGRESS) -> dict[str, Any]:
     """Run ``model`` with ``quantities`` from ``start`` to ``end`` (default: the case period) and write the series.
 
@@ -44,8 +45,8 @@ def simulate_case(model: Any, quantities: Mapping[str, float], out: str | Path, 
     out.mkdir(parents=True, exist_ok=True)
     result.to_csv(out / "series.csv")
     dataset = result.to_dataset()
-    if hasattr(model, "case") and hasattr(model.case, "network"):  # stations, CRS and datum of the case
-        dataset = add_stations(dataset, model.case)
+    if isinstance(model, FromCase):  # stations, CRS and datum of the case
+        dataset = add_stations(dataset, model.source_case())
     write_netcdf(dataset, out / "series.nc")
     files = {"csv": str(out / "series.csv"), "netcdf": str(out / "series.nc")}
     if plot:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rivercal.models.contract import Model
 from rivercal.workflows.progress import NO_PROGRESS, Progress, jsonable
 
 __all__ = ["SCENARIO_SUITES", "SENSITIVITY", "ThesisRun", "run_thesis"]
@@ -39,9 +40,9 @@ class ThesisRun:
     analysis: Any = None
 
 
-def run_thesis(model: Any, suites: Sequence[str], scenarios: Sequence[Any], parameters: Sequence[str], out: str | Path,
-               *, window: str | None = None, workers: Any = 1, command: str = "", complete: bool = False,
-               progress: Progress = NO_PROGRESS) -> ThesisRun:
+def run_thesis(model: Model, suites: Sequence[str], scenarios: Sequence[Any], parameters: Sequence[str],
+               out: str | Path, *, window: str | None = None, workers: Any = 1, command: str = "",
+               complete: bool = False, progress: Progress = NO_PROGRESS) -> ThesisRun:
     """Run the chosen suites' ``scenarios`` and, if ``sensitivity`` is among ``suites``, the initial analysis.
 
     Parameters

@@ -51,13 +51,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.engine.state import SimulationResult
 from rivercal.models.blackbox.paths import check_tree, inside, kind_of, relative_path
 from rivercal.models.blackbox.readers import excerpt, read_output
 from rivercal.models.blackbox.runs import MARKER, RunFolders, default_base
 from rivercal.models.blackbox.templates import Template, render_argv
 from rivercal.models.config import ModelFile, ModelFileError
 from rivercal.models.contract import CalibrationSetup, ExternalRunError, FileState, Quantity, check_run, utc
+from rivercal.results import SimulationResult
 
 __all__ = ["BUILTINS", "MAX_STATE_BYTES", "MAX_TEMPLATE_BYTES", "BlackBoxModel", "BlackBoxRunError"]
 
@@ -352,7 +352,8 @@ class BlackBoxModel:
         if files is not None:
             last = {"time": end.isoformat(), "values": {k: float(v) for k, v in series.iloc[-1].items()}}
             new_state = FileState(time=end, files={**files, LAST_ROW: json.dumps(last).encode()}, origin=self._origin)
-        return SimulationResult(series=series, balance=None, wall_time=wall), new_state
+        source = f"external model {self.name} (rivercal black box)"
+        return SimulationResult(series=series, wall_time=wall, source=source), new_state
 
     def _values(self, parameters: Mapping[str, float]) -> dict[str, float]:
         """Every quantity's value: the checked ones given, the defaults of the rest."""

@@ -4,7 +4,7 @@
   variable;
 - ``netcdf``: a CF NetCDF file read with xarray; a variable over ``time`` (``name``) or one series of a CF
   timeSeries variable (``name@id``, the id in the coordinate whose ``cf_role`` is ``timeseries_id``), as
-  :meth:`rivercal.engine.SimulationResult.to_netcdf` writes them;
+  :meth:`rivercal.results.SimulationResult.to_netcdf` writes them;
 - ``pixml``: a Delft-FEWS PI-XML time-series file (:func:`rivercal.io.read_pixml_series`), a variable
   being ``locationId/parameterId``;
 - ``swmm``: EPA SWMM's binary output (:func:`rivercal.models.swmm.output.read_swmm_output`), a variable

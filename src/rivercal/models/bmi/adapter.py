@@ -15,6 +15,17 @@ Per run :class:`BmiModel`
 BMI times are converted with the component's ``get_time_units`` (s, min, h, d) from its
 ``get_start_time``, which stands for the run's start. A component that raises is a failed run
 (:class:`~rivercal.errors.ModelRunError`, naming the component and the call).
+
+With ``[bmi.assimilate]`` the model has the optional capabilities of state updating
+(:mod:`rivercal.models.contract`):
+
+- **state arrays**: the state variables ``levels`` (at the nodes of an unstructured grid, m) and
+  ``discharges`` (on its edges, m³/s) read and written through the state; a state written back leaves out the
+  ``derived`` variables, which the component computes from them when they are set. Where the water is
+  measured and how far apart the nodes lie come from the grid (``get_grid_edge_nodes``, the nodes' x and y);
+  ``floor`` names the variable of the lowest level at each node (none: no floor);
+- **perturbable forcing**: ``forcing`` names per inflow or lateral the variable (and element) of its scale
+  factor, which the adapter sets at the start of every interval (``set_value_at_indices``).
 """
 
 from __future__ import annotations
@@ -30,11 +41,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.engine.state import SimulationResult
 from rivercal.errors import ModelRunError
 from rivercal.models.blackbox.templates import Template
 from rivercal.models.config import BmiSection, ModelFile, ModelFileError
-from rivercal.models.contract import CalibrationSetup, Quantity, check_run, utc
+from rivercal.models.contract import CalibrationSetup, Quantity, StateLayout, check_run, utc
+from rivercal.results import SimulationResult
 
 __all__ = ["BmiModel", "BmiState"]
 
@@ -203,6 +214,98 @@ class BmiModel:
             raise ValueError(f"the state holds {sorted(state.values)}, the model's state is {sorted(self.state_vars)}")
         return state
 
+    # -- state updating ([bmi.assimilate]; rivercal.models.contract) ---------------------------------
+
+    def _assimilate(self, what: str) -> Any:
+        section = self.section.assimilate
+        if section is None:
+            raise AttributeError(f"model {self.name!r} has no [bmi.assimilate] table: no {what}")
+        return section
+
+    def __getattr__(self, name: str) -> Any:
+        # the capabilities of state updating exist only where model.toml names their variables
+        section = self.__dict__.get("section")
+        a = section.assimilate if section is not None else None
+        if a is not None and (name in ("state_layout", "state_arrays", "with_state_arrays") or
+                              (a.forcing and name in ("perturbable_forcing", "simulate_perturbed"))):
+            return getattr(self, f"_{name}")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def _state_layout(self) -> StateLayout:
+        """Levels at the nodes of the ``levels`` variable's grid, discharges on its edges (module docstring)."""
+        if getattr(self, "_layout_cache", None) is None:
+            self._layout_cache = self._read_layout()
+        return self._layout_cache
+
+    def _read_layout(self) -> StateLayout:
+        a = self._assimilate("state arrays")
+        bmi = self._open(self._start, self._start + pd.Timedelta(seconds=self._interval), hot=False)
+        try:
+            grid = bmi.get_var_grid(a.levels)
+            n = int(bmi.get_grid_node_count(grid))
+            n_edges = int(bmi.get_grid_edge_count(grid))
+            ends = bmi.get_grid_edge_nodes(grid, np.empty(2 * n_edges, dtype=np.int64)).reshape(-1, 2).astype(np.int64)
+            x = bmi.get_grid_x(grid, np.empty(n))
+            y = bmi.get_grid_y(grid, np.empty(n))
+            floor = np.full(n, -np.inf)
+            if a.floor is not None:
+                floor = bmi.get_value(a.floor, np.empty(n)).astype(float)
+            forcing_xy = {}
+            for key, v in a.forcing.items():
+                g = bmi.get_var_grid(v.var)
+                size = int(bmi.get_grid_node_count(g))
+                gx, gy = bmi.get_grid_x(g, np.empty(size)), bmi.get_grid_y(g, np.empty(size))
+                k = 0 if v.index is None else v.index
+                forcing_xy[key] = (gx[k], gy[k])
+        finally:
+            bmi.finalize()
+        length = np.hypot(x[ends[:, 0]] - x[ends[:, 1]], y[ends[:, 0]] - y[ends[:, 1]]) if n_edges else np.zeros(0)
+        places = {}
+        for obs, v in self.section.stations.items():
+            if v.var == a.levels:
+                places[obs] = int(v.index)
+            elif v.var == a.discharges:
+                places[obs] = int(ends[int(v.index), 0])
+        nearest = {key: int(np.argmin(np.hypot(x - px, y - py))) for key, (px, py) in forcing_xy.items()}
+        return StateLayout(levels=tuple(f"node:{i}" for i in range(n)), discharges=tuple(f"edge:{i}" for i in
+                                                                                          range(n_edges)),
+                           link_ends=ends, link_length=np.maximum(length, 1.0), floor=floor, places=places,
+                           forcing_places=nearest)
+
+    def _state_arrays(self, state: BmiState) -> tuple[np.ndarray, np.ndarray]:
+        """The ``levels`` (m) and ``discharges`` (m³/s) of a state."""
+        a = self._assimilate("state arrays")
+        return state.values[a.levels], state.values[a.discharges]
+
+    def _with_state_arrays(self, state: BmiState, levels: np.ndarray, discharges: np.ndarray) -> BmiState:
+        """The state with these levels (never below ``floor``) and discharges, without the ``derived`` variables."""
+        a = self._assimilate("state arrays")
+        floor = self._state_layout().floor
+        values = {k: v for k, v in state.values.items() if k not in a.derived}
+        values[a.levels] = np.maximum(np.asarray(levels, dtype=float), floor)
+        values[a.discharges] = np.asarray(discharges, dtype=float)
+        return BmiState(state.time, values)
+
+    def _perturbable_forcing(self) -> tuple[str, ...]:
+        """The inflows and laterals of ``[bmi.assimilate.forcing]``."""
+        return tuple(self._assimilate("perturbable forcing").forcing)
+
+    def _simulate_perturbed(self, parameters: Mapping[str, float] | None, start: Any, end: Any,
+                            state: BmiState | None, factors: np.ndarray, interval: float, *,
+                            output_interval: float | None = None) -> tuple[SimulationResult, BmiState | None]:
+        """:meth:`simulate` with each scale factor set to its row of ``factors`` at the start of every interval."""
+        factors = np.asarray(factors, dtype=float)
+        keys = self._perturbable_forcing()
+        if factors.ndim != 2 or factors.shape[1] != len(keys):
+            raise ValueError(f"factors must have shape (intervals, {len(keys)}), got {factors.shape}")
+        return self.simulate(parameters, start, end, state, output_interval=output_interval,
+                             _factors=(factors, float(interval)))
+
+    def _set_factors(self, bmi: Any, row: np.ndarray) -> None:
+        for (var, index), value in zip(((v.var, v.index) for v in self.section.assimilate.forcing.values()), row,
+                                       strict=True):
+            _set(bmi, var, index, float(value))
+
     # -- running ----------------------------------------------------------------------------------
 
     def _open(self, run_start: pd.Timestamp, end: pd.Timestamp, *, hot: bool) -> Any:
@@ -226,8 +329,8 @@ class BmiModel:
         return bmi
 
     def simulate(self, parameters: Mapping[str, float] | None = None, start: Any = None, end: Any = None,
-                 state: BmiState | None = None, *, output_interval: float | None = None
-                 ) -> tuple[SimulationResult, BmiState | None]:
+                 state: BmiState | None = None, *, output_interval: float | None = None,
+                 _factors: tuple[np.ndarray, float] | None = None) -> tuple[SimulationResult, BmiState | None]:
         """Run the component from ``start`` to ``end`` (module docstring).
 
         Returns
@@ -252,7 +355,7 @@ class BmiModel:
         t0 = _time.perf_counter()
         bmi = self._open(run_start, end, hot=state is not None)
         try:
-            return self._run(bmi, parameters, start, end, run_start, interval, state, t0)
+            return self._run(bmi, parameters, start, end, run_start, interval, state, t0, _factors)
         except ModelRunError:
             raise
         except Exception as exc:  # a component's own error: a failed run, named
@@ -264,7 +367,8 @@ class BmiModel:
                 pass
 
     def _run(self, bmi: Any, parameters: Mapping[str, float], start: pd.Timestamp, end: pd.Timestamp,
-             run_start: pd.Timestamp, interval: float, state: BmiState | None, t0: float):
+             run_start: pd.Timestamp, interval: float, state: BmiState | None, t0: float,
+             factors: tuple[np.ndarray, float] | None = None):
         unit = _SECONDS.get(bmi.get_time_units())
         if unit is None:
             raise ModelRunError(f"BMI component {self.section.component}: time units {bmi.get_time_units()!r} are "
@@ -288,8 +392,14 @@ class BmiModel:
             bmi.update_until(at(start))
         times = pd.date_range(start, end, freq=pd.Timedelta(seconds=interval))
         rows = np.empty((len(times), len(self.observables)))
+        current = -1
         for k, t in enumerate(times):
             if k:
+                if factors is not None:  # the scale factors of the interval this output step lies in
+                    j = int((times[k - 1] - start).total_seconds() // factors[1])
+                    if j != current:
+                        self._set_factors(bmi, factors[0][min(j, len(factors[0]) - 1)])
+                        current = j
                 bmi.update_until(at(t))
             rows[k] = [_get(bmi, v.var, v.index) for v in self.section.stations.values()]
         if not np.all(np.isfinite(rows)):
@@ -304,7 +414,15 @@ class BmiModel:
                 values[name] = bmi.get_value(name, buffer).copy()
             new_state = BmiState(end, values)
         series = pd.DataFrame(rows, index=pd.DatetimeIndex(times, name="time"), columns=self.observables)
-        return SimulationResult(series=series, balance=None, wall_time=_time.perf_counter() - t0), new_state
+        return SimulationResult(series=series, wall_time=_time.perf_counter() - t0,
+                                source=f"BMI component {self.section.component}"), new_state
+
+
+def _set(bmi: Any, var: str, index: int | None, value: float) -> None:
+    if index is None:
+        bmi.set_value(var, np.full(bmi.get_grid_size(bmi.get_var_grid(var)), value))
+    else:
+        bmi.set_value_at_indices(var, np.array([index]), np.array([value]))
 
 
 def _get(bmi: Any, var: str, index: int | None) -> float:

@@ -11,8 +11,9 @@ steps up to the given time (the last step that ends at or before it). The state 
 engine's cold start there (rest, then the case's spin-up with the case's own crests and friction).
 
 Grids: 0 is the network, ``unstructured`` with the calculation points as nodes (x, y in m) and the links
-between them as edges; 1 holds the weirs and 2 the branches, each an ``unstructured`` grid of nodes
-without edges (a weir at the middle of its link, a branch at the mean of its links' middles).
+between them as edges; 1 holds the weirs, 2 the branches and 3 the inflows and laterals, each an
+``unstructured`` grid of nodes without edges (a weir at the middle of its link, a branch at the mean of its
+links' middles, an inflow or lateral at the point where it enters).
 
 Variables (float64):
 
@@ -26,18 +27,23 @@ name                                            units   grid  where  role
 ``channel_water_flow__speed``                   m s-1   0     edge   velocity; in and out (a state)
 ``weir_crest__elevation``                       m       1     node   crest levels (m AD); in and out
 ``channel_bed__friction_coefficient``           (law)   2     node   friction values; in and out
+``channel_inflow__multiplier``                  1       3     node   factor on each inflow and lateral (1: the
+                                                                     case's); in and out
+``channel_bottom_surface__elevation``           m       0     node   lowest bed level at the point; out
 ==============================================  ======  ====  =====  =========================================
 
 The friction unit is that of the case's friction law (k_s: ``m1/3 s-1``); a branch with its own law
-carries that law's value. Setting the level also needs the matching volume (and vice versa): a
-framework that restores a state sets all five state variables, as :class:`~rivercal.models.bmi.BmiModel`
-does. Pumps' on/off switches are not exposed (a hot start through BMI restarts them off).
+carries that law's value. Setting the levels sets the matching volumes too, and setting the discharges the
+velocities (each link keeps its flow area; a link at rest keeps its velocity); a framework that restores a
+whole state sets all five state variables after them, as :class:`~rivercal.models.bmi.BmiModel` does, and
+gets them exactly. Pumps' on/off switches are not exposed (a hot start through BMI restarts them off).
 """
 
 from __future__ import annotations
 
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -56,12 +62,21 @@ DISCHARGE = "channel_water__volume_flow_rate"
 VELOCITY = "channel_water_flow__speed"
 CREST = "weir_crest__elevation"
 FRICTION = "channel_bed__friction_coefficient"
+INFLOW_FACTOR = "channel_inflow__multiplier"
+BED = "channel_bottom_surface__elevation"
 #: name → (state attribute or parameter, grid, location, units)
 _VARS = {
     LEVEL: ("z", 0, "node", "m"), VOLUME: ("vol", 0, "node", "m3"), LEVEL_CHANGE: ("dz", 0, "node", "m"),
     DISCHARGE: ("q", 0, "edge", "m3 s-1"), VELOCITY: ("u", 0, "edge", "m s-1"),
-    CREST: ("crest", 1, "node", "m"), FRICTION: ("friction", 2, "node", ""),
+    CREST: ("crest", 1, "node", "m"), FRICTION: ("friction", 2, "node", ""), INFLOW_FACTOR: ("factor", 3, "node", "1"),
+    BED: ("bed", 0, "node", "m"),
 }
+#: Variables that are outputs only.
+_OUTPUT_ONLY = (BED,)
+#: The models this process loaded, by case, and their cold-start states, by case and start (the same for
+#: every run: the case's spin-up with its own crests and friction).
+_MODELS: dict[str, EmbeddedModel] = {}
+_STARTS: dict[tuple[str, pd.Timestamp], Any] = {}
 _UNITS = {"m^(1/3)/s": "m1/3 s-1", "s/m^(1/3)": "s m-1/3", "m^(1/2)/s": "m1/2 s-1"}
 
 
@@ -83,7 +98,10 @@ class RivercalBmi(Bmi):
         if not isinstance(source, str):
             raise ValueError(f"{path}: 'case' must name a case folder or a packaged case")
         folder = path.parent / source
-        model = load_case_model(folder if folder.is_dir() else source)
+        key = str(folder.resolve()) if folder.is_dir() else source
+        if key not in _MODELS:  # one compiled model per case and process: a framework initializes many runs
+            _MODELS[key] = load_case_model(folder if folder.is_dir() else source)
+        model = _MODELS[key]
         self._model = model
         self._start = utc(config["start"]) if "start" in config else model.start
         self._end = utc(config["end"]) if "end" in config else model.end
@@ -91,7 +109,11 @@ class RivercalBmi(Bmi):
             raise ValueError(f"{path}: the period {self._start} .. {self._end} is not inside the case's "
                              f"{model.start} .. {model.end}")
         self._crest, self._friction = (a.copy() for a in model.parameter_arrays(None))
-        self._state = model.start_state(self._start)
+        self._factor = np.ones(len(model.perturbable_forcing()))
+        self._bed = np.array(model.compiled.arrays.hp_bed, dtype=float)
+        if (key, self._start) not in _STARTS:
+            _STARTS[(key, self._start)] = model.start_state(self._start)
+        self._state = _STARTS[(key, self._start)].copy()
         self._time = 0.0
 
     def update(self) -> None:
@@ -112,7 +134,11 @@ class RivercalBmi(Bmi):
             raise ValueError(f"cannot advance past the end of the period ({self._end})")
         quantities = self._quantities()
         self._state.time = now
-        _, new = model.simulate(quantities, start=now, end=end, state=self._state, output_interval=model.dt * steps)
+        if np.all(self._factor == 1.0):
+            _, new = model.simulate(quantities, start=now, end=end, state=self._state, output_interval=model.dt * steps)
+        else:  # the inflows and laterals scaled by their factors
+            _, new = model.simulate_perturbed(quantities, now, end, self._state, self._factor[None],
+                                              steps * model.dt, output_interval=model.dt * steps)
         for attr in ("z", "dz", "vol", "u", "q", "pump_on"):
             np.copyto(getattr(self._state, attr), getattr(new, attr))  # keep the arrays of get_value_ptr
         self._state.time = end
@@ -137,7 +163,7 @@ class RivercalBmi(Bmi):
 
     def get_input_item_count(self) -> int:
         """Number of input variables."""
-        return len(_VARS)
+        return len(_VARS) - len(_OUTPUT_ONLY)
 
     def get_output_item_count(self) -> int:
         """Number of output variables."""
@@ -145,7 +171,7 @@ class RivercalBmi(Bmi):
 
     def get_input_var_names(self) -> tuple[str, ...]:
         """Names of the input variables."""
-        return tuple(_VARS)
+        return tuple(v for v in _VARS if v not in _OUTPUT_ONLY)
 
     def get_output_var_names(self) -> tuple[str, ...]:
         """Names of the output variables."""
@@ -161,6 +187,10 @@ class RivercalBmi(Bmi):
             return self._crest
         if attr == "friction":
             return self._friction
+        if attr == "factor":
+            return self._factor
+        if attr == "bed":
+            return self._bed
         return getattr(self._state, attr)
 
     def get_var_grid(self, name: str) -> int:
@@ -232,13 +262,36 @@ class RivercalBmi(Bmi):
         return dest
 
     def set_value(self, name: str, src: np.ndarray) -> None:
-        """Set a whole variable."""
-        array = self._array(name)
+        """Set a whole variable (levels set the volumes, discharges the velocities: module docstring)."""
+        array = self._writable(name)
+        old = array.copy()
         array[:] = np.asarray(src, dtype=float).reshape(array.shape)
+        self._follow(name, old)
 
     def set_value_at_indices(self, name: str, inds: np.ndarray, src: np.ndarray) -> None:
         """Set the elements ``inds`` of a variable."""
-        self._array(name)[np.asarray(inds, dtype=int)] = np.asarray(src, dtype=float)
+        array = self._writable(name)
+        old = array.copy()
+        array[np.asarray(inds, dtype=int)] = np.asarray(src, dtype=float)
+        self._follow(name, old)
+
+    def _writable(self, name: str) -> np.ndarray:
+        if name in _OUTPUT_ONLY:
+            raise KeyError(f"BMI variable {name!r} is an output only")
+        return self._array(name)
+
+    def _follow(self, name: str, old: np.ndarray) -> None:
+        """After levels: their volumes; after discharges: the velocities at the links' flow areas."""
+        from rivercal.engine.kernels.batch import volumes
+
+        s = self._state
+        if name == LEVEL:
+            volumes(self._model.compiled.arrays, s.z, s.vol)
+        elif name == DISCHARGE:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                area = np.where(np.abs(s.u) > 1e-9, old / s.u, np.nan)
+            moving = np.isfinite(area) & (area > 0)
+            s.u[:] = np.where(moving, s.q / area, s.u)
 
     # -- grids ----------------------------------------------------------------------------------------
 
@@ -254,7 +307,10 @@ class RivercalBmi(Bmi):
             mids = 0.5 * (c.hp_xy[a.lk_k1] + c.hp_xy[a.lk_k2])
             on = np.asarray(c.link_branch)
             return np.array([mids[on == b].mean(axis=0) for b in c.branch_ids])
-        raise KeyError(f"unknown grid {grid} (grids 0, 1, 2)")
+        if grid == 3:
+            places = self._model.state_layout().forcing_places
+            return np.array([c.hp_xy[places[k]] for k in self._model.perturbable_forcing()]).reshape(-1, 2)
+        raise KeyError(f"unknown grid {grid} (grids 0, 1, 2, 3)")
 
     def get_grid_rank(self, grid: int) -> int:
         """2 (x, y) for every grid."""

@@ -112,6 +112,14 @@ class InpFile:
         """Whether the file has this section."""
         return section.upper() in self._raw
 
+    def sections(self) -> list[str]:
+        """The file's sections in the order they come (upper case): SWMM numbers its objects in that order."""
+        return list(self._raw)
+
+    def raw_lines(self, section: str) -> list[str]:
+        """The lines of a section as read (comments and blank lines included; empty when absent)."""
+        return list(self._raw.get(section.upper(), []))
+
     def rows(self, section: str) -> list[InpRow]:
         """The data rows of a section (empty when the file has none)."""
         return [r for r in self._section(section) if isinstance(r, InpRow)]

@@ -28,10 +28,25 @@ holds single precision (≈ 1e-6 relative).
 
 SWMM keeps its project in process globals: one run at a time per process (rivercal's evaluator uses
 processes, so parallel calibrations work).
+
+A run's input file holds of each ``[TIMESERIES]`` series only the points of its period (and the one before
+and after it), so that SWMM does not read two months of hourly inflows to run one hour; the values SWMM
+interpolates in the period are the same.
+
+Optional capabilities (:mod:`rivercal.models.contract`):
+
+- **perturbable forcing**: the inflows of ``[INFLOWS]`` (``inflow:<node>``, flow constituents), scaled by a
+  factor per interval: a run is made of one SWMM run per interval, each with the inflows' scale factors
+  (``Sfactor``) times its factors, hot-started from the one before;
+- **state arrays**: the state's hotstart file (:mod:`~rivercal.models.swmm.hotstart`, SWMM's documented layout)
+  read as the heads of the nodes (invert + depth, m) and the flows of the links (m³/s), and written back
+  (the depths never below the invert); SWMM computes the nodes' volumes from the depths when a run starts;
+- **variants**: a copy whose inflow series are multiplied by factor series (a twin's rain error).
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import logging
 import shutil
@@ -44,16 +59,28 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.engine.state import SimulationResult
-from rivercal.models.contract import CalibrationSetup, ExternalRunError, FileState, Quantity, check_run, utc
-from rivercal.models.swmm.inp import InpFile, seconds, swmm_date, swmm_step
+from rivercal.models.contract import (
+    CalibrationSetup,
+    ExternalRunError,
+    FileState,
+    Quantity,
+    StateLayout,
+    VariantInputs,
+    check_run,
+    utc,
+)
+from rivercal.models.swmm.hotstart import read_hotstart
+from rivercal.models.swmm.inp import NODE_SECTIONS, InpFile, seconds, swmm_date, swmm_step
 from rivercal.models.swmm.output import parse_element, read_swmm_output
+from rivercal.results import SimulationResult
 
 __all__ = ["SwmmModel", "SwmmRunError"]
 
 log = logging.getLogger(__name__)
 
 HOTSTART = "hotstart.hsf"
+#: The sections of links, each row ``Name FromNode ToNode …`` (SWMM numbers links in the order they come).
+LINK_SECTIONS = ("CONDUITS", "PUMPS", "ORIFICES", "WEIRS", "OUTLETS")
 
 
 class SwmmRunError(ExternalRunError):
@@ -90,11 +117,11 @@ class SwmmModel:
         For a file that is not in SI flow units, or stations that name no object of the file.
     """
 
-    def __init__(self, inp: str | Path, stations: Mapping[str, str], *, name: str, start: Any, end: Any,
+    def __init__(self, inp: str | Path | InpFile, stations: Mapping[str, str], *, name: str, start: Any, end: Any,
                  output_interval: float = 3600.0, spinup: float = 0.0,
                  calibration: CalibrationSetup | None = None, runs_dir: str | Path | None = None):
-        self.inp_path = Path(inp)
-        self._inp = InpFile.read(self.inp_path)
+        self._inp = inp if isinstance(inp, InpFile) else InpFile.read(inp)
+        self.inp_path = Path(self._inp.source)
         self.name = name
         self._start, self._end = utc(start), utc(end)
         self._interval = float(output_interval)
@@ -224,9 +251,19 @@ class SwmmModel:
     # -- running ----------------------------------------------------------------------------------
 
     def render(self, parameters: Mapping[str, float], run_start: pd.Timestamp, end: pd.Timestamp,
-               interval: float, *, hot: bool) -> str:
-        """The ``.inp`` text of one run: period, reporting, quantities and hotstart files set."""
+               interval: float, *, hot: bool, scale: Mapping[str, float] | None = None) -> str:
+        """The ``.inp`` text of one run: period, reporting, quantities and hotstart files set.
+
+        ``scale``: factors on the inflows of nodes (their ``[INFLOWS]`` scale factors times the factor). The
+        ``[TIMESERIES]`` keep the points of the run's period and the one before and after it.
+        """
         inp = self._inp.copy()
+        trimmed = self._trimmed_series(run_start, end)
+        if trimmed is not None:
+            inp.replace_section("TIMESERIES", trimmed)
+        for node, factor in (scale or {}).items():
+            row = self._inflow_rows[node]
+            inp.set_value("INFLOWS", node, 5, f"{float(row.tokens[5]) * float(factor):.10g}")
         d0, t0 = swmm_date(run_start)
         d1, t1 = swmm_date(end)
         for key, value in (("START_DATE", d0), ("START_TIME", t0), ("REPORT_START_DATE", d0),
@@ -292,7 +329,12 @@ class SwmmModel:
             another time.
         """
         run = check_run(self, parameters, start, end, state, output_interval)
-        parameters, start, end, interval = run.parameters, run.start, run.end, run.interval
+        return self._simulate(run.parameters, run.start, run.end, state, run.interval)
+
+    def _simulate(self, parameters: Mapping[str, float], start: pd.Timestamp, end: pd.Timestamp,
+                  state: FileState | None, interval: float,
+                  scale: Mapping[str, float] | None = None) -> tuple[SimulationResult, FileState]:
+        """:meth:`simulate` of checked arguments, the inflows of ``scale``'s nodes scaled (:meth:`render`)."""
         spin = pd.Timedelta(hours=self.spinup) if state is None else pd.Timedelta(0)
         if spin.total_seconds() % interval:
             raise ValueError(f"spin-up ({self.spinup:g} h) is not a multiple of the output interval ({interval:g} s)")
@@ -300,12 +342,12 @@ class SwmmModel:
         run_dir = Path(tempfile.mkdtemp(prefix=f"swmm-{self.name}-", dir=self._base_dir()))
         t0 = _time.perf_counter()
         try:
-            text = self.render(parameters, run_start, end, interval, hot=state is not None)
+            text = self.render(parameters, run_start, end, interval, hot=state is not None, scale=scale)
             (run_dir / "model.inp").write_text(text, encoding="utf-8")
             if state is not None:
                 (run_dir / f"start-{HOTSTART}").write_bytes(state.files[HOTSTART])
             first = self._run(run_dir, parameters)
-            series = read_swmm_output(run_dir / "model.out", self.stations)
+            series = read_swmm_output(run_dir / "model.out", self.stations, step=interval)
             hotstart = (run_dir / HOTSTART).read_bytes()
         except SwmmRunError:
             raise
@@ -323,8 +365,198 @@ class SwmmModel:
             raise SwmmRunError(str(run_dir), f"no finite value of {series.columns[col]} at {series.index[row]} "
                                              "(the output is missing or truncated there)")
         shutil.rmtree(run_dir, ignore_errors=True)
-        result = SimulationResult(series=series, balance=None, wall_time=wall)
+        result = SimulationResult(series=series, wall_time=wall, source="EPA SWMM 5 (swmm-toolkit)")
         return result, FileState(time=end, files={HOTSTART: hotstart}, origin=self._origin)
+
+    # -- inflow series, trimmed to a run ---------------------------------------------------------------
+
+    @functools.cached_property
+    def _series_points(self) -> dict[str, tuple[np.ndarray, list[str]]] | None:
+        """Per ``[TIMESERIES]`` series its times (ns, UTC clock) and lines.
+
+        None when a row is not ``Name Date Time Value`` (a file, relative times or several pairs per row): the
+        section is then written as it is.
+        """
+        names, stamps, kept = [], [], []
+        for line in self._inp.raw_lines("TIMESERIES"):
+            body = line.partition(";")[0].split()
+            if not body:
+                continue
+            if len(body) != 4 or "/" not in body[1] or body[2].count(":") not in (1, 2):
+                return None
+            names.append(body[0])
+            stamps.append(f"{body[1]} {body[2]}" + (":00" if body[2].count(":") == 1 else ""))
+            kept.append(line)
+        try:
+            when = pd.to_datetime(pd.Series(stamps, dtype=object), format="%m/%d/%Y %H:%M:%S").to_numpy()
+        except (ValueError, TypeError):
+            return None
+        when = when.astype("datetime64[ns]").astype(np.int64)
+        out: dict[str, tuple[list[int], list[str]]] = {}
+        for name, t, line in zip(names, when.tolist(), kept, strict=True):
+            times, lines = out.setdefault(name, ([], []))
+            if times and t < times[-1]:
+                return None
+            times.append(t)
+            lines.append(line)
+        return {k: (np.asarray(t, dtype=np.int64), lines) for k, (t, lines) in out.items()}
+
+    def _trimmed_series(self, start: pd.Timestamp, end: pd.Timestamp) -> list[str] | None:
+        """The ``[TIMESERIES]`` lines of [start, end] and the point before and after (None: keep the section)."""
+        points = self._series_points
+        if points is None:
+            return None
+        t0, t1 = start.tz_localize(None).value, end.tz_localize(None).value
+        out = [";Name Date Time Value"]
+        for times, lines in points.values():
+            a = max(0, int(np.searchsorted(times, t0, side="right")) - 1)
+            b = min(len(times), int(np.searchsorted(times, t1, side="left")) + 1)
+            out.extend(lines[a:b])
+        return out
+
+    # -- optional capabilities (rivercal.models.contract) ---------------------------------------------
+
+    @functools.cached_property
+    def _inflow_rows(self) -> dict[str, Any]:
+        """The flow rows of ``[INFLOWS]`` by node (``Node FLOW Series Type Mfactor Sfactor …``)."""
+        return {r.tokens[0]: r for r in self._inp.rows("INFLOWS")
+                if len(r.tokens) >= 6 and r.tokens[1].upper() == "FLOW"}
+
+    def perturbable_forcing(self) -> tuple[str, ...]:
+        """The flow inflows of ``[INFLOWS]``, as ``inflow:<node>``."""
+        return tuple(f"inflow:{node}" for node in self._inflow_rows)
+
+    def simulate_perturbed(self, parameters: Mapping[str, float] | None, start: Any, end: Any,
+                           state: FileState | None, factors: np.ndarray, interval: float, *,
+                           output_interval: float | None = None) -> tuple[SimulationResult, FileState]:
+        """A run whose inflows are scaled by ``factors`` (intervals, inflows): one SWMM run per interval.
+
+        Raises
+        ------
+        ValueError
+            As :meth:`simulate`; for factors of another shape, or an interval that is not a whole number of
+            output intervals.
+        """
+        run = check_run(self, parameters, start, end, state, output_interval)
+        factors = np.asarray(factors, dtype=float)
+        nodes = list(self._inflow_rows)
+        step = pd.Timedelta(seconds=float(interval))
+        needed = -(-(run.end - run.start) // step)
+        if factors.ndim != 2 or factors.shape[1] != len(nodes) or factors.shape[0] < needed:
+            raise ValueError(f"factors must have shape (intervals >= {needed}, {len(nodes)}), got {factors.shape}")
+        if step % pd.Timedelta(seconds=run.interval):
+            raise ValueError(f"the factors' interval ({float(interval):g} s) must be a whole number of output "
+                             f"intervals ({run.interval:g} s)")
+        parts: list[pd.DataFrame] = []
+        t0, wall = run.start, 0.0
+        for k in range(needed):
+            t1 = min(t0 + step, run.end)
+            result, state = self._simulate(run.parameters, t0, t1, state, run.interval,
+                                           scale=dict(zip(nodes, factors[k], strict=True)))
+            parts.append(result.series if not parts else result.series.iloc[1:])
+            wall += result.wall_time
+            t0 = t1
+        return SimulationResult(series=pd.concat(parts), wall_time=wall, source="EPA SWMM 5 (swmm-toolkit)"), state
+
+    @functools.cached_property
+    def _nodes(self) -> tuple[list[str], tuple[bool, ...]]:
+        """The nodes in SWMM's order (the file's), and which of them are storage nodes."""
+        names, storage = [], []
+        for section in self._inp.sections():
+            if section in NODE_SECTIONS:
+                for r in self._inp.rows(section):
+                    names.append(r.tokens[0])
+                    storage.append(section == "STORAGE")
+        return names, tuple(storage)
+
+    @functools.cached_property
+    def _links(self) -> list[tuple[str, str, str, float]]:
+        """The links in SWMM's order: (id, from node, to node, length in m; 1 m but for conduits)."""
+        out = []
+        for section in self._inp.sections():
+            if section in LINK_SECTIONS:
+                for r in self._inp.rows(section):
+                    length = float(r.tokens[3]) if section == "CONDUITS" else 1.0
+                    out.append((r.tokens[0], r.tokens[1], r.tokens[2], length))
+        return out
+
+    def state_layout(self) -> StateLayout:
+        """The heads at the nodes and the flows of the links, in SWMM's order."""
+        return self._layout
+
+    @functools.cached_property
+    def _layout(self) -> StateLayout:
+        nodes, _ = self._nodes
+        at = {n: i for i, n in enumerate(nodes)}
+        ends = np.array([[at.get(a, -1), at.get(b, -1)] for _, a, b, _ in self._links], dtype=np.int64).reshape(-1, 2)
+        links = {ident: k for k, (ident, *_) in enumerate(self._links)}
+        places = {}
+        for obs, spec in self.stations.items():
+            kind, ident = parse_element(spec)
+            places[obs] = at[ident] if kind == "node" else int(ends[links[ident], 0])
+        return StateLayout(levels=tuple(f"node:{n}" for n in nodes),
+                           discharges=tuple(f"link:{ident}" for ident, *_ in self._links), link_ends=ends,
+                           link_length=np.array([max(length, 1.0) for *_, length in self._links], dtype=float),
+                           floor=np.array([self._inverts[n] for n in nodes], dtype=float), places=places,
+                           forcing_places={f"inflow:{n}": at[n] for n in self._inflow_rows})
+
+    def state_arrays(self, state: FileState) -> tuple[np.ndarray, np.ndarray]:
+        """Heads at the nodes (invert + depth, m) and flows of the links (m³/s) of the state's hotstart file."""
+        hot = read_hotstart(state.files[HOTSTART], self._nodes[1])
+        return self._layout.floor + hot.depth_m, hot.flow_m3s
+
+    def with_state_arrays(self, state: FileState, levels: np.ndarray, discharges: np.ndarray) -> FileState:
+        """The state with these heads (m; depths never below zero) and link flows (m³/s) in its hotstart file."""
+        hot = read_hotstart(state.files[HOTSTART], self._nodes[1])
+        data = hot.with_values(np.asarray(levels, dtype=float) - self._layout.floor, discharges).to_bytes()
+        return FileState(time=state.time, files={**state.files, HOTSTART: data}, origin=state.origin)
+
+    def variant_inputs(self) -> VariantInputs:
+        """No branches or catchments: a SWMM model's variants take forcing factors only."""
+        return VariantInputs(branches={}, inherit=(), catchments=(), rain=None)
+
+    def variant(self, *, branch_factors: Mapping[str, float] | None = None, grid_factor: float = 1.0,
+                rain_factor: pd.Series | None = None, runoff_factors: Mapping[str, Mapping[str, float]] | None = None,
+                forcing_factors: Mapping[str, pd.Series] | None = None) -> SwmmModel:
+        """A copy whose inflow series are multiplied by ``forcing_factors`` (per ``inflow:<node>``, UTC index).
+
+        Raises
+        ------
+        ValueError
+            For other kinds of variant (branch friction, grid, rain, runoff: a SWMM model has none of them
+            to vary) or an inflow the model does not have.
+        """
+        if branch_factors or grid_factor != 1.0 or rain_factor is not None or runoff_factors:
+            raise ValueError(f"SWMM model {self.name!r} makes variants of its inflows only, not of its friction, "
+                             "grid, rain or runoff")
+        inp = self._inp.copy()
+        points = self._series_points
+        if forcing_factors and points is None:
+            raise ValueError(f"{self.inp_path}: [TIMESERIES] rows are not all 'Name Date Time Value'; the inflows "
+                             "cannot be scaled")
+        lines = None
+        for key, factor in (forcing_factors or {}).items():
+            node = key.removeprefix("inflow:")
+            if node not in self._inflow_rows or not key.startswith("inflow:"):
+                raise ValueError(f"SWMM model {self.name!r} has no inflow {key!r} (it has "
+                                 f"{', '.join(self.perturbable_forcing())})")
+            series = self._inflow_rows[node].tokens[2]
+            times, rows = points[series]  # type: ignore[index]
+            origin = factor.index[0]
+            f = np.interp((pd.DatetimeIndex(times, tz="UTC") - origin).total_seconds(),
+                          (factor.index - origin).total_seconds(), factor.to_numpy(dtype=float))
+            scaled = {}
+            for row, value in zip(rows, f, strict=True):
+                name, date, clock, number = row.partition(";")[0].split()
+                scaled[row] = f"{name} {date} {clock} {float(number) * value:.10g}"
+            lines = [scaled.get(line, line) for line in (lines or self._inp.raw_lines("TIMESERIES"))]
+        if lines is not None:
+            inp = InpFile("\n".join(f"[{name}]\n" + "\n".join(lines if name == "TIMESERIES" else
+                                                                self._inp.raw_lines(name))
+                                     for name in self._inp.sections()), source=self._inp.source)
+        return SwmmModel(inp, self.stations, name=self.name, start=self.start, end=self.end,
+                         output_interval=self.output_interval, spinup=self.spinup, calibration=self.calibration,
+                         runs_dir=self.runs_dir)
 
     def _base_dir(self) -> str | None:
         if self.runs_dir is None:

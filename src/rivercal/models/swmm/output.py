@@ -52,7 +52,7 @@ def parse_element(spec: str) -> tuple[str, str]:
     return kind, ident
 
 
-def read_swmm_output(path: str | Path, elements: Mapping[str, str]) -> pd.DataFrame:
+def read_swmm_output(path: str | Path, elements: Mapping[str, str], *, step: float | None = None) -> pd.DataFrame:
     """Series of SWMM objects from a binary output file.
 
     Parameters
@@ -61,6 +61,10 @@ def read_swmm_output(path: str | Path, elements: Mapping[str, str]) -> pd.DataFr
         The ``.out`` file.
     elements
         Column name → ``node:<id>`` (hydraulic head, m) or ``link:<id>`` (flow rate, m³/s).
+    step
+        The reporting step, s, when the caller knows it (the ``REPORT_STEP`` it wrote). The file holds it as
+        whole seconds computed from fractional days, which SWMM may round down (3599 for one hour, with some
+        start times); without ``step`` a value within 1 s of whole minutes is taken as those minutes.
 
     Returns
     -------
@@ -85,7 +89,7 @@ def read_swmm_output(path: str | Path, elements: Mapping[str, str]) -> pd.DataFr
         try:
             output.open(handle, str(path))
             n = output.get_times(handle, shared_enum.Time.NUM_PERIODS)
-            step = output.get_times(handle, shared_enum.Time.REPORT_STEP)
+            stored = output.get_times(handle, shared_enum.Time.REPORT_STEP)
             start = output.get_start_date(handle)
             counts = output.get_proj_size(handle)
             index = {
@@ -109,6 +113,9 @@ def read_swmm_output(path: str | Path, elements: Mapping[str, str]) -> pd.DataFr
             columns[col] = np.asarray(values, dtype=float)
     finally:
         output.close(handle)
+    if step is None:
+        minutes = round(stored / 60.0) * 60.0
+        step = minutes if minutes > 0 and abs(stored - minutes) <= 1.0 else float(stored)
     first = SWMM_EPOCH + pd.Timedelta(days=start) + pd.Timedelta(seconds=step)
     times = (first + pd.to_timedelta(np.arange(n) * step, unit="s")).round("s")
     frame = pd.DataFrame(columns, index=pd.DatetimeIndex(times, name="time"))

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rivercal.analysis.forecast import SCORE_COLUMNS, score_forecasts
+from rivercal.online.metrics import SCORE_COLUMNS, score_forecasts
 
 ISSUE = pd.Timestamp("2010-11-01T06:00Z")
 
