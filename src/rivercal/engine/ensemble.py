@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.engine.kernels.codes import STATUS_OK
+from rivercal.engine.kernels.codes import CONTROL_STATS, STATUS_OK
 from rivercal.engine.kernels.timeloop import make_work
 from rivercal.engine.simulator import Simulator, _ratio, time_loop
 from rivercal.engine.state import EngineState
@@ -166,7 +166,7 @@ def run_ensemble(
                              f"got {forcing.shape}")
     n_threads = threads(n_threads)
     if states is None:
-        stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)])
+        stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)], sim.compiled.dikes.sc.size)
         if sim.case.spec.initial.spinup > 0:
             n_spin = max(1, round(sim.case.spec.initial.spinup * 3600.0 / sim.dt))
             spin = sim.forcing_matrix(start, n_spin, constant=True)[None]
@@ -184,7 +184,7 @@ def run_ensemble(
                                  f"{len(sim.controls or ())}")
             if s.time != start:
                 raise ValueError(f"member {m}: the state is at {s.time}, the run starts at {start}")
-        stack = _Stack.of(states)
+        stack = _Stack.of(states, sim.compiled.dikes.sc.size)
     t0 = _time.perf_counter()
     obs, zs, qs, _, status = _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start,
                                   n_threads=n_threads)
@@ -212,16 +212,27 @@ class _Stack:
     pump_on: np.ndarray
     ctl: np.ndarray
     signature: tuple[int, int]
+    control: np.ndarray  # the step control's state (CONTROL_STATS), the flicker detector's and the dikes' curves
+    flicker: np.ndarray
+    swing: np.ndarray
+    dikes: np.ndarray
 
     @classmethod
-    def of(cls, states: Sequence[EngineState]) -> _Stack:
+    def of(cls, states: Sequence[EngineState], n_dikes: int) -> _Stack:
         return cls(*(np.array([getattr(s, k) for s in states], dtype=float)
-                     for k in ("z", "dz", "vol", "u", "q", "pump_on", "ctl")), signature=states[0].signature)
+                     for k in ("z", "dz", "vol", "u", "q", "pump_on", "ctl")), signature=states[0].signature,
+                   control=np.array([s.control for s in states], dtype=np.int64),
+                   flicker=np.array([s.flicker for s in states], dtype=np.int32),
+                   swing=np.array([s.swing for s in states], dtype=float),
+                   dikes=np.array([s.dike_curves(n_dikes) for s in states], dtype=np.int8).reshape(len(states),
+                                                                                                  n_dikes))
 
     def state(self, m: int, time: pd.Timestamp) -> EngineState:
         return EngineState(time=time, z=self.z[m].copy(), dz=self.dz[m].copy(), vol=self.vol[m].copy(),
                            u=self.u[m].copy(), q=self.q[m].copy(), pump_on=self.pump_on[m].copy(),
-                           signature=self.signature, ctl=self.ctl[m].copy())
+                           signature=self.signature, ctl=self.ctl[m].copy(), control=self.control[m].copy(),
+                           flicker=self.flicker[m].copy(), swing=self.swing[m].copy(),
+                           dikes=self.dikes[m].copy() if self.dikes.shape[1] else None)
 
 
 def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False, n_threads=1):
@@ -249,9 +260,16 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
 
     def member(m: int) -> None:
         state = (stack.z[m], stack.dz[m], stack.vol[m], stack.u[m], stack.q[m], stack.pump_on[m])
-        status[m] = time_loop(sim, make_work(a, sx), cxs[m], crest[m], fric[m], state,
+        work = make_work(a, sx)
+        work.stats[list(CONTROL_STATS)] = stack.control[m]  # the step control continues where the member stopped
+        work.flick[:] = stack.flicker[m]
+        work.swing[:] = stack.swing[m]
+        status[m] = time_loop(sim, work, cxs[m], crest[m], fric[m], state,
                               forcing[0] if forcing.shape[0] == 1 else forcing[m], out_every,
-                              (obs[m], zs[m], qs[m], balance[m]), private=True)
+                              (obs[m], zs[m], qs[m], balance[m]), private=True, dikes=stack.dikes[m])
+        stack.control[m] = work.stats[list(CONTROL_STATS)]
+        stack.flicker[m] = work.flick
+        stack.swing[m] = work.swing
 
     if n_threads == 1 or n_mem == 1:
         for m in range(n_mem):

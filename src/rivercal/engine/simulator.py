@@ -137,8 +137,10 @@ class Simulator:
         self.controls: Controls | None = Controls(case.spec.controllers, self.compiled) if case.spec.controllers \
             else None
         sx = self.compiled.structures
-        #: Whether runs take the extended time loop (structures beyond weirs, setting series, controllers).
-        self.extended = bool(sx.links.size or (sx.set_col >= 0).any() or self.controls is not None)
+        #: Whether runs take the extended time loop (structures beyond weirs, setting series, controllers, summer
+        #: dikes whose storage changes curve).
+        self.extended = bool(sx.links.size or (sx.set_col >= 0).any() or self.controls is not None
+                             or self.compiled.dikes.sc.size)
         #: Counters of the last compiled run: steps, level solves, drying re-solves, and the step control's
         #: steps divided into sub-steps, sub-steps taken and the deepest division (a step into 2^level).
         self.last_run_stats: dict[str, int] = {}
@@ -534,14 +536,16 @@ class Simulator:
         self._work.swing[:] = state.swing
         self._work.wreq_sum[:] = 0.0
         self._work.wshort_sum[:] = 0.0
+        dikes = state.dike_curves(self.compiled.dikes.sc.size)
         status, step, index = time_loop(self, self._work, cx, crest, fric,
                                         (state.z, state.dz, state.vol, state.u, state.q, state.pump_on), forcing,
-                                        out_every, (obs, zs, qs, balance))
+                                        out_every, (obs, zs, qs, balance), dikes=dikes)
         if cx is not None:
             obs[:, n_obs:] = cx.out
         state.control = self._work.stats[list(CONTROL_STATS)].copy()
         state.flicker = self._work.flick.copy()
         state.swing = self._work.swing.copy()
+        state.dikes = dikes
         self.last_run_stats = run_stats(self._work.stats)
         log.debug("%s%s", phase + ": " if phase else "", self.last_run_stats)
         self.last_run_shortfalls = self._shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
@@ -650,22 +654,36 @@ class Simulator:
 
 
 def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, state: tuple, forcing: np.ndarray,
-              out_every: int, out: tuple, *, private: bool = False) -> tuple[int, int, int]:
+              out_every: int, out: tuple, *, private: bool = False, dikes: np.ndarray | None = None
+              ) -> tuple[int, int, int]:
     """One call of the compiled time loop of ``sim`` (the extended one where :attr:`Simulator.extended`).
 
     ``state`` (z m AD, dz m, vol m³, u m/s, q m³/s, pump_on) is advanced in place; ``out`` (obs, zs, qs,
     balance) is written; ``work`` and ``cx`` are the run's scratch and controller arrays. ``private`` copies
     the two arrays the extended loop writes scheduled settings into (pump capacities, orifice gates), for a
-    call on a thread beside others. Returns the status code, the step and the index where it stopped.
+    call on a thread beside others. ``dikes`` (for a network with summer dikes whose storage changes curve,
+    :class:`~rivercal.engine.compile.DikeArrays`) holds per such dike 1 while it is on its falling curve, else 0,
+    and is updated in place; the run stores with its own copy of the contributions' tables. Returns the status
+    code, the step and the index where it stopped.
     """
-    s, a, sx = sim.settings, sim.compiled.arrays, sim.compiled.structures
+    s, a, sx, dk = sim.settings, sim.compiled.arrays, sim.compiled.structures, sim.compiled.dikes
     settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
                 float(s.max_velocity), int(out_every))
     if not sim.extended:
         return run(a, work, crest, fric, *state, forcing, *settings, *out)
     if private:
         a, sx = a._replace(p_cap=a.p_cap.copy()), sx._replace(ogate=sx.ogate.copy())
-    return run_ext(a, sx, cx, work, crest, fric, *state, forcing, *settings, *out)
+    if not dk.sc.size:
+        return run_ext(a, sx, cx, None, work, crest, fric, *state, forcing, *settings, *out)
+    falling = np.zeros(dk.sc.size, dtype=bool) if dikes is None else np.asarray(dikes) != 0
+    sc_prof = a.sc_prof.copy()
+    sc_prof[dk.sc] = np.where(falling, dk.alt, dk.rise)
+    work.zlo[dk.hp] = np.inf  # the pieces of these points' volume curves are looked up afresh with these tables
+    work.zhi[dk.hp] = -np.inf
+    status = run_ext(a._replace(sc_prof=sc_prof), sx, cx, dk, work, crest, fric, *state, forcing, *settings, *out)
+    if dikes is not None:
+        dikes[:] = sc_prof[dk.sc] == dk.alt
+    return status
 
 
 def run_stats(stats: np.ndarray) -> dict[str, int]:

@@ -90,7 +90,7 @@ from rivercal.engine.kernels.record import record
 from rivercal.engine.kernels.stability import explicit_amplification
 from rivercal.engine.kernels.structures import apply_settings, reset_settings, switch_pumps
 
-__all__ = ["Work", "make_work", "run", "run_ext"]
+__all__ = ["Work", "make_work", "run", "run_ext", "switch_dikes"]
 
 #: A step in units of the smallest sub-step.
 FULL = 1 << MAX_HALVINGS
@@ -198,8 +198,8 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     _start(net, work, fric)
     for n in range(forcing.shape[0]):
         work.stats[STAT_STEPS] += 1
-        status, index, swap = _step(net, None, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta,
-                                    max_iter, tol, min_depth, vmax, balance)
+        status, index, swap = _step(net, None, None, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt,
+                                    theta, max_iter, tol, min_depth, vmax, balance)
         if swap:
             u0, q0, u1, q1 = u1, q1, u0, q0
         if status != STATUS_OK:
@@ -213,8 +213,8 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
 
 
 @entry
-def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth,
-            vmax, out_every, obs_out, z_out, q_out, balance):
+def run_ext(net, sx, cx, dk, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol,
+            min_depth, vmax, out_every, obs_out, z_out, q_out, balance):
     """:func:`run` for a network with structures of D-HYDRO's kinds or structure settings that follow a series.
 
     A separate kernel, so that the time loop of a network without them stays as lean as before (its phases
@@ -232,6 +232,9 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
         :class:`~rivercal.engine.controllers.ControlArrays` (controllers, their run's quantities, output and
         state, updated in place), or ``None`` without controllers. A controller sets its weir's crest once per
         step, before the hydraulics (:func:`.control.control_step`).
+    dk
+        :class:`~rivercal.engine.compile.DikeArrays` (summer dikes whose storage changes curve), or ``None``
+        without them; ``net.sc_prof`` is then the run's own copy, whose tables :func:`switch_dikes` changes.
     work
         :class:`Work` arrays (scratch, allocated once by the caller).
     crest, fric
@@ -276,8 +279,8 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
             apply_settings(net, sx, n, forcing, crest)
         if cx is not None:
             control_step(cx, n, dt, z, q0, crest)
-        status, index, swap = _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta,
-                                    max_iter, tol, min_depth, vmax, balance)
+        status, index, swap = _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt,
+                                    theta, max_iter, tol, min_depth, vmax, balance)
         if swap:
             u0, q0, u1, q1 = u1, q1, u0, q0
         if status != STATUS_OK:
@@ -293,13 +296,13 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
 
 
 @kernel
-def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta, max_iter, tol, min_depth,
-          vmax, balance):
+def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta, max_iter, tol,
+          min_depth, vmax, balance):
     """Advance the state over step ``n`` of ``dt`` s, in sub-steps where the step control divides it.
 
-    The arguments are those of :func:`run`, with ``sx`` ``None`` for :func:`run`'s networks (the branch on it
-    is pruned when compiling); ``u0``, ``q0`` hold the velocities (m/s) and fluxes (m³/s) at the step's start
-    and ``u1``, ``q1`` receive the next ones, swapping roles after each sub-step. Returns (status, index,
+    The arguments are those of :func:`run_ext`, with ``sx`` and ``dk`` ``None`` for :func:`run`'s networks (the
+    branches on them are pruned when compiling); ``u0``, ``q0`` hold the velocities (m/s) and fluxes (m³/s) at the
+    step's start and ``u1``, ``q1`` receive the next ones, swapping roles after each sub-step. Returns (status, index,
     swapped): the status and point or link of :func:`run`, and whether the last committed values ended in
     ``u1``, ``q1`` after an odd number of sub-steps (the caller swaps its arrays then).
     """
@@ -331,6 +334,8 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
             balance[n_b] += h * lateral
             checked = vmax if level >= MAX_HALVINGS else math.inf  # the screen checked the velocities
             status, index = finish_step(net, work, h, checked, z, dz, vol, u1, q1, balance)
+            if dk is not None:
+                switch_dikes(dk, net.sc_prof, work, z)
             u0, q0, u1, q1 = u1, q1, u0, q0
             swapped = not swapped
             done += span
@@ -345,6 +350,32 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
         stats[STAT_REFINED] += 1
         stats[STAT_SUBSTEPS] += taken
     return status, index, swapped
+
+
+@kernel
+def switch_dikes(dk, sc_prof, work, z):
+    """After a committed (sub-)step: the storage curve of each summer dike (:class:`~.compile.DikeArrays`), by level.
+
+    A dike on its rising curve whose point's level ``z`` (m AD) has reached its full level drains by its falling
+    curve from then on, and one on its falling curve whose level has fallen to its base fills by its rising curve
+    again (SOBEK 3's hysteresis of the summer dike's total area). ``sc_prof`` is the run's own table of each
+    storage contribution. Both curves hold the same volume at those levels, so the point keeps its volume and its
+    level; the piece of its volume curve looked up last (``work.zlo``, ``work.zhi``) no longer holds and is
+    dropped.
+    """
+    for k in range(dk.sc.size):
+        c = dk.sc[k]
+        i = dk.hp[k]
+        zi = z[i]
+        if sc_prof[c] == dk.rise[k]:
+            if zi >= dk.full[k]:
+                sc_prof[c] = dk.alt[k]
+                work.zlo[i] = math.inf
+                work.zhi[i] = -math.inf
+        elif zi <= dk.base[k]:
+            sc_prof[c] = dk.rise[k]
+            work.zlo[i] = math.inf
+            work.zhi[i] = -math.inf
 
 
 @kernel
