@@ -43,7 +43,7 @@ def test_network_and_grid_points(imported) -> None:
     assert "order" not in branches["b3"]  # order -1: none
     assert branches["b4"]["geometry"] == [[1000.0, 0.0], [1000.0, 1000.0]]
     assert data["engine"] == {"dt": 60.0, "output_interval": 600.0, "cross_sections": "interpolated", "theta": 1.0,
-                              "max_iterations": 8, "min_storage_area": 0.1}
+                              "max_iterations": 8, "min_storage_area": 0.1, "courant": 0.7}
 
 
 def test_profiles_of_every_type(imported) -> None:

@@ -6,10 +6,12 @@ read from ``../shared/data`` (LGPL-3.0, never copied). The figures are root-mean
 point over the hours after the first (spin-up) day; discharges as RMSE(Q - Q_SOBEK) / mean |Q_SOBEK| per
 observation point (:mod:`rivercal.bench.sobek3`).
 
-The acceptance figures of the import (Waal: level RMSE median ≤ 3 cm, p90 ≤ 10 cm, max ≤ 25 cm, discharge within
-2 %; compound channel: median ≤ 1 cm, both at the models' own time step of 3600 s) that are not met yet are asserted
-as expected failures (strict: they fail the suite once they are met, so that the test is turned into a plain one);
-what the import achieves today is asserted beside them.
+The acceptance figures of the import, both at the models' own time step of 3600 s: Waal level RMSE median ≤ 3 cm,
+p90 ≤ 10 cm, max ≤ 25 cm, discharge within 2 %; compound channel median ≤ 1 cm. Three things brought the Waal there
+(docs/sobek3.md): the summer dikes' storage drains by SOBEK 3's falling curve, the channels' geometry follows the
+levels within a step, and the step is divided where the flow would cross a grid segment in less than a step, as
+SOBEK 3 reduces its own step to its Courant number (its run analysis, ``flowanal.his``, counts 31,924 such
+reductions at one segment over the flood wave).
 """
 
 from __future__ import annotations
@@ -46,18 +48,14 @@ def test_the_waal_imports_strictly_and_runs_as_imported(waal) -> None:
     assert row["objects"] == row["exact"] + row["approximated"] + row["refused"]
     assert np.isfinite(waal.levels.to_numpy()).all()
     after = row["after_spinup"]
-    assert after["discharge_relative_rmse"]["median"] <= 0.02  # the acceptance figures
-    assert after["level_rmse_m"]["max"] <= 0.25
-    assert after["level_rmse_m"]["p90"] <= 0.10
-    # today's figures (measured 0.047 / 0.056 / 0.073 m): a guard against a change that makes them worse
-    assert after["level_rmse_m"]["median"] <= 0.05
-    assert after["level_rmse_m"]["max"] <= 0.08
+    assert after["discharge_relative_rmse"]["median"] <= 0.02  # the acceptance figure; measured 0.4 %
 
 
-@pytest.mark.xfail(strict=True, reason="at 3600 s the engine's conveyance lags a step (docs/sobek3.md)")
 def test_the_waal_levels_meet_the_acceptance_figures(waal) -> None:
     levels = waal.row()["after_spinup"]["level_rmse_m"]
     assert levels["median"] <= 0.03 and levels["p90"] <= 0.10 and levels["max"] <= 0.25
+    # measured 0.026 / 0.045 / 0.052 m: a guard against a change that makes the tail worse
+    assert levels["p90"] <= 0.05 and levels["max"] <= 0.06
 
 
 def test_the_compound_channel_at_half_its_time_step_is_within_a_centimetre(compound) -> None:

@@ -1,6 +1,6 @@
 """The channel geometry of a grid: which table each point stores with and each link conveys with, and its friction.
 
-Two ways to place the cross-sections on the grid (``engine.cross_sections``):
+Three ways to place the cross-sections on the grid (``engine.cross_sections``):
 
 - ``nearest``: each calculation point takes the profile of the nearest cross-section at the bed level
   interpolated there; a channel link conveys with the profile of its upwind point;
@@ -8,7 +8,13 @@ Two ways to place the cross-sections on the grid (``engine.cross_sections``):
   its middle (table by table at equal depth, :func:`rivercal.engine.sections.interpolate_tables`), at the bed
   level there, and conveys with it at the upwind level; each point stores the water of its half-links. A branch
   with a positive ``order`` continues its cross-sections across a connection node into the next branch of the
-  same order (:func:`extended_cross_sections`), as D-Flow FM 1D does with its branch orders.
+  same order (:func:`extended_cross_sections`), as D-Flow FM 1D does with its branch orders;
+- ``points`` (Mascaret's way, its planimetry of each computational section): each calculation point takes the
+  cross-section interpolated at it, at the bed level there; a half-link stores with the table of its end point
+  and a link conveys with its upwind point's table (at the link's friction slot). A point's storage and the flow
+  area of the links it feeds then come from one table, which a steep torrent whose profiles change from pool to
+  riffle needs: with ``interpolated`` the Oriège's supercritical reaches never settled (levels swinging by a
+  metre at any step down to 0.5 s), with ``points`` they are steady at every step.
 
 A profile of a plain shape (open rectangular, trapezoidal, zw without sections or summer dike) whose friction is
 the link's own coefficient is tabulated as before (:func:`rivercal.engine.geometry.zw_of`); every other link
@@ -280,6 +286,23 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
             if dike is not None and dike.total_area > 0:
                 dikes[int(grid.link_k1[li])].append((dike, bed, half))
                 dikes[int(grid.link_k2[li])].append((dike, bed, half))
+    elif mode == "points":
+        extended = extended_cross_sections(network)
+        for li in range(n_l):
+            br = branches[grid.link_branch_id[li]]
+            middle, half = float(grid.link_chainage[li]), 0.5 * float(grid.link_length[li])
+            slot = _slot_at(b, br, middle, extended[br.id])
+            link_slot[li] = slot
+            for end, chainage, k in ((1, middle - half, int(grid.link_k1[li])), (2, middle + half,
+                                                                                 int(grid.link_k2[li]))):
+                table, bed, _, dike = _interpolated(b, br, chainage, extended[br.id], slot)
+                if end == 1:
+                    link_p1[li], link_b1[li] = table, bed
+                else:
+                    link_p2[li], link_b2[li] = table, bed
+                contributions[k].append((table, bed, half))
+                if dike is not None and dike.total_area > 0:
+                    dikes[k].append((dike, bed, half))
     else:
         for li in range(n_l):
             br = branches[grid.link_branch_id[li]]
@@ -374,30 +397,52 @@ def extended_cross_sections(network) -> dict[str, list[tuple[float, int, float]]
     return {bid: sorted(items, key=lambda c: c[0]) for bid, items in out.items()}
 
 
-def _interpolated(b: _Builder, branch, chainage: float,
-                  sections: list[tuple[float, int, float]]) -> tuple[int, float, int, DikeShape | None]:
-    """Table, bed level (m AD), friction slot and summer dike of the cross-section at ``chainage`` of ``branch``."""
+def _interpolated(b: _Builder, branch, chainage: float, sections: list[tuple[float, int, float]],
+                  slot: int | None = None) -> tuple[int, float, int, DikeShape | None]:
+    """Table, bed level (m AD), friction slot and summer dike of the cross-section at ``chainage`` of ``branch``.
+
+    With ``slot`` the table's conveyance is relative to that friction slot (a link's), not to the one of the
+    cross-section's own friction there.
+    """
     ch = np.array([c[0] for c in sections])
     bed = float(np.interp(chainage, ch, [c[2] for c in sections]))
     j = int(np.clip(np.searchsorted(ch, chainage, side="right") - 1, 0, ch.size - 1))
     if j == ch.size - 1 or chainage <= ch[0]:
         p = sections[0 if chainage <= ch[0] else -1][1]
-        frictions, slot = b.friction(p, branch, chainage)
+        frictions, own = b.friction(p, branch, chainage)
+        slot = own if slot is None else slot
         return b.table(("profile", p), frictions, slot, bed), bed, slot, _dike(b, ("profile", p))
     pa, pb = sections[j][1], sections[j + 1][1]
     exact = (chainage - ch[j]) / (ch[j + 1] - ch[j])
     near = pa if exact < 0.5 else pb
-    frictions, slot = b.friction(near, branch, chainage)
+    frictions, own = b.friction(near, branch, chainage)
     if not all(f.constant for f in frictions):
         weight = exact  # a table of its own anyway
     else:
         weight = round(exact * STEPS) / STEPS
     if pa == pb or weight in (0.0, 1.0) or _same_shape(b.network.profiles[pa], b.network.profiles[pb]):
         p = pa if weight < 0.5 else pb
-        frictions, slot = b.friction(p, branch, chainage)
+        frictions, own = b.friction(p, branch, chainage)
+        slot = own if slot is None else slot
         return b.table(("profile", p), frictions, slot, bed), bed, slot, _dike(b, ("profile", p))
+    slot = own if slot is None else slot
     geometry = ("between", pa, pb, weight)
     return b.table(geometry, frictions, slot, bed), bed, slot, _dike(b, geometry)
+
+
+def _slot_at(b: _Builder, branch, chainage: float, sections: list[tuple[float, int, float]]) -> int:
+    """The friction slot of the cross-section at ``chainage`` of ``branch`` (as :func:`_interpolated` takes it)."""
+    ch = np.array([c[0] for c in sections])
+    j = int(np.clip(np.searchsorted(ch, chainage, side="right") - 1, 0, ch.size - 1))
+    if j == ch.size - 1 or chainage <= ch[0]:
+        return b.friction(sections[0 if chainage <= ch[0] else -1][1], branch, chainage)[1]
+    pa, pb = sections[j][1], sections[j + 1][1]
+    exact = (chainage - ch[j]) / (ch[j + 1] - ch[j])
+    frictions, slot = b.friction(pa if exact < 0.5 else pb, branch, chainage)
+    weight = exact if not all(f.constant for f in frictions) else round(exact * STEPS) / STEPS
+    if pa == pb or weight in (0.0, 1.0) or _same_shape(b.network.profiles[pa], b.network.profiles[pb]):
+        return b.friction(pa if weight < 0.5 else pb, branch, chainage)[1]
+    return slot
 
 
 def _dike(b: _Builder, geometry: tuple) -> DikeShape | None:

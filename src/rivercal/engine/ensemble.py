@@ -157,8 +157,10 @@ def run_ensemble(
     fric = np.array([a[1] for a in arrays]).reshape(n_mem, -1)
     control = [sim.control_values(p) for p in parameters]
     n_cols = len(sim.compiled.forcing_keys)
+    edges = None
     if forcing is None:
         forcing = sim.forcing_matrix(start, n_steps)[None]
+        edges = sim.forcing_edges(start, n_steps)
     else:
         forcing = np.ascontiguousarray(forcing, dtype=float)
         if forcing.shape != (n_mem, n_steps, n_cols):
@@ -187,7 +189,7 @@ def run_ensemble(
         stack = _Stack.of(states, sim.compiled.dikes.sc.size)
     t0 = _time.perf_counter()
     obs, zs, qs, _, status = _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start,
-                                  n_threads=n_threads)
+                                  n_threads=n_threads, edges=edges)
     wall = _time.perf_counter() - t0
     failures = _check(sim, status, start, stack, on_failure, "")
     for m in failures:
@@ -235,12 +237,14 @@ class _Stack:
                            dikes=self.dikes[m].copy() if self.dikes.shape[1] else None)
 
 
-def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False, n_threads=1):
+def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False, n_threads=1,
+          edges=None):
     """One run of every member from ``start``; returns (series, levels, discharges, balance, status).
 
     ``control`` holds each member's controller quantities (None entries without controllers); ``held`` holds
     the controllers' time tables at their value at the end of the run (a spin-up, as the single run does).
-    The members run on ``n_threads`` threads, each its single run's compiled time loop on its own rows.
+    The members run on ``n_threads`` threads, each its single run's compiled time loop on its own rows; ``edges``
+    (the forcing at the steps' edges, :meth:`Simulator.forcing_edges`) guides divided steps of the case's own forcing.
     """
     c = sim.compiled
     a, sx = c.arrays, c.structures
@@ -266,7 +270,7 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
         work.swing[:] = stack.swing[m]
         status[m] = time_loop(sim, work, cxs[m], crest[m], fric[m], state,
                               forcing[0] if forcing.shape[0] == 1 else forcing[m], out_every,
-                              (obs[m], zs[m], qs[m], balance[m]), private=True, dikes=stack.dikes[m])
+                              (obs[m], zs[m], qs[m], balance[m]), private=True, dikes=stack.dikes[m], edges=edges)
         stack.control[m] = work.stats[list(CONTROL_STATS)]
         stack.flicker[m] = work.flick
         stack.swing[m] = work.swing
