@@ -113,6 +113,36 @@ def test_a_water_level_table_scales_with_the_group_value() -> None:
     assert "friction:group:g" in sim.default_parameters()
 
 
+def test_a_group_that_shares_a_profile_with_another_is_refused_as_a_target_and_says_why() -> None:
+    """A link's conveyance holds all sections of its profile relative to the first section's group.
+
+    So a change of ``banks`` (a second section) alone would not reach any conveyance, and one of ``bed`` (the first)
+    would scale the banks as well: both are refused by name; ``friction:scale`` (every section alike, exact for
+    Manning) and a group that no profile mixes with another stay targets.
+    """
+    profiles = [{"id": "river", "type": "zw", "heights": [0.0, 2.0, 3.0], "flow_widths": [10.0, 10.0, 60.0],
+                 "section_widths": [10.0, 50.0], "friction": ["bed", "banks"]},
+                {"id": "ditch", "type": "rectangular", "width": 4.0, "friction": ["ditch"]}]
+    groups = [{"id": "bed", "type": "manning", "value": 0.03}, {"id": "banks", "type": "manning", "value": 0.06},
+              {"id": "ditch", "type": "manning", "value": 0.04}]
+    nodes = [{"id": "u"}, {"id": "m"}, {"id": "d"}]
+    branches = [{"id": "B", "from_node": "u", "to_node": "m", "length": 1000.0, "dx": 500.0,
+                 "cross_sections": [{"chainage": 0.0, "profile": "river", "bed_level": 2.0}]},
+                {"id": "C", "from_node": "m", "to_node": "d", "length": 1000.0, "dx": 500.0,
+                 "cross_sections": [{"chainage": 0.0, "profile": "ditch", "bed_level": 1.0}]}]
+    sim = Simulator(case_from_dict(_case(profiles, branches, nodes, groups), Path(".")))
+    for group, effect in (("banks", "would not change the conveyance"), ("bed", "would scale the conveyance of its "
+                                                                                "other sections (banks)")):
+        with pytest.raises(KeyError) as info:
+            sim.parameter_arrays({f"friction:group:{group}": 0.05})
+        message = str(info.value)
+        assert "profile 'river'" in message and effect in message and "friction:scale" in message
+        assert f"friction:group:{group}" not in sim.default_parameters()
+    assert "friction:group:ditch" in sim.default_parameters()
+    _, fric = sim.parameter_arrays({"friction:scale": 2.0})  # every section's conveyance doubles
+    assert fric[sim.compiled.arrays.lk_fric[0]] == pytest.approx(0.015)  # the river's link: bed's n halved
+
+
 # -- branch orders -----------------------------------------------------------------------------------------
 
 

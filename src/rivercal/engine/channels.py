@@ -89,6 +89,12 @@ class Channels:
         Per slot: ``("branch", id)``, ``("group", id)`` or ``("group", id, branch)``.
     profile_table
         Table index of each profile id that a culvert or bridge barrel takes its shape from.
+    mixed_groups
+        Friction group id → the id of a profile whose sections name it beside another group. Such a profile's
+        links convey with the sections' coefficients relative to their first section's group (their friction
+        slot): a change of the first group's value alone scales the whole profile's conveyance, and a change of
+        another group's value does not reach it. Such a group is not a calibration target
+        (:meth:`rivercal.engine.Simulator.parameter_arrays` refuses it).
 
     The storage arrays also hold the summer dikes' storage contributions that change curve: ``sd_sc`` (their index
     among the contributions, whose table ``sc_prof`` is the rising curve), ``sd_hp`` (their h-point), ``sd_alt``
@@ -106,6 +112,7 @@ class Channels:
     slot_value: np.ndarray
     slot_key: list[tuple]
     profile_table: dict[str, int] = field(default_factory=dict)
+    mixed_groups: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -154,6 +161,7 @@ class _Builder:
         self.slot_type: list[int] = [FRICTION_CODES[(b.friction or network.friction).type] for b in network.branches]
         self.slot_value: list[float] = [(b.friction or network.friction).value for b in network.branches]
         self.slot_of = {key: i for i, key in enumerate(self.slot_key)}
+        self.mixed: dict[str, str] = {}  # friction group → a profile that names it beside another group
         for g in network.friction_groups:
             self._slot(("group", g.id), g.type, g.value)
             for bf in g.branches:
@@ -180,6 +188,9 @@ class _Builder:
         if not profile.friction:
             own = branch.friction or self.network.friction
             return [_Friction(own.type, own.value)] * n, self.slot_of[("branch", branch.id)]
+        if len(set(profile.friction)) > 1:
+            for gid in profile.friction:
+                self.mixed.setdefault(gid, profile.id)
         out = []
         for gid in profile.friction:
             group = self.groups[gid]
@@ -337,7 +348,7 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
     return Channels(storage=storage, link_p1=link_p1, link_b1=link_b1, link_p2=link_p2, link_b2=link_b2,
                     link_slot=link_slot, slot_type=np.asarray(b.slot_type, dtype=np.int64),
                     slot_value=np.asarray(b.slot_value, dtype=float), slot_key=b.slot_key,
-                    profile_table=profile_table)
+                    profile_table=profile_table, mixed_groups=dict(b.mixed))
 
 
 def _point_branches(grid: Grid) -> list[list[str]]:

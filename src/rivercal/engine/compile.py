@@ -233,6 +233,9 @@ class CompiledNetwork:
     friction_slots
         Key of every friction slot: ``("branch", id)``, ``("group", id)``, ``("group", id, branch)``;
         ``friction_values`` holds their values.
+    friction_mixed
+        Friction groups that a profile names beside another group → that profile's id
+        (:attr:`rivercal.engine.channels.Channels.mixed_groups`): not calibration targets.
     branch_inherits
         Branch ids that use the global friction.
     boundary_ids, lateral_ids
@@ -265,6 +268,7 @@ class CompiledNetwork:
     crest_levels: np.ndarray = field(repr=False)
     friction_values: np.ndarray = field(repr=False)
     friction_slots: list[tuple] = field(default_factory=list, repr=False)
+    friction_mixed: dict[str, str] = field(default_factory=dict, repr=False)
 
     @property
     def n_hpoints(self) -> int:
@@ -421,6 +425,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         crest_levels=np.array([w.crest_level for w in weirs], dtype=float),
         friction_values=friction_values,
         friction_slots=channels.slot_key,
+        friction_mixed=channels.mixed_groups,
     )
 
 

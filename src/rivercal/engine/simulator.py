@@ -187,7 +187,7 @@ class Simulator:
             if b not in c.branch_inherits:
                 out[f"friction:branch:{b}"] = float(v)
         for key, v in zip(c.friction_slots, c.friction_values, strict=True):
-            if key[0] == "group" and len(key) == 2:
+            if key[0] == "group" and len(key) == 2 and key[1] not in c.friction_mixed:
                 out[f"friction:group:{key[1]}"] = float(v)
         if self.controls:
             out.update(self.controls.default_parameters())
@@ -238,6 +238,8 @@ class Simulator:
             if kind == "group":
                 if ("group", ident) not in slots:
                     raise KeyError(f"{target}: no friction group {ident!r} in case {self.case.name!r}")
+                if ident in c.friction_mixed:
+                    raise KeyError(self.mixed_group_problem(target, ident))
                 i = slots[("group", ident)]
                 name = ftype[int(c.arrays.fr_type[i])]
                 low, high, unit = FRICTION_RANGES[name]
@@ -269,6 +271,24 @@ class Simulator:
                                      f"{low:g}-{high:g} {unit}")
                 fric[branch_pos[b]] = value
         return crest, fric
+
+    def mixed_group_problem(self, target: str, group: str) -> str:
+        """Why ``target``, the value of friction group ``group``, cannot be set on this network (a message).
+
+        A profile that names ``group`` beside another friction group conveys with all its sections relative to the
+        first section's group (:attr:`rivercal.engine.channels.Channels.mixed_groups`): changing the first
+        group's value alone would scale the other sections too, changing another group's value would not reach the
+        conveyance at all.
+        """
+        profile = next(p for p in self.case.network.profiles if p.id == self.compiled.friction_mixed[group])
+        groups = list(dict.fromkeys(profile.friction))
+        effect = ("would scale the conveyance of its other sections (" + ", ".join(g for g in groups if g != group)
+                  + ") as well" if groups[0] == group else "would not change the conveyance of the links that use it, "
+                  f"which is held relative to its first section's group {groups[0]!r}")
+        return (f"{target}: friction group {group!r} shares profile {profile.id!r} with friction group(s) "
+                f"{', '.join(repr(g) for g in groups if g != group)}; a change of {group!r} alone {effect}, so it is "
+                "not a calibration target of this case (calibrate friction:scale, which scales every section, or "
+                "give the profile's sections one group)")
 
     # -- state ---------------------------------------------------------------------------------
 
