@@ -54,6 +54,7 @@ MD1D = """[General]
     Theta                 = 1.0
     MaxIterations         = 8
     MinimumSurfaceinNode  = 0.1
+    CourantNumber         = 0.7
 
 [AdvancedOptions]
     TransitionHeightSD    = 0.4

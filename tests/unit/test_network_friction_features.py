@@ -5,8 +5,9 @@
 - cross-sections interpolated across a connection node into the next branch of the same order (D-Flow FM's
   branch orders): the bed level of every link between the last cross-section of one branch and the first of the
   next lies on the straight line between them; without an order (or with another) the nearest one holds;
-- a summer dike adds its flow area to the floodplain and its storage to the total area, by SOBEK 3's curve,
-  without wetted perimeter;
+- a summer dike adds its flow area to the floodplain by SOBEK 3's curve, without wetted perimeter; its storage
+  follows SOBEK 3's rising curve and, once topped, its falling curve (the tables of both); between two
+  cross-sections its crest, base and areas are interpolated (SOBEK 3's rule), not its curves;
 - a branch's initial levels give the cold-start levels;
 - bad friction entries are refused with the field that is wrong.
 """
@@ -26,7 +27,7 @@ from rivercal.engine.channels import extended_cross_sections, initial_levels
 from rivercal.engine.compile import compile_network
 from rivercal.engine.kernels.codes import FRICTION_CHEZY, FRICTION_MANNING, FRICTION_STRICKLER
 from rivercal.engine.kernels.lookup import flow_geometry
-from rivercal.engine.sections import section_table
+from rivercal.engine.sections import dike_storage, flow_view, interpolate_tables, section_table
 from rivercal.network import BranchFriction, FrictionGroup, ZWProfile
 
 START = "2020-01-01T00:00:00Z"
@@ -112,6 +113,36 @@ def test_a_water_level_table_scales_with_the_group_value() -> None:
     assert "friction:group:g" in sim.default_parameters()
 
 
+def test_a_group_that_shares_a_profile_with_another_is_refused_as_a_target_and_says_why() -> None:
+    """A link's conveyance holds all sections of its profile relative to the first section's group.
+
+    So a change of ``banks`` (a second section) alone would not reach any conveyance, and one of ``bed`` (the first)
+    would scale the banks as well: both are refused by name; ``friction:scale`` (every section alike, exact for
+    Manning) and a group that no profile mixes with another stay targets.
+    """
+    profiles = [{"id": "river", "type": "zw", "heights": [0.0, 2.0, 3.0], "flow_widths": [10.0, 10.0, 60.0],
+                 "section_widths": [10.0, 50.0], "friction": ["bed", "banks"]},
+                {"id": "ditch", "type": "rectangular", "width": 4.0, "friction": ["ditch"]}]
+    groups = [{"id": "bed", "type": "manning", "value": 0.03}, {"id": "banks", "type": "manning", "value": 0.06},
+              {"id": "ditch", "type": "manning", "value": 0.04}]
+    nodes = [{"id": "u"}, {"id": "m"}, {"id": "d"}]
+    branches = [{"id": "B", "from_node": "u", "to_node": "m", "length": 1000.0, "dx": 500.0,
+                 "cross_sections": [{"chainage": 0.0, "profile": "river", "bed_level": 2.0}]},
+                {"id": "C", "from_node": "m", "to_node": "d", "length": 1000.0, "dx": 500.0,
+                 "cross_sections": [{"chainage": 0.0, "profile": "ditch", "bed_level": 1.0}]}]
+    sim = Simulator(case_from_dict(_case(profiles, branches, nodes, groups), Path(".")))
+    for group, effect in (("banks", "would not change the conveyance"), ("bed", "would scale the conveyance of its "
+                                                                                "other sections (banks)")):
+        with pytest.raises(KeyError) as info:
+            sim.parameter_arrays({f"friction:group:{group}": 0.05})
+        message = str(info.value)
+        assert "profile 'river'" in message and effect in message and "friction:scale" in message
+        assert f"friction:group:{group}" not in sim.default_parameters()
+    assert "friction:group:ditch" in sim.default_parameters()
+    _, fric = sim.parameter_arrays({"friction:scale": 2.0})  # every section's conveyance doubles
+    assert fric[sim.compiled.arrays.lk_fric[0]] == pytest.approx(0.015)  # the river's link: bed's n halved
+
+
 # -- branch orders -----------------------------------------------------------------------------------------
 
 
@@ -156,21 +187,60 @@ def test_without_a_common_order_the_nearest_cross_section_holds_to_the_node(orde
 # -- summer dike -------------------------------------------------------------------------------------------
 
 
-def test_a_summer_dike_adds_area_and_storage_without_perimeter() -> None:
-    crest, flow, total, transition = 3.0, 120.0, 200.0, 0.5
-    common = {"id": "p", "type": "zw", "heights": [0.0, 2.0, 2.5, 6.0], "flow_widths": [20.0, 20.0, 80.0, 80.0],
-              "section_widths": [20.0, 60.0]}
-    bare = section_table(ZWProfile.model_validate(common))
-    dike = section_table(ZWProfile.model_validate({**common, "summer_dike": {
-        "crest": crest, "flow_area": flow, "total_area": total, "transition": transition}}))
+_DIKE_PROFILE = {"id": "p", "type": "zw", "heights": [0.0, 2.0, 2.5, 6.0], "flow_widths": [20.0, 20.0, 80.0, 80.0],
+                 "section_widths": [20.0, 60.0]}
+
+
+def _sobek_dike(level: float, crest: float, base: float, area: float, transition: float, falling: bool) -> float:
+    """SOBEK 3's summer dike area at ``level`` (flow1d GetSummerDikeFlow/GetSummerDikeTotal, written out here)."""
+    low, span = (base, crest + transition - base) if falling else (crest, transition)
+    if level > low + span:
+        return area
+    if level > low + 0.5 * span:  # the width falls linearly from its peak at half the span to 0 at its end
+        width = (low + span - level) * 4.0 * area / span / span
+        return area - 0.5 * (low + span - level) * width
+    if level > low:
+        width = (level - low) * 4.0 * area / span / span
+        return 0.5 * (level - low) * width
+    return 0.0
+
+
+def test_a_summer_dike_adds_flow_area_without_perimeter_and_leaves_the_storage_to_its_own_tables() -> None:
+    crest, base, flow, total, transition = 3.0, 2.2, 120.0, 200.0, 0.5
+    bare = section_table(ZWProfile.model_validate(_DIKE_PROFILE))
+    table = section_table(ZWProfile.model_validate({**_DIKE_PROFILE, "summer_dike": {
+        "crest": crest, "flow_area": flow, "total_area": total, "transition": transition, "base": base}}))
+    dike = flow_view(table)
     for d in (2.9, 3.1, 3.25, 3.4, 3.6, 5.0):
         k = round(d / bare.depth[1])
-        x = min(max((bare.depth[k] - crest) / transition, 0.0), 1.0)
-        fill = 2 * x * x if x <= 0.5 else 1 - 2 * (1 - x) ** 2  # SOBEK 3's GetSummerDikeFlow/Total, written out
-        assert dike.area[k] - bare.area[k] == pytest.approx(flow * fill, abs=1e-9)
-        assert dike.total[k] - bare.total[k] == pytest.approx(total * fill, abs=1e-9)
+        assert dike.area[k] - bare.area[k] == pytest.approx(
+            _sobek_dike(bare.depth[k], crest, base, flow, transition, False), abs=1e-9)
+        assert dike.total[k] == bare.total[k]  # the storage is a contribution of its own
         assert dike.perimeter[k] == bare.perimeter[k]
         assert dike.part_area[0, k] == bare.part_area[0, k]  # the floodplain takes it, not the main channel
+    rising, falling = dike_storage(table.dike)
+    for curve, is_falling in ((rising, False), (falling, True)):
+        at, top = curve[2], curve[6]
+        depth = np.linspace(0.0, top, at.size)
+        assert top == pytest.approx(crest + transition - base)
+        for level in np.linspace(base - 0.3, crest + transition + 0.3, 37):  # the tables from the base, linear
+            table_value = np.interp(level - base, depth, at, left=0.0)
+            assert table_value == pytest.approx(_sobek_dike(level, crest, base, total, transition, is_falling),
+                                                abs=2e-4 * total)
+    assert falling[2][-1] == rising[2][-1] == total  # both full at the full height: no jump when switching
+
+
+def test_between_two_cross_sections_a_summer_dike_is_interpolated_by_its_crest_base_and_areas() -> None:
+    def dike(crest, base, area):
+        return section_table(ZWProfile.model_validate({**_DIKE_PROFILE, "summer_dike": {
+            "crest": crest, "flow_area": area, "total_area": area, "base": base}}))
+
+    a, b = dike(3.0, 2.0, 100.0), dike(4.0, 3.0, 300.0)
+    mid = interpolate_tables(a, b, 0.25).dike
+    assert (mid.crest, mid.base, mid.flow_area, mid.total_area) == pytest.approx((3.25, 2.25, 150.0, 150.0))
+    one_sided = interpolate_tables(a, section_table(ZWProfile.model_validate(_DIKE_PROFILE)), 0.25).dike
+    # SOBEK 3's interpolateSummerDike: the other side counts as a dike of no area at its lowest point
+    assert (one_sided.crest, one_sided.base, one_sided.total_area) == pytest.approx((2.25, 1.5, 75.0))
 
 
 # -- initial levels ------------------------------------------------------------------------------------------

@@ -43,7 +43,7 @@ def test_network_and_grid_points(imported) -> None:
     assert "order" not in branches["b3"]  # order -1: none
     assert branches["b4"]["geometry"] == [[1000.0, 0.0], [1000.0, 1000.0]]
     assert data["engine"] == {"dt": 60.0, "output_interval": 600.0, "cross_sections": "interpolated", "theta": 1.0,
-                              "max_iterations": 8, "min_storage_area": 0.1}
+                              "max_iterations": 8, "min_storage_area": 0.1, "courant": 0.7}
 
 
 def test_profiles_of_every_type(imported) -> None:
@@ -57,7 +57,7 @@ def test_profiles_of_every_type(imported) -> None:
     assert river["section_widths"] == [10.0, 30.0]  # main 10 + floodplain 35 cut to the top flow width 40
     assert river["friction"] == ["Main", "FloodPlain1"]
     assert river["summer_dike"] == {"crest": pytest.approx(2.2), "flow_area": 5.0, "total_area": 8.0,
-                                    "transition": 0.4}
+                                    "transition": 0.4, "base": pytest.approx(1.7)}
     assert profiles["rect"] == {"id": "rect", "type": "rectangular", "width": 5.0, "height": 3.0,
                                 "friction": ["Main"]}
     assert profiles["trap"]["heights"] == [0.0, 2.0] and profiles["trap"]["flow_widths"] == [4.0, 10.0]

@@ -6,13 +6,12 @@ read from ``../shared/data`` (LGPL-3.0, never copied). The figures are root-mean
 point over the hours after the first (spin-up) day; discharges as RMSE(Q - Q_SOBEK) / mean |Q_SOBEK| per
 observation point (:mod:`rivercal.bench.sobek3`).
 
-The acceptance figures of the import (Waal: level RMSE median ≤ 3 cm, p90 ≤ 10 cm, max ≤ 25 cm, discharge within
-2 %; compound channel: median ≤ 1 cm, both at the models' own time step of 3600 s) are not all met yet, for two
-reasons found and measured (docs/sobek3.md): SOBEK 3 drains the storage behind a summer dike by another curve on a
-falling limb than it fills it on a rising one (a hysteresis the engine's single-valued storage cannot hold), and at
-a 3600 s step the engine takes a link's conveyance from the levels at the start of the step. Those figures are
-asserted as expected failures (strict: they fail the suite once they are met, so that the test is turned into a
-plain one); what the import achieves today is asserted beside them.
+The acceptance figures of the import, both at the models' own time step of 3600 s: Waal level RMSE median ≤ 3 cm,
+p90 ≤ 10 cm, max ≤ 25 cm, discharge within 2 %; compound channel median ≤ 1 cm. Three things brought the Waal there
+(docs/sobek3.md): the summer dikes' storage drains by SOBEK 3's falling curve, the channels' geometry follows the
+levels within a step, and the step is divided where the flow would cross a grid segment in less than a step, as
+SOBEK 3 reduces its own step to its Courant number (its run analysis, ``flowanal.his``, counts 31,924 such
+reductions at one segment over the flood wave).
 """
 
 from __future__ import annotations
@@ -49,19 +48,14 @@ def test_the_waal_imports_strictly_and_runs_as_imported(waal) -> None:
     assert row["objects"] == row["exact"] + row["approximated"] + row["refused"]
     assert np.isfinite(waal.levels.to_numpy()).all()
     after = row["after_spinup"]
-    assert after["discharge_relative_rmse"]["median"] <= 0.02  # the acceptance figure
-    assert after["level_rmse_m"]["max"] <= 0.25  # the acceptance figure
-    # today's figures (measured 0.101 / 0.171 m): a guard against a change that makes them worse
-    assert after["level_rmse_m"]["median"] <= 0.11
-    assert after["level_rmse_m"]["p90"] <= 0.18
+    assert after["discharge_relative_rmse"]["median"] <= 0.02  # the acceptance figure; measured 0.4 %
 
 
-@pytest.mark.xfail(strict=True, reason="the storage behind the summer dikes drains by another curve in SOBEK 3 "
-                                       "(hysteresis), and at 3600 s the engine's conveyance lags a step "
-                                       "(docs/sobek3.md)")
 def test_the_waal_levels_meet_the_acceptance_figures(waal) -> None:
     levels = waal.row()["after_spinup"]["level_rmse_m"]
     assert levels["median"] <= 0.03 and levels["p90"] <= 0.10 and levels["max"] <= 0.25
+    # measured 0.026 / 0.045 / 0.052 m: a guard against a change that makes the tail worse
+    assert levels["p90"] <= 0.05 and levels["max"] <= 0.06
 
 
 def test_the_compound_channel_at_half_its_time_step_is_within_a_centimetre(compound) -> None:
@@ -76,4 +70,5 @@ def test_the_compound_channel_at_half_its_time_step_is_within_a_centimetre(compo
 def test_the_compound_channel_as_imported_is_within_a_centimetre(tmp_path) -> None:
     row = compare_sobek3(_md1d("sobek3-compound"), tmp_path).row()
     assert row["runs_as_imported"]
-    assert row["after_spinup"]["level_rmse_m"]["median"] <= 0.01
+    assert row["after_spinup"]["level_rmse_m"]["median"] <= 0.01  # the acceptance figure; measured 0.008 m
+    assert row["after_spinup"]["level_rmse_m"]["max"] <= 0.05

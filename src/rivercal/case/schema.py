@@ -153,7 +153,12 @@ class EngineSettings(_Model):
         ``nearest`` (each calculation point takes the shape of the nearest cross-section) or
         ``interpolated`` (each link takes the cross-section interpolated between the two around its
         middle, at the bed level there, and each point stores the water of its half-links, as D-Flow FM
-        does).
+        does) or ``points`` (each calculation point takes the cross-section interpolated at it, for its storage
+        and for the flow of the links it feeds, as Mascaret does).
+    courant
+        Largest flow Courant number |u| Δt / Δx of a (sub-)step, or None: a step whose flow would cross a
+        channel link in less than 1/courant of it is divided (SOBEK 3's ``CourantNumber``, D-Flow FM's
+        ``CFLMax``).
     """
 
     dt: Real = Field(default=60.0, ge=0.1, le=3600, description="time step, s (0.1-3600)")
@@ -186,11 +191,17 @@ class EngineSettings(_Model):
     max_velocity: Real = Field(
         default=20.0, gt=0, description="flow velocity above which a run is declared diverged, m/s"
     )
-    cross_sections: Literal["nearest", "interpolated"] = Field(
+    courant: Real | None = Field(
+        default=None, gt=0,
+        description="largest flow Courant number |u| dt / dx of a (sub-)step (optional): a step whose flow crosses a "
+        "channel link faster is divided, as SOBEK 3 (CourantNumber) and D-Flow FM (CFLMax) do; default: no limit",
+    )
+    cross_sections: Literal["nearest", "interpolated", "points"] = Field(
         default="nearest",
         description="'nearest': each calculation point takes the shape of the nearest cross-section; "
         "'interpolated': each link takes the cross-section interpolated at its middle and each point the "
-        "storage of its half-links (as D-Flow FM)",
+        "storage of its half-links (as D-Flow FM); 'points': each calculation point takes the cross-section "
+        "interpolated at it, for its storage and the flow of the links it feeds (as Mascaret)",
     )
 
     @model_validator(mode="after")

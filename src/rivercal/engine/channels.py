@@ -1,6 +1,6 @@
 """The channel geometry of a grid: which table each point stores with and each link conveys with, and its friction.
 
-Two ways to place the cross-sections on the grid (``engine.cross_sections``):
+Three ways to place the cross-sections on the grid (``engine.cross_sections``):
 
 - ``nearest``: each calculation point takes the profile of the nearest cross-section at the bed level
   interpolated there; a channel link conveys with the profile of its upwind point;
@@ -8,7 +8,13 @@ Two ways to place the cross-sections on the grid (``engine.cross_sections``):
   its middle (table by table at equal depth, :func:`rivercal.engine.sections.interpolate_tables`), at the bed
   level there, and conveys with it at the upwind level; each point stores the water of its half-links. A branch
   with a positive ``order`` continues its cross-sections across a connection node into the next branch of the
-  same order (:func:`extended_cross_sections`), as D-Flow FM 1D does with its branch orders.
+  same order (:func:`extended_cross_sections`), as D-Flow FM 1D does with its branch orders;
+- ``points`` (Mascaret's way, its planimetry of each computational section): each calculation point takes the
+  cross-section interpolated at it, at the bed level there; a half-link stores with the table of its end point
+  and a link conveys with its upwind point's table (at the link's friction slot). A point's storage and the flow
+  area of the links it feeds then come from one table, which a steep torrent whose profiles change from pool to
+  riffle needs: with ``interpolated`` the Oriège's supercritical reaches never settled (levels swinging by a
+  metre at any step down to 0.5 s), with ``points`` they are steady at every step.
 
 A profile of a plain shape (open rectangular, trapezoidal, zw without sections or summer dike) whose friction is
 the link's own coefficient is tabulated as before (:func:`rivercal.engine.geometry.zw_of`); every other link
@@ -23,6 +29,10 @@ takes the slot of the first section's group on its branch: the group's constant 
 value when the group has none there or varies along the branch or with the level (that variation is held in the
 link's table relative to the group's value, so ``friction:group:<id>`` scales it); a link whose profile names none
 takes its branch's slot.
+
+Summer dikes: a link or point whose cross-section has a summer dike stores the water behind it in a storage
+contribution of its own (:func:`rivercal.engine.sections.dike_storage`) from the dike's base, whose table the time
+loop switches between the rising and the falling curve (``sd_*`` arrays of :class:`Channels`).
 """
 
 from __future__ import annotations
@@ -38,7 +48,15 @@ from rivercal.engine.kernels.codes import (
     FRICTION_STRICKLER,
     FRICTION_WHITE_COLEBROOK,
 )
-from rivercal.engine.sections import SectionTable, interpolate_tables, kernel_columns, section_table
+from rivercal.engine.sections import (
+    DikeShape,
+    SectionTable,
+    dike_storage,
+    flow_view,
+    interpolate_tables,
+    kernel_columns,
+    section_table,
+)
 from rivercal.network import RectangularProfile, TrapezoidalProfile, ZWProfile, profile_sections
 from rivercal.network.grid import Grid
 
@@ -71,6 +89,17 @@ class Channels:
         Per slot: ``("branch", id)``, ``("group", id)`` or ``("group", id, branch)``.
     profile_table
         Table index of each profile id that a culvert or bridge barrel takes its shape from.
+    mixed_groups
+        Friction group id → the id of a profile whose sections name it beside another group. Such a profile's
+        links convey with the sections' coefficients relative to their first section's group (their friction
+        slot): a change of the first group's value alone scales the whole profile's conveyance, and a change of
+        another group's value does not reach it. Such a group is not a calibration target
+        (:meth:`rivercal.engine.Simulator.parameter_arrays` refuses it).
+
+    The storage arrays also hold the summer dikes' storage contributions that change curve: ``sd_sc`` (their index
+    among the contributions, whose table ``sc_prof`` is the rising curve), ``sd_hp`` (their h-point), ``sd_alt``
+    (the table of the falling curve), ``sd_full`` and ``sd_base`` (the levels, m AD, at or above which the falling
+    curve and at or below which the rising curve takes over).
     """
 
     storage: dict[str, np.ndarray]
@@ -83,6 +112,7 @@ class Channels:
     slot_value: np.ndarray
     slot_key: list[tuple]
     profile_table: dict[str, int] = field(default_factory=dict)
+    mixed_groups: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -131,6 +161,7 @@ class _Builder:
         self.slot_type: list[int] = [FRICTION_CODES[(b.friction or network.friction).type] for b in network.branches]
         self.slot_value: list[float] = [(b.friction or network.friction).value for b in network.branches]
         self.slot_of = {key: i for i, key in enumerate(self.slot_key)}
+        self.mixed: dict[str, str] = {}  # friction group → a profile that names it beside another group
         for g in network.friction_groups:
             self._slot(("group", g.id), g.type, g.value)
             for bf in g.branches:
@@ -157,6 +188,9 @@ class _Builder:
         if not profile.friction:
             own = branch.friction or self.network.friction
             return [_Friction(own.type, own.value)] * n, self.slot_of[("branch", branch.id)]
+        if len(set(profile.friction)) > 1:
+            for gid in profile.friction:
+                self.mixed.setdefault(gid, profile.id)
         out = []
         for gid in profile.friction:
             group = self.groups[gid]
@@ -197,7 +231,7 @@ class _Builder:
         level_dependent = not all(f.constant for f in frictions)
         key = ("section", geometry, tuple(frictions), law, value, bed if level_dependent else None)
         if key not in self.index or level_dependent:
-            t = self.section(geometry)
+            t = flow_view(self.section(geometry))
             n = t.sections
             frictions = (frictions + [frictions[-1]] * n)[:n]
             conveyance = t.conveyance([f.law for f in frictions], [f.on(t.depth, bed) for f in frictions])
@@ -219,6 +253,16 @@ class _Builder:
             self._add(key, kernel_columns(t, t.s23, "strickler", 1.0))
         return self.index[key]
 
+    def dike_tables(self, dike: DikeShape) -> tuple[int, int]:
+        """The tables of a summer dike's storage: rising curve and falling curve (-1 without one), from its base."""
+        key: tuple = ("dike", dike)
+        if key not in self.index:
+            rising, falling = dike_storage(dike)
+            self._add(key, rising)
+            if falling is not None:
+                self._add(("dike-falling", dike), falling)
+        return self.index[key], self.index.get(("dike-falling", dike), -1)
+
     def _add(self, key: tuple, entry) -> None:
         self.index[key] = len(self.entries)
         self.entries.append(entry)
@@ -235,6 +279,7 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
     link_b2 = grid.link_b2.astype(float).copy()
     link_slot = np.empty(n_l, dtype=np.int64)
     contributions: list[list[tuple[int, float, float]]] = [[] for _ in range(grid.n_points)]
+    dikes: list[list[tuple[DikeShape, float, float]]] = [[] for _ in range(grid.n_points)]
     for k, p in enumerate(network.profiles):  # plain profiles first, in their order (the tables of before)
         if _plain(p):
             b._add(("plain", k), zw_of(p))
@@ -242,13 +287,33 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
         extended = extended_cross_sections(network)
         for li in range(n_l):
             br = branches[grid.link_branch_id[li]]
-            table, bed, slot = _interpolated(b, br, float(grid.link_chainage[li]), extended[br.id])
+            table, bed, slot, dike = _interpolated(b, br, float(grid.link_chainage[li]), extended[br.id])
             link_p1[li] = link_p2[li] = table
             link_b1[li] = link_b2[li] = bed
             link_slot[li] = slot
             half = 0.5 * float(grid.link_length[li])
             contributions[int(grid.link_k1[li])].append((table, bed, half))
             contributions[int(grid.link_k2[li])].append((table, bed, half))
+            if dike is not None and dike.total_area > 0:
+                dikes[int(grid.link_k1[li])].append((dike, bed, half))
+                dikes[int(grid.link_k2[li])].append((dike, bed, half))
+    elif mode == "points":
+        extended = extended_cross_sections(network)
+        for li in range(n_l):
+            br = branches[grid.link_branch_id[li]]
+            middle, half = float(grid.link_chainage[li]), 0.5 * float(grid.link_length[li])
+            slot = _slot_at(b, br, middle, extended[br.id])
+            link_slot[li] = slot
+            for end, chainage, k in ((1, middle - half, int(grid.link_k1[li])), (2, middle + half,
+                                                                                 int(grid.link_k2[li]))):
+                table, bed, _, dike = _interpolated(b, br, chainage, extended[br.id], slot)
+                if end == 1:
+                    link_p1[li], link_b1[li] = table, bed
+                else:
+                    link_p2[li], link_b2[li] = table, bed
+                contributions[k].append((table, bed, half))
+                if dike is not None and dike.total_area > 0:
+                    dikes[k].append((dike, bed, half))
     else:
         for li in range(n_l):
             br = branches[grid.link_branch_id[li]]
@@ -264,6 +329,9 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
         for i, sections in enumerate(grid.sections):
             for (p, bed, half), _bid in zip(sections, point_branch[i], strict=True):
                 contributions[i].append((b.storage_table(p), bed, half))
+                dike = b.section(("profile", p)).dike if not _plain(network.profiles[p]) else None
+                if dike is not None and dike.total_area > 0:
+                    dikes[i].append((dike, float(bed), half))
     profile_table = {}
     barrels = {c.profile for c in [*network.culverts, *network.bridges] if getattr(c, "profile", None)}
     for k, p in enumerate(network.profiles):
@@ -273,14 +341,14 @@ def channel_geometry(network, grid: Grid, mode: str, min_storage_area: float) ->
         if _plain(p):
             b._add(key, zw_of(p))
         else:
-            t = b.section(("profile", k))
+            t = flow_view(b.section(("profile", k)))
             b._add(key, kernel_columns(t, t.s23, "strickler", 1.0))
         profile_table[p.id] = b.index[key]
-    storage = _storage(network, grid, b, contributions, min_storage_area)
+    storage = _storage(network, grid, b, contributions, dikes, min_storage_area)
     return Channels(storage=storage, link_p1=link_p1, link_b1=link_b1, link_p2=link_p2, link_b2=link_b2,
                     link_slot=link_slot, slot_type=np.asarray(b.slot_type, dtype=np.int64),
                     slot_value=np.asarray(b.slot_value, dtype=float), slot_key=b.slot_key,
-                    profile_table=profile_table)
+                    profile_table=profile_table, mixed_groups=dict(b.mixed))
 
 
 def _point_branches(grid: Grid) -> list[list[str]]:
@@ -340,29 +408,59 @@ def extended_cross_sections(network) -> dict[str, list[tuple[float, int, float]]
     return {bid: sorted(items, key=lambda c: c[0]) for bid, items in out.items()}
 
 
-def _interpolated(b: _Builder, branch, chainage: float, sections: list[tuple[float, int, float]]) -> tuple[int, float,
-                                                                                                            int]:
-    """Table, bed level (m AD) and friction slot of the cross-section at ``chainage`` of ``branch``."""
+def _interpolated(b: _Builder, branch, chainage: float, sections: list[tuple[float, int, float]],
+                  slot: int | None = None) -> tuple[int, float, int, DikeShape | None]:
+    """Table, bed level (m AD), friction slot and summer dike of the cross-section at ``chainage`` of ``branch``.
+
+    With ``slot`` the table's conveyance is relative to that friction slot (a link's), not to the one of the
+    cross-section's own friction there.
+    """
     ch = np.array([c[0] for c in sections])
     bed = float(np.interp(chainage, ch, [c[2] for c in sections]))
     j = int(np.clip(np.searchsorted(ch, chainage, side="right") - 1, 0, ch.size - 1))
     if j == ch.size - 1 or chainage <= ch[0]:
         p = sections[0 if chainage <= ch[0] else -1][1]
-        frictions, slot = b.friction(p, branch, chainage)
-        return b.table(("profile", p), frictions, slot, bed), bed, slot
+        frictions, own = b.friction(p, branch, chainage)
+        slot = own if slot is None else slot
+        return b.table(("profile", p), frictions, slot, bed), bed, slot, _dike(b, ("profile", p))
     pa, pb = sections[j][1], sections[j + 1][1]
     exact = (chainage - ch[j]) / (ch[j + 1] - ch[j])
     near = pa if exact < 0.5 else pb
-    frictions, slot = b.friction(near, branch, chainage)
+    frictions, own = b.friction(near, branch, chainage)
     if not all(f.constant for f in frictions):
         weight = exact  # a table of its own anyway
     else:
         weight = round(exact * STEPS) / STEPS
     if pa == pb or weight in (0.0, 1.0) or _same_shape(b.network.profiles[pa], b.network.profiles[pb]):
         p = pa if weight < 0.5 else pb
-        frictions, slot = b.friction(p, branch, chainage)
-        return b.table(("profile", p), frictions, slot, bed), bed, slot
-    return b.table(("between", pa, pb, weight), frictions, slot, bed), bed, slot
+        frictions, own = b.friction(p, branch, chainage)
+        slot = own if slot is None else slot
+        return b.table(("profile", p), frictions, slot, bed), bed, slot, _dike(b, ("profile", p))
+    slot = own if slot is None else slot
+    geometry = ("between", pa, pb, weight)
+    return b.table(geometry, frictions, slot, bed), bed, slot, _dike(b, geometry)
+
+
+def _slot_at(b: _Builder, branch, chainage: float, sections: list[tuple[float, int, float]]) -> int:
+    """The friction slot of the cross-section at ``chainage`` of ``branch`` (as :func:`_interpolated` takes it)."""
+    ch = np.array([c[0] for c in sections])
+    j = int(np.clip(np.searchsorted(ch, chainage, side="right") - 1, 0, ch.size - 1))
+    if j == ch.size - 1 or chainage <= ch[0]:
+        return b.friction(sections[0 if chainage <= ch[0] else -1][1], branch, chainage)[1]
+    pa, pb = sections[j][1], sections[j + 1][1]
+    exact = (chainage - ch[j]) / (ch[j + 1] - ch[j])
+    frictions, slot = b.friction(pa if exact < 0.5 else pb, branch, chainage)
+    weight = exact if not all(f.constant for f in frictions) else round(exact * STEPS) / STEPS
+    if pa == pb or weight in (0.0, 1.0) or _same_shape(b.network.profiles[pa], b.network.profiles[pb]):
+        return b.friction(pa if weight < 0.5 else pb, branch, chainage)[1]
+    return slot
+
+
+def _dike(b: _Builder, geometry: tuple) -> DikeShape | None:
+    """The summer dike of a geometry (None for a plain profile, which has none)."""
+    if geometry[0] == "profile" and _plain(b.network.profiles[geometry[1]]):
+        return None
+    return b.section(geometry).dike
 
 
 def _same_shape(a, c) -> bool:
@@ -393,8 +491,12 @@ def initial_levels(network, hp_label: list[str], hp_branch: list[str], hp_chaina
     return out
 
 
-def _storage(network, grid: Grid, b: _Builder, contributions, min_storage_area: float) -> dict[str, np.ndarray]:
-    """The ``hp_*``, ``sc_*`` and ``tab_*`` arrays (node storage as tables of length 1 m)."""
+def _storage(network, grid: Grid, b: _Builder, contributions, dikes, min_storage_area: float) -> dict[str, np.ndarray]:
+    """The ``hp_*``, ``sc_*``, ``sd_*`` and ``tab_*`` arrays (node storage as tables of length 1 m).
+
+    ``dikes`` holds per point the summer dikes of its channel (shape, bed level m AD of its cross-section, length
+    m); each becomes a storage contribution from the dike's base, after the point's other contributions.
+    """
     n_hp = len(contributions)
     hp_bed = np.array([min(bed for _, bed, _ in c) for c in contributions])
     hp_len = np.array([sum(length for _, _, length in c) for c in contributions])
@@ -407,11 +509,23 @@ def _storage(network, grid: Grid, b: _Builder, contributions, min_storage_area: 
         elif node.storage_area > 0:
             b._add(("node", node.id), (np.array([0.0, 1.0]), np.zeros(2), np.full(2, node.storage_area)))
             contributions[i].append((b.index[("node", node.id)], float(hp_bed[i]), 1.0))
+    switching: list[tuple[int, int, int, int, float, float]] = []  # point, position, rising, falling, full, base
+    for i, items in enumerate(dikes):
+        for dike, bed, length in items:
+            rising, falling = b.dike_tables(dike)
+            if falling >= 0:
+                switching.append((i, len(contributions[i]), rising, falling, bed + dike.full, bed + dike.base))
+            contributions[i].append((rising, bed + dike.base, length))
     tables: ProfileTables = build_tables(b.entries)
     sc_ptr = np.zeros(n_hp + 1, dtype=np.int64)
     sc_ptr[1:] = np.cumsum([len(c) for c in contributions])
     flat = [entry for c in contributions for entry in c]
     return dict(
+        sd_sc=np.array([sc_ptr[i] + k for i, k, *_ in switching], dtype=np.int64),
+        sd_hp=np.array([i for i, *_ in switching], dtype=np.int64),
+        sd_alt=np.array([s[3] for s in switching], dtype=np.int64),
+        sd_full=np.array([s[4] for s in switching], dtype=float),
+        sd_base=np.array([s[5] for s in switching], dtype=float),
         hp_bed=hp_bed,
         hp_amin=np.full(n_hp, min_storage_area),
         hp_ilen=np.divide(1.0, hp_len, out=np.zeros(n_hp), where=hp_len > 0),

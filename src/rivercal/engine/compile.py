@@ -53,6 +53,7 @@ __all__ = [
     "DIRECTION_CODES",
     "FRICTION_CODES",
     "CompiledNetwork",
+    "DikeArrays",
     "NetArrays",
     "StructureArrays",
     "compile_network",
@@ -190,6 +191,25 @@ class StructureArrays(NamedTuple):
     pnom: np.ndarray  # the pumps' own capacities, m³/s (a capacity series writes NetArrays.p_cap each step)
 
 
+class DikeArrays(NamedTuple):
+    """The summer dikes' storage contributions whose curve depends on the way the level last went (hysteresis).
+
+    Such a contribution stores with its rising curve (``rise``, the table of ``NetArrays.sc_prof`` as compiled)
+    until the level at its point reaches ``full``, then with its falling curve (``alt``) until the level falls to
+    ``base``. The time loop switches the table of the contribution in the ``sc_prof`` of the run
+    (:func:`rivercal.engine.kernels.timeloop.switch_dikes`); the engine state holds which curve each one is on.
+    Kept apart from :class:`NetArrays`, which nearly every kernel receives: only the time loop of a network with
+    such dikes gets these.
+    """
+
+    sc: np.ndarray  # the contribution (index into sc_prof, sc_bed, sc_len)
+    hp: np.ndarray  # its h-point
+    rise: np.ndarray  # table of the rising curve
+    alt: np.ndarray  # table of the falling curve
+    full: np.ndarray  # m AD
+    base: np.ndarray  # m AD
+
+
 @dataclass(frozen=True)
 class CompiledNetwork:
     """The flat kernel arrays plus the index maps that translate names to positions.
@@ -200,6 +220,8 @@ class CompiledNetwork:
         Kernel input.
     structures
         Kernel input of the structure kernels (:class:`StructureArrays`).
+    dikes
+        The summer dikes whose storage changes curve (:class:`DikeArrays`; empty arrays without such dikes).
     hp_label, hp_branch, hp_chainage, hp_xy
         Per h-point: label, branch id ("" for nodes), chainage (m; nan for nodes), map position (m).
     link_label, link_branch, link_chainage
@@ -211,6 +233,9 @@ class CompiledNetwork:
     friction_slots
         Key of every friction slot: ``("branch", id)``, ``("group", id)``, ``("group", id, branch)``;
         ``friction_values`` holds their values.
+    friction_mixed
+        Friction groups that a profile names beside another group → that profile's id
+        (:attr:`rivercal.engine.channels.Channels.mixed_groups`): not calibration targets.
     branch_inherits
         Branch ids that use the global friction.
     boundary_ids, lateral_ids
@@ -223,6 +248,7 @@ class CompiledNetwork:
 
     arrays: NetArrays
     structures: StructureArrays
+    dikes: DikeArrays
     hp_label: list[str]
     hp_branch: list[str]
     hp_chainage: np.ndarray
@@ -242,6 +268,7 @@ class CompiledNetwork:
     crest_levels: np.ndarray = field(repr=False)
     friction_values: np.ndarray = field(repr=False)
     friction_slots: list[tuple] = field(default_factory=list, repr=False)
+    friction_mixed: dict[str, str] = field(default_factory=dict, repr=False)
 
     @property
     def n_hpoints(self) -> int:
@@ -327,8 +354,12 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
                             ogate=np.zeros(len(orifices)), pnom=structure_arrays["p_cap"].copy())
     for name in ("c_extra", "o_par", "u_par", "u_strip", "set_col"):
         del structure_arrays[name]
+    storage = dict(channels.storage)
+    dikes = DikeArrays(sc=storage.pop("sd_sc"), hp=storage.pop("sd_hp"), rise=np.zeros(0, dtype=np.int64),
+                       alt=storage.pop("sd_alt"), full=storage.pop("sd_full"), base=storage.pop("sd_base"))
+    dikes = dikes._replace(rise=storage["sc_prof"][dikes.sc].astype(np.int64))
     arrays = NetArrays(
-        **channels.storage,
+        **storage,
         nl_ptr=nl_ptr,
         nl_link=nl_link,
         nl_sign=nl_sign,
@@ -374,6 +405,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
     return CompiledNetwork(
         arrays=_narrow(arrays),
         structures=extra,
+        dikes=dikes,
         hp_label=grid.hp_label,
         hp_branch=grid.hp_branch,
         hp_chainage=grid.hp_chainage,
@@ -393,6 +425,7 @@ def compile_network(network: Network, settings: EngineSettings) -> CompiledNetwo
         crest_levels=np.array([w.crest_level for w in weirs], dtype=float),
         friction_values=friction_values,
         friction_slots=channels.slot_key,
+        friction_mixed=channels.mixed_groups,
     )
 
 

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.engine.kernels.codes import STATUS_OK
+from rivercal.engine.kernels.codes import CONTROL_STATS, STATUS_OK
 from rivercal.engine.kernels.timeloop import make_work
 from rivercal.engine.simulator import Simulator, _ratio, time_loop
 from rivercal.engine.state import EngineState
@@ -157,8 +157,10 @@ def run_ensemble(
     fric = np.array([a[1] for a in arrays]).reshape(n_mem, -1)
     control = [sim.control_values(p) for p in parameters]
     n_cols = len(sim.compiled.forcing_keys)
+    edges = None
     if forcing is None:
         forcing = sim.forcing_matrix(start, n_steps)[None]
+        edges = sim.forcing_edges(start, n_steps)
     else:
         forcing = np.ascontiguousarray(forcing, dtype=float)
         if forcing.shape != (n_mem, n_steps, n_cols):
@@ -166,7 +168,7 @@ def run_ensemble(
                              f"got {forcing.shape}")
     n_threads = threads(n_threads)
     if states is None:
-        stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)])
+        stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)], sim.compiled.dikes.sc.size)
         if sim.case.spec.initial.spinup > 0:
             n_spin = max(1, round(sim.case.spec.initial.spinup * 3600.0 / sim.dt))
             spin = sim.forcing_matrix(start, n_spin, constant=True)[None]
@@ -184,10 +186,10 @@ def run_ensemble(
                                  f"{len(sim.controls or ())}")
             if s.time != start:
                 raise ValueError(f"member {m}: the state is at {s.time}, the run starts at {start}")
-        stack = _Stack.of(states)
+        stack = _Stack.of(states, sim.compiled.dikes.sc.size)
     t0 = _time.perf_counter()
     obs, zs, qs, _, status = _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start,
-                                  n_threads=n_threads)
+                                  n_threads=n_threads, edges=edges)
     wall = _time.perf_counter() - t0
     failures = _check(sim, status, start, stack, on_failure, "")
     for m in failures:
@@ -212,24 +214,37 @@ class _Stack:
     pump_on: np.ndarray
     ctl: np.ndarray
     signature: tuple[int, int]
+    control: np.ndarray  # the step control's state (CONTROL_STATS), the flicker detector's and the dikes' curves
+    flicker: np.ndarray
+    swing: np.ndarray
+    dikes: np.ndarray
 
     @classmethod
-    def of(cls, states: Sequence[EngineState]) -> _Stack:
+    def of(cls, states: Sequence[EngineState], n_dikes: int) -> _Stack:
         return cls(*(np.array([getattr(s, k) for s in states], dtype=float)
-                     for k in ("z", "dz", "vol", "u", "q", "pump_on", "ctl")), signature=states[0].signature)
+                     for k in ("z", "dz", "vol", "u", "q", "pump_on", "ctl")), signature=states[0].signature,
+                   control=np.array([s.control for s in states], dtype=np.int64),
+                   flicker=np.array([s.flicker for s in states], dtype=np.int32),
+                   swing=np.array([s.swing for s in states], dtype=float),
+                   dikes=np.array([s.dike_curves(n_dikes) for s in states], dtype=np.int8).reshape(len(states),
+                                                                                                  n_dikes))
 
     def state(self, m: int, time: pd.Timestamp) -> EngineState:
         return EngineState(time=time, z=self.z[m].copy(), dz=self.dz[m].copy(), vol=self.vol[m].copy(),
                            u=self.u[m].copy(), q=self.q[m].copy(), pump_on=self.pump_on[m].copy(),
-                           signature=self.signature, ctl=self.ctl[m].copy())
+                           signature=self.signature, ctl=self.ctl[m].copy(), control=self.control[m].copy(),
+                           flicker=self.flicker[m].copy(), swing=self.swing[m].copy(),
+                           dikes=self.dikes[m].copy() if self.dikes.shape[1] else None)
 
 
-def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False, n_threads=1):
+def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start, *, held=False, n_threads=1,
+          edges=None):
     """One run of every member from ``start``; returns (series, levels, discharges, balance, status).
 
     ``control`` holds each member's controller quantities (None entries without controllers); ``held`` holds
     the controllers' time tables at their value at the end of the run (a spin-up, as the single run does).
-    The members run on ``n_threads`` threads, each its single run's compiled time loop on its own rows.
+    The members run on ``n_threads`` threads, each its single run's compiled time loop on its own rows; ``edges``
+    (the forcing at the steps' edges, :meth:`Simulator.forcing_edges`) guides divided steps of the case's own forcing.
     """
     c = sim.compiled
     a, sx = c.arrays, c.structures
@@ -249,9 +264,16 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
 
     def member(m: int) -> None:
         state = (stack.z[m], stack.dz[m], stack.vol[m], stack.u[m], stack.q[m], stack.pump_on[m])
-        status[m] = time_loop(sim, make_work(a, sx), cxs[m], crest[m], fric[m], state,
+        work = make_work(a, sx)
+        work.stats[list(CONTROL_STATS)] = stack.control[m]  # the step control continues where the member stopped
+        work.flick[:] = stack.flicker[m]
+        work.swing[:] = stack.swing[m]
+        status[m] = time_loop(sim, work, cxs[m], crest[m], fric[m], state,
                               forcing[0] if forcing.shape[0] == 1 else forcing[m], out_every,
-                              (obs[m], zs[m], qs[m], balance[m]), private=True)
+                              (obs[m], zs[m], qs[m], balance[m]), private=True, dikes=stack.dikes[m], edges=edges)
+        stack.control[m] = work.stats[list(CONTROL_STATS)]
+        stack.flicker[m] = work.flick
+        stack.swing[m] = work.swing
 
     if n_threads == 1 or n_mem == 1:
         for m in range(n_mem):

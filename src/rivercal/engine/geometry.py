@@ -117,24 +117,26 @@ def _integrate_width(d: np.ndarray, h: np.ndarray, w: np.ndarray) -> np.ndarray:
 def build_tables(zw: list[tuple]) -> ProfileTables:
     """Tabulate a list of ZW tables (heights, flow widths, total widths) for the kernels.
 
-    An entry may also be a table already on the depth grid (``CELLS + 1`` levels from 0 to its top):
-    (af, pf, at, r43, flow width above, total width above, top), e.g. from :mod:`rivercal.engine.sections`.
+    An entry may also be a table already on a uniform depth grid (``CELLS + 1`` levels from 0 to its top, or fewer
+    for a table of storage only): (af, pf, at, r43, flow width above, total width above, top), e.g. from
+    :mod:`rivercal.engine.sections`.
     """
     off, n, dd, wft, wtt, tops = [], [], [], [], [], []
     af_all, pf_all, at_all, wt_all, r43_all = [], [], [], [], []
     pos = 0
     for entry in zw:
         af, pf, at, r43, wf_top, wt_top, top = _tabulate(*entry) if len(entry) == 3 else entry
+        step = top / (af.size - 1)  # top / CELLS but for the shorter tables of a summer dike's storage
         off.append(pos)
         n.append(af.size)
-        dd.append(top / CELLS)
+        dd.append(step)
         wft.append(wf_top)
         wtt.append(wt_top)
         tops.append(top)
         af_all.append(af)
         pf_all.append(pf)
         at_all.append(at)
-        wt_all.append(np.append(np.diff(at) / (top / CELLS), wt_top))
+        wt_all.append(np.append(np.diff(at) / step, wt_top))
         r43_all.append(r43)
         pos += af.size
     return ProfileTables(

@@ -98,7 +98,7 @@ def settable_table(compiled: CompiledNetwork, friction_type: str, controls: Any 
         name = f"friction:branch:{b}"
         out[name] = Settable(name, "branch", (i,), unit, low, high, f"{law} friction of branch {b}")
     for i, key in enumerate(c.friction_slots):
-        if key[0] == "group" and len(key) == 2:
+        if key[0] == "group" and len(key) == 2 and key[1] not in c.friction_mixed:  # see Simulator.mixed_group_problem
             law = laws[int(c.arrays.fr_type[i])]
             low, high, unit = FRICTION_RANGES[law]
             name = f"friction:group:{key[1]}"

@@ -30,9 +30,12 @@ Between two cross-sections (:func:`interpolate_tables`) the tables are combined 
 and SOBEK 3 do: a lumped table's section areas and perimeters are interpolated and its conveyance recomputed
 from them; a segmented yz profile's conveyance shapes are interpolated.
 
-A summer dike (:class:`rivercal.network.SummerDike`) adds its flow area to the highest wet friction section
-(without wetted perimeter) and its storage to the total area, both from 0 at the crest to full at the
-transition height above it (SOBEK 3's summer dike; its rising branch also for the storage).
+A summer dike (:class:`rivercal.network.SummerDike`) is kept beside the table (:class:`DikeShape`), not in it,
+because SOBEK 3 interpolates a summer dike between two cross-sections by its crest, base and areas, not by its
+curves (flow1d's ``interpolateSummerDike``): :func:`flow_view` adds its flow area to the highest wet friction
+section (without wetted perimeter), from 0 at the crest to full at the transition height above it; its storage
+is not in the table's total area but a storage contribution of its own (:func:`dike_storage`), whose curve
+depends on whether the level last reached the full height or fell to the base (SOBEK 3's hysteresis).
 
 Closed profiles (pipes, box culverts, egg shapes) hold no flow width above their crown: the flow area and
 perimeter stay those of the full conduit. Open profiles continue with vertical walls above their table.
@@ -41,7 +44,7 @@ perimeter stay those of the full conduit. Open profiles continue with vertical w
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -53,7 +56,16 @@ from rivercal.network import (
     ZWProfile,
 )
 
-__all__ = ["SectionTable", "interpolate_tables", "kernel_columns", "law_conveyance", "section_table"]
+__all__ = [
+    "DikeShape",
+    "SectionTable",
+    "dike_storage",
+    "flow_view",
+    "interpolate_tables",
+    "kernel_columns",
+    "law_conveyance",
+    "section_table",
+]
 
 #: Depth grid cells per table (as the engine's other tables).
 CELLS = 2000
@@ -69,6 +81,35 @@ _CIRCLE_LEVELS = 256
 SUMMER_DIKE_THRESHOLD = 0.4
 #: Smallest Chézy coefficient a White-Colebrook section gets, m^(1/2)/s (the engine's kernels: 1).
 _MIN_CHEZY = 1.0
+#: Depth step of a summer dike's storage tables, m (at least ``DIKE_MIN_CELLS`` cells, at most ``CELLS``).
+DIKE_STEP = 0.005
+DIKE_MIN_CELLS = 64
+
+
+@dataclass(frozen=True)
+class DikeShape:
+    """A summer dike of a table, its heights relative to the table's depth 0 (the profile's lowest point).
+
+    Attributes
+    ----------
+    crest, base
+        Height of the crest and of the floodplain behind it, m (base ≤ crest).
+    flow_area, total_area
+        Flow and total (storage) area behind the dike when full, m².
+    transition
+        Height over which it fills above the crest, m.
+    """
+
+    crest: float
+    base: float
+    flow_area: float
+    total_area: float
+    transition: float
+
+    @property
+    def full(self) -> float:
+        """Height at and above which the dike is full, m."""
+        return self.crest + self.transition
 
 
 @dataclass(frozen=True)
@@ -94,6 +135,9 @@ class SectionTable:
         Flow and total width above ``top``, m (0 for a closed profile).
     closed
         Whether the profile is a closed conduit.
+    dike
+        A summer dike, kept beside the table (:func:`flow_view` adds its flow area, :func:`dike_storage` makes its
+        storage), or None.
     """
 
     depth: np.ndarray
@@ -109,6 +153,7 @@ class SectionTable:
     flow_width_top: float
     total_width_top: float
     closed: bool
+    dike: DikeShape | None = None
 
     @property
     def top(self) -> float:
@@ -170,7 +215,7 @@ def _lumped_shapes(area: np.ndarray, perimeter: np.ndarray) -> tuple[np.ndarray,
 
 
 def _table(depth, area, total, perimeter, part_area, part_perimeter, part_width_top, lumped, flow_top, total_top,
-           closed, part_s23=None, part_s12=None) -> SectionTable:
+           closed, part_s23=None, part_s12=None, dike=None) -> SectionTable:
     part_area = np.atleast_2d(part_area)
     part_perimeter = np.atleast_2d(part_perimeter)
     if part_s23 is None:
@@ -179,7 +224,7 @@ def _table(depth, area, total, perimeter, part_area, part_perimeter, part_width_
         part_s12 = np.array([s[1] for s in shapes])
     return SectionTable(depth, area, total, perimeter, part_area, part_perimeter, np.atleast_2d(part_s23),
                         np.atleast_2d(part_s12), np.atleast_1d(np.asarray(part_width_top, dtype=float)), lumped,
-                        float(flow_top), float(total_top), closed)
+                        float(flow_top), float(total_top), closed, dike)
 
 
 def section_table(profile) -> SectionTable:
@@ -198,7 +243,8 @@ def section_table(profile) -> SectionTable:
     table = _zw(h, wf, wt, closed, sections)
     dike = getattr(profile, "summer_dike", None)
     if dike is not None and (dike.flow_area > 0 or dike.total_area > 0):
-        table = _with_summer_dike(table, dike)
+        table = replace(table, dike=DikeShape(float(dike.crest), float(dike.floor), float(dike.flow_area),
+                                              float(dike.total_area), float(dike.transition)))
     return table
 
 
@@ -269,10 +315,26 @@ def interpolate_tables(a: SectionTable, b: SectionTable, weight: float) -> Secti
                   perimeter=w0 * ta.perimeter + w1 * tb.perimeter, part_area=mix("part_area"),
                   part_perimeter=mix("part_perimeter"), part_width_top=mix("part_width_top"), lumped=lumped,
                   flow_top=w0 * ta.flow_width_top + w1 * tb.flow_width_top,
-                  total_top=w0 * ta.total_width_top + w1 * tb.total_width_top, closed=ta.closed and tb.closed)
+                  total_top=w0 * ta.total_width_top + w1 * tb.total_width_top, closed=ta.closed and tb.closed,
+                  dike=_interpolated_dike(a.dike, b.dike, weight))
     if lumped:
         return _table(**common)
     return _table(**common, part_s23=mix("part_s23"), part_s12=mix("part_s12"))
+
+
+def _interpolated_dike(a: DikeShape | None, b: DikeShape | None, weight: float) -> DikeShape | None:
+    """The summer dike ``weight`` of the way from ``a`` to ``b``: crest, base and areas interpolated.
+
+    SOBEK 3's rule (flow1d ``interpolateSummerDike``): heights and areas are interpolated; where only one of the
+    two cross-sections has a dike, the other counts as one of no area with its crest and base at its lowest point.
+    """
+    if a is None and b is None:
+        return None
+    w0, w1 = 1.0 - weight, weight
+    a = a or DikeShape(0.0, 0.0, 0.0, 0.0, b.transition)  # type: ignore[union-attr]
+    b = b or DikeShape(0.0, 0.0, 0.0, 0.0, a.transition)
+    return DikeShape(w0 * a.crest + w1 * b.crest, w0 * a.base + w1 * b.base, w0 * a.flow_area + w1 * b.flow_area,
+                     w0 * a.total_area + w1 * b.total_area, w0 * a.transition + w1 * b.transition)
 
 
 def kernel_columns(t: SectionTable, conveyance: np.ndarray, law: str, coefficient: float,
@@ -427,17 +489,59 @@ def summer_dike_fill(depth: np.ndarray, crest: float, transition: float) -> np.n
     return np.where(x <= 0.5, 2.0 * x * x, 1.0 - 2.0 * (1.0 - x) ** 2)
 
 
-def _with_summer_dike(t: SectionTable, dike) -> SectionTable:
-    fill = summer_dike_fill(t.depth, dike.crest, dike.transition)
-    flow = dike.flow_area * fill
+def flow_view(t: SectionTable) -> SectionTable:
+    """The table with its summer dike's flow area in the highest wet friction section (the table itself without one).
+
+    The flow area fills from 0 at the crest to full at the transition height above it, on the rising curve
+    whichever way the level moves (SOBEK 3's GetSummerDikeFlow has no hysteresis); it goes to the highest section
+    whose own flow area exceeds ``SUMMER_DIKE_THRESHOLD`` and adds no wetted perimeter. The total area is left
+    as it is: the dike's storage is a contribution of its own (:func:`dike_storage`).
+    """
+    dike = t.dike
+    if dike is None or dike.flow_area <= 0:
+        return t
+    flow = dike.flow_area * summer_dike_fill(t.depth, dike.crest, dike.transition)
     part_area = t.part_area.copy()
     target = np.zeros(t.depth.size, dtype=int)
     for s in range(t.sections):  # the highest section that carries more than the threshold takes the area
         target = np.where(t.part_area[s] > SUMMER_DIKE_THRESHOLD, s, target)
     for s in range(t.sections):
         part_area[s] += np.where(target == s, flow, 0.0)
-    return _table(t.depth, t.area + flow, t.total + dike.total_area * fill, t.perimeter, part_area,
-                  t.part_perimeter, t.part_width_top, t.lumped, t.flow_width_top, t.total_width_top, t.closed)
+    if t.lumped:  # the sections' conveyance follows from their areas and perimeters
+        return _table(t.depth, t.area + flow, t.total, t.perimeter, part_area, t.part_perimeter, t.part_width_top,
+                      True, t.flow_width_top, t.total_width_top, t.closed, dike=dike)
+    s23, s12 = t.part_s23.copy(), t.part_s12.copy()
+    for s in range(t.sections):  # a segmented section gains what the area adds to it as a whole
+        after, before = _lumped_shapes(part_area[s], t.part_perimeter[s]), _lumped_shapes(t.part_area[s],
+                                                                                          t.part_perimeter[s])
+        s23[s] += after[0] - before[0]
+        s12[s] += after[1] - before[1]
+    return replace(t, area=t.area + flow, part_area=part_area, part_s23=s23, part_s12=s12)
+
+
+def dike_storage(dike: DikeShape) -> tuple[tuple, tuple | None]:
+    """A summer dike's storage as kernel tables from its base (rising curve, falling curve or None).
+
+    Both are tables of total area only (flow area and perimeter 0; the columns of :func:`kernel_columns`) on a
+    depth grid from the dike's base, ``DIKE_STEP`` apart, up to its full height; above it they hold the full total
+    area. The rising curve is 0 up to the crest and fills over the transition height above it (SOBEK 3's
+    GetSummerDikeTotal with its hysteresis flag set, the curve of the flow area); the falling curve fills over
+    the whole height from the base to the full height, along the same two parabolas (the flag cleared). Both
+    are full at and above the full height and empty at and below the base, so the storage keeps its volume when
+    the engine changes curve there. Without a base below the crest there is no second curve (None).
+    """
+    top = dike.full - dike.base
+    cells = int(min(max(math.ceil(top / DIKE_STEP), DIKE_MIN_CELLS), CELLS))
+    depth = np.linspace(0.0, top, cells + 1)
+    zero = np.zeros_like(depth)
+
+    def table(total: np.ndarray) -> tuple:
+        return (zero, zero, total, zero, 0.0, 0.0, top)
+
+    rising = table(dike.total_area * summer_dike_fill(depth, dike.crest - dike.base, dike.transition))
+    if dike.base >= dike.crest:
+        return rising, None
+    return rising, table(dike.total_area * summer_dike_fill(depth, 0.0, top))
 
 
 # -- circle --------------------------------------------------------------------------------------------

@@ -45,6 +45,7 @@ from rivercal.engine.kernels.codes import (
     FLICKER_DZ,
     MAX_HALVINGS,
     STAT_DRYING,
+    STAT_EXPLICIT,
     STAT_FLICKERS,
     STAT_MAX_LEVEL,
     STAT_REDONE,
@@ -142,8 +143,10 @@ class Simulator:
         self.controls: Controls | None = Controls(case.spec.controllers, self.compiled) if case.spec.controllers \
             else None
         sx = self.compiled.structures
-        #: Whether runs take the extended time loop (structures beyond weirs, setting series, controllers).
-        self.extended = bool(sx.links.size or (sx.set_col >= 0).any() or self.controls is not None)
+        #: Whether runs take the extended time loop (structures beyond weirs, setting series, controllers, summer
+        #: dikes whose storage changes curve).
+        self.extended = bool(sx.links.size or (sx.set_col >= 0).any() or self.controls is not None
+                             or self.compiled.dikes.sc.size)
         #: Counters of the last compiled run: steps, level solves, drying re-solves, and the step control's
         #: steps divided into sub-steps, sub-steps taken and the deepest division (a step into 2^level).
         self.last_run_stats: dict[str, int] = {}
@@ -189,7 +192,7 @@ class Simulator:
             if b not in c.branch_inherits:
                 out[f"friction:branch:{b}"] = float(v)
         for key, v in zip(c.friction_slots, c.friction_values, strict=True):
-            if key[0] == "group" and len(key) == 2:
+            if key[0] == "group" and len(key) == 2 and key[1] not in c.friction_mixed:
                 out[f"friction:group:{key[1]}"] = float(v)
         if self.controls:
             out.update(self.controls.default_parameters())
@@ -261,12 +264,32 @@ class Simulator:
             raise KeyError(f"{target}: case {self.case.name!r} has White-Colebrook friction, whose "
                            "conveyance a factor on the coefficient does not scale")
         if kind == "group":
+            if ident in c.friction_mixed:
+                raise KeyError(self.mixed_group_problem(target, ident))
             raise KeyError(f"{target}: no friction group {ident!r} in case {self.case.name!r}")
         if kind == "weir":
             raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")
         if kind == "friction" and not c.branch_inherits:
             raise KeyError(f"{target}: every branch of case {self.case.name!r} has its own friction")
         raise KeyError(f"{target}: no branch {ident!r} in case {self.case.name!r}")
+
+    def mixed_group_problem(self, target: str, group: str) -> str:
+        """Why ``target``, the value of friction group ``group``, cannot be set on this network (a message).
+
+        A profile that names ``group`` beside another friction group conveys with all its sections relative to the
+        first section's group (:attr:`rivercal.engine.channels.Channels.mixed_groups`): changing the first
+        group's value alone would scale the other sections too, changing another group's value would not reach the
+        conveyance at all.
+        """
+        profile = next(p for p in self.case.network.profiles if p.id == self.compiled.friction_mixed[group])
+        groups = list(dict.fromkeys(profile.friction))
+        effect = ("would scale the conveyance of its other sections (" + ", ".join(g for g in groups if g != group)
+                  + ") as well" if groups[0] == group else "would not change the conveyance of the links that use it, "
+                  f"which is held relative to its first section's group {groups[0]!r}")
+        return (f"{target}: friction group {group!r} shares profile {profile.id!r} with friction group(s) "
+                f"{', '.join(repr(g) for g in groups if g != group)}; a change of {group!r} alone {effect}, so it is "
+                "not a calibration target of this case (calibrate friction:scale, which scales every section, or "
+                "give the profile's sections one group)")
 
     # -- state ---------------------------------------------------------------------------------
 
@@ -403,6 +426,17 @@ class Simulator:
 
         With ``constant`` every step gets the values at ``start`` (used for spin-up).
         """
+        return self._forcing(start, n_steps, constant)[0]
+
+    def forcing_edges(self, start: pd.Timestamp, n_steps: int) -> np.ndarray:
+        """The forcing at the edges of the steps (``n_steps + 1`` rows): discharges (m³/s) and levels (m AD).
+
+        The sub-steps of a divided step take the discharge that moves linearly between the step's edges
+        (:func:`rivercal.engine.kernels.forcing.apply_forcing`).
+        """
+        return self._forcing(start, n_steps, False)[1]
+
+    def _forcing(self, start: pd.Timestamp, n_steps: int, constant: bool) -> tuple[np.ndarray, np.ndarray]:
         key = (start, n_steps, constant)
         cached = self._forcing_cache.get(key)
         if cached is not None:
@@ -412,13 +446,15 @@ class Simulator:
         if constant:
             edges = np.zeros(n_steps + 1)
         out = np.empty((n_steps, len(c.forcing_keys)))
+        at_edges = np.empty((n_steps + 1, len(c.forcing_keys)))
         for col, fkey in enumerate(c.forcing_keys):
             v = self._values_at(fkey, edges, start)
             out[:, col] = v[1:] if c.forcing_is_level[col] else 0.5 * (v[:-1] + v[1:])
+            at_edges[:, col] = v
         if len(self._forcing_cache) > 4:
             self._forcing_cache.clear()
-        self._forcing_cache[key] = out
-        return out
+        self._forcing_cache[key] = (out, at_edges)
+        return out, at_edges
 
     # -- running -------------------------------------------------------------------------------
 
@@ -485,10 +521,10 @@ class Simulator:
             if state.time != start:
                 raise ValueError(f"the state is at {state.time}, the run starts at {start}")
             state = state.copy()
-        forcing = self.forcing_matrix(start, n_steps)
+        forcing, edges = self._forcing(start, n_steps, False)
         t0 = _time.perf_counter()
         obs, zs, qs, balance, initial_volume = self._run(state, crest, fric, forcing, out_every, snapshots, start,
-                                                         control=control)
+                                                         control=control, edges=edges)
         wall = _time.perf_counter() - t0
         times = pd.date_range(start, end, periods=n_steps // out_every + 1)
         series = pd.DataFrame(obs, index=times, columns=self.observables)
@@ -515,7 +551,7 @@ class Simulator:
         mask[a.b_hp[a.b_type == BOUNDARY_LEVEL]] = False
         return float(state.vol[mask].sum())
 
-    def _run(self, state, crest, fric, forcing, out_every, snapshots, start, phase="", control=None):
+    def _run(self, state, crest, fric, forcing, out_every, snapshots, start, phase="", control=None, edges=None):
         a = self.compiled.arrays
         n_steps = forcing.shape[0]
         n_out = n_steps // out_every + 1
@@ -535,14 +571,16 @@ class Simulator:
         self._work.swing[:] = state.swing
         self._work.wreq_sum[:] = 0.0
         self._work.wshort_sum[:] = 0.0
+        dikes = state.dike_curves(self.compiled.dikes.sc.size)
         status, step, index = time_loop(self, self._work, cx, crest, fric,
                                         (state.z, state.dz, state.vol, state.u, state.q, state.pump_on), forcing,
-                                        out_every, (obs, zs, qs, balance))
+                                        out_every, (obs, zs, qs, balance), dikes=dikes, edges=edges)
         if cx is not None:
             obs[:, n_obs:] = cx.out
         state.control = self._work.stats[list(CONTROL_STATS)].copy()
         state.flicker = self._work.flick.copy()
         state.swing = self._work.swing.copy()
+        state.dikes = dikes
         self.last_run_stats = run_stats(self._work.stats)
         log.debug("%s%s", phase + ": " if phase else "", self.last_run_stats)
         self.last_run_shortfalls = self._shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
@@ -664,22 +702,40 @@ def _shown_bound(value: float | None, none: float) -> float:
 
 
 def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, state: tuple, forcing: np.ndarray,
-              out_every: int, out: tuple, *, private: bool = False) -> tuple[int, int, int]:
+              out_every: int, out: tuple, *, private: bool = False, dikes: np.ndarray | None = None,
+              edges: np.ndarray | None = None) -> tuple[int, int, int]:
     """One call of the compiled time loop of ``sim`` (the extended one where :attr:`Simulator.extended`).
 
     ``state`` (z m AD, dz m, vol m³, u m/s, q m³/s, pump_on) is advanced in place; ``out`` (obs, zs, qs,
     balance) is written; ``work`` and ``cx`` are the run's scratch and controller arrays. ``private`` copies
     the two arrays the extended loop writes scheduled settings into (pump capacities, orifice gates), for a
-    call on a thread beside others. Returns the status code, the step and the index where it stopped.
+    call on a thread beside others. ``dikes`` (for a network with summer dikes whose storage changes curve,
+    :class:`~rivercal.engine.compile.DikeArrays`) holds per such dike 1 while it is on its falling curve, else 0,
+    and is updated in place; the run stores with its own copy of the contributions' tables. ``edges`` is the
+    forcing at the steps' edges (:meth:`Simulator.forcing_edges`), which the sub-steps of a divided step follow;
+    without it they take the step's means. Returns the status code, the step and the index where it stopped.
     """
-    s, a, sx = sim.settings, sim.compiled.arrays, sim.compiled.structures
+    s, a, sx, dk = sim.settings, sim.compiled.arrays, sim.compiled.structures, sim.compiled.dikes
     settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),
-                float(s.max_velocity), int(out_every))
+                float(s.max_velocity), float(s.courant or 0.0), int(out_every))
+    if edges is None:
+        edges = np.empty((0, forcing.shape[1]))
     if not sim.extended:
-        return run(a, work, crest, fric, *state, forcing, *settings, *out)
+        return run(a, work, crest, fric, *state, forcing, edges, *settings, *out)
     if private:
         a, sx = a._replace(p_cap=a.p_cap.copy()), sx._replace(ogate=sx.ogate.copy())
-    return run_ext(a, sx, cx, work, crest, fric, *state, forcing, *settings, *out)
+    if not dk.sc.size:
+        return run_ext(a, sx, cx, dk, work, crest, fric, *state, forcing, edges, *settings, *out)
+    falling = np.zeros(dk.sc.size, dtype=bool) if dikes is None else np.asarray(dikes) != 0
+    sc_prof = a.sc_prof.copy()
+    sc_prof[dk.sc] = np.where(falling, dk.alt, dk.rise)
+    work.zlo[dk.hp] = np.inf  # the pieces of these points' volume curves are looked up afresh with these tables
+    work.zhi[dk.hp] = -np.inf
+    status = run_ext(a._replace(sc_prof=sc_prof), sx, cx, dk, work, crest, fric, *state, forcing, edges, *settings,
+                     *out)
+    if dikes is not None:
+        dikes[:] = sc_prof[dk.sc] == dk.alt
+    return status
 
 
 def run_stats(stats: np.ndarray) -> dict[str, int]:
@@ -687,7 +743,8 @@ def run_stats(stats: np.ndarray) -> dict[str, int]:
     return {"steps": int(stats[STAT_STEPS]), "solves": int(stats[STAT_SOLVES]),
             "drying_resolves": int(stats[STAT_DRYING]), "divided_steps": int(stats[STAT_REFINED]),
             "substeps": int(stats[STAT_SUBSTEPS]), "max_division": 2 ** int(stats[STAT_MAX_LEVEL]),
-            "redone": int(stats[STAT_REDONE]), "flickers": int(stats[STAT_FLICKERS])}
+            "redone": int(stats[STAT_REDONE]), "flickers": int(stats[STAT_FLICKERS]),
+            "geometry_fallbacks": int(stats[STAT_EXPLICIT])}
 
 
 def _ratio(a: float, b: float, what_a: str, what_b: str) -> int:

@@ -46,6 +46,9 @@ class EngineState:
         cold start.
     flicker, swing
         Per h-point, the flicker detector's count and the level's change since it last turned, m.
+    dikes
+        Per summer dike whose storage changes curve (:class:`~rivercal.engine.compile.DikeArrays`), 1 while it
+        drains by its falling curve, else 0; None for a network without such dikes or a cold start (all rising).
     """
 
     time: pd.Timestamp
@@ -60,12 +63,19 @@ class EngineState:
     control: np.ndarray = field(default_factory=lambda: np.zeros(len(CONTROL_STATS), dtype=np.int64))
     flicker: np.ndarray | None = None
     swing: np.ndarray | None = None
+    dikes: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.flicker is None:
             self.flicker = np.zeros(np.shape(self.z), dtype=np.int32)
         if self.swing is None:
             self.swing = np.zeros(np.shape(self.z))
+
+    def dike_curves(self, n: int) -> np.ndarray:
+        """A copy of :attr:`dikes` for a network with ``n`` such dikes (all rising where the state holds none)."""
+        if self.dikes is None or np.size(self.dikes) != n:
+            return np.zeros(n, dtype=np.int8)
+        return np.asarray(self.dikes, dtype=np.int8).copy()
 
     def copy(self) -> EngineState:
         """A deep copy (the engine updates states in place)."""
@@ -82,6 +92,7 @@ class EngineState:
             control=self.control.copy(),
             flicker=self.flicker.copy(),
             swing=self.swing.copy(),
+            dikes=None if self.dikes is None else self.dikes.copy(),
         )
 
     #: Format tag of :meth:`to_bytes` (stored with the bytes so a later rivercal can tell what it reads).
@@ -92,7 +103,8 @@ class EngineState:
         buffer = io.BytesIO()
         np.savez(buffer, time_ns=np.int64(self.time.value), z=self.z, dz=self.dz, vol=self.vol, u=self.u, q=self.q,
                  pump_on=self.pump_on, signature=np.asarray(self.signature, dtype=np.int64), ctl=self.ctl,
-                 control=self.control, flicker=self.flicker, swing=self.swing)
+                 control=self.control, flicker=self.flicker, swing=self.swing,
+                 **({} if self.dikes is None else {"dikes": self.dikes}))
         return buffer.getvalue()
 
     @classmethod
@@ -115,6 +127,7 @@ class EngineState:
                            control=f["control"] if "control" in f.files else np.zeros(len(CONTROL_STATS),
                                                                                         dtype=np.int64),
                            flicker=f["flicker"] if "flicker" in f.files else None,
-                           swing=f["swing"] if "swing" in f.files else None)
+                           swing=f["swing"] if "swing" in f.files else None,
+                           dikes=f["dikes"] if "dikes" in f.files else None)
         except (OSError, KeyError, ValueError) as exc:
             raise ValueError(f"not an engine state archive ({exc})") from None

@@ -124,8 +124,11 @@ class SummerDike(NetworkModel):
 
     The area behind the dike takes part in the flow and stores water only once the water tops the crest:
     both areas grow from 0 at the crest to their full value at ``transition`` above it (smoothly, two
-    parabolas; SOBEK 3's summer dike, whose storage the engine fills and drains by the same curve). The flow
-    area adds no wetted perimeter.
+    parabolas: SOBEK 3's summer dike). The flow area adds no wetted perimeter. Once the dike has been topped
+    by the whole transition, the storage behind it drains along another curve, the same two parabolas
+    from its full value at crest + transition down to 0 at ``base`` (the floodplain behind it: the water
+    stays there until the river falls below the dike), and fills again along the first curve once the
+    level has fallen to ``base`` (SOBEK 3's hysteresis of the summer dike's total area).
 
     Attributes
     ----------
@@ -137,6 +140,10 @@ class SummerDike(NetworkModel):
         Total (storage) area behind the dike when it is full, m² (at least the flow area).
     transition
         Height over which the areas fill above the crest, m (SOBEK 3's TransitionHeightSD, 0.5 m).
+    base
+        Height of the floodplain behind the dike above the profile's lowest point, m (SOBEK 3's
+        ``sd_baseLevel``), at most the crest; the storage drains down to it on a falling limb. Default: the
+        crest (the storage fills and drains along the same curve).
     """
 
     crest: Size = Field(ge=0, description="height of the crest above the profile's lowest point, m")
@@ -144,13 +151,24 @@ class SummerDike(NetworkModel):
     total_area: Size = Field(ge=0, description="total (storage) area behind the dike when full, m²")
     transition: Size = Field(default=0.5, ge=MIN_SIZE, description="height over which the areas fill above "
                                                                      "the crest, m")
+    base: Size | None = Field(default=None, ge=0, description="height of the floodplain behind the dike above the "
+                                                              "profile's lowest point, m (at most the crest; the "
+                                                              "storage drains down to it on a falling limb; "
+                                                              "default: the crest)")
 
     @model_validator(mode="after")
     def _check(self) -> SummerDike:
         if self.total_area < self.flow_area:
             raise FieldProblem("total_area", f"the total area {num(self.total_area)} m² is smaller than the flow "
                                              f"area {num(self.flow_area)} m²")
+        if self.base is not None and self.base > self.crest:
+            raise FieldProblem("base", f"the base {num(self.base)} m lies above the crest {num(self.crest)} m")
         return self
+
+    @property
+    def floor(self) -> float:
+        """The height the storage drains down to on a falling limb, m (:attr:`base`, or the crest)."""
+        return self.crest if self.base is None else float(self.base)
 
 
 class ZWProfile(NetworkModel):

@@ -101,7 +101,9 @@ STAT_FLICKER_AT = 13  # the point of the last such flicker (-1: none)
 STAT_REDONE = 14  # (sub-)steps computed again, shorter, because the screen refused them
 STAT_ACC_NEXT = 15  # the accuracy level the last committed sub-step asks of the next step
 STAT_LAST = 16  # the sub-step level of the last committed (sub-)step
-N_STATS = 17
+STAT_EXPLICIT = 17  # (sub-)steps solved with the geometry of their start after its iterations did not converge
+STAT_COURANT = 18  # the sub-step level the Courant limit asks for this step (from the state at its start)
+N_STATS = 19
 #: The entries of ``Work.stats`` that are the step control's state, carried from run to run in the engine state
 #: (a run split in two then computes what the whole run computes).
 CONTROL_STATS = (STAT_LEVEL, STAT_CALM, STAT_RELAX, STAT_FELL, STAT_AMP, STAT_ACC, STAT_ACC_NEXT, STAT_LAST)
@@ -112,6 +114,18 @@ CONTROL_STATS = (STAT_LEVEL, STAT_CALM, STAT_RELAX, STAT_FELL, STAT_AMP, STAT_AC
 FRICTION_SPLIT = 0.01
 #: ... and at or above which (a drop in the bed, a jump: no gradually varied surface) it stays upwind.
 FRICTION_GRADUAL = 0.3
+
+#: The channels' geometry at the iterate (:func:`rivercal.engine.kernels.picard.picard_iterations`): where a step
+#: moves the level at a link's upwind point by less than GEOMETRY_FROM (m) the link keeps the flow area and friction
+#: of the level at the step's start; from there it moves linearly to those of the iterate, which it takes from
+#: GEOMETRY_FULL (m). A step of a slowly varying flow keeps the geometry of its start (and its steady state its
+#: exactness); a flood wave that moves the level centimetres per step does not lag a step behind it.
+GEOMETRY_FROM = 0.005
+GEOMETRY_FULL = 0.01
+#: ... An iteration of the geometry whose change of the levels exceeds GEOMETRY_FROM and is not below
+#: GEOMETRY_CONTRACT times the one before does not converge (the geometry swings between two states): the step is
+#: solved with the geometry of its start.
+GEOMETRY_CONTRACT = 0.9
 
 # -- the step control (:mod:`rivercal.engine.kernels.timeloop`) -----------------------------------
 #: Most halvings of a step: a step is divided into at most 2^MAX_HALVINGS sub-steps.
@@ -131,6 +145,9 @@ AMP_FALL = 0.4
 ERR_TARGET = 0.01
 #: ... and computed again, halved, above ERR_REDO (m).
 ERR_REDO = 0.05
+#: With a Courant limit (``engine.courant``), a solved (sub-)step whose velocities cross a link more than COURANT_REDO
+#: times faster than the limit allows is computed again, shorter (the limit itself is taken at each step's start).
+COURANT_REDO = 2.0
 #: Flicker: a level that turns (from rising to falling, or back) after moving more than FLICKER_DZ (m) since its
 #: last turn adds FLICKER_TURN to its point's count, and every (sub-)step takes one off; at FLICKER_LIMIT the point
 #: flickers (:func:`.fluxes.finish_step`). Turns every step reach it at the fourth, turns every third step at the

@@ -30,9 +30,18 @@ Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003), each phase 
   its extrapolation from the last (sub-)step's change (about half the curvature of the level's path times the
   step squared: the local error of the first-order time integration), must stay below ``ERR_REDO``, or the
   (sub-)step is computed again, halved; each step is sized for ``ERR_TARGET`` from the last one's estimate,
-  and may become coarser by one level per step.
+  and may become coarser by one level per step;
+- *Courant* (with ``engine.courant``): the level at which no channel link's |u| Δt / Δx at the step's start
+  exceeds the limit (:func:`_courant_level`), and a (sub-)step whose solved velocities exceed it
+  ``COURANT_REDO`` times is computed again, finer.
 
-Sub-steps share the step's discharges; a level boundary moves linearly to its level for the step's end. When the
+A flicker that makes the coming sub-steps finer clears every point's flicker count: the swing dies out over
+some of them, and only one that goes on at the finer step stops the run.
+
+A divided step's sub-steps follow the discharges' course between the step's edges (:func:`.forcing.apply_forcing`);
+a level boundary moves linearly to its level for the step's end. Where the Picard iterations of a (sub-)step could
+not follow the channels' geometry (:func:`.picard.follow_geometry`), it is solved again with the geometry of its
+start (:func:`_explicit`). When the
 smallest sub-step still fails, the run stops with ``STATUS_DRY`` or ``STATUS_FLICKER`` and the point (or the
 divergence's status and place). The control's state is part of the engine state, so that a run continued from a
 state divides its steps as the whole run would. A run that never needs a division computes exactly what it
@@ -55,9 +64,11 @@ from rivercal.engine.kernels.codes import (
     AMP_FALL,
     AMP_RISE,
     BOUNDARY_LEVEL,
+    COURANT_REDO,
     DRY_TOLERANCE,
     ERR_REDO,
     ERR_TARGET,
+    LINK_CHANNEL,
     LINK_CULVERT,
     LINK_PUMP,
     LINK_WEIR,
@@ -68,6 +79,8 @@ from rivercal.engine.kernels.codes import (
     STAT_ACC_NEXT,
     STAT_AMP,
     STAT_CALM,
+    STAT_COURANT,
+    STAT_EXPLICIT,
     STAT_FELL,
     STAT_LAST,
     STAT_LEVEL,
@@ -90,7 +103,7 @@ from rivercal.engine.kernels.record import record
 from rivercal.engine.kernels.stability import explicit_amplification
 from rivercal.engine.kernels.structures import apply_settings, reset_settings, switch_pumps
 
-__all__ = ["Work", "make_work", "run", "run_ext"]
+__all__ = ["Work", "make_work", "run", "run_ext", "switch_dikes"]
 
 #: A step in units of the smallest sub-step.
 FULL = 1 << MAX_HALVINGS
@@ -158,8 +171,8 @@ def _floor(net) -> np.ndarray:
 
 
 @entry
-def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth, vmax,
-        out_every, obs_out, z_out, q_out, balance):
+def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, edges, dt, theta, max_iter, tol, min_depth, vmax,
+        courant, out_every, obs_out, z_out, q_out, balance):
     """Advance the state over ``forcing.shape[0]`` steps of ``dt`` seconds.
 
     Parameters
@@ -176,9 +189,12 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     forcing
         Per step and forcing column: the step-mean discharge (m³/s) or the level at the end of
         the step (m AD).
-    dt, theta, max_iter, tol, min_depth, vmax
+    edges
+        Per step edge (one row more than ``forcing``) and forcing column: the discharge there (m³/s), for the
+        sub-steps of a divided step (:func:`.forcing.apply_forcing`); without rows, they take the step's mean.
+    dt, theta, max_iter, tol, min_depth, vmax, courant
         Step (s), implicitness, Picard iterations, level tolerance (m), minimum flow depth (m),
-        divergence velocity (m/s).
+        divergence velocity (m/s), largest flow Courant number of a (sub-)step (0: none).
     out_every, obs_out, z_out, q_out
         Output every ``out_every`` steps: observables into ``obs_out`` (row 0 = initial state) and,
         when they have rows, full levels and fluxes into ``z_out`` and ``q_out``.
@@ -198,8 +214,8 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
     _start(net, work, fric)
     for n in range(forcing.shape[0]):
         work.stats[STAT_STEPS] += 1
-        status, index, swap = _step(net, None, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta,
-                                    max_iter, tol, min_depth, vmax, balance)
+        status, index, swap = _step(net, None, None, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
+                                    edges, dt, theta, max_iter, tol, min_depth, vmax, courant, balance)
         if swap:
             u0, q0, u1, q1 = u1, q1, u0, q0
         if status != STATUS_OK:
@@ -212,8 +228,8 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, m
 
 
 @entry
-def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, dt, theta, max_iter, tol, min_depth,
-            vmax, out_every, obs_out, z_out, q_out, balance):
+def run_ext(net, sx, cx, dk, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, edges, dt, theta, max_iter, tol,
+            min_depth, vmax, courant, out_every, obs_out, z_out, q_out, balance):
     """:func:`run` for a network with structures of D-HYDRO's kinds or structure settings that follow a series.
 
     A separate kernel, so that the time loop of a network without them stays as lean as before (its phases
@@ -231,6 +247,9 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
         :class:`~rivercal.engine.controllers.ControlArrays` (controllers, their run's quantities, output and
         state, updated in place), or ``None`` without controllers. A controller sets its weir's crest once per
         step, before the hydraulics (:func:`.control.control_step`).
+    dk
+        :class:`~rivercal.engine.compile.DikeArrays` (summer dikes whose storage changes curve; empty arrays
+        without them); with them ``net.sc_prof`` is the run's own copy, whose tables :func:`switch_dikes` changes.
     work
         :class:`Work` arrays (scratch, allocated once by the caller).
     crest, fric
@@ -242,9 +261,12 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
     forcing
         Per step and forcing column: the step-mean discharge (m³/s) or the level at the end of
         the step (m AD).
-    dt, theta, max_iter, tol, min_depth, vmax
+    edges
+        Per step edge (one row more than ``forcing``) and forcing column: the discharge there (m³/s), for the
+        sub-steps of a divided step (:func:`.forcing.apply_forcing`); without rows, they take the step's mean.
+    dt, theta, max_iter, tol, min_depth, vmax, courant
         Step (s), implicitness, Picard iterations, level tolerance (m), minimum flow depth (m),
-        divergence velocity (m/s).
+        divergence velocity (m/s), largest flow Courant number of a (sub-)step (0: none).
     out_every, obs_out, z_out, q_out
         Output every ``out_every`` steps: observables into ``obs_out`` (row 0 = initial state) and,
         when they have rows, full levels and fluxes into ``z_out`` and ``q_out``.
@@ -275,8 +297,8 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
             apply_settings(net, sx, n, forcing, crest)
         if cx is not None:
             control_step(cx, n, dt, z, q0, crest)
-        status, index, swap = _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta,
-                                    max_iter, tol, min_depth, vmax, balance)
+        status, index, swap = _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
+                                    edges, dt, theta, max_iter, tol, min_depth, vmax, courant, balance)
         if swap:
             u0, q0, u1, q1 = u1, q1, u0, q0
         if status != STATUS_OK:
@@ -291,13 +313,13 @@ def run_ext(net, sx, cx, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, 
 
 
 @kernel
-def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, dt, theta, max_iter, tol, min_depth,
-          vmax, balance):
+def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, edges, dt, theta, max_iter, tol,
+          min_depth, vmax, courant, balance):
     """Advance the state over step ``n`` of ``dt`` s, in sub-steps where the step control divides it.
 
-    The arguments are those of :func:`run`, with ``sx`` ``None`` for :func:`run`'s networks (the branch on it
-    is pruned when compiling); ``u0``, ``q0`` hold the velocities (m/s) and fluxes (m³/s) at the step's start
-    and ``u1``, ``q1`` receive the next ones, swapping roles after each sub-step. Returns (status, index,
+    The arguments are those of :func:`run_ext`, with ``sx`` and ``dk`` ``None`` for :func:`run`'s networks (the
+    branches on them are pruned when compiling); ``u0``, ``q0`` hold the velocities (m/s) and fluxes (m³/s) at the
+    step's start and ``u1``, ``q1`` receive the next ones, swapping roles after each sub-step. Returns (status, index,
     swapped): the status and point or link of :func:`run`, and whether the last committed values ended in
     ``u1``, ``q1`` after an odd number of sub-steps (the caller swaps its arrays then).
     """
@@ -308,28 +330,37 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
     taken = 0
     status, index = STATUS_OK, -1
     _accuracy_level(stats)
+    stats[STAT_COURANT] = _courant_level(net, u0, dt, courant) if courant > 0.0 else 0
     while done < FULL and status == STATUS_OK:  # one way in and one way out: a smaller compiled loop
         level = _level(stats)
         span = FULL >> level
         h = dt * span / FULL
-        lateral = apply_forcing(net, work, n, forcing, h, vol, z, span / (FULL - done))
-        fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
+        lateral = apply_forcing(net, work, n, forcing, edges, h, vol, z, span / (FULL - done), done / FULL,
+                                (done + span) / FULL)
+        fastest = channel_coefficients(net, work, z, z, theta, u0, q0, h, min_depth, False)  # the geometry of time n
         if _too_fast(net, work, z, u0, h, theta, min_depth, fastest, level):
             continue
         switched = switch_pumps(net, work, z, pump_on)
         if sx is None:
-            picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+            followed = picard_iterations(net, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol,
+                                         min_depth, True)
         elif sx.links.size > 0:
-            picard_iterations_ext(net, sx, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+            followed = picard_iterations_ext(net, sx, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter,
+                                             tol, min_depth, True)
         else:
-            picard_iterations(net, work, z, dz, vol, u0, crest, theta, h, max_iter, tol, min_depth)
+            followed = picard_iterations(net, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol,
+                                         min_depth, True)
+        if not followed:
+            _explicit(net, sx, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol, min_depth)
         fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
-        status, index = _screen(net, work, z, dz, u1, vmax, level)
+        status, index = _screen(net, work, z, dz, u1, vmax, level, done == 0, courant * FULL / (span * dt))
         if status == STATUS_OK:
             balance[n_b] += h * lateral
             checked = vmax if level >= MAX_HALVINGS else math.inf  # the screen checked the velocities
             # a level turning because a pump switched is its control's cycle, not the scheme's flicker
             status, index = finish_step(net, work, h, checked, z, dz, vol, u1, q1, balance, switched == 0)
+            if dk is not None and dk.sc.size > 0:
+                switch_dikes(dk, net.sc_prof, work, z)
             u0, q0, u1, q1 = u1, q1, u0, q0
             swapped = not swapped
             done += span
@@ -345,13 +376,88 @@ def _step(net, sx, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing,
     if taken > 1:
         stats[STAT_REFINED] += 1
         stats[STAT_SUBSTEPS] += taken
+        stats[STAT_MAX_LEVEL] = max(stats[STAT_MAX_LEVEL], _level(stats))
     return status, index, swapped
 
 
 @kernel
+def switch_dikes(dk, sc_prof, work, z):
+    """After a committed (sub-)step: the storage curve of each summer dike (:class:`~.compile.DikeArrays`), by level.
+
+    A dike on its rising curve whose point's level ``z`` (m AD) has reached its full level drains by its falling
+    curve from then on, and one on its falling curve whose level has fallen to its base fills by its rising curve
+    again (SOBEK 3's hysteresis of the summer dike's total area). ``sc_prof`` is the run's own table of each
+    storage contribution. Both curves hold the same volume at those levels, so the point keeps its volume and its
+    level; the piece of its volume curve looked up last (``work.zlo``, ``work.zhi``) no longer holds and is
+    dropped.
+    """
+    for k in range(dk.sc.size):
+        c = dk.sc[k]
+        i = dk.hp[k]
+        zi = z[i]
+        if sc_prof[c] == dk.rise[k]:
+            if zi >= dk.full[k]:
+                sc_prof[c] = dk.alt[k]
+                work.zlo[i] = math.inf
+                work.zhi[i] = -math.inf
+        elif zi <= dk.base[k]:
+            sc_prof[c] = dk.rise[k]
+            work.zlo[i] = math.inf
+            work.zhi[i] = -math.inf
+
+
+@kernel
+def _explicit(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth):
+    """Solve a (sub-)step again with the channels' geometry of its start, where that of the iterate did not converge.
+
+    The arguments are those of :func:`.picard.picard_iterations` (``sx`` None: a network without D-HYDRO's
+    structures); counted in ``STAT_EXPLICIT``.
+    """
+    work.stats[STAT_EXPLICIT] += 1
+    channel_coefficients(net, work, z, z, theta, u, q, dt, min_depth, False)
+    switch_pumps(net, work, z, pump_on)
+    if sx is None:
+        picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, False)
+    elif sx.links.size > 0:
+        picard_iterations_ext(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth,
+                              False)
+    else:
+        picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, False)
+
+
+@kernel
 def _level(stats):
-    """The sub-step level of the coming (sub-)step: the finer of the stability's and the accuracy's."""
-    return max(stats[STAT_LEVEL], stats[STAT_ACC])
+    """The sub-step level of the coming (sub-)step: the finest of the stability's, the accuracy's and the Courant's."""
+    return max(stats[STAT_LEVEL], stats[STAT_ACC], stats[STAT_COURANT])
+
+
+@kernel
+def _crossed(net, u, fastest):
+    """Whether some channel link's |u| / Δx (velocities ``u``, m/s) exceeds ``fastest`` (1/s)."""
+    crossed = False
+    lk_type, ilen = net.lk_type, net.lk_ilen
+    for link in range(u.size):
+        crossed |= (math.fabs(u[link]) * ilen[link] > fastest) & (lk_type[link] == LINK_CHANNEL)
+    return crossed
+
+
+@kernel
+def _courant_level(net, u, dt, courant):
+    """The sub-step level at which no channel link's flow Courant number |u| Δt / Δx exceeds ``courant``.
+
+    From the velocities ``u`` (m/s) at the step's start (the state alone: a run continued from a state divides as
+    the whole run); a step of ``dt`` s is divided into 2^level sub-steps, at most 2^``MAX_HALVINGS``.
+    """
+    fastest = 0.0
+    lk_type, ilen = net.lk_type, net.lk_ilen
+    for link in range(u.size):
+        fastest = max(fastest, math.fabs(u[link]) * ilen[link] if lk_type[link] == LINK_CHANNEL else 0.0)
+    level = 0
+    h = dt
+    while level < MAX_HALVINGS and fastest * h > courant:
+        level += 1
+        h *= 0.5
+    return level
 
 
 @kernel
@@ -408,8 +514,19 @@ def _rise(stats, level):
 
 
 @kernel
-def _screen(net, work, z, dz, un, vmax, level):
+def _screen(net, work, z, dz, un, vmax, level, first, fastest):
     """The step control's verdict on a solved (sub-)step at sub-step ``level``, before it is committed.
+
+    ``fastest`` (1/s) is the largest |u| / Δx the Courant limit allows in the (sub-)step (0 without one): a
+    (sub-)step whose solved velocities ``un`` cross a channel link more than ``COURANT_REDO`` times faster is computed
+    again at the next finer level (the limit is taken from the velocities at each step's start, and a cold start
+    from rest has none).
+
+    ``first`` marks the first sub-step of a step. The forcing's course may bend there (level boundaries head
+    for the next step's level, controllers act, and a discharge series bends at its own times), so a divided
+    step's level may bend there whatever the sub-step's length: its accuracy estimate is left out, and the
+    sub-steps after it size the coming steps. An undivided step's estimate, which spans the change of the
+    forcing, counts.
 
     Returns (``STATUS_OK``, -1) to commit, (``SCREEN_REDO``, -1) after making the sub-step finer (it is computed
     again, shorter), or (``STATUS_DRY``, point) when the smallest sub-step fails. A (sub-)step is computed again,
@@ -435,6 +552,13 @@ def _screen(net, work, z, dz, un, vmax, level):
     if too_fast(un, vmax):
         _rise(stats, level)
         return SCREEN_REDO, -1
+    if fastest > 0.0 and _crossed(net, un, COURANT_REDO * fastest):
+        stats[STAT_COURANT] = level + 1
+        stats[STAT_MAX_LEVEL] = max(stats[STAT_MAX_LEVEL], level + 1)
+        return SCREEN_REDO, -1
+    if first and level > 0:
+        stats[STAT_LAST] = level
+        return STATUS_OK, -1
     if error > ERR_REDO:
         stats[STAT_ACC] = level + 1
         stats[STAT_MAX_LEVEL] = max(stats[STAT_MAX_LEVEL], level + 1)

@@ -176,6 +176,9 @@ def _engine(ctx: Context) -> None:
     area = model.number("NumericalParameters", "MinimumSurfaceinNode", default=None)
     if area is not None and area > 0:
         engine["min_storage_area"] = area
+    courant = model.number("NumericalParameters", "CourantNumber", default=COURANT)
+    if courant is not None and courant > 0:
+        engine["courant"] = courant
     ctx.case["engine"] = engine
     what = "the model's own time step" if not ctx.options.dt else "the time step given"
     (ctx.ledger.approximated if notes else ctx.ledger.exact)(
@@ -262,12 +265,20 @@ def _stations_if_none(ctx: Context) -> None:
                     + ", ".join(placed[:10]) + (f" and {len(placed) - 10} more" if len(placed) > 10 else ""))
 
 
+#: SOBEK 3's Courant number when the model does not give one (flow1d's readModelParameters.f90 default).
+COURANT = 1.0
+
+
 def _settings(ctx: Context) -> None:
     model = ctx.model
     ctx.ledger.approximated("setting", "numerics", "rivercal's engine discretises the same equations (the staggered "
                             "Delft scheme) on SOBEK 3's grid points, with its own upwinding and structure "
-                            "linearisation; SOBEK 3's numerical settings (Iadvec1D, Limtyphu1D, Momdilution1D, "
-                            "AccurateVersusSpeed, CourantNumber, relaxation) are not carried over")
+                            "linearisation; SOBEK 3's other numerical settings (Iadvec1D, Limtyphu1D, Momdilution1D, "
+                            "AccurateVersusSpeed, relaxation) are not carried over")
+    courant = model.number("NumericalParameters", "CourantNumber", default=COURANT)
+    if courant is not None and courant > 0:
+        ctx.ledger.exact("setting", "CourantNumber", f"engine.courant = {courant:g}: a step whose flow crosses a grid "
+                         "segment faster is divided, as SOBEK 3 reduces its time step")
     theta = model.number("NumericalParameters", "Theta", default=None)
     if theta is not None:
         ctx.ledger.exact("setting", "Theta", f"implicitness {min(max(theta, 0.5), 1.0):g}")

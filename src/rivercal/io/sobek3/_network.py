@@ -577,13 +577,21 @@ def _summer_dike(ctx: Context, s: Section, bottom: float) -> tuple[dict | None, 
         notes.append(f"summer dike crest {crest:g} m AD below the profile's lowest level: taken at it")
         crest = bottom
     transition = ctx.model.number("AdvancedOptions", "TransitionHeightSD", default=0.5) or 0.5
-    if total > 0 and base < crest:
-        notes.append(f"summer dike: the storage behind it fills from its crest over {transition:g} m and drains by "
-                     f"the same curve; SOBEK 3 drains it when the water falls from crest + {transition:g} m down to "
-                     "its base level (sd_baseLevel), so the case gives that water back to the river earlier on a "
-                     "falling limb")
-    return {"crest": crest - bottom, "flow_area": flow, "total_area": total, "transition": transition}, \
-        "; ".join(notes)
+    dike = {"crest": crest - bottom, "flow_area": flow, "total_area": total, "transition": transition}
+    if crest < base < crest + transition:
+        # SOBEK 3 drains it then by a steeper curve from crest + transition to the base and returns to the rising
+        # curve below the base, a jump in the volume at that level; a base at or above crest + transition never
+        # leaves the rising curve (GetSummerDikeTotal), which the crest as base gives exactly
+        notes.append(f"summer dike base level {base:g} m AD between its crest {crest:g} m AD and crest + "
+                     f"{transition:g} m: taken at the crest (the storage behind it fills and drains by the rising "
+                     "curve; SOBEK 3 drains it by a steeper one down to the base level and then returns to the rising "
+                     "one, a jump of the stored volume)")
+    elif base < bottom:
+        notes.append(f"summer dike base level {base:g} m AD below the profile's lowest level: taken at it")
+        dike["base"] = 0.0
+    elif base < crest:
+        dike["base"] = base - bottom
+    return dike, "; ".join(notes)
 
 
 def _yz(s: Section, pid: str, names: list[str] | None) -> tuple[dict | None, float, str]:
