@@ -19,11 +19,14 @@ first cycle or when none is stored), and then per analysis interval
 
 1. advances all members, each with its own inflows and laterals: the model's forcing times log-normal
    AR(1) factors (:mod:`rivercal.assimilate.perturb`; the model error — rain and runoff that were wrong);
-2. analyses the levels and discharges of every point of the model's state, and the members' forcing errors
-   (an augmented state: an error of the rain persists for hours, so the forecast gains from knowing it),
-   with the observations at that time (:mod:`rivercal.assimilate.filters`; localised along the network
-   with the Gaspari–Cohn taper, a forcing error at the point where it enters), and writes them back into
-   the members' states (the model makes the rest of its state consistent with them).
+2. analyses, at the interval's end, the levels and discharges of every point of the model's state, and the
+   members' forcing errors (an augmented state: an error of the rain persists for hours, so the forecast gains
+   from knowing it), with every reading inside the interval, at the sensors' own time stamps (every 10 or 31
+   minutes, seconds off the minute): each reading is compared with the members' series interpolated to its
+   time (:meth:`EnsembleFilter.assimilate`; the asynchronous EnKF, no reading is moved or dropped);
+   :mod:`rivercal.assimilate.filters`, localised along the network with the Gaspari–Cohn taper, a forcing
+   error at the point where it enters; and writes them back into the members' states (the model makes the
+   rest of its state consistent with them).
 
 From t₀ the members forecast the horizon with their forcing perturbed on; the forecast is the ensemble
 mean, its 90 % band the 5 % and 95 % quantiles of the members' values plus the observation error (the
@@ -328,34 +331,91 @@ class EnsembleFilter:
     def assimilate(self, members: list[ModelState], errors: np.ndarray, parameters: dict[str, float],
                    end: pd.Timestamp, observed: pd.DataFrame,
                    rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray, int]:
-        """Advance the members to ``end``, analysing at every interval.
+        """Advance the members to ``end``, analysing at the end of every interval with the readings inside it.
 
-        ``observed`` is a wide table (UTC index, one column per series of :attr:`series`; NaN: missing).
-        Returns the members at ``end``, their forcing errors and the number of analyses made.
+        ``observed`` is a wide table (UTC index, one column per series of :attr:`series`; NaN: missing) at the
+        readings' own time stamps, which need not fall on the analysis times (a sensor every 31 minutes, with
+        second offsets). The analysis at the end of the interval (t, t + interval] uses every reading whose
+        time lies in it (:meth:`_readings`); the start of the first interval (the members' time) belongs to
+        the interval before it, which the previous cycle analysed. Returns the members at ``end``, their forcing
+        errors and the number of analyses made.
         """
         t = members[0].time
         analyses = 0
         analysis = FILTERS[self.config.method]
+        observed = observed.reindex(columns=self.series).sort_index()
         while t < end:
             nxt = min(t + self.interval, end)
             factors, errors = self._factors(1, errors, rng)
-            result = self._run(parameters, t, nxt, members, factors, (nxt - t).total_seconds())
+            result = self._run(parameters, t, nxt, members, factors, self._output_step(nxt - t))
             members, errors, values = self._survivors(result, errors, rng)
+            inside = observed[(observed.index > t) & (observed.index <= nxt)]
             t = nxt
-            if t in observed.index:
-                y = observed.loc[t, self.series].to_numpy(dtype=float)
-                if np.isfinite(y).any():
-                    predicted = values[:, -1, self.columns].T
-                    members, errors = self._analyse(members, errors, predicted, y, analysis, rng)
-                    analyses += 1
+            predicted, y, which = self._readings(result.times, values, inside)
+            if y.size:
+                members, errors = self._analyse(members, errors, predicted, y, analysis, rng, which)
+                analyses += 1
         return members, errors, analyses
 
+    def _output_step(self, span: pd.Timedelta) -> float:
+        """Output step of the members inside an interval, s: fine enough to interpolate them to a reading's time.
+
+        The model's output interval, at most 10 minutes, where it is a whole number of model time steps and
+        divides the interval; else the interval itself (the members are then interpolated between its ends).
+        """
+        seconds = span.total_seconds()
+        dt = float(getattr(self.model, "dt", 0.0) or 0.0)
+        step = min(float(getattr(self.model, "output_interval", seconds) or seconds), 600.0)
+        if dt > 0 and step >= dt:
+            step = dt * np.floor(step / dt)
+        whole = step > 0 and abs(seconds / step - round(seconds / step)) < 1e-9
+        fits = dt <= 0 or abs(step / dt - round(step / dt)) < 1e-9
+        return step if whole and fits else seconds
+
+    def _readings(self, times: pd.DatetimeIndex, values: np.ndarray,
+                  inside: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The readings of an interval and each member's prediction of them.
+
+        Every finite reading is one observation of the analysis. Its prediction is the member's simulated value
+        interpolated linearly in time between the member's outputs either side of the reading's time (the
+        members' series over the interval, ``values`` of shape (members, times, observables) at ``times``); the
+        analysis at the interval's end then updates the state at that end with its ensemble covariance with
+        the predicted readings at their earlier times — the asynchronous EnKF of Sakov, Evensen and Bertino
+        (2010, Tellus A 62:24–29), exact for a linear model over the interval. Two readings of one series in an
+        interval are two observations with independent errors (σ of the series each).
+
+        Returns
+        -------
+        tuple
+            Predicted readings (readings, members), the readings (readings,; m or m³/s) and the index of each
+            reading's series in :attr:`series`.
+        """
+        if inside.empty:
+            return np.zeros((0, values.shape[0])), np.zeros(0), np.zeros(0, dtype=np.int64)
+        grid = (times - times[0]).total_seconds().to_numpy()
+        at = (inside.index - times[0]).total_seconds().to_numpy()
+        y = inside.to_numpy(dtype=float)                                  # (stamps, series)
+        rows, which = np.nonzero(np.isfinite(y))
+        if rows.size == 0:
+            return np.zeros((0, values.shape[0])), np.zeros(0), np.zeros(0, dtype=np.int64)
+        i = np.clip(np.searchsorted(grid, at, side="right") - 1, 0, max(grid.size - 2, 0))
+        j = np.minimum(i + 1, grid.size - 1)
+        width = np.where(grid[j] > grid[i], grid[j] - grid[i], 1.0)
+        w = np.clip((at - grid[i]) / width, 0.0, 1.0)                      # weight of the later output
+        series = values[:, :, self.columns]                                 # (members, times, series)
+        lo, hi = series[:, i[rows], which], series[:, j[rows], which]       # (members, readings)
+        predicted = ((1.0 - w[rows]) * lo + w[rows] * hi).T
+        return predicted, y[rows, which], which.astype(np.int64)
+
     def _analyse(self, members: list[ModelState], errors: np.ndarray, predicted: np.ndarray, y: np.ndarray,
-                 analysis: Any, rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray]:
+                 analysis: Any, rng: np.random.Generator,
+                 which: np.ndarray | None = None) -> tuple[list[ModelState], np.ndarray]:
+        """Analyse the members with readings ``y`` of the series ``which`` (default: one of each, in order)."""
+        which = np.arange(len(self.series)) if which is None else which
         arrays = [self.model.state_arrays(m) for m in members]
         x = np.vstack([np.array([np.concatenate([z, q]) for z, q in arrays]).T, errors.T])
-        kwargs = {"rng": rng, "inflation": self.config.inflation, "rho_state": self.rho}
-        xa = analysis(x, predicted, y, self.sigma**2, **kwargs)
+        kwargs = {"rng": rng, "inflation": self.config.inflation, "rho_state": self.rho[:, which]}
+        xa = analysis(x, predicted, y, self.sigma[which] ** 2, **kwargs)
         out = [self.model.with_state_arrays(m, xa[: self.n_h, k], xa[self.n_h : self.n_h + self.n_l, k])
                for k, m in enumerate(members)]
         return out, np.ascontiguousarray(xa[self.n_h + self.n_l :].T)
