@@ -69,3 +69,62 @@ def test_readings_every_31_minutes_with_second_offsets_give_the_skill_of_reading
     assert n_hours == 12 and n_odd == 12      # every hour holds a reading of the 31-minute sensor
     assert skill_hours > 0.3                  # the filter does correct a wrong inflow
     assert abs(skill_odd - skill_hours) <= 0.05 * skill_hours, (skill_hours, skill_odd, free)
+
+
+# -- the service on the sensors' own stamps ----------------------------------------------------------------------
+
+
+def test_the_service_with_states_corrects_its_forecast_from_readings_at_31_minute_stamps(tmp_path) -> None:
+    """``--assimilate states`` on readings nobody resampled: the forecast changes, towards the truth, and scores."""
+    import shutil
+
+    from rivercal.observations import ObservationSeries, ObservationSet
+    from rivercal.online.metrics import run_metrics
+    from rivercal.online.service import OnlineConfig, OnlineService
+    from rivercal.store import Store
+
+    folder = tmp_path / "case"
+    shutil.copytree(str(_synthetic_folder()), folder)
+    with (folder / "case.toml").open("a", encoding="utf-8") as f:   # the service needs a parameter to name
+        f.write('\n[[parameters]]\nname = "KS"\ntargets = ["friction:global"]\nmin = 10.0\nmax = 60.0\n'
+                'initial = 25.0\nperturbation = 2.0\nunit = "m^(1/3)/s"\n')
+    model = load_model(folder)
+    first = pd.Timestamp("2020-01-05T12:00Z")
+    start = first - pd.Timedelta("18h")
+    state = spun_up(model, {}, start)
+    span = pd.Timedelta("30h")
+    wrong = np.full((30, len(model.perturbable_forcing())), 1.4)
+    truth, _ = model.simulate_perturbed({}, start, start + span, state, wrong, 3600.0, output_interval=60.0)
+    seconds = np.random.default_rng(2).integers(1, 59, 58)
+    stamps = pd.DatetimeIndex([start + pd.Timedelta(minutes=31 * k, seconds=int(s))
+                               for k, s in zip(range(1, 59), seconds, strict=True)])
+    readings = _readings(truth.series[SERIES], stamps)
+    assert not stamps.isin(pd.date_range(start, start + span, freq="h")).any()
+    config = OnlineConfig(parameters=("KS",), window="12h", period="6h", horizon="6h", warmup="6h", series=SERIES,
+                          deadline_s=None, workers=1)
+    with Store(tmp_path / "run.sqlite") as store:
+        store.ingest(ObservationSet(tuple(ObservationSeries.from_series(readings[s], id=s, sigma=0.01, source="s")
+                                          for s in SERIES)), source="sensor")
+        service = OnlineService(model, store, "stamps", config, first,
+                                assimilation=AssimilationConfig(mode="states", members=12, seed=1))
+        outcomes = service.replay(first + pd.Timedelta("6h"))
+        assert all("state analyses" in o.message for o in outcomes)
+        fc = store.forecasts(service.run).pivot_table(index=["cycle", "series", "time"], columns="kind",
+                                                       values="value")
+        fc = fc[fc.index.get_level_values("time") > first]
+        assert (fc["updated"] - fc["dss"]).abs().max() > 0.02            # the forecast changed …
+        true = truth.series[SERIES].stack().rename_axis(["time", "series"]).rename("truth")
+        joined = fc.join(true.reorder_levels(["series", "time"]), on=["series", "time"])
+        err = lambda k: float((joined[k] - joined["truth"]).abs().mean())  # noqa: E731
+        assert err("updated") < 0.5 * err("dss")                          # … towards the truth
+        metrics = run_metrics(store, service.run)
+        by_lead = metrics["forecast_mae_by_lead"]
+        assert by_lead["updated"]["0-6h"] is not None and by_lead["dss"]["0-6h"] is not None
+        assert by_lead["updated"]["0-6h"] < by_lead["dss"]["0-6h"]
+        assert metrics["forecast_errors"]["n"] > 0
+
+
+def _synthetic_folder():
+    from importlib import resources
+
+    return resources.files("rivercal.cases") / "synthetic"
