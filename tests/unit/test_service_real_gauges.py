@@ -1,16 +1,13 @@
-"""What real gauges need of the on-line service, shown on its own parts (the failing ones are marked xfail).
+"""What real gauges need of the on-line service, shown on its own parts.
 
 Real telemetry has readings at any time stamp (every 10 minutes, every 31 minutes with second offsets), and a
-tidal river is driven by a level at its mouth. Three things of the service do not cope yet; each test states
-what it should do and is marked ``xfail(strict=True)`` until it does (the change is described in the reason):
+tidal river is driven by a level at its mouth. Each test states what the service does with them:
 
-- the ensemble filter analyses only readings that fall exactly on a whole hour;
-- the ensemble perturbs inflows and laterals only, so a model driven by a level boundary has no spread and its
-  analyses change nothing;
-- forecast scores pair forecasts and readings only at equal time stamps.
-
-The passing controls show that each setting works when the readings are on the hour, or with the stand-in
-filter of the Western Scheldt benchmark (:class:`rivercal.bench.westerscheldt.BoundaryLevelFilter`).
+- the ensemble filter analyses every reading inside an analysis interval, each against the members
+  interpolated to its time, not only the readings that fall on a whole hour;
+- the ensemble perturbs level boundaries too (additive AR(1) errors in the augmented state), so a model driven
+  by a tide at its mouth has spread and its analyses move it towards a surge the tide does not know;
+- forecast scores pair each reading with the forecast interpolated to its time, not at equal time stamps.
 """
 
 from __future__ import annotations
@@ -23,13 +20,6 @@ from rivercal.models import load_model
 from rivercal.models.contract import spun_up
 from rivercal.online.assimilation import AssimilationConfig, EnsembleFilter
 from rivercal.online.metrics import score_forecasts
-
-IRREGULAR = ("EnsembleFilter.assimilate analyses only readings at the end of an interval ('if t in observed.index'); "
-             "it should use every reading inside the interval, each against the members interpolated to its time")
-LEVELS = ("EnsembleFilter perturbs inflows and laterals only (multiplicative factors): a level boundary should get "
-          "an additive AR(1) error in the augmented state, localised at its point")
-SCORES = ("score_forecasts merges forecasts and readings on equal times; it should pair each reading with the "
-          "forecast interpolated to its time")
 
 
 def _point(filt: EnsembleFilter, series: str) -> int:
@@ -91,11 +81,11 @@ def estuary():
     return model, t0, spun_up(model, {}, t0)
 
 
-def _surge_analysis(estuary, filter_class) -> float:
+def _surge_analysis(estuary) -> float:
     """The shift of the members' mean at Vlissingen after analysing a reading 0.5 m above the model's (m)."""
     model, t0, state = estuary
     series = ["vlissingen.h"]
-    filt = filter_class(model, AssimilationConfig(mode="states", members=8, seed=1), series)
+    filt = EnsembleFilter(model, AssimilationConfig(mode="states", members=8, seed=1), series)
     end = t0 + pd.Timedelta("1h")
     free, _ = model.simulate({}, start=t0, end=end, state=state)
     observed = pd.DataFrame({series[0]: [free.series[series[0]].loc[end] + 0.5]}, index=[end])
@@ -107,15 +97,8 @@ def _surge_analysis(estuary, filter_class) -> float:
     return float(np.mean([m.z[k] for m in done]) - free.series[series[0]].loc[end])
 
 
-def test_the_benchmarks_stand_in_filter_carries_a_surge_in_from_the_mouth(estuary) -> None:
-    from rivercal.bench.westerscheldt import BoundaryLevelFilter
-
-    assert _surge_analysis(estuary, BoundaryLevelFilter) > 0.25
-
-
-@pytest.mark.xfail(strict=True, reason=LEVELS)
 def test_the_services_filter_corrects_a_river_driven_by_a_level_at_its_mouth(estuary) -> None:
-    assert _surge_analysis(estuary, EnsembleFilter) > 0.25
+    assert _surge_analysis(estuary) > 0.25
 
 
 # -- forecast scores ---------------------------------------------------------------------------------------------

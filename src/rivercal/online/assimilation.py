@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import io
 import logging
+import math
 import zipfile
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -54,6 +55,7 @@ from rivercal.models.contract import (
     MemberRuns,
     Model,
     ModelState,
+    has_capability,
     require,
     run_members,
 )
@@ -117,9 +119,15 @@ class AssimilationConfig:
     forcing_error
         σ of the log of the factors on inflows and laterals (0.3: about 30 %).
     forcing_tau
-        Correlation time of the forcing errors: 96 h, as much of a model's inflow error is a bias that persists
-        for days (a catchment's runoff parameters, an event's rain); measured on the realistic PI-Fg twin,
+        Correlation time of the forcing errors (and of the level boundaries' errors): 96 h, as much of a model's
+        inflow error is a bias that persists for days (a catchment's runoff parameters, an event's rain); measured
+        on the realistic PI-Fg twin,
         the issued forecasts' MAE ratio is 1.93 at 24 h, 2.11 at 48 h, 2.23 at 96 h and 2.27 at 168 h.
+    level_error
+        σ of the additive error of each level boundary (a tide at the mouth: the surge the tide prediction does not
+        know), m; for a model with ``perturbable levels`` (:class:`~rivercal.models.contract.PerturbableLevels`).
+        0.3 m is a choice, not a measured figure: set it to the size of the departures from the boundary's series
+        that are expected (the Western Scheldt benchmark takes 0.5 m for a storm surge of up to 3 m).
     seed
         Seed of the perturbations (per cycle, the seed and the cycle number).
     threads
@@ -134,6 +142,7 @@ class AssimilationConfig:
     localisation_m: float = 20_000.0
     forcing_error: float = 0.3
     forcing_tau: str = "96h"
+    level_error: float = 0.3
     seed: int = 0
     threads: int | None = None
 
@@ -148,11 +157,19 @@ class AssimilationConfig:
             raise ValueError("the analysis interval and the forcing correlation time must be positive")
         if not self.inflation >= 1.0 or not self.localisation_m > 0 or not self.forcing_error >= 0:
             raise ValueError("inflation must be >= 1, the localisation half-width > 0 m and the forcing error >= 0")
+        if not (math.isfinite(self.level_error) and self.level_error >= 0):
+            raise ValueError(f"the level boundaries' error must be >= 0 m, got {self.level_error}")
 
     def stored(self) -> dict[str, Any]:
-        """The configuration as stored with the run (the thread count is not part of it)."""
+        """The configuration as stored with the run (the thread count is not part of it).
+
+        ``level_error`` is stored only when it is not the default, so that a run stored before level boundaries
+        were perturbed resumes with the same configuration.
+        """
         out = asdict(self)
         out.pop("threads")
+        if out["level_error"] == AssimilationConfig.level_error:
+            out.pop("level_error")
         return out
 
 
@@ -218,7 +235,10 @@ class EnsembleFilter:
         second = np.where(ends[:, 1] >= 0, ends[:, 1], ends[:, 0])
         rho_q = 0.5 * (rho_h[first] + rho_h[second]) if self.n_l else np.zeros((0, place.size))
         self.keys = tuple(model.perturbable_forcing())
-        entry = np.array([layout.forcing_places[k] for k in self.keys], dtype=np.int64)
+        # level boundaries (a tide at the mouth) get additive errors, in the same augmented state
+        self.level_keys = tuple(model.perturbable_levels()) if has_capability(model, "perturbable levels") else ()
+        self.scale = np.array([config.forcing_error] * len(self.keys) + [config.level_error] * len(self.level_keys))
+        entry = np.array([layout.forcing_places[k] for k in (*self.keys, *self.level_keys)], dtype=np.int64)
         # state rows: levels, discharges, then the forcing errors (augmented state), each localised at its place
         self.rho = np.vstack([rho_h, rho_q, rho_h[entry]])
         self.interval = pd.Timedelta(config.interval)
@@ -226,14 +246,14 @@ class EnsembleFilter:
 
     @property
     def n_forcing(self) -> int:
-        """Number of perturbed inflows and laterals."""
-        return len(self.keys)
+        """Number of perturbed inflows, laterals and level boundaries (the forcing errors' columns)."""
+        return len(self.keys) + len(self.level_keys)
 
     # -- the ensemble and its errors as stored states ------------------------------------------------
 
     def initial(self, state: ModelState, rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray]:
         """A cold ensemble: copies of ``state`` and stationary forcing errors."""
-        errors = self.config.forcing_error * rng.standard_normal((self.config.members, self.n_forcing))
+        errors = self.scale * rng.standard_normal((self.config.members, self.n_forcing))
         return [state] * self.config.members, errors
 
     def to_record(self, members: Sequence[ModelState], errors: np.ndarray) -> tuple[pd.Timestamp, int, str, bytes]:
@@ -279,9 +299,17 @@ class EnsembleFilter:
 
     def _factors(self, n_intervals: int, errors: np.ndarray,
                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Per-member factors (members, intervals, forcing) over ``n_intervals``, and the errors at their end."""
-        e = ar1_series(rng, n_intervals, errors.shape, self.config.forcing_error, self.tau_steps, initial=errors)
-        return multiplicative_factors(e, self.config.forcing_error).transpose(1, 0, 2), e[-1]
+        """Per-member factors (members, intervals, forcing) over ``n_intervals``, and the errors at their end.
+
+        The errors are AR(1) in time, each column with its own σ (:attr:`scale`): log-normal factors of mean one
+        on the inflows and laterals, then additive offsets (m) on the level boundaries
+        (:class:`~rivercal.models.contract.PerturbableLevels`).
+        """
+        unit = np.divide(errors, self.scale, out=np.zeros_like(errors, dtype=float), where=self.scale > 0)
+        e = ar1_series(rng, n_intervals, errors.shape, 1.0, self.tau_steps, initial=unit) * self.scale
+        n = len(self.keys)
+        factors = np.concatenate([multiplicative_factors(e[..., :n], self.config.forcing_error), e[..., n:]], axis=-1)
+        return factors.transpose(1, 0, 2), e[-1]
 
     def _run(self, parameters: dict[str, float], start: pd.Timestamp, end: pd.Timestamp,
              members: Sequence[ModelState], factors: np.ndarray, output_interval: float) -> MemberRuns:
