@@ -129,3 +129,23 @@ def test_scores_pair_readings_a_minute_off_the_hour_with_the_forecast_at_their_t
     observed = pd.DataFrame({"series": "S.h", "time": times, "value": _truth(times)})
     scores = score_forecasts(_forecast_table(), observed)
     assert len(scores) == 1 and scores["rmse"].iloc[0] == pytest.approx(0.05) and int(scores["n"].iloc[0]) == 5
+
+
+def test_a_level_boundary_offset_is_added_to_the_level_it_prescribes(estuary) -> None:
+    """The model contract's ``perturbable levels``: the column after the forcing's is an offset in m, not a factor."""
+    model, t0, state = estuary
+    assert model.perturbable_forcing() == () and model.perturbable_levels() == ("boundary:cadzand",)
+    mouth = model.state_layout().forcing_places["boundary:cadzand"]
+    end = t0 + pd.Timedelta("1h")
+    _, plain = model.simulate({}, start=t0, end=end, state=state)
+    _, raised = model.simulate_perturbed({}, t0, end, state, np.full((1, 1), 0.3), 3600.0)
+    assert raised.z[mouth] - plain.z[mouth] == pytest.approx(0.3, abs=1e-9)
+    _, same = model.simulate_perturbed({}, t0, end, state, np.zeros((1, 0)), 3600.0)   # no level column: as is
+    assert same.z[mouth] == pytest.approx(plain.z[mouth], abs=1e-12)
+
+
+def test_the_level_error_is_checked_and_stored_only_when_set() -> None:
+    with pytest.raises(ValueError, match="level boundaries' error"):
+        AssimilationConfig(mode="states", level_error=-0.1)
+    assert "level_error" not in AssimilationConfig(mode="states").stored()  # runs stored before resume as they were
+    assert AssimilationConfig(mode="states", level_error=0.5).stored()["level_error"] == 0.5
