@@ -386,19 +386,17 @@ class EnsembleFilter:
         return members, errors, analyses
 
     def _output_step(self, span: pd.Timedelta) -> float:
-        """Output step of the members inside an interval, s: fine enough to interpolate them to a reading's time.
+        """Output step of the members inside an interval, s: the model's output interval where it divides it.
 
-        The model's output interval, at most 10 minutes, where it is a whole number of model time steps and
-        divides the interval; else the interval itself (the members are then interpolated between its ends).
+        The members are interpolated to a reading's time between their outputs either side of it; a model gives
+        its series at multiples of its own output interval (SWMM's report step: no finer), so a model whose output
+        interval is the analysis interval or does not divide it is interpolated between the interval's ends.
         """
         seconds = span.total_seconds()
-        dt = float(getattr(self.model, "dt", 0.0) or 0.0)
-        step = min(float(getattr(self.model, "output_interval", seconds) or seconds), 600.0)
-        if dt > 0 and step >= dt:
-            step = dt * np.floor(step / dt)
-        whole = step > 0 and abs(seconds / step - round(seconds / step)) < 1e-9
-        fits = dt <= 0 or abs(step / dt - round(step / dt)) < 1e-9
-        return step if whole and fits else seconds
+        step = float(getattr(self.model, "output_interval", 0.0) or 0.0)
+        if 0 < step < seconds and abs(seconds / step - round(seconds / step)) < 1e-9:
+            return step
+        return seconds
 
     def _readings(self, times: pd.DatetimeIndex, values: np.ndarray,
                   inside: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
