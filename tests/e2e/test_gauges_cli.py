@@ -28,6 +28,11 @@ def test_online_ingests_the_sidecars_series_at_their_ten_minute_stamps(tmp_path:
     summary = json.loads(run.stdout)
     assert summary["status"] == {"done": 2}
     assert summary["observations_flagged"] == {"ok": 3 * 289}   # all three gauges, every reading stored
+    # the 10-minute readings are scored against the forecasts at their times
+    assert summary["forecast_mae_by_lead"]["updated"]["0-6h"] is not None and summary["forecast_errors"]["n"] > 0
+    # Bath, a station of the case, is never observed: named once, not a data alert every cycle
+    data = [a for a in summary["alerts"] if a["kind"] == "data"]
+    assert len(data) == 1 and "bath.h" in data[0]["message"]
 
 
 def test_a_depth_series_without_its_sensor_zero_is_refused_naming_option_file_and_line(tmp_path: Path) -> None:

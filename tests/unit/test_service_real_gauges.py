@@ -1,16 +1,13 @@
-"""What real gauges need of the on-line service, shown on its own parts (the failing ones are marked xfail).
+"""What real gauges need of the on-line service, shown on its own parts.
 
 Real telemetry has readings at any time stamp (every 10 minutes, every 31 minutes with second offsets), and a
-tidal river is driven by a level at its mouth. Three things of the service do not cope yet; each test states
-what it should do and is marked ``xfail(strict=True)`` until it does (the change is described in the reason):
+tidal river is driven by a level at its mouth. Each test states what the service does with them:
 
-- the ensemble filter analyses only readings that fall exactly on a whole hour;
-- the ensemble perturbs inflows and laterals only, so a model driven by a level boundary has no spread and its
-  analyses change nothing;
-- forecast scores pair forecasts and readings only at equal time stamps.
-
-The passing controls show that each setting works when the readings are on the hour, or with the stand-in
-filter of the Western Scheldt benchmark (:class:`rivercal.bench.westerscheldt.BoundaryLevelFilter`).
+- the ensemble filter analyses every reading inside an analysis interval, each against the members
+  interpolated to its time, not only the readings that fall on a whole hour;
+- the ensemble perturbs level boundaries too (additive AR(1) errors in the augmented state), so a model driven
+  by a tide at its mouth has spread and its analyses move it towards a surge the tide does not know;
+- forecast scores pair each reading with the forecast interpolated to its time, not at equal time stamps.
 """
 
 from __future__ import annotations
@@ -19,17 +16,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rivercal.analysis.forecast import score_forecasts
 from rivercal.models import load_model
 from rivercal.models.contract import spun_up
 from rivercal.online.assimilation import AssimilationConfig, EnsembleFilter
-
-IRREGULAR = ("EnsembleFilter.assimilate analyses only readings at the end of an interval ('if t in observed.index'); "
-             "it should use every reading inside the interval, each against the members interpolated to its time")
-LEVELS = ("EnsembleFilter perturbs inflows and laterals only (multiplicative factors): a level boundary should get "
-          "an additive AR(1) error in the augmented state, localised at its point")
-SCORES = ("score_forecasts merges forecasts and readings on equal times; it should pair each reading with the "
-          "forecast interpolated to its time")
+from rivercal.online.metrics import score_forecasts
 
 
 def _point(filt: EnsembleFilter, series: str) -> int:
@@ -70,7 +60,6 @@ def test_readings_on_the_whole_hours_move_the_ensemble_towards_them(synthetic) -
     assert analyses == 3 and shift > 0.02
 
 
-@pytest.mark.xfail(strict=True, reason=IRREGULAR)
 def test_readings_at_31_minute_stamps_with_second_offsets_are_assimilated_too(synthetic) -> None:
     t0 = synthetic[2]
     _, on_the_hour = _assimilate(synthetic, pd.DatetimeIndex([t0 + pd.Timedelta(hours=h) for h in (1, 2, 3)]))
@@ -92,11 +81,11 @@ def estuary():
     return model, t0, spun_up(model, {}, t0)
 
 
-def _surge_analysis(estuary, filter_class) -> float:
+def _surge_analysis(estuary) -> float:
     """The shift of the members' mean at Vlissingen after analysing a reading 0.5 m above the model's (m)."""
     model, t0, state = estuary
     series = ["vlissingen.h"]
-    filt = filter_class(model, AssimilationConfig(mode="states", members=8, seed=1), series)
+    filt = EnsembleFilter(model, AssimilationConfig(mode="states", members=8, seed=1), series)
     end = t0 + pd.Timedelta("1h")
     free, _ = model.simulate({}, start=t0, end=end, state=state)
     observed = pd.DataFrame({series[0]: [free.series[series[0]].loc[end] + 0.5]}, index=[end])
@@ -108,15 +97,8 @@ def _surge_analysis(estuary, filter_class) -> float:
     return float(np.mean([m.z[k] for m in done]) - free.series[series[0]].loc[end])
 
 
-def test_the_benchmarks_stand_in_filter_carries_a_surge_in_from_the_mouth(estuary) -> None:
-    from rivercal.bench.westerscheldt import BoundaryLevelFilter
-
-    assert _surge_analysis(estuary, BoundaryLevelFilter) > 0.25
-
-
-@pytest.mark.xfail(strict=True, reason=LEVELS)
 def test_the_services_filter_corrects_a_river_driven_by_a_level_at_its_mouth(estuary) -> None:
-    assert _surge_analysis(estuary, EnsembleFilter) > 0.25
+    assert _surge_analysis(estuary) > 0.25
 
 
 # -- forecast scores ---------------------------------------------------------------------------------------------
@@ -142,9 +124,28 @@ def test_scores_pair_readings_on_the_forecasts_hours() -> None:
     assert scores["rmse"].iloc[0] == pytest.approx(0.05) and int(scores["n"].iloc[0]) == 6
 
 
-@pytest.mark.xfail(strict=True, reason=SCORES)
 def test_scores_pair_readings_a_minute_off_the_hour_with_the_forecast_at_their_time() -> None:
     times = pd.DatetimeIndex(_forecast_table()["time"])[:-1] + pd.Timedelta(minutes=1, seconds=7)
     observed = pd.DataFrame({"series": "S.h", "time": times, "value": _truth(times)})
     scores = score_forecasts(_forecast_table(), observed)
     assert len(scores) == 1 and scores["rmse"].iloc[0] == pytest.approx(0.05) and int(scores["n"].iloc[0]) == 5
+
+
+def test_a_level_boundary_offset_is_added_to_the_level_it_prescribes(estuary) -> None:
+    """The model contract's ``perturbable levels``: the column after the forcing's is an offset in m, not a factor."""
+    model, t0, state = estuary
+    assert model.perturbable_forcing() == () and model.perturbable_levels() == ("boundary:cadzand",)
+    mouth = model.state_layout().forcing_places["boundary:cadzand"]
+    end = t0 + pd.Timedelta("1h")
+    _, plain = model.simulate({}, start=t0, end=end, state=state)
+    _, raised = model.simulate_perturbed({}, t0, end, state, np.full((1, 1), 0.3), 3600.0)
+    assert raised.z[mouth] - plain.z[mouth] == pytest.approx(0.3, abs=1e-9)
+    _, same = model.simulate_perturbed({}, t0, end, state, np.zeros((1, 0)), 3600.0)   # no level column: as is
+    assert same.z[mouth] == pytest.approx(plain.z[mouth], abs=1e-12)
+
+
+def test_the_level_error_is_checked_and_stored_only_when_set() -> None:
+    with pytest.raises(ValueError, match="level boundaries' error"):
+        AssimilationConfig(mode="states", level_error=-0.1)
+    assert "level_error" not in AssimilationConfig(mode="states").stored()  # runs stored before resume as they were
+    assert AssimilationConfig(mode="states", level_error=0.5).stored()["level_error"] == 0.5

@@ -88,6 +88,7 @@ __all__ = [
     "Model",
     "ModelState",
     "PerturbableForcing",
+    "PerturbableLevels",
     "Quantity",
     "RunRequest",
     "Snapshots",
@@ -311,6 +312,22 @@ class PerturbableForcing(Protocol):
 
 
 @runtime_checkable
+class PerturbableLevels(Protocol):
+    """Runs with its level boundaries (a tide at a river's mouth) offset by amounts that hold for whole intervals.
+
+    A model with this capability and :class:`PerturbableForcing` takes, in the ``factors`` of
+    :meth:`PerturbableForcing.simulate_perturbed` and :meth:`EnsembleRuns.run_members`, after the columns of
+    :meth:`PerturbableForcing.perturbable_forcing`, one further column per key of :meth:`perturbable_levels`:
+    an offset (m) added to that boundary's level during the interval (not a factor: a level has no natural
+    zero). ``factors`` without those columns leaves the levels as they are.
+    """
+
+    def perturbable_levels(self) -> tuple[str, ...]:
+        """The level boundaries that may be offset (``"boundary:<id>"``)."""
+        ...
+
+
+@runtime_checkable
 class EnsembleRuns(Protocol):
     """Advances several members (each its state and perturbed forcing, shared parameters) in one call."""
 
@@ -342,7 +359,8 @@ class StateLayout:
     places
         Per observable the level point it is measured at (a discharge: the upstream end of its link).
     forcing_places
-        Per perturbable forcing (:class:`PerturbableForcing`) the level point where it enters.
+        Per perturbable forcing (:class:`PerturbableForcing`) and level boundary (:class:`PerturbableLevels`) the
+        level point where it enters.
     """
 
     levels: tuple[str, ...]
@@ -432,6 +450,7 @@ class Variants(Protocol):
 CAPABILITIES: dict[str, type] = {
     "batch runs": BatchRuns,
     "perturbable forcing": PerturbableForcing,
+    "perturbable levels": PerturbableLevels,
     "ensemble runs": EnsembleRuns,
     "state arrays": StateArrays,
     "snapshots": Snapshots,

@@ -332,22 +332,41 @@ class EmbeddedModel(Simulator):
                 mask[a.b_col[bnd]] = True
         return np.flatnonzero(mask)
 
+    def perturbable_levels(self) -> tuple[str, ...]:
+        """The level boundaries (``"boundary:<id>"``), in the order of the compiled forcing columns."""
+        return tuple(self.compiled.forcing_keys[col] for col in self._level_columns)
+
+    @functools.cached_property
+    def _level_columns(self) -> np.ndarray:
+        c = self.compiled
+        a = c.arrays
+        cols = {int(a.b_col[b]) for b in range(a.b_hp.size) if a.b_col[b] >= 0 and c.forcing_is_level[a.b_col[b]]}
+        return np.array(sorted(cols), dtype=np.int64)
+
     def _perturbed_forcing(self, start: pd.Timestamp, end: pd.Timestamp, factors: np.ndarray,
                            interval: float) -> np.ndarray:
-        """Per-member forcing matrices (members, steps, columns): the case's forcing with ``factors`` applied."""
+        """Per-member forcing matrices (members, steps, columns): the case's forcing with ``factors`` applied.
+
+        ``factors`` (members, intervals, columns): a factor per perturbable forcing, then optionally an offset
+        (m) per level boundary (:class:`~.contract.PerturbableLevels`).
+        """
         factors = np.asarray(factors, dtype=float)
         n_steps = round((end - start).total_seconds() / self.dt)
         per = round(float(interval) / self.dt)
         if per < 1 or abs(per * self.dt - float(interval)) > 1e-6:
             raise ValueError(f"the factors' interval ({interval:g} s) must be a whole number of time steps "
                              f"({self.dt:g} s)")
-        cols = self._perturbable_columns
-        if factors.ndim != 3 or factors.shape[2] != cols.size or factors.shape[1] * per < n_steps:
-            raise ValueError(f"factors must have shape (members, intervals >= {-(-n_steps // per)}, {cols.size}), "
-                             f"got {factors.shape}")
+        cols, levels = self._perturbable_columns, self._level_columns
+        widths = (cols.size, cols.size + levels.size)
+        if factors.ndim != 3 or factors.shape[2] not in widths or factors.shape[1] * per < n_steps:
+            raise ValueError(f"factors must have shape (members, intervals >= {-(-n_steps // per)}, {cols.size} "
+                             f"or {widths[1]}), got {factors.shape}")
         base = self.forcing_matrix(start, n_steps)
         forcing = np.repeat(base[None], factors.shape[0], axis=0)
-        forcing[:, :, cols] *= np.repeat(factors, per, axis=1)[:, :n_steps]
+        steps = np.repeat(factors, per, axis=1)[:, :n_steps]
+        forcing[:, :, cols] *= steps[:, :, : cols.size]
+        if factors.shape[2] == widths[1] and levels.size:
+            forcing[:, :, levels] += steps[:, :, cols.size :]
         return forcing
 
     def run_members(self, parameters: Mapping[str, float] | None, start: Any, end: Any,
@@ -390,7 +409,8 @@ class EmbeddedModel(Simulator):
         for bnd in range(a.b_hp.size):
             if a.b_col[bnd] >= 0:
                 entry[int(a.b_col[bnd])] = int(a.b_hp[bnd])
-        forcing_places = {c.forcing_keys[col]: entry[int(col)] for col in self._perturbable_columns}
+        forcing_places = {c.forcing_keys[col]: entry[int(col)]
+                          for col in (*self._perturbable_columns, *self._level_columns)}
         return StateLayout(levels=tuple(c.hp_label), discharges=tuple(c.link_label),
                            link_ends=np.column_stack([a.lk_k1, a.lk_k2]).astype(np.int64),
                            link_length=np.maximum(np.asarray(a.lk_len, dtype=float), 1.0),

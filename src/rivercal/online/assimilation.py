@@ -19,11 +19,14 @@ first cycle or when none is stored), and then per analysis interval
 
 1. advances all members, each with its own inflows and laterals: the model's forcing times log-normal
    AR(1) factors (:mod:`rivercal.assimilate.perturb`; the model error — rain and runoff that were wrong);
-2. analyses the levels and discharges of every point of the model's state, and the members' forcing errors
-   (an augmented state: an error of the rain persists for hours, so the forecast gains from knowing it),
-   with the observations at that time (:mod:`rivercal.assimilate.filters`; localised along the network
-   with the Gaspari–Cohn taper, a forcing error at the point where it enters), and writes them back into
-   the members' states (the model makes the rest of its state consistent with them).
+2. analyses, at the interval's end, the levels and discharges of every point of the model's state, and the
+   members' forcing errors (an augmented state: an error of the rain persists for hours, so the forecast gains
+   from knowing it), with every reading inside the interval, at the sensors' own time stamps (every 10 or 31
+   minutes, seconds off the minute): each reading is compared with the members' series interpolated to its
+   time (:meth:`EnsembleFilter.assimilate`; the asynchronous EnKF, no reading is moved or dropped);
+   :mod:`rivercal.assimilate.filters`, localised along the network with the Gaspari–Cohn taper, a forcing
+   error at the point where it enters; and writes them back into the members' states (the model makes the
+   rest of its state consistent with them).
 
 From t₀ the members forecast the horizon with their forcing perturbed on; the forecast is the ensemble
 mean, its 90 % band the 5 % and 95 % quantiles of the members' values plus the observation error (the
@@ -34,6 +37,7 @@ from __future__ import annotations
 
 import io
 import logging
+import math
 import zipfile
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -51,6 +55,7 @@ from rivercal.models.contract import (
     MemberRuns,
     Model,
     ModelState,
+    has_capability,
     require,
     run_members,
 )
@@ -114,9 +119,15 @@ class AssimilationConfig:
     forcing_error
         σ of the log of the factors on inflows and laterals (0.3: about 30 %).
     forcing_tau
-        Correlation time of the forcing errors: 96 h, as much of a model's inflow error is a bias that persists
-        for days (a catchment's runoff parameters, an event's rain); measured on the realistic PI-Fg twin,
+        Correlation time of the forcing errors (and of the level boundaries' errors): 96 h, as much of a model's
+        inflow error is a bias that persists for days (a catchment's runoff parameters, an event's rain); measured
+        on the realistic PI-Fg twin,
         the issued forecasts' MAE ratio is 1.93 at 24 h, 2.11 at 48 h, 2.23 at 96 h and 2.27 at 168 h.
+    level_error
+        σ of the additive error of each level boundary (a tide at the mouth: the surge the tide prediction does not
+        know), m; for a model with ``perturbable levels`` (:class:`~rivercal.models.contract.PerturbableLevels`).
+        0.3 m is a choice, not a measured figure: set it to the size of the departures from the boundary's series
+        that are expected (the Western Scheldt benchmark takes 0.5 m for a storm surge of up to 3 m).
     seed
         Seed of the perturbations (per cycle, the seed and the cycle number).
     threads
@@ -131,6 +142,7 @@ class AssimilationConfig:
     localisation_m: float = 20_000.0
     forcing_error: float = 0.3
     forcing_tau: str = "96h"
+    level_error: float = 0.3
     seed: int = 0
     threads: int | None = None
 
@@ -145,11 +157,19 @@ class AssimilationConfig:
             raise ValueError("the analysis interval and the forcing correlation time must be positive")
         if not self.inflation >= 1.0 or not self.localisation_m > 0 or not self.forcing_error >= 0:
             raise ValueError("inflation must be >= 1, the localisation half-width > 0 m and the forcing error >= 0")
+        if not (math.isfinite(self.level_error) and self.level_error >= 0):
+            raise ValueError(f"the level boundaries' error must be >= 0 m, got {self.level_error}")
 
     def stored(self) -> dict[str, Any]:
-        """The configuration as stored with the run (the thread count is not part of it)."""
+        """The configuration as stored with the run (the thread count is not part of it).
+
+        ``level_error`` is stored only when it is not the default, so that a run stored before level boundaries
+        were perturbed resumes with the same configuration.
+        """
         out = asdict(self)
         out.pop("threads")
+        if out["level_error"] == AssimilationConfig.level_error:
+            out.pop("level_error")
         return out
 
 
@@ -215,7 +235,10 @@ class EnsembleFilter:
         second = np.where(ends[:, 1] >= 0, ends[:, 1], ends[:, 0])
         rho_q = 0.5 * (rho_h[first] + rho_h[second]) if self.n_l else np.zeros((0, place.size))
         self.keys = tuple(model.perturbable_forcing())
-        entry = np.array([layout.forcing_places[k] for k in self.keys], dtype=np.int64)
+        # level boundaries (a tide at the mouth) get additive errors, in the same augmented state
+        self.level_keys = tuple(model.perturbable_levels()) if has_capability(model, "perturbable levels") else ()
+        self.scale = np.array([config.forcing_error] * len(self.keys) + [config.level_error] * len(self.level_keys))
+        entry = np.array([layout.forcing_places[k] for k in (*self.keys, *self.level_keys)], dtype=np.int64)
         # state rows: levels, discharges, then the forcing errors (augmented state), each localised at its place
         self.rho = np.vstack([rho_h, rho_q, rho_h[entry]])
         self.interval = pd.Timedelta(config.interval)
@@ -223,14 +246,14 @@ class EnsembleFilter:
 
     @property
     def n_forcing(self) -> int:
-        """Number of perturbed inflows and laterals."""
-        return len(self.keys)
+        """Number of perturbed inflows, laterals and level boundaries (the forcing errors' columns)."""
+        return len(self.keys) + len(self.level_keys)
 
     # -- the ensemble and its errors as stored states ------------------------------------------------
 
     def initial(self, state: ModelState, rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray]:
         """A cold ensemble: copies of ``state`` and stationary forcing errors."""
-        errors = self.config.forcing_error * rng.standard_normal((self.config.members, self.n_forcing))
+        errors = self.scale * rng.standard_normal((self.config.members, self.n_forcing))
         return [state] * self.config.members, errors
 
     def to_record(self, members: Sequence[ModelState], errors: np.ndarray) -> tuple[pd.Timestamp, int, str, bytes]:
@@ -276,9 +299,17 @@ class EnsembleFilter:
 
     def _factors(self, n_intervals: int, errors: np.ndarray,
                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Per-member factors (members, intervals, forcing) over ``n_intervals``, and the errors at their end."""
-        e = ar1_series(rng, n_intervals, errors.shape, self.config.forcing_error, self.tau_steps, initial=errors)
-        return multiplicative_factors(e, self.config.forcing_error).transpose(1, 0, 2), e[-1]
+        """Per-member factors (members, intervals, forcing) over ``n_intervals``, and the errors at their end.
+
+        The errors are AR(1) in time, each column with its own σ (:attr:`scale`): log-normal factors of mean one
+        on the inflows and laterals, then additive offsets (m) on the level boundaries
+        (:class:`~rivercal.models.contract.PerturbableLevels`).
+        """
+        unit = np.divide(errors, self.scale, out=np.zeros_like(errors, dtype=float), where=self.scale > 0)
+        e = ar1_series(rng, n_intervals, errors.shape, 1.0, self.tau_steps, initial=unit) * self.scale
+        n = len(self.keys)
+        factors = np.concatenate([multiplicative_factors(e[..., :n], self.config.forcing_error), e[..., n:]], axis=-1)
+        return factors.transpose(1, 0, 2), e[-1]
 
     def _run(self, parameters: dict[str, float], start: pd.Timestamp, end: pd.Timestamp,
              members: Sequence[ModelState], factors: np.ndarray, output_interval: float) -> MemberRuns:
@@ -328,34 +359,89 @@ class EnsembleFilter:
     def assimilate(self, members: list[ModelState], errors: np.ndarray, parameters: dict[str, float],
                    end: pd.Timestamp, observed: pd.DataFrame,
                    rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray, int]:
-        """Advance the members to ``end``, analysing at every interval.
+        """Advance the members to ``end``, analysing at the end of every interval with the readings inside it.
 
-        ``observed`` is a wide table (UTC index, one column per series of :attr:`series`; NaN: missing).
-        Returns the members at ``end``, their forcing errors and the number of analyses made.
+        ``observed`` is a wide table (UTC index, one column per series of :attr:`series`; NaN: missing) at the
+        readings' own time stamps, which need not fall on the analysis times (a sensor every 31 minutes, with
+        second offsets). The analysis at the end of the interval (t, t + interval] uses every reading whose
+        time lies in it (:meth:`_readings`); the start of the first interval (the members' time) belongs to
+        the interval before it, which the previous cycle analysed. Returns the members at ``end``, their forcing
+        errors and the number of analyses made.
         """
         t = members[0].time
         analyses = 0
         analysis = FILTERS[self.config.method]
+        observed = observed.reindex(columns=self.series).sort_index()
         while t < end:
             nxt = min(t + self.interval, end)
             factors, errors = self._factors(1, errors, rng)
-            result = self._run(parameters, t, nxt, members, factors, (nxt - t).total_seconds())
+            result = self._run(parameters, t, nxt, members, factors, self._output_step(nxt - t))
             members, errors, values = self._survivors(result, errors, rng)
+            inside = observed[(observed.index > t) & (observed.index <= nxt)]
             t = nxt
-            if t in observed.index:
-                y = observed.loc[t, self.series].to_numpy(dtype=float)
-                if np.isfinite(y).any():
-                    predicted = values[:, -1, self.columns].T
-                    members, errors = self._analyse(members, errors, predicted, y, analysis, rng)
-                    analyses += 1
+            predicted, y, which = self._readings(result.times, values, inside)
+            if y.size:
+                members, errors = self._analyse(members, errors, predicted, y, analysis, rng, which)
+                analyses += 1
         return members, errors, analyses
 
+    def _output_step(self, span: pd.Timedelta) -> float:
+        """Output step of the members inside an interval, s: the model's output interval where it divides it.
+
+        The members are interpolated to a reading's time between their outputs either side of it; a model gives
+        its series at multiples of its own output interval (SWMM's report step: no finer), so a model whose output
+        interval is the analysis interval or does not divide it is interpolated between the interval's ends.
+        """
+        seconds = span.total_seconds()
+        step = float(getattr(self.model, "output_interval", 0.0) or 0.0)
+        if 0 < step < seconds and abs(seconds / step - round(seconds / step)) < 1e-9:
+            return step
+        return seconds
+
+    def _readings(self, times: pd.DatetimeIndex, values: np.ndarray,
+                  inside: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The readings of an interval and each member's prediction of them.
+
+        Every finite reading is one observation of the analysis. Its prediction is the member's simulated value
+        interpolated linearly in time between the member's outputs either side of the reading's time (the
+        members' series over the interval, ``values`` of shape (members, times, observables) at ``times``); the
+        analysis at the interval's end then updates the state at that end with its ensemble covariance with
+        the predicted readings at their earlier times — the asynchronous EnKF of Sakov, Evensen and Bertino
+        (2010, Tellus A 62:24–29), exact for a linear model over the interval. Two readings of one series in an
+        interval are two observations with independent errors (σ of the series each).
+
+        Returns
+        -------
+        tuple
+            Predicted readings (readings, members), the readings (readings,; m or m³/s) and the index of each
+            reading's series in :attr:`series`.
+        """
+        if inside.empty:
+            return np.zeros((0, values.shape[0])), np.zeros(0), np.zeros(0, dtype=np.int64)
+        grid = (times - times[0]).total_seconds().to_numpy()
+        at = (inside.index - times[0]).total_seconds().to_numpy()
+        y = inside.to_numpy(dtype=float)                                  # (stamps, series)
+        rows, which = np.nonzero(np.isfinite(y))
+        if rows.size == 0:
+            return np.zeros((0, values.shape[0])), np.zeros(0), np.zeros(0, dtype=np.int64)
+        i = np.clip(np.searchsorted(grid, at, side="right") - 1, 0, max(grid.size - 2, 0))
+        j = np.minimum(i + 1, grid.size - 1)
+        width = np.where(grid[j] > grid[i], grid[j] - grid[i], 1.0)
+        w = np.clip((at - grid[i]) / width, 0.0, 1.0)                      # weight of the later output
+        series = values[:, :, self.columns]                                 # (members, times, series)
+        lo, hi = series[:, i[rows], which], series[:, j[rows], which]       # (members, readings)
+        predicted = ((1.0 - w[rows]) * lo + w[rows] * hi).T
+        return predicted, y[rows, which], which.astype(np.int64)
+
     def _analyse(self, members: list[ModelState], errors: np.ndarray, predicted: np.ndarray, y: np.ndarray,
-                 analysis: Any, rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray]:
+                 analysis: Any, rng: np.random.Generator,
+                 which: np.ndarray | None = None) -> tuple[list[ModelState], np.ndarray]:
+        """Analyse the members with readings ``y`` of the series ``which`` (default: one of each, in order)."""
+        which = np.arange(len(self.series)) if which is None else which
         arrays = [self.model.state_arrays(m) for m in members]
         x = np.vstack([np.array([np.concatenate([z, q]) for z, q in arrays]).T, errors.T])
-        kwargs = {"rng": rng, "inflation": self.config.inflation, "rho_state": self.rho}
-        xa = analysis(x, predicted, y, self.sigma**2, **kwargs)
+        kwargs = {"rng": rng, "inflation": self.config.inflation, "rho_state": self.rho[:, which]}
+        xa = analysis(x, predicted, y, self.sigma[which] ** 2, **kwargs)
         out = [self.model.with_state_arrays(m, xa[: self.n_h, k], xa[self.n_h : self.n_h + self.n_l, k])
                for k, m in enumerate(members)]
         return out, np.ascontiguousarray(xa[self.n_h + self.n_l :].T)

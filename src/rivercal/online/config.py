@@ -27,7 +27,8 @@ from rivercal.models.contract import FromCase, Model
 from rivercal.problem import LOSSES
 from rivercal.store import Schedule
 
-__all__ = ["DEFAULT_RESOLUTION", "SETTING_NAMES", "OnlineConfig", "OnlineConfigError", "check_schedule", "span"]
+__all__ = ["DEFAULT_RESOLUTION", "SETTING_NAMES", "WHITE_COLEBROOK_RELATIVE_RESOLUTION", "OnlineConfig",
+           "OnlineConfigError", "check_schedule", "default_resolution", "span"]
 
 
 class OnlineConfigError(ValueError):
@@ -58,9 +59,31 @@ class OnlineConfigError(ValueError):
         return (type(self), (self.field, self.problem, self.value))
 
 
-#: Resolution d of the identifiability gate and alert floor for the parameters of the packaged cases,
-#: by unit (the smallest change that matters in operation).
-DEFAULT_RESOLUTION = {"m^(1/3)/s": 0.5, "m AD": 0.01, "m": 0.01, "-": 0.01}
+#: Resolution d of the identifiability gate and alert floor, by unit (the smallest change that matters in
+#: operation): 1 cm of a level or crest, 1 % of a factor, and per friction law the change of the friction that
+#: changes the conveyance (∝ k_s ∝ 1/n ∝ C) by about 1.5 %, the share of the operator's 0.5 m^(1/3)/s of
+#: Strickler (thesis §4-2) at a typical k_s of 30–35 m^(1/3)/s: Manning n 0.0005 s/m^(1/3) (dn = n dk_s/k_s,
+#: 1.5 % of n = 0.033), Chézy 0.5 m^(1/2)/s (C = k_s R^(1/6): the same share of a C of 30–40 m^(1/2)/s at a
+#: hydraulic radius of 1–4 m). White-Colebrook's k_n shares the unit m with a crest and is relative: see
+#: :data:`WHITE_COLEBROOK_RELATIVE_RESOLUTION`.
+DEFAULT_RESOLUTION = {"m^(1/3)/s": 0.5, "s/m^(1/3)": 0.0005, "m^(1/2)/s": 0.5, "m AD": 0.01, "m": 0.01, "-": 0.01}
+#: Resolution of a White-Colebrook roughness height k_n, as a share of its value: C = 18 log10(12 R/k_n) moves
+#: by 18/ln 10 · Δk_n/k_n = 0.63 m^(1/2)/s for 8 %, about 1.5 % of a C of 40 m^(1/2)/s, as for the other laws.
+WHITE_COLEBROOK_RELATIVE_RESOLUTION = 0.08
+
+
+def default_resolution(parameter: Any) -> float:
+    """A parameter's resolution when the configuration names none, in its unit.
+
+    From :data:`DEFAULT_RESOLUTION` by unit; a friction parameter in m (a White-Colebrook k_n, whose targets
+    are all ``friction:…``) gets :data:`WHITE_COLEBROOK_RELATIVE_RESOLUTION` of its initial value instead of a
+    crest's 1 cm; any other unit 1 % of the parameter's range.
+    """
+    targets = [str(t) for t in (getattr(parameter, "targets", None) or [])]
+    friction = bool(targets) and all(t.startswith("friction:") for t in targets)
+    if friction and parameter.unit == "m":
+        return WHITE_COLEBROOK_RELATIVE_RESOLUTION * abs(float(parameter.initial))
+    return float(DEFAULT_RESOLUTION.get(parameter.unit, 0.01 * (parameter.max - parameter.min)))
 
 
 @dataclass(frozen=True)
@@ -87,7 +110,7 @@ class OnlineConfig:
         the parameter's unit; missing: its whole range.
     resolution
         Per parameter, the smallest change that matters (identifiability gate scale and alert floor);
-        missing: from :data:`DEFAULT_RESOLUTION` by unit, else 1 % of the range.
+        missing: :func:`default_resolution` (by unit and friction law, else 1 % of the range).
     gate_sv, gate_index
         Identifiability gate thresholds (module docstring); ``gate_sv = 0`` disables the gate.
     alert_k

@@ -3,7 +3,11 @@
 Identifiability gate
     The final Jacobian J of the weighted residuals (the DuD secant matrix, or the optimiser's
     finite-difference Jacobian) is scaled column-wise by each parameter's *resolution* d (the
-    smallest change that matters to the operator: 0.5 m^(1/3)/s of friction, 1 cm of crest). A
+    smallest change that matters to the operator: 0.5 m^(1/3)/s of friction, 1 cm of crest;
+    :func:`rivercal.online.config.default_resolution`). J is the optimiser's, with respect to the
+    parameters in optimiser units (the log of a ``transform = "ln"`` parameter), so d is converted to those
+    units at the estimate first (:func:`optimiser_resolution`: d/θ for ``ln``): a Manning n of 0.035 with a
+    resolution of 0.0005 s/m^(1/3) is a step of 0.014 in ln n, not 0.0005. A
     singular value s_j of J·diag(d) is the square root of the cost increase when the parameters move
     by their resolutions along singular vector j; directions with s_j < ``gate_sv`` (default 1: less
     than one σ in the whole window) are unseen. A parameter whose identifiability index (Doherty and
@@ -28,7 +32,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -38,7 +42,8 @@ from rivercal.errors import ModelRunError
 from rivercal.problem import CalibrationProblem
 from rivercal.store import AlertRecord, CycleSpec, Run, Store
 
-__all__ = ["accepted_at", "data_alerts", "gate", "jump_alert", "jumps", "limit_alerts"]
+__all__ = ["accepted_at", "data_alerts", "gate", "jump_alert", "jumps", "limit_alerts", "optimiser_resolution",
+           "unobserved_series"]
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +68,7 @@ def gate(problem: CalibrationProblem, result: Any, resolution: Mapping[str, floa
             return dict.fromkeys(problem.parameters.names, reason), 0
         jac, extra = fd.matrix, fd.nfev
     names = problem.parameters.names
-    scale = np.array([resolution[n] for n in names])
+    scale = optimiser_resolution(problem.parameters, np.asarray(result.x, dtype=float), resolution)
     seen = int(np.count_nonzero(np.linalg.svd(jac * scale, compute_uv=False) >= gate_sv))
     ident = analyse_jacobian(jac, names, scale=scale, options=IdentifiabilityOptions(k=seen))
     held = {}
@@ -74,6 +79,30 @@ def gate(problem: CalibrationProblem, result: Any, resolution: Mapping[str, floa
                        f"{gate_sv:g} (a change of {resolution[n]:g} {units.get(n, '')} "
                        f"moves the cost by less than that); held at its last accepted value")
     return held, extra
+
+
+def optimiser_resolution(parameters: Any, x: np.ndarray, resolution: Mapping[str, float]) -> np.ndarray:
+    """Each parameter's resolution (its physical unit) as a step in optimiser units at the point ``x``.
+
+    The step from the value θ at ``x`` to θ + d, through the parameter's transform: d for ``offset`` and
+    ``factor`` (whose optimiser value is the physical one), ln(1 + d/θ) ≈ d/θ for ``ln`` (θ > 0 there).
+
+    Parameters
+    ----------
+    parameters
+        The :class:`~rivercal.parameters.ParameterSet` of ``x``.
+    x
+        The point, optimiser units.
+    resolution
+        Per parameter name, d in the parameter's unit.
+
+    Returns
+    -------
+    numpy.ndarray
+        The steps, optimiser units, in the order of the parameters.
+    """
+    return np.array([abs(p.to_x(p.from_x(float(xi)) + abs(float(resolution[p.name]))) - float(xi))
+                     for p, xi in zip(parameters, np.asarray(x, dtype=float), strict=True)])
 
 
 def jumps(warm: Mapping[str, float], accepted: Mapping[str, float], sigma: Mapping[str, float],
@@ -144,14 +173,37 @@ def limit_alerts(parameters: Any, warm: Mapping[str, float], estimates: Mapping[
     return out
 
 
-def data_alerts(observations: Any, window: Any, interval_s: float, min_coverage: float) -> list[AlertRecord]:
-    """A ``data`` alert when a series covers less than ``min_coverage`` of the window's values (interval in s)."""
+def data_alerts(observations: Any, window: Any, interval_s: float, min_coverage: float, *, store: Any = None,
+                first: bool = True) -> list[AlertRecord]:
+    """``data`` alerts of a window's observations (interval in s).
+
+    A series that covers less than ``min_coverage`` of the window's values (one per ``interval_s``) gets
+    an alert every cycle: a gauge that fell silent or thinned out matters each time. A series the
+    configuration names but of which the store holds no reading at all (a station declared with ``h`` and
+    ``Q`` whose discharge nobody measures; :func:`unobserved_series`, asked only when ``store`` is given) is
+    not a thin series: it is named once, in the run's first cycle (``first``), and left out of the coverage
+    check until readings arrive.
+    """
     import pandas as pd
 
     expected = int(pd.Timedelta(window) / pd.Timedelta(seconds=interval_s)) + 1
     coverage = {s.id: len(s) / expected for s in observations}
-    thin = {k: v for k, v in coverage.items() if v < min_coverage}
-    if not thin:
+    never = set(unobserved_series(store, [k for k, v in coverage.items() if v == 0])) if store is not None else set()
+    thin = {k: v for k, v in coverage.items() if v < min_coverage and k not in never}
+    out = []
+    if never and first:
+        out.append(AlertRecord("data", "no reading of " + ", ".join(sorted(never)) + " is stored: "
+                               + ("it is" if len(never) == 1 else "they are") + " left out of the calibration and "
+                               "the coverage check until readings arrive (said once, in the run's first cycle)"))
+    if thin:
+        out.append(AlertRecord("data", f"observations cover less than {min_coverage:.0%} of the window at "
+                               + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items()))))
+    return out
+
+
+def unobserved_series(store: Any, series: Sequence[str]) -> list[str]:
+    """The series of which ``store`` holds no reading at all, from any source at any time (in the given order)."""
+    if not series:
         return []
-    return [AlertRecord("data", f"observations cover less than {min_coverage:.0%} of the window at "
-                        + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items())))]
+    known = set(store.availability(list(series))["series"])
+    return [s for s in series if s not in known]

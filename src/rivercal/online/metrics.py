@@ -14,6 +14,13 @@ own. Everything here reads a store; nothing runs a model.
   observations, or against a twin's noise-free truth);
 - :func:`band_coverage`: the share of the observations inside the stored forecast bands.
 
+Readings and forecasts are paired by time, not by equal time stamps (:func:`at_readings`): each reading is
+compared with the forecast interpolated linearly to the reading's time, between the forecast's values either
+side of it, and only inside the forecast's span (from its first to its last time; never extrapolated). A
+reading on a forecast's own time is compared with that value, so readings on the whole hours score as before;
+a sensor every 31 minutes, or a reading a minute off the hour, is scored as well. The reading's lead time is
+interpolated alike (a reading 1 min after the 1 h value has a lead of 1.017 h).
+
 Headline figures (:func:`run_figures`)
 --------------------------------------
 
@@ -66,8 +73,8 @@ from rivercal.analysis.residuals import summary_statistics
 from rivercal.store import Run, Store
 
 __all__ = ["CREST_TOLERANCE_M", "LEAD_BUCKETS_H", "MAE_BUCKETS_H", "RELATIVE_TOLERANCE", "SCORE_COLUMNS",
-           "ChangeFacts", "band_coverage", "forecast_errors", "mae_by_lead", "run_figures", "run_metrics",
-           "score_forecasts"]
+           "ChangeFacts", "at_readings", "band_coverage", "forecast_errors", "mae_by_lead", "run_figures",
+           "run_metrics", "score_forecasts"]
 
 #: Default lead-time bucket edges of the scores, h: (0, 6], (6, 12], (12, 24], (24, 48] (the first includes 0).
 LEAD_BUCKETS_H: tuple[float, ...] = (0, 6, 12, 24, 48)
@@ -129,6 +136,65 @@ def _run(store: Store, run: Run | str) -> Run:
     return found
 
 
+
+# -- pairing readings with forecasts by time ----------------------------------------------------------------
+
+
+def at_readings(table: pd.DataFrame, keys: Sequence[str], observed: pd.DataFrame,
+                values: Sequence[str]) -> pd.DataFrame:
+    """Each reading with the columns ``values`` of every forecast in ``table`` interpolated to its time.
+
+    Parameters
+    ----------
+    table
+        Long table of forecasts (or bands) with the columns ``keys`` (one forecast per combination; ``series``
+        among them), ``time`` (UTC) and ``values`` (e.g. value and lead_h; m, m³/s or h).
+    keys
+        The columns that name one forecast, e.g. cycle, kind, series.
+    observed
+        Readings: columns series, time (UTC), value (m AD or m³/s), at any time stamps.
+    values
+        The columns of ``table`` to interpolate linearly in time to each reading's time.
+
+    Returns
+    -------
+    DataFrame
+        One row per (forecast, reading inside the forecast's span): ``keys``, ``time`` (the reading's),
+        ``values`` (interpolated) and ``value_obs`` (the reading). Readings before a forecast's first time or
+        after its last are not paired with it (no extrapolation); NaN values of a forecast are left out.
+    """
+    keys, values = list(keys), list(values)
+    out_columns = [*keys, "time", *values, "value_obs"]
+    table = table.dropna(subset=values)
+    readings = observed[["series", "time", "value"]].dropna().rename(columns={"value": "value_obs"})
+    if table.empty or readings.empty:
+        return pd.DataFrame(columns=out_columns)
+    table = table.sort_values([*keys, "time"], kind="stable").reset_index(drop=True)
+    group = table.groupby(keys, sort=False, dropna=False).ngroup().to_numpy()
+    epoch = min(table["time"].min(), readings["time"].min())
+    seconds = (table["time"] - epoch).dt.total_seconds().to_numpy()
+    first = table.groupby(group)["time"].transform("min")
+    spans = table.assign(group=group, start=first, end=table.groupby(group)["time"].transform("max"))
+    spans = spans.drop_duplicates("group")[[*keys, "group", "start", "end"]]
+    pairs = spans.merge(readings, on="series")
+    pairs = pairs[(pairs["time"] >= pairs["start"]) & (pairs["time"] <= pairs["end"])]
+    if pairs.empty:
+        return pd.DataFrame(columns=out_columns)
+    # one sorted key over every forecast: its group, then its time (seconds from the earliest time)
+    width = float(max(seconds.max(), (pairs["time"] - epoch).dt.total_seconds().max())) + 1.0
+    key = group * width + seconds
+    at = pairs["group"].to_numpy() * width + (pairs["time"] - epoch).dt.total_seconds().to_numpy()
+    hi = np.clip(np.searchsorted(key, at, side="left"), 0, key.size - 1)
+    lo = np.where(key[hi] == at, hi, np.maximum(hi - 1, 0))
+    gap = key[hi] - key[lo]
+    w = np.where(gap > 0, (at - key[lo]) / np.where(gap > 0, gap, 1.0), 0.0)   # weight of the later value
+    out = pairs[[*keys, "time", "value_obs"]].reset_index(drop=True)
+    for column in values:
+        v = table[column].to_numpy(dtype=float)
+        out[column] = (1.0 - w) * v[lo] + w * v[hi]
+    return out[out_columns]
+
+
 # -- forecast scores ---------------------------------------------------------------------------------------
 
 
@@ -143,7 +209,8 @@ def score_forecasts(forecasts: pd.DataFrame, observed: pd.DataFrame,
         :meth:`rivercal.store.Store.forecasts` returns it.
     observed
         Columns series, time (UTC), value, one value per series and time (as
-        :meth:`rivercal.store.Store.observation_table` returns it); matched to forecasts at equal times.
+        :meth:`rivercal.store.Store.observation_table` returns it), at any time stamps: each is compared with
+        the forecast interpolated to its time (:func:`at_readings`), with the lead time interpolated alike.
     buckets_h
         Increasing bucket edges, h; bucket (a, b] (the first includes a). Leads outside are not scored.
 
@@ -162,7 +229,7 @@ def score_forecasts(forecasts: pd.DataFrame, observed: pd.DataFrame,
     edges = np.asarray(buckets_h, dtype=float)
     if edges.ndim != 1 or edges.size < 2 or not (np.diff(edges) > 0).all():
         raise ValueError(f"lead-time buckets must be at least two increasing edges (h), got {list(buckets_h)}")
-    pairs = forecasts.merge(observed[["series", "time", "value"]], on=["series", "time"], suffixes=("", "_obs"))
+    pairs = at_readings(forecasts, ["cycle", "kind", "series"], observed, ["value", "lead_h"])
     if pairs.empty:
         return pd.DataFrame(columns=SCORE_COLUMNS)
     lead = pairs["lead_h"].to_numpy(float)
@@ -218,7 +285,7 @@ def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, l
         out["reason"] = _no_cycle_after(run, cycles, utc(after))
         return out
     fc = store.forecasts(run)
-    fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] > 0) & (fc["lead_h"] <= lead_h)]
+    fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] >= 0) & (fc["lead_h"] <= lead_h)]
     if not fc.empty:
         fc = fc[fc["series"].str.rpartition(".")[2].isin(_LEVELS)]
     if fc.empty:
@@ -228,8 +295,7 @@ def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, l
     obs = [s for s in store.observations(series, fc["time"].min(), fc["time"].max()) if len(s)]
     joined = fc.iloc[:0]
     if obs:
-        observed = pd.concat({s.id: pd.Series(s.values, index=s.times) for s in obs}, names=["series", "time"])
-        joined = fc.join(observed.rename("observed"), on=["series", "time"], how="inner")
+        joined = _paired(fc, obs)
     if joined.empty:
         out["reason"] = _no_observations(store, series, fc)
         return out
@@ -243,6 +309,18 @@ def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, l
     out.update(n=int(n.min()), updated_mae_m=float(mae["updated"]), dss_mae_m=float(mae["dss"]),
                ratio=float(mae["dss"] / mae["updated"]) if mae["updated"] > 0 else None)
     return out
+
+
+def _paired(fc: pd.DataFrame, obs: Sequence[Any]) -> pd.DataFrame:
+    """Forecasts (cycle, kind, series) at the times of the readings ``obs`` (observation series), lead > 0.
+
+    Paired as :func:`at_readings` pairs them: columns cycle, kind, series, time, value, lead_h, observed.
+    """
+    observed = pd.concat([pd.DataFrame({"series": s.id, "time": s.times, "value": np.asarray(s.values, float)})
+                          for s in obs], ignore_index=True)
+    pairs = at_readings(fc, ["cycle", "kind", "series"], observed, ["value", "lead_h"])
+    pairs = pairs[(pairs["lead_h"] > 0) & (pairs["lead_h"] <= fc["lead_h"].max())] if len(pairs) else pairs
+    return pairs.rename(columns={"value_obs": "observed"})
 
 
 def _no_cycle_after(run: Run, cycles: pd.DataFrame, after: pd.Timestamp) -> str:
@@ -267,7 +345,7 @@ def _no_observations(store: Store, series: list[str], fc: pd.DataFrame) -> str:
     if last_obs < first_fc:
         return (f"the observations end at {last_obs:%Y-%m-%d %H:%M}, before the forecasts' first lead time "
                 f"({first_fc:%Y-%m-%d %H:%M})")
-    return (f"no observation falls on a forecast time between {first_fc:%Y-%m-%d %H:%M} and "
+    return (f"no observation falls in the forecasts' times between {first_fc:%Y-%m-%d %H:%M} and "
             f"{fc['time'].max():%Y-%m-%d %H:%M}")
 
 
@@ -278,10 +356,6 @@ def _span(text: str) -> str:
         if seconds >= size and seconds % size == 0:
             return _count(int(seconds // size), unit)
     return _count(int(seconds), "second") if seconds == int(seconds) else f"{seconds:g} s"
-
-
-def _count(n: int, noun: str) -> str:
-    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def _count(n: int, noun: str) -> str:
@@ -327,7 +401,7 @@ def _forecast_figures(store: Store, run: Run, cycles: pd.DataFrame, change: pd.T
     if keep.empty:
         return out
     fc = store.forecasts(run)
-    fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] > 0) & (fc["lead_h"] <= lead_h)]
+    fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] >= 0) & (fc["lead_h"] <= lead_h)]
     fc = fc[fc["series"].str.rpartition(".")[2].isin(_LEVELS)] if len(fc) else fc
     if fc.empty:
         return out
@@ -335,8 +409,9 @@ def _forecast_figures(store: Store, run: Run, cycles: pd.DataFrame, change: pd.T
            if len(s)]
     if not obs:
         return out
-    observed = pd.concat({s.id: pd.Series(s.values, index=s.times) for s in obs}, names=["series", "time"])
-    joined = fc.join(observed.rename("observed"), on=["series", "time"], how="inner")
+    joined = _paired(fc, obs)
+    if joined.empty:
+        return out
     joined["abs_error"] = (joined["value"] - joined["observed"]).abs()
     wide = joined.pivot_table(index=["cycle", "series", "time"], columns="kind", values="abs_error").dropna()
     if wide.empty or not {"updated", "dss"} <= set(wide.columns):
@@ -431,7 +506,8 @@ def mae_by_lead(store: Store, run: Run, series: Sequence[str], truth: pd.DataFra
     """Mean absolute error (m) of the stored level forecasts per kind and lead bucket.
 
     Against ``truth`` (a twin's noise-free series: wide, UTC index) when given, else against the stored
-    observations (whose error then adds to the forecast's).
+    observations (whose error then adds to the forecast's), each paired with the forecast interpolated to its
+    time (:func:`at_readings`).
     """
     levels = [s for s in series if s.rpartition(".")[2] in ("h", "h_up", "h_down")]
     fc = store.forecasts(run)
@@ -444,7 +520,7 @@ def mae_by_lead(store: Store, run: Run, series: Sequence[str], truth: pd.DataFra
     else:
         long = truth[[c for c in levels if c in truth.columns]].rename_axis("time").reset_index()
         reference = long.melt(id_vars="time", var_name="series", value_name="value")
-    pairs = fc.merge(reference[["series", "time", "value"]], on=["series", "time"], suffixes=("", "_obs"))
+    pairs = at_readings(fc, ["cycle", "kind", "series"], reference, ["value", "lead_h"])
     for kind, part in pairs.groupby("kind"):
         err = (part["value"] - part["value_obs"]).abs()
         out[str(kind)] = {}
@@ -458,17 +534,20 @@ def mae_by_lead(store: Store, run: Run, series: Sequence[str], truth: pd.DataFra
 def band_coverage(store: Store, run: Run, *, sources: Sequence[str] | None = None) -> dict[str, Any]:
     """Share of the stored level observations inside the run's stored forecast bands, lead > 0.
 
+    Each reading is compared with the band interpolated linearly to its time (:func:`at_readings`).
+
     ``n`` is the number of (band, observation) pairs; ``sources`` as for the store's observation table.
     """
     bands = store.forecast_bands(run)
     if len(bands):
-        bands = bands[bands["series"].str.rpartition(".")[2].isin(("h", "h_up", "h_down")) & (bands["lead_h"] > 0)]
+        bands = bands[bands["series"].str.rpartition(".")[2].isin(("h", "h_up", "h_down")) & (bands["lead_h"] >= 0)]
     if bands.empty:
         return {"n": 0, "fraction": None}
     obs = store.observation_table(sorted(bands["series"].unique()), bands["time"].min(), bands["time"].max(),
                                   sources=sources)
-    pairs = bands.merge(obs[["series", "time", "value"]], on=["series", "time"])
-    inside = (pairs["value"] >= pairs["low"]) & (pairs["value"] <= pairs["high"])
+    pairs = at_readings(bands, ["cycle", "series"], obs, ["low", "high", "lead_h"])
+    pairs = pairs[pairs["lead_h"] > 0]
+    inside = (pairs["value_obs"] >= pairs["low"]) & (pairs["value_obs"] <= pairs["high"])
     return {"n": len(pairs), "fraction": float(inside.mean()) if len(pairs) else None,
             "probability": float(bands["probability"].iloc[0])}
 

@@ -46,7 +46,7 @@ from rivercal.models.contract import Model, ModelState, spun_up
 from rivercal.observations import DEFAULT_SIGMA, ObservationSet, measurable
 from rivercal.online import guardrails, intervention
 from rivercal.online.assimilation import AssimilationConfig, EnsembleFilter
-from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig, check_schedule
+from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig, check_schedule, default_resolution
 from rivercal.online.metrics import ChangeFacts, run_metrics, score_forecasts
 from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
@@ -184,7 +184,7 @@ class OnlineService:
         p = self.parameters[name]
         if name in self.config.resolution:
             return float(self.config.resolution[name])
-        return DEFAULT_RESOLUTION.get(p.unit, 0.01 * (p.max - p.min))
+        return default_resolution(p)
 
     def data_period(self, last_issue: Any) -> tuple[pd.Timestamp, pd.Timestamp]:
         """The period (UTC) whose observations the cycles up to ``last_issue`` use.
@@ -252,7 +252,8 @@ class OnlineService:
                                       sources=list(self.config.sources) if self.config.sources else None,
                                       sigma=self.config.sigma if self.config.sigma is not None else DEFAULT_SIGMA)
         state, hot = self._state("updated", run_start, self._quantities(warm, change, run_start))
-        thin = guardrails.data_alerts(obs, self.window, self.config.output_interval_s, self.config.min_coverage)
+        thin = guardrails.data_alerts(obs, self.window, self.config.output_interval_s, self.config.min_coverage,
+                                      store=self.store, first=spec.cycle == 0)
         est = _Estimation(estimates=dict(warm), change=change, alerts=thin, notes=self._flag_note(spec))
         if obs.n_values == 0:
             est.status = "failed"
