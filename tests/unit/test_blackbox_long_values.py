@@ -2,8 +2,9 @@
 
 A format spec of 3,000 characters was quoted whole, twice (once by rivercal, once inside Python's own
 complaint), in a message of over 6,000 characters; the fuzz of the model file's fields requires every
-message to stay short. Quantity names and output series names are quoted the same way, and a path (a template
-whose name is too long for the system) is shown by its start and end.
+message to stay short. Quantity names, output series names and environment variables (also in the field
+path) are quoted the same way, and a path (a template whose name is too long for the system) is shown by its
+start and end.
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ LONG = "a" * 3000
     ('"S.h" = "level"', f'"{LONG}" = "level"', r"blackbox\.outputs", "is not '<station>.<quantity>'"),
     ('templates = [{ source = "input.json.tmpl" }]', f'templates = [{{ source = "{LONG}" }}]',
      r"blackbox\.templates\[0\]\.source", "is unreadable (File name too long)"),
+    ('env = { TOY_MODE = "" }', f'env = {{ TOY_MODE = "", {LONG} = "\\u0000" }}', r"blackbox\.env\.a{40}…:",
+     "is not an environment variable"),
 ])
 def test_a_long_value_is_quoted_by_its_start_and_length(tmp_path, old, new, field, why) -> None:
     make_model(tmp_path)

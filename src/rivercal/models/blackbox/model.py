@@ -128,7 +128,8 @@ class BlackBoxModel:
         self._formats = {name: q.format for name, q in bb.quantities.items()}
         for name, q in bb.quantities.items():
             if _too_wide(q.format):
-                raise error(f"blackbox.quantities.{name}.format", f"{q.format!r}: a width or precision above 999")
+                raise error(f"blackbox.quantities.{_key(name)}.format", f"{excerpt(q.format)}: a width or precision "
+                            "above 999")
         runs_dir = _runs_dir(bb.runs_dir, root, self.folder, self.name, error)
         self.templates: list[tuple[Template, str]] = []
         sources: list[str] = []
@@ -160,7 +161,7 @@ class BlackBoxModel:
             raise error("blackbox.command", f"an item cannot be rendered ({exc})") from None
         for key, value in bb.env.items():
             if not key or "=" in key or "\0" in key or "\0" in value:
-                raise error(f"blackbox.env.{key}", f"{excerpt(key)} = {excerpt(value)} is not an environment "
+                raise error(f"blackbox.env.{_key(key)}", f"{excerpt(key)} = {excerpt(value)} is not an environment "
                             "variable (a name without '=' and NUL, a value without NUL)")
         self.outputs: list[str] = []
         self.observables: list[str] = []
@@ -434,6 +435,11 @@ class BlackBoxModel:
             for produced, target in zip(self.restart_out, self.restart_in, strict=True):
                 files[Path(target).name] = _read_restart(run_dir, produced, fail)
         return series, files
+
+
+def _key(name: str, limit: int = 40) -> str:
+    """A key of model.toml as a field path shows it: whole when short, else its start (the message quotes it)."""
+    return name if len(name) <= limit else name[:limit] + "…"
 
 
 def _shown(path: Path | str, limit: int = 200) -> str:
