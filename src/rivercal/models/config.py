@@ -81,6 +81,15 @@ class ModelMeta(_Model):
         return self
 
 
+#: Longest text of the user's that a message quotes whole (a longer one is cut, with its length).
+_SHOWN = 80
+
+
+def _quoted(text: str) -> str:
+    """A value of the model file as a message quotes it: whole when short, else its start and its length."""
+    return repr(text) if len(text) <= _SHOWN else f"{text[:_SHOWN]!r}… ({len(text):,} characters)"
+
+
 class QuantitySpec(_Model):
     """A settable quantity of a black box (a placeholder of its templates)."""
 
@@ -97,7 +106,8 @@ class QuantitySpec(_Model):
         try:
             format(1.5, value)
         except ValueError as exc:
-            raise ValueError(f"{value!r} is not a format spec for a number ({exc})") from None
+            why = str(exc).replace(value, "…") if len(value) > _SHOWN else str(exc)
+            raise ValueError(f"{_quoted(value)} is not a format spec for a number ({why})") from None
         return value
 
     @model_validator(mode="after")
@@ -125,7 +135,8 @@ class TemplateSpec(_Model):
         for suffix in (".tmpl", ".template"):
             if self.source.endswith(suffix):
                 return self.source[: -len(suffix)]
-        raise ValueError(f"template {self.source!r}: give a target (the source has no .tmpl or .template suffix)")
+        raise ValueError(f"template {_quoted(self.source)}: give a target (the source has no .tmpl or .template "
+                         "suffix)")
 
 
 class OutputSpec(_Model):
@@ -143,7 +154,7 @@ class OutputSpec(_Model):
     def _names(cls, value: dict[str, str]) -> dict[str, str]:
         for name in value:
             if not re.match(OBSERVABLE, name):
-                raise ValueError(f"{name!r} is not '<station>.<quantity>' with quantity h, h_up, h_down or Q")
+                raise ValueError(f"{_quoted(name)} is not '<station>.<quantity>' with quantity h, h_up, h_down or Q")
         return value
 
 
@@ -182,10 +193,10 @@ class BlackBoxSection(_Model):
     def _quantity_names(cls, value: dict[str, QuantitySpec]) -> dict[str, QuantitySpec]:
         for name in value:
             if not _PLACEHOLDER_NAME.match(name):
-                raise ValueError(f"quantity name {name!r}: use letters, digits and _ . - (starting with a letter; "
-                                 "it is a placeholder {{name}} or {{name:format}} of the templates)")
+                raise ValueError(f"quantity name {_quoted(name)}: use letters, digits and _ . - (starting with a "
+                                 "letter; it is a placeholder {{name}} or {{name:format}} of the templates)")
             if name in _BUILTIN:
-                raise ValueError(f"quantity name {name!r} is a built-in placeholder ({', '.join(_BUILTIN)})")
+                raise ValueError(f"quantity name {_quoted(name)} is a built-in placeholder ({', '.join(_BUILTIN)})")
         return value
 
 

@@ -263,8 +263,12 @@ def _validate_items(ctx: Context) -> None:
             try:
                 model.validate_python(item) if isinstance(model, TypeAdapter) else model.model_validate(item)
             except (ValidationError, ValueError) as exc:
-                ctx.ledger.error(ctx.where(table, item.get("id", "?")),
-                                 f"{table.rstrip('s').replace('_', ' ')} {item.get('id', '?')!r}: {_problem(exc)}")
+                what = f"{table.rstrip('s').replace('_', ' ')} {item.get('id', '?')!r}"
+                at_key = _at_source_key(ctx, table, item.get("id", "?"), exc)
+                if at_key is not None:
+                    ctx.ledger.error(at_key[0], f"{what}, {at_key[1]}")
+                else:
+                    ctx.ledger.error(ctx.where(table, item.get("id", "?")), f"{what}: {_problem(exc)}")
                 continue
             kept.append(item)
         if table in ctx.case:
@@ -276,6 +280,35 @@ def _validate_items(ctx: Context) -> None:
             model.model_validate(ctx.case[name])
         except (ValidationError, ValueError) as exc:
             ctx.ledger.error(ctx.where(name, name), f"{name}: {_problem(exc)}")
+
+
+def _at_source_key(ctx: Context, table: str, case_id: str, exc: Exception) -> tuple[str, str] | None:
+    """Where the value a case rule refuses was written, as the user wrote it: (``file, line N``, ``key = value: why``).
+
+    The case's rules speak of the case's fields (``crest_width``); the user wrote a D-Flow FM key (``crestWidth``)
+    on a line of a block. A field is traced back to the key of the same name (underscores aside) when the block
+    it came from has that key; None when it cannot be (the caller then names the block).
+    """
+    from pydantic import ValidationError
+
+    if not isinstance(exc, ValidationError):
+        return None
+    err = exc.errors(include_url=False)[0]
+    loc = err.get("loc", ())
+    obj = ctx.blocks.get((table, case_id))
+    if not loc or obj is None or isinstance(obj, str):
+        return None
+    sources = ctx.model.sources
+    found = sources.section_of(obj)
+    wanted = str(loc[0]).replace("_", "").lower()
+    name = next((n for n in getattr(type(obj), "model_fields", {}) if n.replace("_", "").lower() == wanted), None)
+    if found is None or name is None:
+        return None
+    key = sources.key_of(obj, name)
+    raw = found[1].first(key)
+    if raw is None:
+        return None
+    return sources.where(obj, key), f"{key} = {raw.value}: {' '.join(str(err.get('msg', '')).split())}"
 
 
 def _problem(exc: Exception) -> str:

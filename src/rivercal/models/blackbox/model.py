@@ -128,7 +128,8 @@ class BlackBoxModel:
         self._formats = {name: q.format for name, q in bb.quantities.items()}
         for name, q in bb.quantities.items():
             if _too_wide(q.format):
-                raise error(f"blackbox.quantities.{name}.format", f"{q.format!r}: a width or precision above 999")
+                raise error(f"blackbox.quantities.{_key(name)}.format", f"{excerpt(q.format)}: a width or precision "
+                            "above 999")
         runs_dir = _runs_dir(bb.runs_dir, root, self.folder, self.name, error)
         self.templates: list[tuple[Template, str]] = []
         sources: list[str] = []
@@ -160,7 +161,7 @@ class BlackBoxModel:
             raise error("blackbox.command", f"an item cannot be rendered ({exc})") from None
         for key, value in bb.env.items():
             if not key or "=" in key or "\0" in key or "\0" in value:
-                raise error(f"blackbox.env.{key}", f"{excerpt(key)} = {excerpt(value)} is not an environment "
+                raise error(f"blackbox.env.{_key(key)}", f"{excerpt(key)} = {excerpt(value)} is not an environment "
                             "variable (a name without '=' and NUL, a value without NUL)")
         self.outputs: list[str] = []
         self.observables: list[str] = []
@@ -202,18 +203,19 @@ class BlackBoxModel:
         except ValueError as exc:
             raise error(f"{field}.source", str(exc)) from None
         path = self.folder / rel
+        shown = _shown(path)
         if not inside(path, self.folder):
-            raise error(f"{field}.source", f"{path} leads outside the model folder {self.folder}")
+            raise error(f"{field}.source", f"{shown} leads outside the model folder {self.folder}")
         try:
             info = os.stat(path)
         except OSError:
             what = kind_of(path)
-            raise error(f"{field}.source", f"no such template {path}" if what == "missing" else
-                        f"the template {path} is {what}") from None
+            raise error(f"{field}.source", f"no such template {shown}" if what == "missing" else
+                        f"the template {shown} is {what}") from None
         if not stat.S_ISREG(info.st_mode):
-            raise error(f"{field}.source", f"the template {path} is {kind_of(path)}, not a file")
+            raise error(f"{field}.source", f"the template {shown} is {kind_of(path)}, not a file")
         if info.st_size > MAX_TEMPLATE_BYTES:
-            raise error(f"{field}.source", f"the template {path} holds {info.st_size:,} bytes, more than the "
+            raise error(f"{field}.source", f"the template {shown} holds {info.st_size:,} bytes, more than the "
                         f"{MAX_TEMPLATE_BYTES:,} rivercal reads")
         try:
             with open(path, "rb") as f:
@@ -221,9 +223,9 @@ class BlackBoxModel:
             template = Template(text, source=str(path))
             template.check(self.spec.quantities, BUILTINS)
         except UnicodeDecodeError:
-            raise error(field, f"{path}: not UTF-8 text") from None
+            raise error(field, f"{shown}: not UTF-8 text") from None
         except OSError as exc:
-            raise error(f"{field}.source", f"{path} cannot be read ({exc.strerror})") from None
+            raise error(f"{field}.source", f"{shown} cannot be read ({exc.strerror})") from None
         except ValueError as exc:
             raise error(field, str(exc)) from None
         return template
@@ -435,6 +437,17 @@ class BlackBoxModel:
         return series, files
 
 
+def _key(name: str, limit: int = 40) -> str:
+    """A key of model.toml as a field path shows it: whole when short, else its start (the message quotes it)."""
+    return name if len(name) <= limit else name[:limit] + "…"
+
+
+def _shown(path: Path | str, limit: int = 200) -> str:
+    """A path as a message shows it: whole when short, else its start and end with its length."""
+    text = str(path)
+    return text if len(text) <= limit else f"{text[:limit // 2]}…{text[-limit // 4:]} ({len(text):,} characters)"
+
+
 def _model_folder(folder: str, root: Path, error: Any) -> Path:
     """The model folder: ``folder`` relative to the folder of ``model.toml`` and inside it."""
     try:
@@ -442,15 +455,16 @@ def _model_folder(folder: str, root: Path, error: Any) -> Path:
     except ValueError as exc:
         raise error("blackbox.folder", str(exc)) from None
     path = root / rel
+    shown = _shown(path)
     try:
         resolved = Path(os.path.realpath(path, strict=True))
     except OSError:
-        raise error("blackbox.folder", f"no such folder {path}" if kind_of(path) == "missing" else
-                    f"{path} is {kind_of(path)}") from None
+        raise error("blackbox.folder", f"no such folder {shown}" if kind_of(path) == "missing" else
+                    f"{shown} is {kind_of(path)}") from None
     if not inside(resolved, root):
-        raise error("blackbox.folder", f"{path} leads outside the folder of model.toml ({resolved})")
+        raise error("blackbox.folder", f"{shown} leads outside the folder of model.toml ({_shown(resolved)})")
     if not resolved.is_dir():
-        raise error("blackbox.folder", f"{path} is {kind_of(resolved)}, not a folder")
+        raise error("blackbox.folder", f"{shown} is {kind_of(resolved)}, not a folder")
     return resolved
 
 
