@@ -80,7 +80,7 @@ def test_simulate_writes_csv_and_cf_netcdf(tmp_path: Path) -> None:
     (["analyse", "dommel", "--params", "FA,W1,Wc", "--window", "moderate"],
      "--params: W1 and Wc both set weir:ZL1-5.crest_level; give only one of them"),
     (["online", "dommel", "--scenario", "PI-Fg", "--params", "Wc,W1", "--from", "2010-11-02", "--to", "2010-11-02"],
-     "--params: Wc and W1 both set weir:ZL1-5.crest_level; give only one of them"),
+     "--params 'Wc,W1': Wc and W1 both set weir:ZL1-5.crest_level; give only one of them"),
     (["twin", "dommel", "--suite", "sensitivity", "--params", "W1,Wc"],
      "--params: W1 and Wc both set weir:ZL1-5.crest_level; give only one of them"),
 ])

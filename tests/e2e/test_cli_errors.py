@@ -121,23 +121,29 @@ def test_the_engine_compiles_once_and_says_so_only_then(tmp_path: Path) -> None:
 
 
 def test_the_compile_notice_follows_numba_compilations(capsys: pytest.CaptureFixture) -> None:
-    """The notice is numba's compile event for a rivercal kernel: printed at the first compilation, once."""
+    """The notice is numba's compile event for a rivercal kernel: printed at the first compilation of each kind
+    (the engine, the rainfall-runoff model, others), once, and naming what is compiled."""
     import numba
 
     from rivercal.cli import common
 
-    common._COMPILE["shown"] = False
+    common._COMPILE["shown"] = set()
     common.watch_compilation(True)
+    kernels = {}
+    for module in ("rivercal.engine.probe", "rivercal.hydrology.probe", "rivercal.probe"):
+        def add_one(x):
+            return x + 1
 
-    def add_one(x):
-        return x + 1
-
-    add_one.__module__ = "rivercal.probe"
-    kernel = numba.njit(add_one)  # no cache: compiles on the first call
-    assert kernel(1) == 2
-    assert kernel(2.5) == 3.5  # a second signature compiles again: still one notice
+        add_one.__module__ = module
+        kernels[module] = numba.njit(add_one)  # no cache: compiles on the first call
+    for kernel in kernels.values():
+        assert kernel(1) == 2
+        assert kernel(2.5) == 3.5  # a second signature compiles again: still one notice
     err = capsys.readouterr().err
-    assert err.count("compiling the engine (first run only") == 1
+    assert err.count("compiling the engine's time loop (once per version of rivercal") == 1
+    assert err.count("compiling the rainfall-runoff model (") == 1
+    assert err.count("compiling rivercal's numerical kernels (") == 1
+    assert err.count("compiling") == 3
 
 
 def test_the_cases_calibration_options_take_words_and_a_bad_one_is_named_with_its_table(tmp_path: Path) -> None:

@@ -19,7 +19,7 @@ one and the global friction (W1…W9 and FA, thesis Table 4-4):
    the five stations and once with the advised gauges added: the jump alerts after the change, the cycles
    until W4's estimated change is within 1 cm of the true change (time to correct, as the service's run
    figures define it for a crest shift), W4's last estimate and the forecast error ratio (DSS over
-   rivercal, level forecasts up to 24 h ahead after the change; :func:`rivercal.report.online_figures.run_figures`).
+   rivercal, level forecasts up to 24 h ahead after the change; :func:`rivercal.online.metrics.run_figures`).
 
 Wall times are of the machine it runs on.
 """
@@ -40,10 +40,10 @@ import pandas as pd
 from rivercal.analysis.advise import advise, model_candidates
 from rivercal.model import load_model
 from rivercal.observations import ScreenRule, measurable
+from rivercal.online.metrics import run_figures
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.parameters import ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
-from rivercal.report.online_figures import run_figures
 from rivercal.store import Store
 from rivercal.twin import twin_truth
 from rivercal.twin.practical import CHANGE_TIME, practical_truth

@@ -289,7 +289,7 @@ def print_summary(summary: dict[str, Any]) -> None:
 
 
 def _print_figures(summary: dict[str, Any]) -> None:
-    """The headline figures (:func:`rivercal.report.online_figures.run_figures`), with what they are measured on."""
+    """The headline figures (:func:`rivercal.online.metrics.run_figures`), with what they are measured on."""
     if summary.get("scenario"):
         realism = summary.get("realism") or "ideal"
         if realism == "ideal":

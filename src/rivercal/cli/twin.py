@@ -27,7 +27,6 @@ from rivercal.cli.options import (
     workers_for,
 )
 from rivercal.errors import OptionError
-from rivercal.workflows.twin import SCENARIO_SUITES, SENSITIVITY
 
 __all__ = ["twin"]
 
@@ -57,7 +56,7 @@ def twin(
 ) -> None:
     """Twin experiments of the thesis: truths, perturbed starts, DuD, indicators; sensitivity; one HTML report."""
     from rivercal.evaluate import default_workers
-    from rivercal.workflows.twin import run_thesis
+    from rivercal.workflows.twin import SCENARIO_SUITES, SENSITIVITY, run_thesis  # numerics: not loaded for --help
 
     names = _suites(suite)
     scenario_names = [n for n in names if n in SCENARIO_SUITES]
@@ -94,6 +93,8 @@ def _command() -> str:
 
 
 def _suites(text: str) -> list[str]:
+    from rivercal.workflows.twin import SCENARIO_SUITES, SENSITIVITY  # numerics: not loaded for --help
+
     every = (*SCENARIO_SUITES, SENSITIVITY, THESIS)
     names = []
     for item in (s.strip() for s in text.split(",")):
@@ -146,6 +147,7 @@ def _check_case(model, names: list[str], params: list[str], window: str | None) 
     import pandas as pd
 
     from rivercal.twin.suites import SUITES
+    from rivercal.workflows.twin import SENSITIVITY  # numerics: not loaded for --help
 
     known = list(model.calibration.windows)
     if window is not None and "/" not in window and window not in known:

@@ -34,11 +34,12 @@ def write_parameters(case: dict, ledger: Ledger, *, parallel: Collection[str] = 
     One per friction coefficient the channels use — ``FA`` for the global friction (D-Flow FM's default
     group ``Main``, or the MDU's uniform friction) when a channel takes it, ``F_<branch>`` for a branch with
     its own friction in group ``Main``, ``F_<group>`` for every other friction group that a channel profile
-    refers to — and one per weir whose crest is a constant in the files (``W_<weir>``; a
-    crest that follows a series or real-time control is set by that, not calibrated). Bounds: the model's
-    value times 0.5-2.5 for k_s and C, 0.4-2 for Manning's n, 0.1-10 for a White-Colebrook roughness height,
-    within the plausible range of the law; a crest ±0.5 m, never below the bed. The initial value is the
-    model's own.
+    refers to alone; groups that share a profile (a main channel and its floodplains) are scaled together by
+    ``F_scale`` (``friction:scale``, a factor on the conveyance of every friction coefficient, 0.5-2) — and one per
+    weir whose crest is a constant in the files (``W_<weir>``; a crest that follows a series or real-time control
+    is set by that, not calibrated). Bounds: the model's value times 0.5-2.5 for k_s and C, 0.4-2 for Manning's n,
+    0.1-10 for a White-Colebrook roughness height, within the plausible range of the law; a crest ±0.5 m, never
+    below the bed. The initial value is the model's own.
 
     Parameters
     ----------
@@ -98,10 +99,23 @@ def write_parameters(case: dict, ledger: Ledger, *, parallel: Collection[str] = 
                      f"the friction of branch {original!r}")
             if params and params[-1]["targets"] == targets[:1]:
                 params[-1]["targets"] = targets  # a branch cut for a compound: its pieces share its friction
+    # a group that a profile names beside another group cannot be set alone (the profile conveys relative to its
+    # first section's group): those groups are calibrated together, by a factor on every friction coefficient
+    mixed = {g for p in profiles.values() if len(set(p.get("friction", []))) > 1 for g in p["friction"]}
     for g in case.get("friction_groups", []):
-        if g["id"] in used_groups:
+        if g["id"] in used_groups and g["id"] not in mixed:
             friction(name("F_", g["id"]), f"friction:group:{g['id']}", g["type"], float(g["value"]),
                      f"friction group {g['id']!r}")
+    laws = {g["type"] for g in case.get("friction_groups", [])} | {b["friction"]["type"] for b in case["branches"]
+                                                                   if "friction" in b}
+    if mixed & used_groups:
+        if "white-colebrook" in laws | ({glob["type"]} if glob else set()):
+            ledger.warn("no calibration parameter for the friction groups " + ", ".join(sorted(mixed & used_groups))
+                        + ": they share profiles, so they can only be scaled together, and a factor does not scale "
+                        "White-Colebrook friction")
+        else:
+            params.append({"name": name("", "F_scale"), "targets": ["friction:scale"], "min": 0.5, "max": 2.0,
+                           "initial": 1.0, "transform": "offset", "perturbation": 0.05, "unit": "-"})
     beds = {b["id"]: b for b in case["branches"]}
     for w in case.get("weirs", []):
         if "crest_series" in w:

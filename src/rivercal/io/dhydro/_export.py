@@ -42,13 +42,15 @@ SETTINGS_FILE = "rivercal.ini"
 #: Engine settings written there: case field → key.
 _ENGINE_KEYS = {"cross_sections": "crossSections", "theta": "theta", "min_depth": "minDepth",
                 "min_storage_area": "minStorageArea", "max_iterations": "maxIterations", "tolerance": "tolerance",
-                "max_velocity": "maxVelocity", "structure_length": "structureLength", "dt": "timeStep"}
+                "max_velocity": "maxVelocity", "structure_length": "structureLength", "dt": "timeStep",
+                "courant": "courant"}
 
 
 def _write_engine_settings(engine, path: Path) -> None:
     lines = ["# Engine settings of the rivercal case this model was exported from (D-HYDRO does not read this",
              "# file; rivercal's import does).", "[engine]"]
-    lines += [f"{key} = {getattr(engine, name)}" for name, key in _ENGINE_KEYS.items()]
+    lines += [f"{key} = {getattr(engine, name)}" for name, key in _ENGINE_KEYS.items()
+              if getattr(engine, name) is not None]  # an optional setting not given stays unwritten
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
@@ -420,7 +422,8 @@ class _Writer:
         sw = sections + [0.0] * (3 - len(sections))
         levee = {}
         if dike is not None:
-            levee = {"leveecrestLevel": dike.crest, "leveebaselevel": dike.crest, "leveeflowarea": dike.flow_area,
+            base = dike.crest if dike.base is None else dike.base  # flow1d's falling curve ends at it
+            levee = {"leveecrestLevel": dike.crest, "leveebaselevel": base, "leveeflowarea": dike.flow_area,
                      "leveetotalrea": dike.total_area}
             if abs(dike.transition - DFLOW_SUMMER_DIKE_TRANSITION) > 1e-12:
                 self.result.notes.append(

@@ -235,9 +235,8 @@ def _summer_dike(ctx: Context, d: Any, bottom: float) -> tuple[dict | None, str]
     ``leveeFlowArea`` and ``leveeTotalArea`` and one of the areas exceeds 1e-5 m² (Deltares delft3d, flow1d
     ``readTabulatedCS``). Its flow and total areas fill from the crest over a transition height of 0.5 m along two
     parabolas (``GetSummerDikeFlow``, ``GetSummerDikeTotal``: ``summerDikeTransitionHeight`` is 0.5 m in D-Flow FM),
-    as the case's summer dike does. D-Flow FM empties the storage behind the dike on a falling limb along another
-    curve, from crest + 0.5 m down to the base level; the case by the same curve as it filled, which is D-Flow FM's
-    when the base level is the crest level.
+    as the case's summer dike does. Once the level has reached crest + 0.5 m, D-Flow FM empties the storage behind
+    the dike on a falling limb down to the base level, as the case does with its ``base``.
     """
     # read from the file as written: hydrolib-core 1.5 misses two of the four keys (its fields leveecrestLevel and
     # leveetotalrea match neither leveeCrestLevel nor leveeTotalArea)
@@ -277,12 +276,21 @@ def _summer_dike(ctx: Context, d: Any, bottom: float) -> tuple[dict | None, str]
     if crest < bottom:
         notes.append(f"summer dike: its crest {crest:g} m lies below the lowest level of the table; taken at it")
         crest = bottom
-    if abs(base - crest) > 1e-9 and total > 0:
-        notes.append(f"summer dike: the storage behind it fills from the crest ({crest:g} m) over 0.5 m and the case "
-                     f"drains it by the same curve; D-Flow FM drains it on a falling limb from crest + 0.5 m down to "
-                     f"its base level ({base:g} m), so the case gives that water back to the river at other levels")
-    return {"crest": crest - bottom, "flow_area": flow, "total_area": total, "transition": SUMMER_DIKE_TRANSITION}, \
-        "; ".join(notes)
+    dike = {"crest": crest - bottom, "flow_area": flow, "total_area": total, "transition": SUMMER_DIKE_TRANSITION}
+    if crest < base < crest + SUMMER_DIKE_TRANSITION:
+        # flow1d (GetSummerDikeTotal) drains it then by a steeper curve from crest + transition to the base and
+        # returns to the rising curve below the base, a jump of the stored volume; a base at or above crest +
+        # transition never leaves the rising curve, which the crest as base gives exactly
+        notes.append(f"summer dike: its base level {base:g} m lies between its crest {crest:g} m and crest + "
+                     f"{SUMMER_DIKE_TRANSITION:g} m: taken at the crest (the storage behind it fills and drains by the "
+                     "rising curve; D-Flow FM drains it by a steeper one down to the base level and then returns to "
+                     "the rising one, a jump of the stored volume)")
+    elif base < bottom:
+        notes.append(f"summer dike: its base level {base:g} m lies below the lowest level of the table; taken at it")
+        dike["base"] = 0.0
+    elif base < crest:
+        dike["base"] = base - bottom  # drains along the falling curve down to it, as flow1d does
+    return dike, "; ".join(notes)
 
 
 def _along(d: Any) -> list[float]:
