@@ -25,7 +25,7 @@ Per step n → n+1 (reference note §A; Stelling & Duinmeijer 2003), each phase 
   ``DRY_TOLERANCE`` below its bed or NaN, a velocity above ``engine.max_velocity``. A level that flickers (turns up and
   down by more than ``FLICKER_DZ`` again and again within a few steps, :func:`.fluxes.finish_step`) makes the
   coming sub-steps finer. This level carries over to the next steps and falls by one after ``RELAX_STEPS``
-  calm sub-steps at it (twice as many each time a fall is undone at once);
+  calm steps (twice as many each time a fall is undone at once);
 - *accuracy*: the error estimate of a solved (sub-)step, the largest difference between a solved level and
   its extrapolation from the last (sub-)step's change (about half the curvature of the level's path times the
   step squared: the local error of the first-order time integration), must stay below ``ERR_REDO``, or the
@@ -365,7 +365,8 @@ def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forc
             swapped = not swapped
             done += span
             taken += 1
-            _relax(stats, done)
+            if done == FULL:  # whole steps: relaxed per sub-step, a steep reach's steady flow drifted 4 cm
+                _relax(stats, done)
             if status == STATUS_FLICKER and level < MAX_HALVINGS:
                 _rise(stats, level)  # the coming (sub-)steps shorter; this one stands
                 work.flick[:] = 0  # what the longer sub-steps counted does not count against the shorter ones
@@ -580,7 +581,7 @@ def _screen(net, work, z, dz, un, vmax, level, first, fastest):
 
 @kernel
 def _relax(stats, done):
-    """After a committed (sub-)step: let the stability's sub-step level fall by one after enough calm sub-steps.
+    """After a committed step: let the stability's sub-step level fall by one after enough calm steps.
 
     ``done`` is the part of the step done (in units of the smallest sub-step); the level falls only where the
     coarser sub-step fits the rest of the step from there.
