@@ -1,4 +1,5 @@
-# rivercal — the two commands: `make demo` and `make test` (both set up .venv themselves).
+# rivercal — the two commands: `make demo` and `make test` (both set up .venv themselves); `make check` is the
+# developer's quick loop (the unit tier alone).
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
@@ -6,7 +7,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels
+.PHONY: demo test check test-fast bench lint docs venv clean clean-cache browser postgres kernels
 
 # The compiled time loop is kept in ~/.cache/rivercal/kernels, one folder per version of the kernels' sources
 # (rivercal/_kernel_cache.py): after a change of a kernel it is compiled again, once (about a
@@ -66,6 +67,11 @@ postgres:
 
 test: $(STAMP) kernels browser postgres
 	$(WRITE_BYTECODE) $(PY) -m pytest -n auto --dist worksteal -q --durations=25
+
+# The developer's loop: the unit tier alone (tests/unit: no process, no server, no network; its conftest enforces
+# it), so it needs no system package (no chromium, no PostgreSQL) and only the compiled kernels.
+check: $(STAMP) kernels
+	$(WRITE_BYTECODE) $(PY) -m pytest tests/unit -n auto --dist worksteal -q -p no:cacheprovider
 
 test-fast: $(STAMP) kernels browser postgres
 	$(WRITE_BYTECODE) $(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
