@@ -75,9 +75,10 @@ test: $(STAMP) kernels browser postgres
 	$(WRITE_BYTECODE) $(PY) -m pytest -n auto $(DIST) -q --durations=25
 
 # The developer's loop: the unit tier alone (tests/unit: no process, no server, no network; its conftest enforces
-# it), so it needs no system package (no chromium, no PostgreSQL) and only the compiled kernels.
+# it), so it needs no system package (no chromium, no PostgreSQL) and only the compiled kernels; its few tests
+# marked slow (longer than about 10 s each) are left to make test.
 check: $(STAMP) kernels
-	$(WRITE_BYTECODE) $(PY) -m pytest tests/unit -n auto $(DIST) -q -p no:cacheprovider
+	$(WRITE_BYTECODE) $(PY) -m pytest tests/unit -n auto $(DIST) -q -p no:cacheprovider -m "not slow"
 
 test-fast: $(STAMP) kernels browser postgres
 	$(WRITE_BYTECODE) $(PY) -m pytest -n auto $(DIST) -q -m "not slow"
