@@ -56,7 +56,7 @@ def test_simulate_and_calibrate_a_swmm_twin(tmp_path) -> None:
 
 @pytest.mark.slow
 def test_online_replays_daily_cycles_on_swmm_from_hotstart_files(tmp_path) -> None:
-    """Four daily cycles: the first before the crests drop (cold), three after it, each hot from the last."""
+    """Four daily cycles: the first cold, its window before the crests drop; the others hot from the last one."""
     db = tmp_path / "run.sqlite"
     run = rivercal("online", "dommel-swmm", "--scenario", "PI-Wg", "--params", "FR,Wd", "--from", "2010-11-01",
                    "--to", "2010-11-04", "--window", "1D", "--warmup", "12h", "--horizon", "12h", "--workers", "1",
