@@ -70,6 +70,7 @@ CONTENT = {
                       "JOIN cycles c ON c.id = b.cycle_id",
     "ensembles": "SELECT c.cycle, e.time, e.members, e.format, e.data FROM ensembles e JOIN cycles c "
                  "ON c.id = e.cycle_id",
+    "run_products": "SELECT r.name, p.name, p.format, p.data FROM run_products p JOIN runs r ON r.id = p.run_id",
     "schema_version": "SELECT version, description, rivercal_version FROM schema_version",
 }
 
