@@ -74,7 +74,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         pytest.exit(f"{REQUIRE_HUPSEL} is set but {reason}", returncode=pytest.ExitCode.USAGE_ERROR)
 
 
-#: The longest modules (measured: the SIGKILL replays about 200 s per backend, the documentation build about 145 s),
+#: The longest modules (the SIGKILL replays on both backends, about 2 min on a loaded host; the documentation build),
 #: started before all others so that neither of the two workers ends the suite alone with one of them.
 LONGEST = ("tests/e2e/test_online_kills.py", "tests/e2e/test_docs_site.py")
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
