@@ -1,4 +1,5 @@
-# rivercal — the two commands: `make demo` and `make test` (both set up .venv themselves).
+# rivercal — the two commands: `make demo` and `make test` (both set up .venv themselves); `make check` is the
+# developer's quick loop (the unit tier alone).
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
@@ -6,7 +7,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
 
-.PHONY: demo test test-fast bench lint docs venv clean clean-cache browser postgres kernels
+.PHONY: demo test check test-fast bench lint docs venv clean clean-cache browser postgres kernels
 
 # The compiled time loop is kept in ~/.cache/rivercal/kernels, one folder per version of the kernels' sources
 # (rivercal/_kernel_cache.py): after a change of a kernel it is compiled again, once (about a
@@ -64,11 +65,23 @@ postgres:
 		command -v apt-get >/dev/null || { echo "make test needs Debian's postgresql package (apt-get)"; exit 1; }; \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql; }
 
+# Distribution over the workers: whole modules, in the order tests/conftest.py gives (the longest first), each to
+# the first free worker. A module's shared fixtures (a documentation build, a reference replay, an imported
+# model, a twin's truth) are then made once in the run: work stealing split modules wherever it cut the queues,
+# and the worker that took part of a module made its fixtures again.
+DIST := --dist loadfile --no-loadscope-reorder
+
 test: $(STAMP) kernels browser postgres
-	$(WRITE_BYTECODE) $(PY) -m pytest -n auto --dist worksteal -q --durations=25
+	$(WRITE_BYTECODE) $(PY) -m pytest -n auto $(DIST) -q --durations=25
+
+# The developer's loop: the unit tier alone (tests/unit: no process, no server, no network; its conftest enforces
+# it), so it needs no system package (no chromium, no PostgreSQL) and only the compiled kernels; its few tests
+# marked slow (longer than about 10 s each) are left to make test.
+check: $(STAMP) kernels
+	$(WRITE_BYTECODE) $(PY) -m pytest tests/unit -n auto $(DIST) -q -p no:cacheprovider -m "not slow"
 
 test-fast: $(STAMP) kernels browser postgres
-	$(WRITE_BYTECODE) $(PY) -m pytest -n auto --dist worksteal -q -m "not slow"
+	$(WRITE_BYTECODE) $(PY) -m pytest -n auto $(DIST) -q -m "not slow"
 
 bench: $(STAMP) kernels browser
 	@mkdir -p out/bench

@@ -74,18 +74,17 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         pytest.exit(f"{REQUIRE_HUPSEL} is set but {reason}", returncode=pytest.ExitCode.USAGE_ERROR)
 
 
-#: The longest modules (measured: the SIGKILL replays about 200 s per backend, the documentation build about 145 s),
+#: The longest modules (the SIGKILL replays on both backends, about 2 min on a loaded host; the documentation build),
 #: started before all others so that neither of the two workers ends the suite alone with one of them.
 LONGEST = ("tests/e2e/test_online_kills.py", "tests/e2e/test_docs_site.py")
-
-
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Run the longest modules first, then those that hold slow tests, each module's tests together and in order.
+    """Run the longest modules first, then those that hold slow tests, then the rest, each module's tests in order.
 
-    On two workers (``--dist worksteal``) the long end-to-end runs then overlap with the many short tests, and
-    an idle worker takes short tests from the other's queue, instead of one worker finishing the suite alone
-    with the last long run while the other waits. A module stays whole, so its module-scoped fixtures are made
-    once per worker.
+    ``make test`` distributes whole modules (``--dist loadfile --no-loadscope-reorder``) in this order to whichever
+    worker is free: a module's shared fixtures (a documentation build, a reference replay, an imported model, a
+    twin's truth) are made once in the run, never again on a second worker that took some of its tests, and the
+    long end-to-end runs overlap with the many short modules instead of one worker finishing the suite alone with
+    the last long run while the other waits.
     """
     slow = {item.path for item in items if item.get_closest_marker("slow") is not None}
     longest = [REPOSITORY / name for name in LONGEST]

@@ -33,8 +33,8 @@ from rivercal.models import load_model
 from rivercal.models.blackbox import BlackBoxRunError
 from rivercal.models.blackbox.runs import MARKER
 from rivercal.models.config import ModelFileError
+from tests.blackbox_models import TEMPLATE, TOY
 from tests.processes import descendants, kill_left, survivors
-from tests.unit.test_blackbox import TEMPLATE, TOY
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the process table in /proc")
 

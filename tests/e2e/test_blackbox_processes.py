@@ -31,9 +31,9 @@ import pytest
 from rivercal.models import load_model
 from rivercal.models.blackbox import BlackBoxRunError
 from rivercal.models.blackbox.runs import MARKER
+from tests.blackbox_models import START, make_model
 from tests.e2e.test_online_kills import contents, cycles_done, differences, phase
 from tests.processes import alive, descendants, kill_left, survivors
-from tests.unit.test_blackbox import START, make_model
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the process table in /proc")
 

@@ -1,7 +1,7 @@
 """Calibration on an imported model: Dellen's friction found back by DuD.
 
 The imported D-HYDRO model Dellen (../shared/data) with its roughness scaled by a factor 1.2 (every friction
-group's coefficient: k_s × 1.2, n / 1.2) is the truth; its levels at the 21 observation points over two days
+group's coefficient: k_s × 1.2, n / 1.2) is the truth; its levels at the 21 observation points over one day
 are the observations. DuD, started from the model as imported (factor 1), must find the factor within 1 %.
 """
 
@@ -28,7 +28,7 @@ def test_dud_recovers_a_scaled_roughness_of_dellen(tmp_path) -> None:
     sim = load_model(result.folder)
     params = ParameterSet([Parameter(name="FS", targets=["friction:scale"], min=0.5, max=2.0, initial=1.0,
                                      transform="factor", perturbation=0.1)])
-    window = (sim.start + pd.Timedelta("2D"), sim.start + pd.Timedelta("4D"))
+    window = (sim.start + pd.Timedelta("2D"), sim.start + pd.Timedelta("3D"))
     observed = [s for s in sim.observables if s.startswith("ObservationPoint_") and s.endswith(".h")]
     assert len(observed) == 21
     truth = twin_truth(sim, params.quantities({"FS": TRUTH}), window, series=observed)

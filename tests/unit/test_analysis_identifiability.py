@@ -119,13 +119,6 @@ def test_steps_are_relative_to_the_scale_and_point_into_the_bounds() -> None:
         fd_jacobian(problem, scheme="backward", workers=1)
 
 
-def test_parallel_jacobian_equals_the_serial_one() -> None:
-    problem = linear_problem(random_a())
-    serial = fd_jacobian(problem, workers=1)
-    parallel = fd_jacobian(problem, workers=2)
-    np.testing.assert_array_equal(serial.matrix, parallel.matrix)
-
-
 # -- the analysis against numpy ------------------------------------------------------------------------
 
 

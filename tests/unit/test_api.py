@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import importlib
 import re
-import subprocess
-import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -25,11 +23,8 @@ START = pd.Timestamp("2020-01-01", tz="UTC")
 SIGMA = 0.05  # m
 
 
-def test_import_rivercal_loads_no_engine_and_resolves_every_main_name() -> None:
-    code = ("import sys, rivercal; heavy = [m for m in ('numba', 'pandas', 'matplotlib', 'sqlite3', 'scipy') "
-            "if m in sys.modules]; print(','.join(heavy) or 'none')")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
-    assert out == "none"
+def test_every_main_name_resolves_lazily() -> None:
+    """(That ``import rivercal`` itself loads no engine is checked in a fresh interpreter: tests/integration.)"""
     for name in rivercal.__all__:
         if name == "__version__":
             continue

@@ -21,7 +21,7 @@ from rivercal.models import load_model
 from rivercal.models.blackbox.readers import MAX_LINE_BYTES, MAX_TEXT_BYTES, read_output
 from rivercal.models.blackbox.runs import RunFolders, _started
 from rivercal.models.config import ModelFileError
-from tests.unit.test_blackbox import make_model
+from tests.blackbox_models import make_model
 
 HEADER = "time,level,flow\n"
 SERIES = {"S.h": "level", "S.Q": "flow"}

@@ -1,11 +1,10 @@
-"""BMI both ways: the embedded engine as a bmipy component (checked by CSDMS's bmi-tester and against the
-engine's own runs), and any BMI component behind the model contract (calibrated in a twin with known truth).
+"""BMI both ways: the embedded engine as a bmipy component (checked against the engine's own runs; CSDMS's
+bmi-tester, a command, checks it in tests/integration/test_in_other_processes.py), and any BMI component behind
+the model contract (calibrated in a twin with known truth).
 """
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
@@ -46,14 +45,6 @@ def config(tmp_path) -> Path:
 @pytest.fixture(scope="module")
 def synthetic():
     return load_model("synthetic")
-
-
-def test_the_csdms_bmi_tester_passes(config) -> None:
-    run = subprocess.run([str(Path(sys.executable).with_name("bmi-test")), "rivercal.models.bmi.engine:RivercalBmi",
-                          "--root-dir", str(config.parent), "--config-file", config.name],
-                         capture_output=True, text=True, cwd=config.parent, timeout=600)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
-    assert " passed" in run.stdout and " failed" not in run.stdout
 
 
 def test_update_until_reproduces_the_engine_and_set_value_changes_it(config, synthetic) -> None:

@@ -58,6 +58,7 @@ def test_the_same_seed_gives_the_same_files_and_another_seed_another_network(gen
     assert (other.path / "case.toml").read_bytes() != (folder / "case.toml").read_bytes()
 
 
+@pytest.mark.slow  # about 20 s: a week of a 6000-point network
 def test_a_week_of_a_generated_network_keeps_its_water_balance(generated) -> None:
     folder, _ = generated
     model = build_model(load_case(folder))
@@ -90,6 +91,7 @@ def test_the_command_writes_a_case_and_refuses_bad_sizes(tmp_path: Path) -> None
     assert not (mine / "forcing.csv").exists()
 
 
+@pytest.mark.slow  # about 10 s: nine days of two 1500-point networks
 def test_a_five_minute_step_gives_the_levels_of_the_one_minute_step_to_centimetres(tmp_path: Path) -> None:
     fine = generate_case(tmp_path / "fine", 1500, seed=3)
     coarse = generate_case(tmp_path / "coarse", 1500, seed=3, dt=300.0)

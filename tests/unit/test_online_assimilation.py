@@ -39,6 +39,7 @@ def twin(tmp_path_factory):
     store.close()
 
 
+@pytest.mark.slow  # the module's twin: about 12 s, 16 members over two cycles
 def test_the_analysed_ensemble_is_closer_to_the_truth_than_the_model_without_updating(twin):
     store, service, truth, outcomes = twin
     assert [o.status for o in outcomes] == ["done", "done"]
@@ -55,6 +56,7 @@ def test_the_analysed_ensemble_is_closer_to_the_truth_than_the_model_without_upd
     assert err(lead0) < 0.6 * err(dss0)   # measured: 0.38 cm against 0.74 cm
 
 
+@pytest.mark.slow  # the module's twin: about 12 s, 16 members over two cycles
 def test_members_are_stored_and_the_next_cycle_continues_from_them(twin):
     store, service, _, outcomes = twin
     assert "2 days 12 hours" not in outcomes[1].message
@@ -76,6 +78,7 @@ def test_members_are_stored_and_the_next_cycle_continues_from_them(twin):
     assert np.allclose(stored.to_numpy(), b.low.loc[stored.index, stored.columns].to_numpy())
 
 
+@pytest.mark.slow  # the module's twin: about 12 s, 16 members over two cycles
 def test_the_90_percent_band_brackets_the_mean(twin):
     _, _, _, outcomes = twin
     b = outcomes[-1].bands

@@ -30,11 +30,9 @@ T0 = pd.Timestamp("2010-11-01T06:00:00Z")
 SCHEDULE = Schedule(T0)
 
 
-@pytest.fixture(params=["sqlite", "postgresql"])
-def location(request, tmp_path: Path):
-    """Where a store lives: a SQLite file, or a fresh database on a real PostgreSQL server (same contract)."""
-    if request.param == "postgresql":
-        return request.getfixturevalue("pg_url")
+@pytest.fixture(params=["sqlite"])
+def location(tmp_path: Path):
+    """Where a store lives: a SQLite file (the same tests on a real PostgreSQL server: tests/integration)."""
     return tmp_path / "service.db"
 
 

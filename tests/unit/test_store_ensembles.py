@@ -15,10 +15,9 @@ SCHEDULE = Schedule("2010-11-01T06:00:00Z", period=pd.Timedelta(days=1), window=
 SERIES = ["ZL1-5930.h_up", "ZL1-3014.Q"]
 
 
-@pytest.fixture(params=["sqlite", "postgresql"])
-def location(request, tmp_path: Path):
-    if request.param == "postgresql":
-        return request.getfixturevalue("pg_url")
+@pytest.fixture(params=["sqlite"])
+def location(tmp_path: Path):
+    """A SQLite file (the same tests on a real PostgreSQL server: tests/integration)."""
     return tmp_path / "service.db"
 
 

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import ast
 import sqlite3
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
@@ -165,14 +163,6 @@ def test_files_that_are_not_stores_are_refused(tmp_path: Path) -> None:
         Store(other)
     with pytest.raises(StoreError, match="does not exist"):
         Store(tmp_path / "no" / "such" / "folder.db")
-
-
-def test_import_rivercal_does_not_load_sqlite3() -> None:
-    code = ("import sys, rivercal, rivercal.io, rivercal.observations; "
-            "bad = [m for m in ('sqlite3', '_sqlite3', 'rivercal.store') if m in sys.modules]; "
-            "assert not bad, bad")
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr
 
 
 def test_only_store_sqlite_imports_sqlite3() -> None:

@@ -1,6 +1,6 @@
 """SIGKILL the on-line service in the middle of a cycle, start it again: no lost and no repeated cycle.
 
-This file is also the worker: ``python -m tests.unit.test_online_crash DB UNTIL SLOW`` runs the service
+This file is also the worker: ``python -m tests.integration.test_online_crash DB UNTIL SLOW`` runs the service
 on the toy river of :mod:`tests.unit.test_online_service` (observations of a friction jump) up to issue
 time UNTIL; with SLOW > 0 every model run sleeps SLOW s, so that a cycle lasts long enough to be killed
 while it is being computed. The resumed run must end with exactly the estimates, forecasts and states of
@@ -41,7 +41,7 @@ def work(db: str, until: str, slow: float) -> None:
 
 
 def _start(db: Path, slow: float) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "tests.unit.test_online_crash", str(db), UNTIL, str(slow)],
+    return subprocess.Popen([sys.executable, "-m", "tests.integration.test_online_crash", str(db), UNTIL, str(slow)],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -259,7 +259,7 @@ def _hold(obj: object, additions: float) -> float:
                                            ("busy_parent", signal.SIGTERM)])
 def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed(role: str, how: signal.Signals) -> None:
     """Idle or in the middle of a long task that keeps a worker's interpreter lock, the workers go at once."""
-    proc = subprocess.Popen([sys.executable, "-m", "tests.unit.test_evaluate_dask", role], cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "tests.integration.test_evaluate_dask", role], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()

@@ -1,6 +1,6 @@
 """Worker processes of an Evaluator end when their parent is killed (SIGKILL), and not before.
 
-This file is also the parent: ``python -m tests.unit.test_evaluate_workers MODE`` starts a pool of two
+This file is also the parent: ``python -m tests.integration.test_evaluate_workers MODE`` starts a pool of two
 workers, evaluates a batch, prints ``ready`` and sleeps until it is killed. MODE ``main`` starts the pool
 from the main thread (the Linux parent-death signal and the parent-pipe watchdog both armed); ``thread``
 starts it from a thread that ends before the pool is used again (the watchdog alone; the kernel's signal
@@ -61,7 +61,7 @@ def parent(mode: str) -> None:
 
 def kill_parent(mode: str) -> list[int]:
     """Start a parent in ``mode``, SIGKILL it once its pool works; return its workers' pids."""
-    proc = subprocess.Popen([sys.executable, "-m", "tests.unit.test_evaluate_workers", mode], cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "tests.integration.test_evaluate_workers", mode], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()

@@ -1,7 +1,7 @@
 """Two services write different runs into one store while a reader (a report, the dashboard) reads it.
 
 Against a real PostgreSQL server and against the SQLite file. The services are separate processes (this
-file is the service: ``python -m tests.unit.test_store_concurrent DB RUN``); the reader, in the test, reads
+file is the service: ``python -m tests.integration.test_store_concurrent DB RUN``); the reader, in the test, reads
 each run's cycles, estimates and forecasts over and over while they write, and must never see a cycle in
 part: a done cycle has all its estimates and all its forecast values, because each cycle commits whole.
 """
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from rivercal.store import Store, StoreError
-from tests.unit.test_store_crash import LEADS, PARAMETERS, SCHEDULE, SERIES, cycle_record, window_observations
+from tests.integration.test_store_crash import LEADS, PARAMETERS, SCHEDULE, SERIES, cycle_record, window_observations
 
 ROOT = Path(__file__).resolve().parents[2]
 CYCLES = 12
@@ -43,8 +43,8 @@ def location(request, tmp_path: Path) -> str:
 def test_two_services_and_a_reader_at_the_same_time(location: str) -> None:
     with Store(location):
         pass  # the schema exists before the services and the reader open it
-    procs = [subprocess.Popen([sys.executable, "-m", "tests.unit.test_store_concurrent", location, name], cwd=ROOT,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for name in RUNS]
+    procs = [subprocess.Popen([sys.executable, "-m", "tests.integration.test_store_concurrent", location, name],
+                              cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for name in RUNS]
     reads = 0
     seen_partly_done = set()
     try:
