@@ -152,7 +152,9 @@ def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: 
     run = rivercal("import", "dhydro", str(mdu), "--out", str(case), *extra, "--json")
     assert run.returncode == 0, run.stderr
     assert param in json.loads(run.stdout)["parameters"]
-    run = rivercal("simulate", str(case), "--out", str(tmp_path / "sim"), "--json")
+    # simulate to the end of the on-line cycle's forecast (Dellen's week: its first four days and a quarter)
+    until = (pd.Timestamp(issue) + pd.Timedelta(span)).strftime("%Y-%m-%dT%H:%M")
+    run = rivercal("simulate", str(case), "--end", until, "--out", str(tmp_path / "sim"), "--json")
     assert run.returncode == 0, run.stderr
     run = rivercal("calibrate", str(case), "--params", param, "--window", window, "--twin", f"{param}={truth}",
                    "--warmup", warmup, "--workers", "1", "--option", "max_outer=2", "--json")
