@@ -48,6 +48,7 @@ PAGES = {
     "rivercal.hydrology": "Rainfall-runoff",
     "rivercal.models": "Models behind the contract",
     "rivercal.model": "rivercal.model (short import path)",
+    "rivercal.results": "What a run gives",
     "rivercal.parameters": "Parameters",
     "rivercal.observations": "Observations",
     "rivercal.problem": "The calibration problem",

@@ -156,8 +156,8 @@ class EngineSettings(_Model):
         does) or ``points`` (each calculation point takes the cross-section interpolated at it, for its storage
         and for the flow of the links it feeds, as Mascaret does).
     courant
-        Largest flow Courant number |u| Δt / Δx of a (sub-)step, or None: a step whose flow would cross a
-        channel link in less than 1/courant of it is divided (SOBEK 3's ``CourantNumber``, D-Flow FM's
+        Largest flow Courant number u Δt / Δx (u the speed of the flow) of a (sub-)step, or None: a step whose
+        flow would cross a channel link in less than 1/courant of it is divided (SOBEK 3's ``CourantNumber``, D-Flow FM's
         ``CFLMax``).
     """
 
@@ -193,8 +193,8 @@ class EngineSettings(_Model):
     )
     courant: Real | None = Field(
         default=None, gt=0,
-        description="largest flow Courant number |u| dt / dx of a (sub-)step (optional): a step whose flow crosses a "
-        "channel link faster is divided, as SOBEK 3 (CourantNumber) and D-Flow FM (CFLMax) do; default: no limit",
+        description="largest flow Courant number u dt / dx (u the speed of the flow) of a (sub-)step (optional): a "
+        "step whose flow crosses a channel link faster is divided, as SOBEK 3 (CourantNumber) and D-Flow FM (CFLMax) do; default: no limit",
     )
     cross_sections: Literal["nearest", "interpolated", "points"] = Field(
         default="nearest",

@@ -38,18 +38,19 @@ What only some models can do is declared beside :class:`Model` as a protocol of 
 name (:func:`capability`, :func:`require`); a model without it gets a :class:`MissingCapability` error that
 names what it lacks and what needed it:
 
-=====================  ==========================  ===============================================================
-name                   protocol                    what the model offers
-=====================  ==========================  ===============================================================
-``batch runs``         :class:`BatchRuns`          runs several parameter sets at once (:meth:`~BatchRuns.run_batch`)
-``perturbable forcing``:class:`PerturbableForcing` runs with its inflows and laterals scaled by factors per interval
-``ensemble runs``      :class:`EnsembleRuns`       advances several members (states, perturbed forcing) at once
-``state arrays``       :class:`StateArrays`        its state as levels (m AD) and discharges (m³/s), read and written
-``snapshots``          :class:`Snapshots`          levels and discharges at every point of its network, per output time
-``case``               :class:`FromCase`           the rivercal case it was built from (network, stations, map)
-``variants``           :class:`Variants`           a variant of itself for a twin's truth (rain, runoff, grid,
-                                                   friction per branch, forcing)
-=====================  ==========================  ===============================================================
+=======================  ===========================  ===============================================================
+name                     protocol                     what the model offers
+=======================  ===========================  ===============================================================
+``batch runs``           :class:`BatchRuns`           several parameter sets at once (:meth:`~BatchRuns.run_batch`)
+``perturbable forcing``  :class:`PerturbableForcing`  runs with its inflows and laterals scaled per interval
+``ensemble runs``        :class:`EnsembleRuns`        advances several members (states, perturbed forcing) at once
+``perturbable levels``   :class:`PerturbableLevels`   runs with its level boundaries offset per interval
+``state arrays``         :class:`StateArrays`         its state as levels (m AD) and discharges (m³/s), read, written
+``snapshots``            :class:`Snapshots`           levels and discharges at every point, per output time
+``case``                 :class:`FromCase`            the rivercal case it was built from (network, stations, map)
+``variants``             :class:`Variants`            a variant of itself for a twin's truth (rain, runoff, grid,
+                                                      friction per branch, forcing)
+=======================  ===========================  ===============================================================
 
 The embedded engine has all of them; SWMM has the forcing and the state arrays (its hotstart file); a BMI
 component has them where its ``model.toml`` names the variables. Every protocol holds methods only, so
