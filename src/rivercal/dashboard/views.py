@@ -6,8 +6,10 @@ store's unit, ``raw``, for machines and tests) and plotly figures as dictionarie
 "layout": {...}}``) that the page's script draws with the plotly.js shipped by the ``plotly`` package.
 
 The store is read through its public methods only: ``runs``, ``get_run``, ``cycles``, ``estimates``,
-``last_accepted``, ``alerts``, ``transitions``, ``forecasts``, ``forecast_bands``, ``scores`` and
-``observation_table``.
+``last_accepted``, ``alerts``, ``transitions``, ``forecasts``, ``forecast_bands``, ``scores``, ``metrics`` and
+``observation_table``. The run's figures (forecast error against the DSS, alerts, fallbacks) are those the
+service stored with its latest cycle, in the words of the report and the terminal
+(:func:`rivercal.report.online_figures.headline_lines`).
 
 Conventions of every page: levels in m AD, level errors (forecast − observed) in cm, discharges in m³/s;
 rivercal is blue, the DSS red, the observations black; on the map a forecast above the observed level is
@@ -26,6 +28,7 @@ import pandas as pd
 from rivercal._format import decimals, format_cm, format_std, format_value, plural
 from rivercal.dashboard.facts import dss_values, model_facts
 from rivercal.dashboard.words import ALERT_NAMES, DECISIONS, describe_series
+from rivercal.report.online_figures import headline_lines
 from rivercal.store import FINAL_STATUSES
 
 __all__ = ["COLOURS", "ERROR_COLOURSCALE", "cycles_view", "estimates_view", "forecast_view", "forecasts_view",
@@ -117,7 +120,7 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
     window = pd.Timedelta(run.config.get("window", "7D"))
     out: dict[str, Any] = {"n_cycles": len(cycles), "latest": None, "issued": None, "change": None,
                            "estimates": [], "alerts": [], "window": _words(window), "running": None,
-                           "model_problem": "", "decisions": DECISIONS}
+                           "model_problem": "", "decisions": DECISIONS, "figures": []}
     running = cycles[~cycles["status"].isin(FINAL_STATUSES)]
     if len(running):
         out["running"] = {"cycle": int(running["cycle"].iloc[0]), "issue_time": _t(running["issue_time"].iloc[0])}
@@ -164,6 +167,8 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
             "dss": _cell(dss.get(name), format_value(dss.get(name), unit)),
             "estimate": _cell(estimate, format_value(estimate, unit))})
     out["change"] = _change(store, run, facts, int(last["cycle"]), std)
+    metrics = store.metrics(run)
+    out["figures"] = headline_lines(metrics) if metrics else []
     alerts = store.alerts(run)
     since = last["issue_time"] - window
     for a in alerts[alerts["issue_time"] >= since].iloc[::-1].itertuples():

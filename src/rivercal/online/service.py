@@ -47,7 +47,7 @@ from rivercal.observations import DEFAULT_SIGMA, ObservationSet, measurable
 from rivercal.online import guardrails, intervention
 from rivercal.online.assimilation import AssimilationConfig, EnsembleFilter
 from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig, check_schedule
-from rivercal.online.metrics import ChangeFacts, run_metrics, score_forecasts
+from rivercal.online.metrics import ChangeFacts, figure_scope, run_metrics, score_forecasts
 from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
@@ -560,8 +560,13 @@ class OnlineService:
             self.filter.close()
 
     def metrics(self) -> dict[str, Any]:
-        """The run metrics as of the last finished cycle (:func:`rivercal.online.metrics.run_metrics`)."""
-        return run_metrics(self.store, self.run, self.series, sources=self.config.sources, facts=self.facts)
+        """The run metrics as of the last finished cycle (:func:`rivercal.online.metrics.run_metrics`).
+
+        With ``forecast_scope`` (:func:`rivercal.online.metrics.figure_scope`): which cycles the forecast
+        figures cover, so that every page that shows them can say so.
+        """
+        out = run_metrics(self.store, self.run, self.series, sources=self.config.sources, facts=self.facts)
+        return {**out, "forecast_scope": figure_scope(self.store, self.run, facts=self.facts)}
 
     # -- many cycles --------------------------------------------------------------------------------
 
