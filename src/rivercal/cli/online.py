@@ -186,12 +186,22 @@ def online(
                              assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
                                                              seed=seed),
                              rain_error=rain_error, take_over=take_over)
+    summary["final_state"] = _final_state(summary)
     if as_json:
         emit_json(summary)
     elif not quiet:
         print_summary(summary)
     if summary["cycles_done_now"] and not summary["cycles_succeeded_now"]:
         raise NoCycleSucceeded(summary)
+
+
+def _final_state(summary: dict[str, Any]) -> list[str]:
+    """Where the run ends, read back from its store (:func:`rivercal.report.online_figures.final_state_lines`)."""
+    from rivercal.report.online_figures import final_state_lines
+    from rivercal.store import Store
+
+    with Store(summary["db"], readonly=True) as store:
+        return final_state_lines(store, summary["run"])
 
 
 #: The option that sets each field of the on-line configuration (for the messages of its checks).
@@ -285,6 +295,8 @@ def print_summary(summary: dict[str, Any]) -> None:
     for a in summary["alerts"]:
         out_console.print(f"[yellow]alert[/] cycle {a['cycle']} {a['kind']}: {a['message']}", highlight=False)
     _print_figures(summary)
+    for line in summary.get("final_state") or []:
+        out_console.print(line, highlight=False)
     if "files" in summary:
         out_console.print(f"report: {summary['files']['report']}")
 

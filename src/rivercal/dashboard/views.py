@@ -154,7 +154,8 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
         if row is None:
             state, why, estimate = "", "this cycle stored no estimate", None
         elif bool(row["accepted"]):
-            state, why, estimate = "accepted", "", row["value"]
+            state, estimate = "accepted", row["value"]
+            why = str(row["reason"]) if isinstance(row["reason"], str) else ""  # e.g. why a jump was accepted
         else:
             state, estimate = "held", row["value"]
             why = (f"this cycle's estimate {format_value(row['value'], unit)} is not used: "

@@ -100,6 +100,7 @@ class _Estimation:
     status: str = "done"
     message: str = ""
     held: dict[str, str] = field(default_factory=dict)
+    why: dict[str, str] = field(default_factory=dict)  # why an accepted estimate that jumped was taken anyway
     std: dict[str, float] = field(default_factory=dict)
     model_runs: int = 0
     cost_before: float | None = None
@@ -287,7 +288,7 @@ class OnlineService:
         records = tuple(
             EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
                            std=float(est.std[n]) if n in est.std and math.isfinite(est.std[n]) else None,
-                           accepted=n not in held, reason=held.get(n))
+                           accepted=n not in held, reason=held.get(n, est.why.get(n)))
             for n in warm)
         scores = self._scores(list(range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)))
         choice = self._choose(spec, scores, change)
@@ -351,6 +352,14 @@ class OnlineService:
                 # a one-value fit over a window that may end in a change is neither value: keep the last
                 # accepted estimate until the next cycle can tell
                 est.held = dict.fromkeys(warm, f"{recent}; the last accepted estimate is kept until the next cycle")
+            elif found is None:
+                # no transition: the jump is the window's one-value fit moving (under model error an effective
+                # value wanders with the events in the window); it is accepted, and the estimate says why
+                for name, k in moved.items():
+                    if name not in est.held:
+                        est.why[name] = (f"jumped ({k:.0f} σ; last accepted {warm[name]:.4g}), and the transition "
+                                         "estimator found no change inside the window, so the window's one-value fit "
+                                         "is accepted (no alert: a jump alone is no intervention)")
             if found is not None:
                 est.change = found
                 retried = self._retry(spec, {**warm, found.parameter: found.after}, state, obs, found)
@@ -370,6 +379,10 @@ class OnlineService:
             # the transition test may call a jump an intervention
             est.notes.append(", ".join(f"{n} jumped ({k:.0f} σ)" for n, k in moved.items())
                              + f" while the change of {est.change.parameter} is followed: no transition search")
+            for name, k in moved.items():
+                if name not in est.held:
+                    est.why[name] = (f"jumped ({k:.0f} σ; last accepted {warm[name]:.4g}) while the change of "
+                                     f"{est.change.parameter} is followed: accepted without a transition search")
             moved = {}
         for n, k in moved.items():  # without the transition estimator every jump alerts
             est.alerts.append(guardrails.jump_alert(n, self.parameters[n].unit, warm[n], cal.estimates[n], k, spec,

@@ -318,6 +318,10 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
     files["netcdf"] = str(write_netcdf(dataset, out / "run.nc"))
     cycles.to_csv(out / "cycles.csv", index=False)
     files["cycles_csv"] = str(out / "cycles.csv")
+    coverage = _data_coverage(store, run, cycles, alerts, model)
+    if len(coverage):
+        coverage.to_csv(out / "data_coverage.csv", index=False)
+        files["data_coverage_csv"] = str(out / "data_coverage.csv")
 
     page = Page(f"rivercal on-line run {run.name} ({run.case})")
     scenario = None
@@ -362,14 +366,18 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
                      paragraph("'before': the last cycle whose window ends before the transition; 'after': the "
                                "last cycle, whose window lies after it. Crest levels in m AD, friction in "
                                "m^(1/3)/s. rivercal moves all adjustable crests alike (Wd) and one global friction "
-                               "(FA), so a local change can only show as a compromise in those two."
+                               "(FA), so a local change can only show as a compromise in those two. The rivercal "
+                               "columns are accepted values; whether the forecast a cycle issued used them or the "
+                               "DSS's says the table of the headline (do no harm)."
                                + _missing_columns(ptable)),
                      table(ptable, "Parameters", float_format=".4g"))
         shown = cycles[["cycle", "issue_time", "status", "algorithm", "model_runs", "wall_time_s", "cost_before",
                         "cost_after", "message"]].set_index("cycle")
         page.section("Cycles", table(shown, "Cycles: status, model runs, wall time (s), cost before and after "
                                             "(thesis Eq. 2-3)", float_format=".4g"))
-        page.section("Alerts", table(alerts.set_index("cycle"), "Alerts (magnitude: |Δθ| / σ)")
+        page.section("Alerts", table(alerts.set_index("cycle"), "Alerts (magnitude: |Δθ| / σ)"
+                                     + ("; data_coverage.csv lists, for each cycle with a data alert, the share of "
+                                        "the window each series covers" if "data_coverage_csv" in files else ""))
                      if len(alerts) else paragraph("No alerts."))
         held = est[~est["accepted"]]
         if len(held):
@@ -493,3 +501,33 @@ def _map_words(label: str, sel: dict[str, pd.Series], worst: pd.Series, *, befor
                     "the model, so they settle on effective values; how well rivercal forecasts shows in the "
                     "forecast scores above, against the observations" if perturbed else "") + ".")
     return text
+
+
+def _data_coverage(store: Store, run: Run, cycles: pd.DataFrame, alerts: pd.DataFrame, model: Model) -> pd.DataFrame:
+    """Per cycle with a ``data`` alert and per series: the share of the window's values stored and not flagged.
+
+    The full list behind a data alert, which names only the worst few series when many are thin; the rule
+    is the service's (:func:`rivercal.online.guardrails.data_alerts`): values at the output interval over
+    the window, both ends included.
+    """
+    from rivercal.observations import measurable
+
+    columns = ["cycle", "series", "values", "expected", "coverage"]
+    if alerts.empty or not (alerts["kind"] == "data").any() or cycles.empty:
+        return pd.DataFrame(columns=columns)
+    config = run.config
+    series = list(config.get("series") or measurable(model.observables))
+    interval = float(config.get("output_interval_s") or 3600.0)
+    expected = int(pd.Timedelta(config["window"]) / pd.Timedelta(seconds=interval)) + 1
+    rows = []
+    windows = cycles.set_index("cycle")
+    for cycle in sorted(set(alerts.loc[alerts["kind"] == "data", "cycle"])):
+        if cycle not in windows.index:
+            continue
+        w = windows.loc[cycle]
+        counts = store.flag_counts(series, w["window_start"], w["window_end"])
+        ok = counts[counts["flag"] == "ok"].groupby("series")["n"].sum() if len(counts) else pd.Series(dtype=int)
+        for s in series:
+            n = int(ok.get(s, 0))
+            rows.append((int(cycle), s, n, expected, round(n / expected, 4)))
+    return pd.DataFrame(rows, columns=columns).sort_values(["cycle", "coverage", "series"])

@@ -12,7 +12,7 @@ from typing import Any
 from rivercal._format import plural
 from rivercal.store import Run, Store
 
-__all__ = ["figure_blocks", "forecast_words", "headline_lines", "ratio_words", "stored_metrics"]
+__all__ = ["figure_blocks", "final_state_lines", "forecast_words", "headline_lines", "ratio_words", "stored_metrics"]
 
 
 def stored_metrics(store: Store, run: Run | str) -> dict[str, Any]:
@@ -67,6 +67,48 @@ def headline_lines(f: dict[str, Any]) -> list[str]:
     return lines
 
 
+def final_state_lines(store: Store, run: Run | str) -> list[str]:
+    """Where the run ends, in words: the forecast the last cycle issued and why, and each parameter's value.
+
+    Each parameter's last accepted value, the cycle that accepted it and why (an estimate that jumped says
+    why it was taken), and the last cycle's estimate when that cycle held it. Empty when the run has no finished cycle.
+    """
+    from rivercal._format import format_value
+
+    run = store.get_run(run) if isinstance(run, str) else run
+    if run is None:
+        raise ValueError("no such run in the store")
+    cycles = store.cycles(run)
+    done = cycles[cycles["status"].isin(("done", "failed", "aborted"))] if len(cycles) else cycles
+    if done.empty:
+        return []
+    last = done.iloc[-1]
+    cycle = int(last["cycle"])
+    issued = last.get("issued_forecast")
+    reason = str(last.get("issued_reason") or "").rstrip(".")
+    whose = {"dss": "the DSS's forecast, with its fixed parameters", "updated": "rivercal's forecast, with the "
+             "accepted values below"}.get(str(issued), "no forecast choice stored")
+    lines = [f"At the end of the run, cycle {cycle} ({last['issue_time']:%Y-%m-%d %H:%M}) issued {whose}"
+             + (f": {reason}." if reason else ".")]
+    est = store.estimates(run)
+    for name, g in est.groupby("parameter", sort=False):
+        unit = str(g["unit"].iloc[-1])
+        mine = g[g["cycle"] == cycle]
+        ok = g[g["accepted"].astype(bool)]
+        if ok.empty:
+            text = f"{name}: no estimate accepted yet"
+        else:
+            row = ok.iloc[-1]
+            text = (f"{name}: last accepted {format_value(float(row['value']), unit)} {unit}, by cycle "
+                    f"{int(row['cycle'])}" + (f" — {row['reason']}" if isinstance(row["reason"], str) and row["reason"]
+                                              else ""))
+        if len(mine) and not bool(mine["accepted"].iloc[-1]):
+            text += (f"; cycle {cycle}'s estimate {format_value(float(mine['value'].iloc[-1]), unit)} is held: "
+                     f"{str(mine['reason'].iloc[-1]).rstrip('.')}")
+        lines.append(text + ".")
+    return lines
+
+
 def forecast_words(f: dict[str, Any]) -> str:
     """The forecast level error of rivercal against the DSS in one sentence, with the forecasts it covers."""
     scope = f.get("forecast_scope") or {}
@@ -106,6 +148,9 @@ def figure_blocks(store: Store, run: Run) -> list[Any]:
     f = stored_metrics(store, run)
     cycles = store.cycles(run)
     blocks: list[Any] = [paragraph(" ".join(headline_lines(f)))]
+    end = final_state_lines(store, run)
+    if end:
+        blocks.append(paragraph(" ".join(end)))
     if len(cycles) and "issued_forecast" in cycles:
         shown = cycles[["cycle", "issue_time", "issued_forecast", "skill_updated", "skill_dss", "issued_reason"]]
         shown = shown.assign(skill_updated=shown["skill_updated"] * 100, skill_dss=shown["skill_dss"] * 100)
