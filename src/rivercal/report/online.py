@@ -123,14 +123,14 @@ def _estimates_plot(est: pd.DataFrame, units: dict[str, str], truth: dict[str, t
             before, after = truth[name]
             if change is not None and before is not None and after is not None:
                 if change <= t0:  # changed before the first cycle: the truth is its value after
-                    ax.plot([t0, t1], [after, after], color="k", lw=1, ls=":", label="scenario's value")
+                    ax.plot([t0, t1], [after, after], color="k", lw=1, ls=":", label="truth")
                 elif change >= t1:
-                    ax.plot([t0, t1], [before, before], color="k", lw=1, ls=":", label="scenario's value")
+                    ax.plot([t0, t1], [before, before], color="k", lw=1, ls=":", label="truth")
                 else:
                     ax.step([t0, change, t1], [before, after, after], where="post", color="k", lw=1, ls=":",
-                            label="scenario's value")
+                            label="truth")
             elif before is not None:
-                ax.axhline(before, color="k", lw=1, ls=":", label="scenario's value")
+                ax.axhline(before, color="k", lw=1, ls=":", label="truth")
         ax.set_ylabel(f"{name} [{units.get(name, '')}]")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8, ncol=2, loc="best")
@@ -351,11 +351,11 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
         wide = est.pivot_table(index=["cycle", "issue_time"], columns="parameter", values="value")
         perturbed = _perturbed(meta)
         page.section("Estimates per cycle",
-                     figure(fig_est, "Estimates per cycle with ±σ (thesis Eq. 2-12); dotted: the scenario's values "
-                                     "before and after the change"
+                     figure(fig_est, "Estimates per cycle with ±σ (thesis Eq. 2-12); dotted: the truth, the scenario's "
+                                     "values before and after the change"
                                      + (f" — the truth behind the observations, with {' and '.join(perturbed)}, is "
                                         "not the model, so a global estimate settles near these values, not on "
-                                        "them, and what counts is its change" if perturbed else " (the truth)")
+                                        "them, and what counts is its change" if perturbed else "")
                                      + "; red: the DSS; dashed: the transition (named under the time axis when it lies "
                                        "outside the period shown)."),
                      table(wide.reset_index().set_index("cycle"), "Estimates per cycle", float_format=".4g"))
