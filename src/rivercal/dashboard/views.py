@@ -20,6 +20,7 @@ red and one below it blue, as in the report's maps. The decisions and alerts are
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -28,6 +29,7 @@ import pandas as pd
 from rivercal._format import decimals, format_cm, format_std, format_value, plural
 from rivercal.dashboard.facts import dss_values, model_facts
 from rivercal.dashboard.words import ALERT_NAMES, DECISIONS, describe_series
+from rivercal.online.service import OPTIMISER_NOTE
 from rivercal.report.online_figures import headline_lines
 from rivercal.store import FINAL_STATUSES
 
@@ -78,6 +80,11 @@ def _words(td: Any) -> str:
 
 def _final(cycles: pd.DataFrame) -> pd.DataFrame:
     return cycles[cycles["status"].isin(FINAL_STATUSES)]
+
+
+def _plain(message: Any) -> str:
+    """A stored cycle message without the optimiser's own words (its stopping rule and status code)."""
+    return re.sub(OPTIMISER_NOTE, "", message) if isinstance(message, str) else ""
 
 
 def run_version(store: Any, run: Any) -> str:
@@ -132,7 +139,7 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
     kind = last.get("issued_forecast")
     kind = str(kind) if isinstance(kind, str) else ""
     out["latest"] = {"cycle": int(last["cycle"]), "issue_time": _t(last["issue_time"]), "status": str(last["status"]),
-                     "message": str(last["message"] or ""), "model_runs": _cell(last["model_runs"], digits=6),
+                     "message": _plain(last["message"]), "model_runs": _cell(last["model_runs"], digits=6),
                      "wall_time_s": _cell(last["wall_time_s"], digits=3), "algorithm": str(last["algorithm"] or "")}
     if kind:
         out["issued"] = {"kind": kind, "whose": "the DSS's" if kind == "dss" else "rivercal's",
@@ -502,7 +509,8 @@ def cycles_view(store: Any, run: Any) -> dict[str, Any]:
                      "model_runs": _cell(c.model_runs, digits=6), "wall_time_s": _cell(c.wall_time_s, digits=3),
                      "cost_before": _cell(c.cost_before, _cost(c.cost_before)),
                      "cost_after": _cell(c.cost_after, _cost(c.cost_after)),
-                     "message": c.message if isinstance(c.message, str) else "", "finished": _t(c.finished)})
+                     "message": _plain(c.message), "log": c.message if isinstance(c.message, str) else "",
+                     "finished": _t(c.finished)})
     wall = cycles["wall_time_s"].dropna()
     # as the glossary (and the run's headline figures) count them: the DSS's issued although rivercal had a score
     fallbacks = int(((cycles["issued_forecast"] == "dss") & cycles["skill_updated"].notna()).sum())

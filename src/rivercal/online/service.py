@@ -54,7 +54,7 @@ from rivercal.parameters import ParameterSet
 from rivercal.problem import Calibration, CalibrationProblem, calibrate
 from rivercal.store import AlertRecord, BandRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
 
-__all__ = ["DEFAULT_RESOLUTION", "CycleOutcome", "OnlineConfig", "OnlineService"]
+__all__ = ["DEFAULT_RESOLUTION", "OPTIMISER_NOTE", "CycleOutcome", "OnlineConfig", "OnlineService", "outcome_words"]
 
 log = logging.getLogger(__name__)
 
@@ -105,6 +105,34 @@ class _Estimation:
     model_runs: int = 0
     cost_before: float | None = None
     cost_after: float | None = None
+
+
+def outcome_words(result: Any) -> str:
+    """How a cycle's calibration ended, in words, with the optimiser's own message and status in brackets.
+
+    The pages for people (the report's tables, the dashboard) show the words and leave out the bracket
+    (:data:`OPTIMISER_NOTE`); the store, its exports and the JSON keep both.
+    """
+    from rivercal.optimise.result import STATUS_CALLBACK, STATUS_DEADLINE, STATUS_MAX_ITER, STATUS_MAX_NFEV
+
+    status = getattr(result, "status", None)
+    if getattr(result, "success", False):
+        words = "converged"
+    elif status == STATUS_DEADLINE:
+        words = "stopped at the deadline before converging"
+    elif status == STATUS_MAX_NFEV:
+        words = "stopped at the cap on model runs before converging"
+    elif status == STATUS_MAX_ITER:
+        words = "stopped after the most iterations the optimiser allows"
+    elif status == STATUS_CALLBACK:
+        words = "stopped on request before converging"
+    else:
+        words = "did not converge"
+    return f"{words} [optimiser: {getattr(result, 'message', '')} (status {status})]"
+
+
+#: The optimiser's own words in a stored cycle message (see :func:`outcome_words`), for pages to leave out.
+OPTIMISER_NOTE = r"\s*\[optimiser: [^\]]*\]"
 
 
 class OnlineService:
@@ -324,8 +352,8 @@ class OnlineService:
         est.model_runs = cal.result.nfev
         if cal.result.aborted:
             est.status = "aborted"
-            est.message = (f"{cal.result.message} after {cal.result.nfev} model runs; the last accepted estimate "
-                           "is kept")
+            est.message = (f"{outcome_words(cal.result)} after {cal.result.nfev} model runs; the last accepted "
+                           "estimate is kept")
             est.held = dict.fromkeys(warm, est.message)
             return
         est.held, extra = self._gate(problem, cal)
@@ -391,7 +419,7 @@ class OnlineService:
         est.cost_before = cal.history[0]["cost"] if cal.history and cal.history[0]["iteration"] == 0 else None
         est.estimates = {n: float(cal.estimates.get(n, warm[n])) for n in warm}
         est.std = dict(cal.std)
-        est.message = cal.result.message
+        est.message = outcome_words(cal.result)
 
     def _flag_note(self, spec: CycleSpec) -> list[str]:
         """A note on the values flagged as outliers in the window (stored, left out)."""

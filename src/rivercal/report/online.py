@@ -24,6 +24,7 @@ from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
 from rivercal.models.contract import FromCase, Model
+from rivercal.online.service import OPTIMISER_NOTE
 from rivercal.report.figures import mark_change
 from rivercal.report.html import Page, bullets, figure, paragraph, table
 from rivercal.report.online_bands import band_blocks
@@ -373,6 +374,8 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
                      table(ptable, "Parameters", float_format=".4g"))
         shown = cycles[["cycle", "issue_time", "status", "algorithm", "model_runs", "wall_time_s", "cost_before",
                         "cost_after", "message"]].set_index("cycle")
+        # the optimiser's own stopping rule stays in cycles.csv and the store, not in the page's table
+        shown = shown.assign(message=shown["message"].fillna("").str.replace(OPTIMISER_NOTE, "", regex=True))
         page.section("Cycles", table(shown, "Cycles: status, model runs, wall time (s), cost before and after "
                                             "(thesis Eq. 2-3)", float_format=".4g"))
         page.section("Alerts", table(alerts.set_index("cycle"), "Alerts (magnitude: |Δθ| / σ)"
