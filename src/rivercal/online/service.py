@@ -368,11 +368,12 @@ class OnlineService:
         if moved and est.change is None and self.config.transition:
             # every parameter that jumped, the largest jump first, until one holds a transition: under model
             # error one parameter's estimate wanders (an effective value) while another's made the change
-            found, recent = None, None
+            found, recent, verdicts = None, None, {}
             for name in sorted(moved, key=lambda n: -moved[n]):
                 found, runs, why = self._search(spec, warm, state, obs, name, moved[name])
                 est.model_runs += runs
                 est.notes.append(why)
+                verdicts[name] = why.split("transition estimate: ", 1)[-1]
                 recent = why if recent is None and why.endswith(_TOO_RECENT) else recent
                 if found is not None:
                     break
@@ -385,9 +386,10 @@ class OnlineService:
                 # value wanders with the events in the window); it is accepted, and the estimate says why
                 for name, k in moved.items():
                     if name not in est.held:
+                        verdict = f" ({verdicts[name]})" if name in verdicts else ""
                         est.why[name] = (f"jumped ({k:.0f} σ; last accepted {warm[name]:.4g}), and the transition "
-                                         "estimator found no change inside the window, so the window's one-value fit "
-                                         "is accepted (no alert: a jump alone is no intervention)")
+                                         f"estimator found no change inside the window{verdict}, so the window's "
+                                         "one-value fit is accepted (no alert: a jump alone is no intervention)")
             if found is not None:
                 est.change = found
                 retried = self._retry(spec, {**warm, found.parameter: found.after}, state, obs, found)
