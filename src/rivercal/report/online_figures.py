@@ -49,7 +49,7 @@ def headline_lines(f: dict[str, Any]) -> list[str]:
     """
     lines = []
     if f.get("scenario"):
-        lines.append(f"Twin scenario {f['scenario']}: " + _twin_words(f))
+        lines.append(f"Twin scenario {f['scenario']}" + _twin_words(f))
     lines.append(forecast_words(f))
     if f.get("scenario"):
         ttc, settle = f.get("time_to_correct_cycles"), f.get("time_to_settle_cycles")
@@ -86,10 +86,10 @@ def final_state_lines(store: Store, run: Run | str) -> list[str]:
     cycle = int(last["cycle"])
     issued = last.get("issued_forecast")
     reason = str(last.get("issued_reason") or "").rstrip(".")
-    whose = {"dss": "the DSS's forecast, with its fixed parameters", "updated": "rivercal's forecast, with the "
-             "accepted values below"}.get(str(issued), "no forecast choice stored")
+    whose = {"dss": "the DSS's forecast, made with its fixed parameters", "updated": "rivercal's forecast, made "
+             "with the accepted values below"}.get(str(issued), "no forecast choice stored")
     lines = [f"At the end of the run, cycle {cycle} ({last['issue_time']:%Y-%m-%d %H:%M}) issued {whose}"
-             + (f": {reason}." if reason else ".")]
+             + (f"; the service's reason: {reason}." if reason else ".")]
     est = store.estimates(run)
     for name, g in est.groupby("parameter", sort=False):
         unit = str(g["unit"].iloc[-1])
@@ -166,14 +166,14 @@ def figure_blocks(store: Store, run: Run) -> list[Any]:
 def _twin_words(f: dict[str, Any]) -> str:
     """What the twin's truth and observations were, in words."""
     if (f.get("realism") or "ideal") != "ideal":
-        return (f"realism {f['realism']}: the truth differs from the model and the observations carry sensor errors "
-                "(docs/realism.md).")
+        return (f", realism {f['realism']}: the truth differs from the model and the observations carry sensor "
+                "errors (docs/realism.md).")
     errors = []
     if f.get("rain_error"):
         errors.append(f"the truth's inflows and laterals carry a rain error of about {f['rain_error']:.0%}")
     if f.get("noise") not in (None, "none"):
         errors.append(f"the observations carry {f['noise']} noise")
     if not errors:
-        return ("an identical twin, whose truth is the model and whose observations are exact — an upper bound, "
-                "not what a river gives.")
-    return "the model's structure is the truth's, but " + " and ".join(errors) + "."
+        return (": an identical twin, whose truth is the model and whose observations are exact — an upper bound, "
+                "not what a river gives (try --realism realistic).")
+    return ": the model's structure is the truth's, but " + " and ".join(errors) + "."
