@@ -50,6 +50,35 @@ def _cm(metres: float) -> str:
     return f"{metres * 100:.2f} cm"
 
 
+def _served_now_page(db: Path) -> str:
+    """The dashboard's "Now" page as its real server sends it (uvicorn on a free local port), as text."""
+    import threading
+    import time
+    import urllib.request
+
+    import uvicorn
+
+    from rivercal.dashboard.app import create_app
+
+    server = uvicorn.Server(uvicorn.Config(create_app(db), host="127.0.0.1", port=0, log_level="warning",
+                                          access_log=False))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    try:
+        deadline = time.monotonic() + 30
+        while not server.started and time.monotonic() < deadline:
+            time.sleep(0.05)
+        port = server.servers[0].sockets[0].getsockname()[1]
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/?run={RUN}", timeout=30) as answer:
+            page = answer.read().decode("utf-8")
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)
+    parser = _Text()
+    parser.feed(page)
+    return " ".join(" ".join(parser.parts).split())
+
+
 def _terminal(summary: dict) -> str:
     from rivercal.cli.common import out_console
     from rivercal.cli.online import print_summary
@@ -83,7 +112,9 @@ def test_every_surface_gives_the_stored_figures_and_says_what_they_cover(done) -
     parser.feed(html)
     report = " ".join(" ".join(parser.parts).split())
     terminal = _terminal(summary)
-    for where, text in (("terminal", terminal), ("dashboard", dashboard), ("report", report)):
+    served = _served_now_page(folder / "run.sqlite")
+    for where, text in (("terminal", terminal), ("dashboard view", dashboard), ("dashboard page", served),
+                        ("report", report)):
         for words in numbers:
             assert words in text, f"{where} lacks {words!r}"
     # the report says it twice, in its headline and in its Forecasts section, and no other MAE against the DSS
