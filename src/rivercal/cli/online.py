@@ -298,7 +298,10 @@ def print_summary(summary: dict[str, Any]) -> None:
     for line in summary.get("final_state") or []:
         out_console.print(line, highlight=False)
     if "files" in summary:
-        out_console.print(f"report: {summary['files']['report']}")
+        out_console.print(f"report: {summary['files']['report']} (open it in a browser)", highlight=False)
+    out_console.print(f"next: `rivercal dashboard --db {summary['db']}` shows the run in a browser on "
+                      "http://127.0.0.1:8050/ (the forecast page, the estimates, the alerts); docs/explanation/"
+                      "alerts-and-decisions.md says what each word means", highlight=False)
 
 
 def _print_figures(summary: dict[str, Any]) -> None:
