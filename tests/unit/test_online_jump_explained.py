@@ -1,4 +1,5 @@
-"""An estimate that jumps without a transition is accepted with its reason, and the run's end says so.
+"""An estimate that jumps without a transition is accepted with its reason, and the run's end says so; the
+report lists the coverage of every series behind a data alert.
 
 On the toy river of :mod:`tests.unit.test_online_service` (friction 16 → 25 on 2010-11-01, then a crest
 raised by 0.2 m on 2010-11-04), the service follows the friction's transition when the crest's estimate
@@ -41,3 +42,19 @@ def test_a_jump_while_a_change_is_followed_is_accepted_with_its_reason_and_the_e
     line = next(x for x in lines if x.startswith("Wd: "))
     shown = format_value(last.accepted["Wd"], "m AD")
     assert f"last accepted {shown} m AD, by cycle {int(wd['cycle'])} — jumped" in line
+
+
+def test_the_report_lists_the_coverage_of_every_series_behind_a_data_alert(tmp_path) -> None:
+    from rivercal.report.online import _data_coverage
+
+    config = OnlineConfig(parameters=("FA",), workers=1, deadline_s=None)
+    gap = ("2010-10-29 01:00", "2010-10-31 00:00")  # 48 of the window's 169 hourly values of both gauges missing
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED, drop=gap), first="2010-10-31")
+    with store:
+        svc.replay("2010-10-31")
+        alerts = store.alerts(svc.run)
+        assert list(alerts["kind"]) == ["data"] and "A.h (72%), B.h (72%)" in alerts["message"].iloc[0]
+        table = _data_coverage(store, svc.run, store.cycles(svc.run), alerts, svc.model)
+    assert list(table["series"]) == ["A.h", "B.h"] and set(table["cycle"]) == {0}
+    assert (table["expected"] == 169).all() and (table["values"] == 121).all()
+    assert table["coverage"].tolist() == [round(121 / 169, 4)] * 2
