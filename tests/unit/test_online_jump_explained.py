@@ -36,6 +36,12 @@ def test_a_jump_while_a_change_is_followed_is_accepted_with_its_reason_and_the_e
         assert f"last accepted {before:.4g}" in row["reason"]
         last = out[-1]
         lines = final_state_lines(store, svc.run)
+        # the dashboard's "Now" page gives the reason beside the accepted value (the jump is the latest cycle's)
+        from rivercal.dashboard.views import now_view
+
+        rows = {r["parameter"]: r for r in now_view(store, svc.run)["estimates"]}
+        assert rows["Wd"]["state"] == "accepted"
+        assert last.cycle == jumped.cycle and "while the change of FA is followed" in rows["Wd"]["why"]
         wd = est[(est["parameter"] == "Wd") & est["accepted"].astype(bool)].iloc[-1]
     assert lines[0].startswith(f"At the end of the run, cycle {last.cycle} (2010-11-08 00:00) issued ")
     assert ("rivercal's forecast" if last.issued == "updated" else "the DSS's forecast") in lines[0]
