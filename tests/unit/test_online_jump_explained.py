@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import pandas as pd
 
-from rivercal._format import format_value
 from rivercal.online.service import OnlineConfig
 from rivercal.report.online_figures import final_state_lines
 from tests.unit.test_online_service import MOWED, ToyRiver, _observations, _service
@@ -46,7 +45,7 @@ def test_a_jump_while_a_change_is_followed_is_accepted_with_its_reason_and_the_e
     assert lines[0].startswith(f"At the end of the run, cycle {last.cycle} (2010-11-08 00:00) issued ")
     assert ("rivercal's forecast" if last.issued == "updated" else "the DSS's forecast") in lines[0]
     line = next(x for x in lines if x.startswith("Wd: "))
-    shown = format_value(last.accepted["Wd"], "m AD")
+    shown = f"{last.accepted['Wd']:.4f}"  # as the terminal's table of estimates prints a level
     assert f"last accepted {shown} m AD, by cycle {int(wd['cycle'])} — jumped" in line
 
 

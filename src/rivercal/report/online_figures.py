@@ -73,8 +73,6 @@ def final_state_lines(store: Store, run: Run | str) -> list[str]:
     Each parameter's last accepted value, the cycle that accepted it and why (an estimate that jumped says
     why it was taken), and the last cycle's estimate when that cycle held it. Empty when the run has no finished cycle.
     """
-    from rivercal._format import format_value
-
     run = store.get_run(run) if isinstance(run, str) else run
     if run is None:
         raise ValueError("no such run in the store")
@@ -99,14 +97,19 @@ def final_state_lines(store: Store, run: Run | str) -> list[str]:
             text = f"{name}: no estimate accepted yet"
         else:
             row = ok.iloc[-1]
-            text = (f"{name}: last accepted {format_value(float(row['value']), unit)} {unit}, by cycle "
+            text = (f"{name}: last accepted {_value(float(row['value']), unit)} {unit}, by cycle "
                     f"{int(row['cycle'])}" + (f" — {row['reason']}" if isinstance(row["reason"], str) and row["reason"]
                                               else ""))
         if len(mine) and not bool(mine["accepted"].iloc[-1]):
-            text += (f"; cycle {cycle}'s estimate {format_value(float(mine['value'].iloc[-1]), unit)} is held: "
+            text += (f"; cycle {cycle}'s estimate {_value(float(mine['value'].iloc[-1]), unit)} is held: "
                      f"{str(mine['reason'].iloc[-1]).rstrip('.')}")
         lines.append(text + ".")
     return lines
+
+
+def _value(value: float, unit: str) -> str:
+    """A parameter value as the terminal's table of estimates prints it: 0.1 mm for levels, 0.01 for the rest."""
+    return f"{value:.4f}" if unit in ("m", "m AD") else f"{value:.2f}"
 
 
 def forecast_words(f: dict[str, Any]) -> str:
