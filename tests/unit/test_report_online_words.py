@@ -33,6 +33,7 @@ def test_the_ratio_says_larger_when_rivercal_is_worse() -> None:
     assert ratio_words(1.2) == " (rivercal's error 1.2× smaller)"
     assert ratio_words(0.8) == " (rivercal's error 1.2× larger)"
     assert ratio_words(None) == ""
+    assert ratio_words(1.02) == ratio_words(0.97) == " (about the same)"
 
 
 def test_the_forecast_sentence_names_the_cycles_leads_and_count_it_covers() -> None:

@@ -134,11 +134,13 @@ def forecast_words(f: dict[str, Any]) -> str:
 
 
 def ratio_words(ratio: float | None) -> str:
-    """" (1.2× smaller)" or " (1.3× larger)": rivercal's error against the DSS's (ratio = DSS / rivercal)."""
+    """" (1.2× smaller)", " (1.3× larger)" or " (about the same)": rivercal's error against the DSS's."""
     if not ratio:
         return ""
     if ratio > 1000:
         return " (rivercal's error more than 1000× smaller)"
+    if round(ratio, 1) == 1.0 or round(1 / ratio, 1) == 1.0:
+        return " (about the same)"
     if ratio >= 1:
         return f" (rivercal's error {ratio:.1f}× smaller)"
     return f" (rivercal's error {1 / ratio:.1f}× larger)"
