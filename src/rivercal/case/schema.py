@@ -157,8 +157,8 @@ class EngineSettings(_Model):
         and for the flow of the links it feeds, as Mascaret does).
     courant
         Largest flow Courant number u Δt / Δx (u the speed of the flow) of a (sub-)step, or None: a step whose
-        flow would cross a channel link in less than 1/courant of it is divided (SOBEK 3's ``CourantNumber``, D-Flow FM's
-        ``CFLMax``).
+        flow would cross a channel link in less than 1/courant of it is divided (SOBEK 3's ``CourantNumber``,
+        D-Flow FM's ``CFLMax``).
     """
 
     dt: Real = Field(default=60.0, ge=0.1, le=3600, description="time step, s (0.1-3600)")
@@ -194,7 +194,8 @@ class EngineSettings(_Model):
     courant: Real | None = Field(
         default=None, gt=0,
         description="largest flow Courant number u dt / dx (u the speed of the flow) of a (sub-)step (optional): a "
-        "step whose flow crosses a channel link faster is divided, as SOBEK 3 (CourantNumber) and D-Flow FM (CFLMax) do; default: no limit",
+        "step whose flow crosses a channel link faster is divided, as SOBEK 3 (CourantNumber) and D-Flow FM (CFLMax) "
+        "do; default: no limit",
     )
     cross_sections: Literal["nearest", "interpolated", "points"] = Field(
         default="nearest",

@@ -102,8 +102,19 @@ def check(case: CaseArg, as_json: JsonOpt = False) -> None:
         return
     table = Table(title=f"case {c.name} — valid", show_header=False)
     for key, value in summary.items():
-        table.add_row(key, ", ".join(value) if isinstance(value, list) else str(value))
+        table.add_row(key, _listed(value) if isinstance(value, list) else str(value))
     out_console.print(table)
+
+
+#: A list longer than this is shown by its length and its first names (``--json`` gives all).
+_LISTED = 12
+
+
+def _listed(values: list) -> str:
+    """A list for the terminal: all of it when short, else its length, the first few and where the rest are."""
+    if len(values) <= _LISTED:
+        return ", ".join(map(str, values))
+    return f"{len(values)}: {', '.join(map(str, values[:_LISTED]))} … (--json lists all)"
 
 
 @app.command("plot")

@@ -59,6 +59,9 @@ def import_dhydro_cmd(
              plural(len(s["parameters"]), "calibration parameter")]
     out_console.print(f"imported [bold]{model.name}[/] into {out}: {', '.join(parts)}; {s['approximated']} "
                       f"approximated, {s['refused']} refused (see {out / 'import.md'})")
+    out_console.print(f"next: read {out / 'import.md'}, then `rivercal case check {out}` and `rivercal simulate {out} "
+                      f"--out {out}-run`; `rivercal online {out} --help` runs the on-line service on it",
+                      highlight=False)
 
 
 @export_app.command("dhydro")

@@ -70,11 +70,12 @@ def online(
     max_change: Annotated[str | None, typer.Option(
         "--max-change", help="Largest change per cycle, e.g. 'FA=5,Wd=0.1' (default: none).")] = None,
     alert_k: Annotated[float, typer.Option(
-        "--alert-k", help="An estimate that moves more than k σ starts the transition estimator.")] = 3.0,
+        "--alert-k", help="An estimate that moves more than k σ and its resolution jumps: a jump starts the "
+                           "transition estimator, and a transition it finds raises one jump alert.")] = 3.0,
     loss: Annotated[str, typer.Option(help="Cost of the calibrations: huber, student-t or l2.")] = "huber",
     transition: Annotated[bool, typer.Option(
-        help="Date a jump with the transition estimator and carry its after-value (--no-transition: every jump "
-             "alerts and the estimate creeps).")] = True,
+        help="Look for a transition after each jump and carry its value after (--no-transition: every jump raises "
+             "a jump alert and the estimate creeps).")] = True,
     skill_cycles: Annotated[int, typer.Option(
         "--skill-cycles", help="Do no harm: issue the DSS's forecast while the updated one scored worse over this "
                                "many recent cycles (0: always the updated one).")] = 3,
@@ -185,12 +186,22 @@ def online(
                              assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
                                                              seed=seed),
                              rain_error=rain_error, take_over=take_over)
+    summary["final_state"] = _final_state(summary)
     if as_json:
         emit_json(summary)
     elif not quiet:
         print_summary(summary)
     if summary["cycles_done_now"] and not summary["cycles_succeeded_now"]:
         raise NoCycleSucceeded(summary)
+
+
+def _final_state(summary: dict[str, Any]) -> list[str]:
+    """Where the run ends, read back from its store (:func:`rivercal.report.online_figures.final_state_lines`)."""
+    from rivercal.report.online_figures import final_state_lines
+    from rivercal.store import Store
+
+    with Store(summary["db"], readonly=True) as store:
+        return final_state_lines(store, summary["run"])
 
 
 #: The option that sets each field of the on-line configuration (for the messages of its checks).
@@ -284,49 +295,25 @@ def print_summary(summary: dict[str, Any]) -> None:
     for a in summary["alerts"]:
         out_console.print(f"[yellow]alert[/] cycle {a['cycle']} {a['kind']}: {a['message']}", highlight=False)
     _print_figures(summary)
+    for line in summary.get("final_state") or []:
+        out_console.print(line, highlight=False)
     if "files" in summary:
-        out_console.print(f"report: {summary['files']['report']}")
+        out_console.print(f"report: {summary['files']['report']} (open it in a browser)", highlight=False)
+    out_console.print(f"next: `rivercal dashboard --db {summary['db']}` shows the run in a browser on "
+                      "http://127.0.0.1:8050/ (the forecast page, the estimates, the alerts); docs/explanation/"
+                      "alerts-and-decisions.md says what each word means", highlight=False)
 
 
 def _print_figures(summary: dict[str, Any]) -> None:
-    """The headline figures (:func:`rivercal.online.metrics.run_figures`), with what they are measured on."""
-    if summary.get("scenario"):
-        realism = summary.get("realism") or "ideal"
-        if realism == "ideal":
-            out_console.print(f"twin {summary['scenario']}, identical twin: the truth shares the model's engine, grid "
-                              "and inflow and the observations are exact, so these figures are an upper bound, "
-                              "not what a river would give (try --realism realistic)", highlight=False)
-        else:
-            out_console.print(f"twin {summary['scenario']}, realism {realism}: the truth differs from the model "
-                              "and the observations carry sensor errors (docs/realism.md)", highlight=False)
-    if summary.get("forecast_values"):
-        when = f"after {summary['change_time'][:16].replace('T', ' ')}" if summary.get("change_time") else "all cycles"
-        out_console.print(
-            f"forecast level error ({when}, lead 0-{summary['lead_h']:g} h, mean |error| over "
-            f"{summary['forecast_values']} values against the stored observations): rivercal as issued "
-            f"{summary['rivercal_mae_m'] * 100:.2f} cm, fixed DSS {summary['dss_mae_m'] * 100:.2f} cm"
-            + _ratio_words(summary.get("forecast_mae_ratio")), highlight=False)
-    else:
-        fe = summary["forecast_errors"]
-        out_console.print("forecast level error, rivercal against the fixed DSS: nothing to compare yet"
-                          + (f" — {fe['reason']}" if fe.get("reason") else ""), highlight=False)
-    ttc = summary.get("time_to_correct_cycles")
-    words = (f"{ttc} cycle{'s' if ttc != 1 else ''}" if ttc is not None
-             else f"— ({summary.get('time_to_correct_reason')})")
-    out_console.print(f"time to correct the changed parameters: {words}; jump alerts: {summary.get('jump_alerts', 0)}; "
-                      f"fallbacks to the DSS's forecast: {summary.get('fallbacks', 0)}", highlight=False)
+    """The headline figures in the words of the report and the dashboard (report.online_figures.headline_lines)."""
+    from rivercal.report.online_figures import headline_lines
+
+    for line in headline_lines(summary):
+        out_console.print(line, highlight=False)
     mode = summary.get("assimilate", "parameters")
     what = {"both": "states (hourly, ensemble Kalman filter) and parameters (daily)", "states": "states only",
             "parameters": "parameters only"}.get(mode, mode)
-    band = summary.get("band_coverage_90") or {}
-    out_console.print(f"updated: {what}" + (f"; the 90 % band held {band['fraction']:.0%} of {band['n']} level "
-                                            "observations" if band.get("n") else ""), highlight=False)
-
-
-def _ratio_words(ratio: float | None) -> str:
-    if not ratio:
-        return ""
-    return " (more than 1000× smaller)" if ratio > 1000 else f" ({ratio:.1f}× smaller)"
+    out_console.print(f"Updated: {what}.", highlight=False)
 
 
 def demo(

@@ -63,6 +63,9 @@ def simulate(
             out_console.print(f"{divided} time steps were too long for the flow and were divided (into up to "
                               f"{summary['run']['max_division']} sub-steps)")
         out_console.print("wrote " + ", ".join(summary["files"].values()))
+        out_console.print(f"next: compare series.csv with your gauges; `rivercal calibrate {case} --help` estimates "
+                          f"the parameters over a window and `rivercal online {case} --help` runs the daily service",
+                          highlight=False)
 
 
 def compile_engine(as_json: JsonOpt = False) -> None:

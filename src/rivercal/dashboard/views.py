@@ -6,8 +6,10 @@ store's unit, ``raw``, for machines and tests) and plotly figures as dictionarie
 "layout": {...}}``) that the page's script draws with the plotly.js shipped by the ``plotly`` package.
 
 The store is read through its public methods only: ``runs``, ``get_run``, ``cycles``, ``estimates``,
-``last_accepted``, ``alerts``, ``transitions``, ``forecasts``, ``forecast_bands``, ``scores`` and
-``observation_table``.
+``last_accepted``, ``alerts``, ``transitions``, ``forecasts``, ``forecast_bands``, ``scores``, ``metrics`` and
+``observation_table``. The run's figures (forecast error against the DSS, alerts, fallbacks) are those the
+service stored with its latest cycle, in the words of the report and the terminal
+(:func:`rivercal.report.online_figures.headline_lines`).
 
 Conventions of every page: levels in m AD, level errors (forecast − observed) in cm, discharges in m³/s;
 rivercal is blue, the DSS red, the observations black; on the map a forecast above the observed level is
@@ -18,6 +20,7 @@ red and one below it blue, as in the report's maps. The decisions and alerts are
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -26,6 +29,8 @@ import pandas as pd
 from rivercal._format import decimals, format_cm, format_std, format_value, plural
 from rivercal.dashboard.facts import dss_values, model_facts
 from rivercal.dashboard.words import ALERT_NAMES, DECISIONS, describe_series
+from rivercal.online.service import OPTIMISER_NOTE
+from rivercal.report.online_figures import headline_lines
 from rivercal.store import FINAL_STATUSES
 
 __all__ = ["COLOURS", "ERROR_COLOURSCALE", "cycles_view", "estimates_view", "forecast_view", "forecasts_view",
@@ -77,6 +82,11 @@ def _final(cycles: pd.DataFrame) -> pd.DataFrame:
     return cycles[cycles["status"].isin(FINAL_STATUSES)]
 
 
+def _plain(message: Any) -> str:
+    """A stored cycle message without the optimiser's own words (its stopping rule and status code)."""
+    return re.sub(OPTIMISER_NOTE, "", message) if isinstance(message, str) else ""
+
+
 def run_version(store: Any, run: Any) -> str:
     """A token that changes whenever a cycle of the run is stored or finished (the page polls it)."""
     cycles = store.cycles(run)
@@ -117,7 +127,7 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
     window = pd.Timedelta(run.config.get("window", "7D"))
     out: dict[str, Any] = {"n_cycles": len(cycles), "latest": None, "issued": None, "change": None,
                            "estimates": [], "alerts": [], "window": _words(window), "running": None,
-                           "model_problem": "", "decisions": DECISIONS}
+                           "model_problem": "", "decisions": DECISIONS, "figures": []}
     running = cycles[~cycles["status"].isin(FINAL_STATUSES)]
     if len(running):
         out["running"] = {"cycle": int(running["cycle"].iloc[0]), "issue_time": _t(running["issue_time"].iloc[0])}
@@ -129,7 +139,7 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
     kind = last.get("issued_forecast")
     kind = str(kind) if isinstance(kind, str) else ""
     out["latest"] = {"cycle": int(last["cycle"]), "issue_time": _t(last["issue_time"]), "status": str(last["status"]),
-                     "message": str(last["message"] or ""), "model_runs": _cell(last["model_runs"], digits=6),
+                     "message": _plain(last["message"]), "model_runs": _cell(last["model_runs"], digits=6),
                      "wall_time_s": _cell(last["wall_time_s"], digits=3), "algorithm": str(last["algorithm"] or "")}
     if kind:
         out["issued"] = {"kind": kind, "whose": "the DSS's" if kind == "dss" else "rivercal's",
@@ -151,7 +161,8 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
         if row is None:
             state, why, estimate = "", "this cycle stored no estimate", None
         elif bool(row["accepted"]):
-            state, why, estimate = "accepted", "", row["value"]
+            state, estimate = "accepted", row["value"]
+            why = str(row["reason"]) if isinstance(row["reason"], str) else ""  # e.g. why a jump was accepted
         else:
             state, estimate = "held", row["value"]
             why = (f"this cycle's estimate {format_value(row['value'], unit)} is not used: "
@@ -164,6 +175,8 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
             "dss": _cell(dss.get(name), format_value(dss.get(name), unit)),
             "estimate": _cell(estimate, format_value(estimate, unit))})
     out["change"] = _change(store, run, facts, int(last["cycle"]), std)
+    metrics = store.metrics(run)
+    out["figures"] = headline_lines(metrics) if metrics else []
     alerts = store.alerts(run)
     since = last["issue_time"] - window
     for a in alerts[alerts["issue_time"] >= since].iloc[::-1].itertuples():
@@ -496,7 +509,8 @@ def cycles_view(store: Any, run: Any) -> dict[str, Any]:
                      "model_runs": _cell(c.model_runs, digits=6), "wall_time_s": _cell(c.wall_time_s, digits=3),
                      "cost_before": _cell(c.cost_before, _cost(c.cost_before)),
                      "cost_after": _cell(c.cost_after, _cost(c.cost_after)),
-                     "message": c.message if isinstance(c.message, str) else "", "finished": _t(c.finished)})
+                     "message": _plain(c.message), "log": c.message if isinstance(c.message, str) else "",
+                     "finished": _t(c.finished)})
     wall = cycles["wall_time_s"].dropna()
     # as the glossary (and the run's headline figures) count them: the DSS's issued although rivercal had a score
     fallbacks = int(((cycles["issued_forecast"] == "dss") & cycles["skill_updated"].notna()).sum())

@@ -197,7 +197,7 @@ def data_alerts(observations: Any, window: Any, interval_s: float, min_coverage:
                                "the coverage check until readings arrive (said once, in the run's first cycle)"))
     if thin:
         out.append(AlertRecord("data", f"observations cover less than {min_coverage:.0%} of the window at "
-                               + ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items()))))
+                               + _thin_words(thin, len(coverage))))
     return out
 
 
@@ -207,3 +207,19 @@ def unobserved_series(store: Any, series: Sequence[str]) -> list[str]:
         return []
     known = set(store.availability(list(series))["series"])
     return [s for s in series if s not in known]
+
+
+#: A data alert names at most this many series; beyond, it counts them and names the worst.
+DATA_ALERT_NAMES = 8
+
+
+def _thin_words(thin: dict[str, float], total: int) -> str:
+    """The series of a data alert: all of them when few, else counts, the worst few and where the rest are."""
+    ranked = sorted(thin.items(), key=lambda kv: (kv[1], kv[0]))
+    if len(ranked) <= DATA_ALERT_NAMES:
+        return ", ".join(f"{k} ({v:.0%})" for k, v in sorted(thin.items()))
+    empty = sum(v == 0 for v in thin.values())
+    shown = ", ".join(f"{k} ({v:.0%})" for k, v in ranked[:5])
+    return (f"{len(ranked)} of {total} series" + (f" ({empty} without any value)" if empty else "") + f": {shown} "
+            f"and {len(ranked) - 5} more (the report of the run, `rivercal report`, lists every series in "
+            "data_coverage.csv)")

@@ -586,3 +586,20 @@ def _json(value: Any) -> Any:
     if isinstance(value, float | np.floating):
         return float(value) if math.isfinite(value) else None
     return value
+
+
+def figure_scope(store: Store, run: Run | str, *, facts: ChangeFacts | None = None) -> dict[str, Any]:
+    """Which cycles the forecast figures of :func:`run_figures` cover, for saying so beside each figure.
+
+    Those issued after the change (a twin's change time; every cycle when there is none), the rule of
+    ``forecast_mae_ratio``. Returns ``first_cycle`` and ``last_cycle`` (None when no cycle qualifies),
+    ``cycles`` (how many) and ``after`` (the change time, ISO, or None).
+    """
+    run = _run(store, run)
+    known = _facts(run, facts)
+    cycles = store.cycles(run)
+    change = known.change_time if known is not None else None
+    keep = cycles if change is None or cycles.empty else cycles[cycles["issue_time"] > change]
+    numbers = sorted(int(c) for c in keep["cycle"]) if len(keep) else []
+    return {"first_cycle": numbers[0] if numbers else None, "last_cycle": numbers[-1] if numbers else None,
+            "cycles": len(numbers), "after": None if change is None else change.isoformat()}

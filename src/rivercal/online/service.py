@@ -47,14 +47,14 @@ from rivercal.observations import DEFAULT_SIGMA, ObservationSet, measurable
 from rivercal.online import guardrails, intervention
 from rivercal.online.assimilation import AssimilationConfig, EnsembleFilter
 from rivercal.online.config import DEFAULT_RESOLUTION, OnlineConfig, check_schedule, default_resolution
-from rivercal.online.metrics import ChangeFacts, run_metrics, score_forecasts
+from rivercal.online.metrics import ChangeFacts, figure_scope, run_metrics, score_forecasts
 from rivercal.online.skill import ForecastChoice, choose_forecast
 from rivercal.online.transition import estimate_transition
 from rivercal.parameters import ParameterSet
 from rivercal.problem import Calibration, CalibrationProblem, calibrate
 from rivercal.store import AlertRecord, BandRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
 
-__all__ = ["DEFAULT_RESOLUTION", "CycleOutcome", "OnlineConfig", "OnlineService"]
+__all__ = ["DEFAULT_RESOLUTION", "OPTIMISER_NOTE", "CycleOutcome", "OnlineConfig", "OnlineService", "outcome_words"]
 
 log = logging.getLogger(__name__)
 
@@ -100,10 +100,39 @@ class _Estimation:
     status: str = "done"
     message: str = ""
     held: dict[str, str] = field(default_factory=dict)
+    why: dict[str, str] = field(default_factory=dict)  # why an accepted estimate that jumped was taken anyway
     std: dict[str, float] = field(default_factory=dict)
     model_runs: int = 0
     cost_before: float | None = None
     cost_after: float | None = None
+
+
+def outcome_words(result: Any) -> str:
+    """How a cycle's calibration ended, in words, with the optimiser's own message and status in brackets.
+
+    The pages for people (the report's tables, the dashboard) show the words and leave out the bracket
+    (:data:`OPTIMISER_NOTE`); the store, its exports and the JSON keep both.
+    """
+    from rivercal.optimise.result import STATUS_CALLBACK, STATUS_DEADLINE, STATUS_MAX_ITER, STATUS_MAX_NFEV
+
+    status = getattr(result, "status", None)
+    if getattr(result, "success", False):
+        words = "converged"
+    elif status == STATUS_DEADLINE:
+        words = "stopped at the deadline before converging"
+    elif status == STATUS_MAX_NFEV:
+        words = "stopped at the cap on model runs before converging"
+    elif status == STATUS_MAX_ITER:
+        words = "stopped after the most iterations the optimiser allows"
+    elif status == STATUS_CALLBACK:
+        words = "stopped on request before converging"
+    else:
+        words = "did not converge"
+    return f"{words} [optimiser: {getattr(result, 'message', '')} (status {status})]"
+
+
+#: The optimiser's own words in a stored cycle message (see :func:`outcome_words`), for pages to leave out.
+OPTIMISER_NOTE = r"\s*\[optimiser: [^\]]*\]"
 
 
 class OnlineService:
@@ -288,7 +317,7 @@ class OnlineService:
         records = tuple(
             EstimateRecord(parameter=n, value=float(estimates[n]), unit=self.parameters[n].unit or "-",
                            std=float(est.std[n]) if n in est.std and math.isfinite(est.std[n]) else None,
-                           accepted=n not in held, reason=held.get(n))
+                           accepted=n not in held, reason=held.get(n, est.why.get(n)))
             for n in warm)
         scores = self._scores(list(range(max(0, spec.cycle - self._cycles_per_horizon()), spec.cycle)))
         choice = self._choose(spec, scores, change)
@@ -324,8 +353,8 @@ class OnlineService:
         est.model_runs = cal.result.nfev
         if cal.result.aborted:
             est.status = "aborted"
-            est.message = (f"{cal.result.message} after {cal.result.nfev} model runs; the last accepted estimate "
-                           "is kept")
+            est.message = (f"{outcome_words(cal.result)} after {cal.result.nfev} model runs; the last accepted "
+                           "estimate is kept")
             est.held = dict.fromkeys(warm, est.message)
             return
         est.held, extra = self._gate(problem, cal)
@@ -340,11 +369,12 @@ class OnlineService:
         if moved and est.change is None and self.config.transition:
             # every parameter that jumped, the largest jump first, until one holds a transition: under model
             # error one parameter's estimate wanders (an effective value) while another's made the change
-            found, recent = None, None
+            found, recent, verdicts = None, None, {}
             for name in sorted(moved, key=lambda n: -moved[n]):
                 found, runs, why = self._search(spec, warm, state, obs, name, moved[name])
                 est.model_runs += runs
                 est.notes.append(why)
+                verdicts[name] = why.split("transition estimate: ", 1)[-1]
                 recent = why if recent is None and why.endswith(_TOO_RECENT) else recent
                 if found is not None:
                     break
@@ -352,6 +382,15 @@ class OnlineService:
                 # a one-value fit over a window that may end in a change is neither value: keep the last
                 # accepted estimate until the next cycle can tell
                 est.held = dict.fromkeys(warm, f"{recent}; the last accepted estimate is kept until the next cycle")
+            elif found is None:
+                # no transition: the jump is the window's one-value fit moving (under model error an effective
+                # value wanders with the events in the window); it is accepted, and the estimate says why
+                for name, k in moved.items():
+                    if name not in est.held:
+                        verdict = f" ({verdicts[name]})" if name in verdicts else ""
+                        est.why[name] = (f"jumped ({k:.0f} σ; last accepted {warm[name]:.4g}), and the transition "
+                                         f"estimator found no change inside the window{verdict}, so the window's "
+                                         "one-value fit is accepted (no alert: a jump alone is no intervention)")
             if found is not None:
                 est.change = found
                 retried = self._retry(spec, {**warm, found.parameter: found.after}, state, obs, found)
@@ -371,6 +410,10 @@ class OnlineService:
             # the transition test may call a jump an intervention
             est.notes.append(", ".join(f"{n} jumped ({k:.0f} σ)" for n, k in moved.items())
                              + f" while the change of {est.change.parameter} is followed: no transition search")
+            for name, k in moved.items():
+                if name not in est.held:
+                    est.why[name] = (f"jumped ({k:.0f} σ; last accepted {warm[name]:.4g}) while the change of "
+                                     f"{est.change.parameter} is followed: accepted without a transition search")
             moved = {}
         for n, k in moved.items():  # without the transition estimator every jump alerts
             est.alerts.append(guardrails.jump_alert(n, self.parameters[n].unit, warm[n], cal.estimates[n], k, spec,
@@ -379,7 +422,7 @@ class OnlineService:
         est.cost_before = cal.history[0]["cost"] if cal.history and cal.history[0]["iteration"] == 0 else None
         est.estimates = {n: float(cal.estimates.get(n, warm[n])) for n in warm}
         est.std = dict(cal.std)
-        est.message = cal.result.message
+        est.message = outcome_words(cal.result)
 
     def _flag_note(self, spec: CycleSpec) -> list[str]:
         """A note on the values flagged as outliers in the window (stored, left out)."""
@@ -561,8 +604,13 @@ class OnlineService:
             self.filter.close()
 
     def metrics(self) -> dict[str, Any]:
-        """The run metrics as of the last finished cycle (:func:`rivercal.online.metrics.run_metrics`)."""
-        return run_metrics(self.store, self.run, self.series, sources=self.config.sources, facts=self.facts)
+        """The run metrics as of the last finished cycle (:func:`rivercal.online.metrics.run_metrics`).
+
+        With ``forecast_scope`` (:func:`rivercal.online.metrics.figure_scope`): which cycles the forecast
+        figures cover, so that every page that shows them can say so.
+        """
+        out = run_metrics(self.store, self.run, self.series, sources=self.config.sources, facts=self.facts)
+        return {**out, "forecast_scope": figure_scope(self.store, self.run, facts=self.facts)}
 
     # -- many cycles --------------------------------------------------------------------------------
 

@@ -422,7 +422,7 @@ def _axis_label(series_id: str) -> str:
 
 def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: pd.DataFrame, *,
                            series: list[str], change_time: Any, title: str, dss_label: str = "DSS",
-                           updated_label: str = "rivercal") -> Any:
+                           updated_label: str = "rivercal", observed_label: str = "observed") -> Any:
     """Series around a parameter transition (thesis Fig. 5-4): observations, DSS and the updated model.
 
     Parameters
@@ -440,6 +440,8 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
         Figure title.
     dss_label, updated_label
         Legend entries of the two models.
+    observed_label
+        Legend entry of the circles (e.g. "truth" when they are a twin's noise-free truth, not observations).
 
     Returns
     -------
@@ -466,7 +468,7 @@ def plot_transition_levels(observed: pd.DataFrame, dss: pd.DataFrame, updated: p
     fig = new_figure(figsize=(11, 2.6 * len(series) + 0.8), layout="constrained")
     axes = fig.subplots(len(series), 1, sharex=True, squeeze=False)[:, 0]
     for ax, sid in zip(axes, series, strict=True):
-        ax.plot(observed.index, observed[sid], "o", mfc="none", mec="#718096", ms=3.5, mew=0.8, label="observed",
+        ax.plot(observed.index, observed[sid], "o", mfc="none", mec="#718096", ms=3.5, mew=0.8, label=observed_label,
                 zorder=1)
         ax.plot(dss.index, dss[sid], "-", color="#c53030", lw=1.5, label=dss_label, zorder=2)
         ax.plot(updated.index, updated[sid], "-", color="#2b6cb0", lw=1.5, label=updated_label, zorder=3)

@@ -24,10 +24,11 @@ from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
 from rivercal.models.contract import FromCase, Model
+from rivercal.online.service import OPTIMISER_NOTE
 from rivercal.report.figures import mark_change
 from rivercal.report.html import Page, bullets, figure, paragraph, table
 from rivercal.report.online_bands import band_blocks
-from rivercal.report.online_figures import figure_blocks, stored_metrics
+from rivercal.report.online_figures import figure_blocks, forecast_words, stored_metrics
 from rivercal.store import Run, Store
 from rivercal.store.export import export_estimates_csv, export_forecasts_csv, to_xarray
 
@@ -52,6 +53,21 @@ def _perturbed(meta: dict[str, Any]) -> list[str]:
     realism = Realism.model_validate(meta["realism"]) if meta.get("realism") else None
     out = [f"realism {realism.name}"] if realism is not None and realism.changes_truth else []
     return out + ([f"a rain error of about {float(meta['rain_error']):.0%}"] if meta.get("rain_error") else [])
+
+
+def _observation_words(meta: dict[str, Any]) -> str:
+    """What the twin's observations carry, as the run's ``meta`` says (one sentence, no unused setting named)."""
+    realism = (meta.get("realism") or {}).get("name", "ideal")
+    parts = []
+    if realism != "ideal":
+        parts.append(f"realism {realism}: the truth differs from the model and the observations carry sensor "
+                     "errors (docs/realism.md)")
+    if meta.get("noise") not in (None, "none"):
+        parts.append(f"{meta['noise']} noise on the observations")
+    if meta.get("rain_error"):
+        parts.append(f"a rain error of about {float(meta['rain_error']):.0%} on the truth's inflows and laterals")
+    return ("; ".join(parts) if parts else "an identical twin: the truth is the model and the observations are "
+            "exact") + "."
 
 
 def _truth_words(perturbed: list[str]) -> list[str]:
@@ -258,12 +274,6 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
-def _ratio_words(ratio: float | None) -> str:
-    if ratio is None:
-        return "."
-    return " — more than 1000× smaller." if ratio > 1000 else f" — {ratio:.1f}× smaller."
-
-
 # -- the report --------------------------------------------------------------------------------------------
 
 
@@ -309,6 +319,10 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
     files["netcdf"] = str(write_netcdf(dataset, out / "run.nc"))
     cycles.to_csv(out / "cycles.csv", index=False)
     files["cycles_csv"] = str(out / "cycles.csv")
+    coverage = _data_coverage(store, run, cycles, alerts, model)
+    if len(coverage):
+        coverage.to_csv(out / "data_coverage.csv", index=False)
+        files["data_coverage_csv"] = str(out / "data_coverage.csv")
 
     page = Page(f"rivercal on-line run {run.name} ({run.case})")
     scenario = None
@@ -324,8 +338,7 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
              "beside the DSS with its fixed parameters."] if len(cycles) else ["The run has no cycles yet."]
     if scenario is not None:
         intro.append(f"Observations: twin truth of scenario {scenario.name} (thesis §5-2): {scenario.description}; "
-                     f"the change happens at {change:%Y-%m-%d %H:%M} UTC; noise {meta.get('noise', 'none')}, realism "
-                     f"{(meta.get('realism') or {}).get('name', 'ideal')}.")
+                     f"the change happens at {change:%Y-%m-%d %H:%M} UTC; {_observation_words(meta)}")
     page.intro(*intro)
     page.section("Headline figures", *figure_blocks(store, run))
 
@@ -339,11 +352,12 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
         wide = est.pivot_table(index=["cycle", "issue_time"], columns="parameter", values="value")
         perturbed = _perturbed(meta)
         page.section("Estimates per cycle",
-                     figure(fig_est, "Estimates per cycle with ±σ (thesis Eq. 2-12); dotted: the truth"
-                                     + (f" (the scenario's values; the truth behind the observations, with "
-                                        f"{' and '.join(perturbed)}, has no single value to draw)"
-                                        if perturbed else "")
-                                     + ", red: the DSS; dashed: the transition (named under the time axis when it lies "
+                     figure(fig_est, "Estimates per cycle with ±σ (thesis Eq. 2-12); dotted: the truth, the scenario's "
+                                     "values before and after the change"
+                                     + (f" — the truth behind the observations, with {' and '.join(perturbed)}, is "
+                                        "not the model, so a global estimate settles near these values, not on "
+                                        "them, and what counts is its change" if perturbed else "")
+                                     + "; red: the DSS; dashed: the transition (named under the time axis when it lies "
                                        "outside the period shown)."),
                      table(wide.reset_index().set_index("cycle"), "Estimates per cycle", float_format=".4g"))
         ptable = _parameter_table(model, run, est, change)
@@ -353,37 +367,37 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
                      paragraph("'before': the last cycle whose window ends before the transition; 'after': the "
                                "last cycle, whose window lies after it. Crest levels in m AD, friction in "
                                "m^(1/3)/s. rivercal moves all adjustable crests alike (Wd) and one global friction "
-                               "(FA), so a local change can only show as a compromise in those two."
+                               "(FA), so a local change can only show as a compromise in those two. The rivercal "
+                               "columns are accepted values; whether the forecast a cycle issued used them or the "
+                               "DSS's says the table of the headline (do no harm)."
                                + _missing_columns(ptable)),
                      table(ptable, "Parameters", float_format=".4g"))
         shown = cycles[["cycle", "issue_time", "status", "algorithm", "model_runs", "wall_time_s", "cost_before",
                         "cost_after", "message"]].set_index("cycle")
+        # the optimiser's own stopping rule stays in cycles.csv and the store, not in the page's table
+        shown = shown.assign(message=shown["message"].fillna("").str.replace(OPTIMISER_NOTE, "", regex=True))
         page.section("Cycles", table(shown, "Cycles: status, model runs, wall time (s), cost before and after "
                                             "(thesis Eq. 2-3)", float_format=".4g"))
-        page.section("Alerts", table(alerts.set_index("cycle"), "Alerts (magnitude: |Δθ| / σ)")
+        page.section("Alerts", table(alerts.set_index("cycle"), "Alerts (magnitude: |Δθ| / σ)"
+                                     + ("; data_coverage.csv lists, for each cycle with a data alert, the share of "
+                                        "the window each series covers" if "data_coverage_csv" in files else ""))
                      if len(alerts) else paragraph("No alerts."))
         held = est[~est["accepted"]]
         if len(held):
             page.section("Held estimates", table(held[["cycle", "parameter", "value", "reason"]].set_index("cycle"),
                                                  "Estimates not accepted, and why"))
-    errors = stored_metrics(store, run)["forecast_errors"]
     if len(scores):
         fig_scores = _scores_figure(scores, out / "forecast_scores.png")
         files["scores_figure"] = str(fig_scores)
         stations = _station_scores(scores)
         stations.to_csv(out / "forecast_scores.csv")
         files["scores_csv"] = str(out / "forecast_scores.csv")
-        words = (f"rivercal against the fixed DSS{' after the change' if errors['from'] else ''}: nothing to "
-                 f"compare yet — {errors['reason']}. The figure and table below score every cycle's forecasts.")
-        if errors["n"]:
-            words = (f"Mean absolute level error of the forecasts at the stations, lead 0–{errors['lead_h']:g} h"
-                     + (f", cycles whose window starts after {errors['from'][:16]}" if errors["from"] else "")
-                     + f": rivercal {errors['updated_mae_m'] * 100:.2f} cm, "
-                     + f"fixed DSS {errors['dss_mae_m'] * 100:.2f} cm"
-                     + _ratio_words(errors["ratio"]))
+        words = (forecast_words(stored_metrics(store, run)) + " (The headline's figure.) The figure and the table "
+                 "below score instead the updated forecasts of every cycle, by lead time, as RMSE.")
         page.section("Forecasts against the observations",
                      paragraph(words),
-                     figure(fig_scores, "RMSE of the level forecasts by lead time, all stations and cycles."),
+                     figure(fig_scores, "RMSE of the level forecasts by lead time, all stations and cycles: "
+                                        "rivercal's updated forecasts (issued or not) and the DSS's."),
                      table(stations, "RMSE per station and lead time (levels in cm, discharges in 0.01 m³/s)",
                            float_format=".3g"))
     bands = band_blocks(store, run, out, files)
@@ -421,7 +435,7 @@ def _twin_sections(page: Page, case: Any, store: Store, run: Run, change: pd.Tim
         observed = runs["truth"][[up, down]].rename(columns=names)
         fig_weir = plot_transition_levels(observed, runs["dss"][[up, down]].rename(columns=names),
                                           runs["rivercal"][[up, down]].rename(columns=names),
-                                          series=list(names.values()), change_time=change,
+                                          series=list(names.values()), change_time=change, observed_label="truth",
                                           title=f"Levels at weir {LOCAL_WEIR} (thesis Fig. 5-4)")
         fig_weir.savefig(out / "weir_levels.png", dpi=110)
         files["weir_figure"] = str(out / "weir_levels.png")
@@ -433,7 +447,7 @@ def _twin_sections(page: Page, case: Any, store: Store, run: Run, change: pd.Tim
         if not a1 > a0:
             continue
         sel = {k: e.loc[a0:a1 - pd.Timedelta(seconds=1)].mean() for k, e in errors.items()}
-        worst = sel["dss"].abs().sort_values(ascending=False).head(5)
+        worst = sel["dss"][sel["dss"].abs() >= 0.0005].abs().sort_values(ascending=False).head(5)
         if case is not None:
             path = out / f"error_map_{'before' if 'before' in label else 'after'}.png"
             fig = plot_network_pair(case, sel["dss"], sel["rivercal"], titles=("fixed DSS", "rivercal"),
@@ -442,10 +456,7 @@ def _twin_sections(page: Page, case: Any, store: Store, run: Run, change: pd.Tim
             files[f"error_map_{'before' if 'before' in label else 'after'}"] = str(path)
             blocks.append(figure(path, f"Average level error Δŷ_avg (model − truth, m) per calculation point, "
                                        f"{label} ({a0:%Y-%m-%d %H:%M} – {a1:%Y-%m-%d %H:%M}); thesis Figs 5-2/5-3."))
-        blocks.append(paragraph(
-            f"{label.capitalize()}: mean |Δŷ_avg| over all points: DSS {sel['dss'].abs().mean() * 100:.2f} cm, "
-            f"rivercal {sel['rivercal'].abs().mean() * 100:.2f} cm. Largest DSS errors at "
-            + ", ".join(f"{k} ({v * 100:.1f} cm)" for k, v in worst.items()) + "."))
+        blocks.append(paragraph(_map_words(label, sel, worst, before="before" in label, perturbed=perturbed)))
     station_cols = [c for c in runs["truth_series"].columns if c.rpartition(".")[2] in _LEVELS]
     after = (runs["dss_series"][station_cols] - runs["truth_series"][station_cols]).loc[change + window:]
     if after.empty:
@@ -474,3 +485,52 @@ def _twin_sections(page: Page, case: Any, store: Store, run: Run, change: pd.Tim
                  bullets([f"DSS: the case's fixed parameters throughout (run {run.name}).",
                           "rivercal: each cycle's accepted parameters from its issue time until the next cycle.",
                           *_truth_words(perturbed)]))
+
+
+def _map_words(label: str, sel: dict[str, pd.Series], worst: pd.Series, *, before: bool, perturbed: list[str]) -> str:
+    """The error maps of one period in words: both means, the DSS's largest errors, and why the DSS's is zero.
+
+    Before the change the DSS's parameters are the scenario's, which is what the maps' truth runs: its error
+    is zero by construction, and rivercal's is the distance of its estimates from the scenario's values.
+    """
+    dss, riv = sel["dss"].abs().mean() * 100, sel["rivercal"].abs().mean() * 100
+    text = f"{label.capitalize()}: mean |Δŷ_avg| over all points: DSS {dss:.2f} cm, rivercal {riv:.2f} cm."
+    if len(worst):
+        text += " Largest DSS errors at " + ", ".join(f"{k} ({v * 100:.1f} cm)" for k, v in worst.items()) + "."
+    if before and dss < 0.05:
+        text += (" The DSS's error is zero by construction: before the change its parameters are the scenario's, "
+                 "which the maps' truth runs. rivercal's is the distance of its estimates from those values"
+                 + (f" — estimates fitted to observations of a truth with {' and '.join(perturbed)}, which is not "
+                    "the model, so they settle on effective values; how well rivercal forecasts shows in the "
+                    "forecast scores above, against the observations" if perturbed else "") + ".")
+    return text
+
+
+def _data_coverage(store: Store, run: Run, cycles: pd.DataFrame, alerts: pd.DataFrame, model: Model) -> pd.DataFrame:
+    """Per cycle with a ``data`` alert and per series: the share of the window's values stored and not flagged.
+
+    The full list behind a data alert, which names only the worst few series when many are thin; the rule
+    is the service's (:func:`rivercal.online.guardrails.data_alerts`): values at the output interval over
+    the window, both ends included.
+    """
+    from rivercal.observations import measurable
+
+    columns = ["cycle", "series", "values", "expected", "coverage"]
+    if alerts.empty or not (alerts["kind"] == "data").any() or cycles.empty:
+        return pd.DataFrame(columns=columns)
+    config = run.config
+    series = list(config.get("series") or measurable(model.observables))
+    interval = float(config.get("output_interval_s") or 3600.0)
+    expected = int(pd.Timedelta(config["window"]) / pd.Timedelta(seconds=interval)) + 1
+    rows = []
+    windows = cycles.set_index("cycle")
+    for cycle in sorted(set(alerts.loc[alerts["kind"] == "data", "cycle"])):
+        if cycle not in windows.index:
+            continue
+        w = windows.loc[cycle]
+        counts = store.flag_counts(series, w["window_start"], w["window_end"])
+        ok = counts[counts["flag"] == "ok"].groupby("series")["n"].sum() if len(counts) else pd.Series(dtype=int)
+        for s in series:
+            n = int(ok.get(s, 0))
+            rows.append((int(cycle), s, n, expected, round(n / expected, 4)))
+    return pd.DataFrame(rows, columns=columns).sort_values(["cycle", "coverage", "series"])
