@@ -228,7 +228,7 @@ def test_a_target_naming_an_undeclared_factor_and_a_factor_out_of_bounds_are_ref
     err = _problem(_case([{"id": "x", "branches": ["A"]}], [param]), tmp_path, "friction factor 'nope'")
     assert err.field == "parameters[0].targets[0]"
     sim = _sim(_case([{"id": "x", "branches": ["A"]}]), tmp_path)
-    with pytest.raises(ValueError, match="friction:factor:x: factor 6 is outside 0.2-5"):
+    with pytest.raises(ValueError, match=r"friction:factor:x: factor 6 is outside 0\.2-5"):
         sim.simulate({"friction:factor:x": 6.0})
     with pytest.raises(KeyError, match="declares no friction factor 'y'"):
         sim.simulate({"friction:factor:y": 1.0})
