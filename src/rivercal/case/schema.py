@@ -36,6 +36,7 @@ __all__ = [
     "CaseMeta",
     "Catchment",
     "EngineSettings",
+    "FrictionFactor",
     "InitialConditions",
     "Meteo",
     "Window",
@@ -46,7 +47,7 @@ EARLIEST = datetime(1700, 1, 1, tzinfo=UTC)
 LATEST = datetime(2200, 1, 1, tzinfo=UTC)
 #: The model quantities of the embedded engine that case parameters may target.
 _ENGINE_TARGET = re.compile(r"^(weir:[A-Za-z0-9_.\-]+\.crest_level|friction:global|friction:branch:[A-Za-z0-9_.\-]+"
-                            r"|friction:group:[A-Za-z0-9_.\-]+|friction:scale"
+                            r"|friction:group:[A-Za-z0-9_.\-]+|friction:scale|friction:factor:[A-Za-z0-9_.\-]+"
                             r"|control:[A-Za-z0-9_.\-]+\.(setpoint|kp|ki|kd|value:[0-9]+))$")
 #: Longest spin-up, h (one leap year).
 MAX_SPINUP_HOURS = 8784.0
@@ -332,6 +333,45 @@ class CalibrationSettings(_Model):
     options: dict[str, float | int | bool | str] = Field(default_factory=dict, description="options of the algorithm")
 
 
+class FrictionFactor(_Model):
+    """A named factor on the friction of a set of branches and friction groups, keeping their ratios.
+
+    The calibration target ``friction:factor:<id>`` (-) scales the conveyance of every channel link on the listed
+    branches and of every link that conveys with a listed group's values (its own value and its values on
+    particular branches), as ``friction:scale`` does for the whole model: a Manning n is divided by the factor, a
+    Strickler k_s or a Chézy C multiplied by it, so that a factor above 1 always means a smoother bed. Culverts and
+    bridges keep their own friction. White-Colebrook friction cannot be scaled (a factor on its roughness height
+    does not scale its conveyance).
+
+    Attributes
+    ----------
+    id
+        Name of the factor (the target is ``friction:factor:<id>``).
+    branches
+        Branch ids whose channel friction the factor scales, whatever friction their cross-sections name.
+    groups
+        Friction group ids (``[[friction_groups]]``) whose coefficients the factor scales on every branch.
+    description
+        Free text.
+
+    A branch or group may belong to one factor only; a group that a profile names beside other groups needs those
+    groups in the same factor (the profile's links convey relative to its first group).
+    """
+
+    id: Identifier = Field(description="name of the factor; the calibration target is friction:factor:<id>")
+    branches: list[Identifier] = Field(default_factory=list, description="branches whose channel friction the factor "
+                                       "scales (-: n / factor, k_s and C times the factor)")
+    groups: list[Identifier] = Field(default_factory=list, description="friction groups whose coefficients the factor "
+                                     "scales on every branch")
+    description: str = Field(default="", description="free text")
+
+    @model_validator(mode="after")
+    def _lists_something(self) -> FrictionFactor:
+        if not self.branches and not self.groups:
+            raise FieldProblem("branches", f"friction factor {self.id!r} lists no branches and no groups")
+        return self
+
+
 class CaseFile(Network):
     """The whole ``case.toml``: ``[case]``, ``[engine]``, ``[initial]`` and the network tables."""
 
@@ -350,6 +390,49 @@ class CaseFile(Network):
     windows: list[Window] = Field(default_factory=list, description="named calibration windows")
     controllers: list[Controller] = Field(default_factory=list, description="controllers that set weir crests "
                                           "while the model runs (pid, interval, time, relation)")
+    friction_factors: list[FrictionFactor] = Field(
+        default_factory=list, description="named factors on the friction of sets of branches and friction groups "
+        "(calibration targets friction:factor:<id>)")
+
+    @model_validator(mode="after")
+    def _friction_factors_refer_to_the_network(self) -> CaseFile:
+        branches = {b.id for b in self.branches}
+        groups = {g.id: g for g in self.friction_groups}
+        ids: set[str] = set()
+        owner: dict[tuple[str, str], tuple[str, str]] = {}  # (kind, id) → (factor, field) that lists it
+        for i, f in enumerate(self.friction_factors):
+            if f.id in ids:
+                raise FieldProblem(f"friction_factors[{i}].id", f"friction factor id {f.id!r} is used twice")
+            ids.add(f.id)
+            for kind, items, known in (("branch", f.branches, branches), ("group", f.groups, groups)):
+                table = "branches" if kind == "branch" else "groups"
+                for j, item in enumerate(items):
+                    where = f"friction_factors[{i}].{table}[{j}]"
+                    if item not in known:
+                        listed = "" if kind == "branch" else \
+                            f" ({', '.join(repr(g) for g in groups) or 'the case has no [[friction_groups]]'})"
+                        raise FieldProblem(where, f"friction factor {f.id!r} lists unknown {kind} {item!r}{listed}")
+                    if (kind, item) in owner:
+                        other, path = owner[(kind, item)]
+                        twice = "twice" if other == f.id else f"also by friction factor {other!r} ({path})"
+                        raise FieldProblem(where, f"{kind} {item!r} is scaled {twice}; a {kind} belongs to one "
+                                           "factor at most (two factors on one coefficient could not be told apart)")
+                    owner[(kind, item)] = (f.id, where)
+                    if kind == "group" and (groups[item].type == "white-colebrook" or any(
+                            e.type == "white-colebrook" for e in groups[item].branches)):
+                        raise FieldProblem(where, f"friction factor {f.id!r}: friction group {item!r} uses "
+                                           "White-Colebrook friction, whose conveyance a factor on the roughness "
+                                           "height does not scale")
+            for j, gid in enumerate(f.groups):
+                for p in self.profiles:
+                    named = list(dict.fromkeys(getattr(p, "friction", None) or []))
+                    missing = [g for g in named if g not in f.groups]
+                    if gid in named and missing:
+                        raise FieldProblem(f"friction_factors[{i}].groups[{j}]",
+                                           f"friction factor {f.id!r}: profile {p.id!r} names friction group {gid!r} "
+                                           f"beside {', '.join(repr(g) for g in missing)}, and conveys relative to its "
+                                           f"first group {named[0]!r}; list all of its groups in this factor")
+        return self
 
     @model_validator(mode="after")
     def _calibration_refers_to_the_network(self) -> CaseFile:
@@ -366,7 +449,8 @@ class CaseFile(Network):
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r}: {target!r} is not a quantity of the embedded engine; "
                                        "expected 'weir:<id>.crest_level', 'friction:global', 'friction:branch:<id>', "
-                                       "'friction:group:<id>', 'friction:scale' or 'control:<id>.<quantity>'")
+                                       "'friction:group:<id>', 'friction:scale', 'friction:factor:<id>' or "
+                                       "'control:<id>.<quantity>'")
                 if target.startswith("weir:") and target[5:-12] not in weirs:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown weir {target[5:-12]!r}")
@@ -377,6 +461,10 @@ class CaseFile(Network):
                 if target.startswith("friction:group:") and target[15:] not in {g.id for g in self.friction_groups}:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown friction group {target[15:]!r}")
+                if target.startswith("friction:factor:") and target[16:] not in {f.id for f in self.friction_factors}:
+                    raise FieldProblem(f"parameters[{i}].targets[{j}]",
+                                       f"parameter {p.name!r} refers to friction factor {target[16:]!r}, which "
+                                       "[[friction_factors]] does not declare")
                 if target.startswith("friction:branch:") and target[16:] not in branches:
                     raise FieldProblem(f"parameters[{i}].targets[{j}]",
                                        f"parameter {p.name!r} refers to unknown branch {target[16:]!r}")

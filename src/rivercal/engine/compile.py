@@ -9,7 +9,8 @@ integer codes of :mod:`rivercal.engine.kernels.codes`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -57,6 +58,7 @@ __all__ = [
     "NetArrays",
     "StructureArrays",
     "compile_network",
+    "own_friction_slots",
 ]
 
 #: ``allowed_flow`` of a structure → codes of the kernel arrays.
@@ -656,3 +658,38 @@ def _observables(network: Network, grid: Grid) -> tuple:
         np.asarray(ob_w, dtype=float),
         names,
     )
+
+
+def own_friction_slots(compiled: CompiledNetwork, branches: Iterable[str]) -> CompiledNetwork:
+    """``compiled`` with a friction slot of their own for the channel links of ``branches`` that share a group's.
+
+    A link whose profile takes a friction group's own value (the group has no constant value for its branch)
+    conveys relative to the slot ``("group", id)``, which every such branch shares. A factor that scales the
+    friction of some branches only (``friction:factor:<id>``, :mod:`rivercal.engine.quantities`) needs their
+    links apart: each branch's links move to a new slot ``("split", id, branch)`` with the same law and value.
+    The kernels compute a link's friction from its slot's law and value alone, so a run with the same values is
+    bit for bit the run without the split; ``friction:group:<id>`` sets the group's slot and its split slots
+    alike (:func:`rivercal.engine.quantities.settable_table`). Returns ``compiled`` itself when nothing is split.
+    """
+    wanted = set(branches)
+    a = compiled.arrays
+    keys = list(compiled.friction_slots)
+    slot_of = {key: i for i, key in enumerate(keys)}
+    types, values = list(a.fr_type), list(compiled.friction_values)
+    lk_fric = a.lk_fric.copy()
+    for link in np.flatnonzero(a.lk_type == LINK_CHANNEL):
+        branch = compiled.link_branch[link]
+        key = keys[int(lk_fric[link])]
+        if branch not in wanted or key[0] != "group" or len(key) != 2:
+            continue
+        own = ("split", key[1], branch)
+        if own not in slot_of:
+            slot_of[own] = len(keys)
+            keys.append(own)
+            types.append(types[int(lk_fric[link])])
+            values.append(values[int(lk_fric[link])])
+        lk_fric[link] = slot_of[own]
+    if len(keys) == len(compiled.friction_slots):
+        return compiled
+    arrays = a._replace(lk_fric=lk_fric.astype(a.lk_fric.dtype), fr_type=np.asarray(types, dtype=a.fr_type.dtype))
+    return replace(compiled, arrays=arrays, friction_values=np.asarray(values, dtype=float), friction_slots=keys)

@@ -13,6 +13,12 @@ name that one accepts the other declares, with the same bounds.
 - ``friction:group:<id>`` — the value of a friction group (``[[friction_groups]]``, unit of its law);
 - ``friction:scale`` — a factor (-) on the conveyance of every channel friction coefficient, present when no
   link uses White-Colebrook friction (a factor on its coefficient does not scale its conveyance);
+- ``friction:factor:<id>`` — a factor (-) declared in ``[[friction_factors]]`` on the conveyance of the channel
+  friction of a set of branches and friction groups (:class:`rivercal.case.schema.FrictionFactor`): their
+  coefficients move together and keep their ratios (n divided by the factor, k_s and C multiplied by it). Its
+  slots are those of the channel links on the listed branches (:func:`rivercal.engine.compile.own_friction_slots`
+  gives the links that take a group's shared value a slot per branch first) and every slot of the listed groups;
+  bounds :data:`FACTOR_RANGE`;
 - ``control:<id>.<quantity>`` — the quantities of the case's controllers (:mod:`rivercal.engine.controllers`).
 
 Friction bounds are the plausible ranges of :data:`rivercal.network.FRICTION_RANGES`; crests lie within
@@ -27,12 +33,20 @@ from typing import Any
 import numpy as np
 
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork
+from rivercal.engine.kernels.codes import LINK_CHANNEL
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
 
-__all__ = ["SCALE_RANGE", "Settable", "settable_table"]
+__all__ = ["FACTOR_RANGE", "SCALE_RANGE", "FactorProblem", "Settable", "factor_slots", "settable_table"]
 
 #: Bounds of ``friction:scale`` (-).
 SCALE_RANGE = (0.05, 20.0)
+#: Bounds of ``friction:factor:<id>`` (-). A factor scales coefficients that someone already chose branch by branch
+#: (surveyed, taken from tables or calibrated before), keeping their ratios: it corrects their common level, not the
+#: pattern. A factor of 5 turns a Manning n of 0.035 into 0.007 (a smooth concrete channel) or 0.175 (a channel
+#: choked with vegetation), which spans the plausible range of one channel type several times over; a wider range
+#: only lets an optimiser wander where the scaled values leave every plausible range
+#: (:data:`rivercal.network.FRICTION_RANGES`). Narrower than ``friction:scale``'s, whose reach is the whole model.
+FACTOR_RANGE = (0.2, 5.0)
 
 
 @dataclass(frozen=True)
@@ -44,10 +58,10 @@ class Settable:
     name
         The name parameters target.
     kind
-        ``weir``, ``friction`` (global), ``branch``, ``group``, ``scale`` or ``control``.
+        ``weir``, ``friction`` (global), ``branch``, ``group``, ``factor``, ``scale`` or ``control``.
     slots
-        What it sets: the weir's index (``weir``), the friction slots (``friction``, ``branch``, ``group``);
-        empty for ``scale`` and ``control``.
+        What it sets: the weir's index (``weir``), the friction slots (``friction``, ``branch``, ``group``) or
+        the friction slots it scales (``factor``); empty for ``scale`` and ``control``.
     unit, low, high
         Unit and bounds of the value.
     description
@@ -66,7 +80,58 @@ class Settable:
     controlled: bool = False
 
 
-def settable_table(compiled: CompiledNetwork, friction_type: str, controls: Any = None) -> dict[str, Settable]:
+class FactorProblem(ValueError):
+    """A friction factor of the case that the compiled network cannot honour.
+
+    ``index`` is the factor's position in ``[[friction_factors]]``, ``reason`` what is wrong.
+    """
+
+    def __init__(self, index: int, reason: str):
+        self.index = index
+        self.reason = reason
+        super().__init__(f"friction_factors[{index}]: {reason}")
+
+
+def factor_slots(compiled: CompiledNetwork, factor: Any) -> tuple[int, ...]:
+    """The friction slots that a friction factor (:class:`rivercal.case.schema.FrictionFactor`) scales.
+
+    The slots of the channel links on its branches and every slot of its groups (their own value, their values on
+    particular branches and the slots split off per branch by :func:`rivercal.engine.compile.own_friction_slots`).
+
+    Raises
+    ------
+    ValueError
+        When a link on one of its branches still conveys with a group's value that other branches share (the
+        network was compiled without :func:`~rivercal.engine.compile.own_friction_slots`), when it scales no
+        channel link, or when a slot it scales uses White-Colebrook friction (a factor on the roughness height
+        does not scale the conveyance).
+    """
+    c, a = compiled, compiled.arrays
+    keys = c.friction_slots
+    laws = {code: name for name, code in FRICTION_CODES.items()}
+    channel = a.lk_type == LINK_CHANNEL
+    on_listed = channel & np.isin(np.asarray(c.link_branch, dtype=object), list(factor.branches))
+    slots = set(np.unique(a.lk_fric[on_listed]).tolist())
+    for slot in sorted(slots):
+        if keys[slot][0] == "group" and len(keys[slot]) == 2:
+            raise ValueError(f"friction factor {factor.id!r}: a link of one of its branches conveys with friction "
+                             f"group {keys[slot][1]!r}'s value, which other branches share; compile the network "
+                             "with own_friction_slots")
+    groups = set(factor.groups)
+    slots.update(i for i, key in enumerate(keys) if key[0] in ("group", "split") and key[1] in groups)
+    used = set(np.unique(a.lk_fric[channel]).tolist())
+    if not slots & used:
+        raise ValueError(f"friction factor {factor.id!r} scales the friction of no channel link")
+    for slot in sorted(slots & used):
+        if laws[int(a.fr_type[slot])] == "white-colebrook":
+            what = f"friction group {keys[slot][1]!r}" if keys[slot][0] != "branch" else f"branch {keys[slot][1]!r}"
+            raise ValueError(f"friction factor {factor.id!r}: {what} uses White-Colebrook friction, whose conveyance "
+                             "a factor on the roughness height does not scale")
+    return tuple(sorted(slots))
+
+
+def settable_table(compiled: CompiledNetwork, friction_type: str, controls: Any = None,
+                   factors: Any = ()) -> dict[str, Settable]:
     """Every settable quantity of a compiled case by name (module docstring).
 
     Parameters
@@ -77,6 +142,14 @@ def settable_table(compiled: CompiledNetwork, friction_type: str, controls: Any 
         The case's friction law (of the branches that inherit it).
     controls
         The case's controllers (:class:`rivercal.engine.controllers.Controls`), or None.
+    factors
+        The case's friction factors (:class:`rivercal.case.schema.FrictionFactor`).
+
+    Raises
+    ------
+    FactorProblem
+        For a factor that :func:`factor_slots` refuses, or one that scales a slot another factor scales too (a
+        branch of one factor whose links convey with a group of another).
     """
     c = compiled
     laws = {code: name for name, code in FRICTION_CODES.items()}
@@ -102,11 +175,35 @@ def settable_table(compiled: CompiledNetwork, friction_type: str, controls: Any 
             law = laws[int(c.arrays.fr_type[i])]
             low, high, unit = FRICTION_RANGES[law]
             name = f"friction:group:{key[1]}"
-            out[name] = Settable(name, "group", (i,), unit, low, high, f"{law} friction of friction group {key[1]}")
+            split = tuple(j for j, other in enumerate(c.friction_slots) if other[0] == "split" and other[1] == key[1])
+            out[name] = Settable(name, "group", (i, *split), unit, low, high,
+                                 f"{law} friction of friction group {key[1]}")
     used = set(np.unique(c.arrays.lk_fric).tolist())  # the friction slots some link uses
     if all(laws[int(code)] != "white-colebrook" for i, code in enumerate(c.arrays.fr_type) if i in used):
         out["friction:scale"] = Settable("friction:scale", "scale", (), "-", *SCALE_RANGE,
                                          "factor on the conveyance of every channel friction coefficient")
+    scaled_by: dict[int, str] = {}
+    for index, factor in enumerate(factors):
+        name = f"friction:factor:{factor.id}"
+        try:
+            slots = factor_slots(c, factor)
+        except ValueError as exc:
+            raise FactorProblem(index, str(exc)) from None
+        for slot in slots:
+            if slot in scaled_by:
+                key = c.friction_slots[slot]
+                what = f"branch {key[1]!r}" if key[0] == "branch" else \
+                    f"friction group {key[1]!r}" + (f" on branch {key[2]!r}" if len(key) > 2 else "")
+                raise FactorProblem(index, f"friction factor {factor.id!r} scales the friction of {what}, which "
+                                    f"friction factor {scaled_by[slot]!r} scales too; a coefficient belongs to one "
+                                    "factor at most")
+            scaled_by[slot] = factor.id
+        listed = [f"branch{'es' if len(factor.branches) > 1 else ''} {', '.join(factor.branches)}"] \
+            if factor.branches else []
+        listed += [f"group{'s' if len(factor.groups) > 1 else ''} {', '.join(factor.groups)}"] if factor.groups else []
+        out[name] = Settable(name, "factor", slots, "-", *FACTOR_RANGE,
+                             f"factor on the friction conveyance of {' and '.join(listed)} (n / factor, k_s and C "
+                             "times the factor)")
     for name, (unit, low, high, text) in (controls.describe() if controls else {}).items():
         out[name] = Settable(name, "control", (), unit, low, high, text)
     return out
