@@ -476,8 +476,8 @@ class EnsembleFilter:
         noisy = values[None] + self.sigma * rng.standard_normal((max(1, 2048 // len(members)), *values.shape))
         flat = noisy.reshape(-1, *values.shape[1:])
         frame = lambda v: pd.DataFrame(v, index=result.times, columns=self.series)  # noqa: E731
-        return EnsembleForecast(mean=frame(values.mean(axis=0)), low=frame(np.quantile(flat, 0.05, axis=0)),
-                                high=frame(np.quantile(flat, 0.95, axis=0)))
+        low, high = np.quantile(flat, [0.05, 0.95], axis=0)  # one partition for both: the same values as apart
+        return EnsembleForecast(mean=frame(values.mean(axis=0)), low=frame(low), high=frame(high))
 
 
 def assimilation_cycle(service: OnlineService, spec: CycleSpec, run_start: pd.Timestamp, state: ModelState,
