@@ -238,9 +238,12 @@ def online(
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
     replay: Annotated[bool, typer.Option(help="Also time the four-week replay 2010-10-18 .. 2010-11-15.")] = False,
     replay_repeats: Annotated[int, typer.Option(help="Timed replays (median reported).")] = 3,
+    mode: Annotated[str, typer.Option(help="parameters (the daily estimate alone) or both (with hourly ensemble "
+                                           "analyses, the service's default).")] = "parameters",
+    members: Annotated[int, typer.Option(help="Ensemble members of --mode both.")] = 64,
     as_json: JsonOpt = False,
 ) -> None:
-    """Time one warm-started cycle of the on-line service (7-day window, FA and Wd, DuD) on dommel."""
+    """Time warm-started cycles of the on-line service (7-day window, FA and Wd, DuD) on dommel, cold apart."""
     import pandas as pd
 
     from rivercal.bench.online import bench_online
@@ -253,6 +256,8 @@ def online(
     check_number(cycles, "--cycles", low=1, high=1000)
     check_workers(workers)
     check_number(replay_repeats, "--replay-repeats", low=1, high=100)
+    check_choice(mode, "--mode", ("parameters", "both"), "mode")
+    check_number(members, "--members", low=2, high=10_000)
     model = open_model("dommel")
     earliest = model.start + pd.Timedelta("8D")  # the 7-day window and the 24 h warm-up
     latest = model.end - pd.Timedelta("1D") * cycles
@@ -261,7 +266,7 @@ def online(
                           f"and {latest:%Y-%m-%d %H:%M} for {cycles} more daily cycles in the case period",
                           option="--from")
     result = bench_online("dommel", scenario, first_issue=first_issue, cycles=cycles, workers=workers,
-                          replay=replay, replay_repeats=replay_repeats).to_dict()
+                          replay=replay, replay_repeats=replay_repeats, mode=mode, members=members).to_dict()
     _print_flat(result, "on-line service benchmark", as_json)
 
 

@@ -215,6 +215,9 @@ class EnsembleFilter:
         self.series = list(series)
         self.workers = workers
         self._tasks: Tasks | None = None
+        # the last ensemble this filter wrote (its archive, members and errors): the next cycle of this process
+        # takes the members as they are in memory when the store still holds that very archive
+        self._kept: tuple[bytes, list[ModelState], np.ndarray] | None = None
         layout = model.state_layout()
         self.n_h, self.n_l = len(layout.levels), len(layout.discharges)
         col = {name: i for i, name in enumerate(model.observables)}
@@ -266,10 +269,17 @@ class EnsembleFilter:
             array = io.BytesIO()
             np.save(array, np.asarray(errors, dtype=float), allow_pickle=False)
             z.writestr("errors.npy", array.getvalue())
-        return members[0].time, len(members), ENSEMBLE_FORMAT, buffer.getvalue()
+        data = buffer.getvalue()
+        self._kept = (data, list(members), np.array(errors, dtype=float))
+        return members[0].time, len(members), ENSEMBLE_FORMAT, data
 
     def from_store(self, store: Store, run: Run, at: pd.Timestamp) -> tuple[list[ModelState], np.ndarray] | None:
-        """The ensemble the last cycle stored, if it is at ``at`` and fits (else None: a new ensemble starts)."""
+        """The ensemble the last cycle stored, if it is at ``at`` and fits (else None: a new ensemble starts).
+
+        When the stored archive is the one this filter wrote last (:meth:`to_record`), its members are taken as
+        they are in memory instead of being read back: the same values (a state's archive keeps its arrays
+        exactly), without unpacking them.
+        """
         stored = store.ensemble(run)
         if stored is None:
             return None
@@ -278,7 +288,10 @@ class EnsembleFilter:
                else f"it has {n} members, not {self.config.members}" if n != self.config.members else "")
         members: list[ModelState] = []
         errors = np.zeros(0)
-        if not why:
+        kept = self._kept
+        if not why and kept is not None and kept[0] == data:
+            members, errors = list(kept[1]), kept[2].copy()
+        elif not why:
             try:
                 with zipfile.ZipFile(io.BytesIO(data)) as z:
                     state_format = z.read("state-format.txt").decode("utf-8")
@@ -463,8 +476,8 @@ class EnsembleFilter:
         noisy = values[None] + self.sigma * rng.standard_normal((max(1, 2048 // len(members)), *values.shape))
         flat = noisy.reshape(-1, *values.shape[1:])
         frame = lambda v: pd.DataFrame(v, index=result.times, columns=self.series)  # noqa: E731
-        return EnsembleForecast(mean=frame(values.mean(axis=0)), low=frame(np.quantile(flat, 0.05, axis=0)),
-                                high=frame(np.quantile(flat, 0.95, axis=0)))
+        low, high = np.quantile(flat, [0.05, 0.95], axis=0)  # one partition for both: the same values as apart
+        return EnsembleForecast(mean=frame(values.mean(axis=0)), low=frame(low), high=frame(high))
 
 
 def assimilation_cycle(service: OnlineService, spec: CycleSpec, run_start: pd.Timestamp, state: ModelState,

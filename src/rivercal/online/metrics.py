@@ -248,7 +248,8 @@ def score_forecasts(forecasts: pd.DataFrame, observed: pd.DataFrame,
 
 
 def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, lead_h: float = 24.0,
-                    facts: ChangeFacts | None = None) -> dict[str, Any]:
+                    facts: ChangeFacts | None = None, forecasts: pd.DataFrame | None = None,
+                    cycles: pd.DataFrame | None = None) -> dict[str, Any]:
     """Mean absolute error of the level forecasts at the stations: rivercal (updated) against the fixed DSS.
 
     Parameters
@@ -262,6 +263,9 @@ def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, l
         The twin's change (default: from the run's ``meta``).
     lead_h
         Lead times (0, lead_h] h are scored.
+    forecasts, cycles
+        The run's stored forecasts and cycles as the store gives them, when the caller has read them already
+        (default: read here).
 
     Returns
     -------
@@ -276,7 +280,7 @@ def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, l
         after = known.change_time if known is not None else None
     out: dict[str, Any] = {"n": 0, "lead_h": lead_h, "from": None if after is None else utc(after).isoformat(),
                            "updated_mae_m": None, "dss_mae_m": None, "ratio": None, "reason": None}
-    cycles = store.cycles(run)
+    cycles = store.cycles(run) if cycles is None else cycles
     if cycles.empty:
         out["reason"] = "the run has no finished cycle yet"
         return out
@@ -284,10 +288,10 @@ def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, l
     if keep.empty:
         out["reason"] = _no_cycle_after(run, cycles, utc(after))
         return out
-    fc = store.forecasts(run)
+    fc = store.forecasts(run) if forecasts is None else forecasts
     fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] >= 0) & (fc["lead_h"] <= lead_h)]
     if not fc.empty:
-        fc = fc[fc["series"].str.rpartition(".")[2].isin(_LEVELS)]
+        fc = fc[_levels(fc["series"])]
     if fc.empty:
         out["reason"] = f"the scored cycles stored no level forecast with a lead time of at most {lead_h:g} h"
         return out
@@ -309,6 +313,11 @@ def forecast_errors(store: Store, run: Run | str, *, after: Any | None = None, l
     out.update(n=int(n.min()), updated_mae_m=float(mae["updated"]), dss_mae_m=float(mae["dss"]),
                ratio=float(mae["dss"] / mae["updated"]) if mae["updated"] > 0 else None)
     return out
+
+
+def _levels(series: pd.Series) -> np.ndarray:
+    """Which rows of a column of series ids are level series (``<station>.h``, ``.h_up``, ``.h_down``)."""
+    return series.isin([s for s in series.unique() if str(s).rpartition(".")[2] in _LEVELS]).to_numpy()
 
 
 def _paired(fc: pd.DataFrame, obs: Sequence[Any]) -> pd.DataFrame:
@@ -365,20 +374,24 @@ def _count(n: int, noun: str) -> str:
 # -- headline figures ----------------------------------------------------------------------------------------
 
 
-def run_figures(store: Store, run: Run | str, *, lead_h: float = 24.0,
-                facts: ChangeFacts | None = None) -> dict[str, Any]:
-    """The headline figures of a run (module docstring); MAE in m. ``facts``: default from the run's ``meta``."""
+def run_figures(store: Store, run: Run | str, *, lead_h: float = 24.0, facts: ChangeFacts | None = None,
+                forecasts: pd.DataFrame | None = None, cycles: pd.DataFrame | None = None) -> dict[str, Any]:
+    """The headline figures of a run (module docstring); MAE in m.
+
+    ``facts``: default from the run's ``meta``; ``forecasts`` and ``cycles``: the run's stored forecasts and
+    cycles when the caller has read them already (default: read here).
+    """
     run = _run(store, run)
     meta = dict(run.config.get("meta") or {})
     scenario = _facts(run, facts)
-    cycles = store.cycles(run)
+    cycles = store.cycles(run) if cycles is None else cycles
     change = scenario.change_time if scenario is not None else None
     out: dict[str, Any] = {"scenario": scenario.scenario if scenario else None,
                            "realism": (meta.get("realism") or {}).get("name", "ideal") if scenario else None,
                            "noise": meta.get("noise", "none") if scenario else None,
                            "rain_error": float(meta.get("rain_error") or 0.0) if scenario else None,
                            "change_time": change.isoformat() if change is not None else None, "lead_h": lead_h}
-    out.update(_forecast_figures(store, run, cycles, change, lead_h))
+    out.update(_forecast_figures(store, run, cycles, change, lead_h, forecasts))
     out.update(_time_to_correct(store, run, cycles, scenario))
     alerts = store.alerts(run)
     out["jump_alerts"] = int((alerts["kind"] == "jump").sum()) if len(alerts) else 0
@@ -393,16 +406,16 @@ def run_figures(store: Store, run: Run | str, *, lead_h: float = 24.0,
 
 
 def _forecast_figures(store: Store, run: Run, cycles: pd.DataFrame, change: pd.Timestamp | None,
-                      lead_h: float) -> dict[str, Any]:
+                      lead_h: float, forecasts: pd.DataFrame | None = None) -> dict[str, Any]:
     """MAE of the issued, the updated and the DSS's level forecasts of the cycles after the change."""
     out: dict[str, Any] = {"forecast_mae_ratio": None, "rivercal_mae_m": None, "dss_mae_m": None,
                            "updated_mae_ratio": None, "updated_mae_m": None, "forecast_values": 0}
     keep = cycles if change is None else cycles[cycles["issue_time"] > change]
     if keep.empty:
         return out
-    fc = store.forecasts(run)
+    fc = store.forecasts(run) if forecasts is None else forecasts
     fc = fc[fc["cycle"].isin(keep["cycle"]) & (fc["lead_h"] >= 0) & (fc["lead_h"] <= lead_h)]
-    fc = fc[fc["series"].str.rpartition(".")[2].isin(_LEVELS)] if len(fc) else fc
+    fc = fc[_levels(fc["series"])] if len(fc) else fc
     if fc.empty:
         return out
     obs = [s for s in store.observations(sorted(fc["series"].unique()), fc["time"].min(), fc["time"].max())
@@ -502,15 +515,16 @@ def _accepted(est: pd.DataFrame) -> pd.DataFrame:
 # -- error by lead time and band coverage ------------------------------------------------------------------
 
 
-def mae_by_lead(store: Store, run: Run, series: Sequence[str], truth: pd.DataFrame | None = None) -> dict[str, Any]:
+def mae_by_lead(store: Store, run: Run, series: Sequence[str], truth: pd.DataFrame | None = None, *,
+                forecasts: pd.DataFrame | None = None) -> dict[str, Any]:
     """Mean absolute error (m) of the stored level forecasts per kind and lead bucket.
 
     Against ``truth`` (a twin's noise-free series: wide, UTC index) when given, else against the stored
     observations (whose error then adds to the forecast's), each paired with the forecast interpolated to its
-    time (:func:`at_readings`).
+    time (:func:`at_readings`). ``forecasts``: the run's stored forecasts when the caller has read them already.
     """
     levels = [s for s in series if s.rpartition(".")[2] in ("h", "h_up", "h_down")]
-    fc = store.forecasts(run)
+    fc = store.forecasts(run) if forecasts is None else forecasts
     fc = fc[fc["series"].isin(levels)]
     out: dict[str, Any] = {"against": "observations" if truth is None else "truth"}
     if fc.empty:
@@ -560,13 +574,15 @@ def run_metrics(store: Store, run: Run | str, series: Sequence[str] | None = Non
     ``forecast_errors`` (:func:`forecast_errors`), the headline figures of :func:`run_figures` at the top
     level, ``forecast_mae_by_lead`` (:func:`mae_by_lead`, against the observations) and, where the run stored
     forecast bands, ``band_coverage_90`` (:func:`band_coverage`). ``series``: the level series to score
-    (default every series forecast).
+    (default every series forecast). The run's forecasts and cycles are read from the store once for all of them.
     """
     run = _run(store, run)
-    series = list(series) if series is not None else sorted(store.forecasts(run)["series"].unique())
-    out: dict[str, Any] = {"forecast_errors": forecast_errors(store, run, lead_h=lead_h, facts=facts),
-                           **run_figures(store, run, lead_h=lead_h, facts=facts),
-                           "forecast_mae_by_lead": mae_by_lead(store, run, series)}
+    fc, cycles = store.forecasts(run), store.cycles(run)
+    series = list(series) if series is not None else sorted(fc["series"].unique())
+    out: dict[str, Any] = {
+        "forecast_errors": forecast_errors(store, run, lead_h=lead_h, facts=facts, forecasts=fc, cycles=cycles),
+        **run_figures(store, run, lead_h=lead_h, facts=facts, forecasts=fc, cycles=cycles),
+        "forecast_mae_by_lead": mae_by_lead(store, run, series, forecasts=fc)}
     bands = band_coverage(store, run, sources=sources)
     if bands["n"]:
         out["band_coverage_90"] = bands
