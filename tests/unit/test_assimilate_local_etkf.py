@@ -63,3 +63,16 @@ def test_the_batched_analysis_does_not_depend_on_its_block_size():
     whole = _local_transformed(*args)
     pieces = _local_transformed(*args, block=2 * 16)                # two groups (and rows of two groups) at a time
     np.testing.assert_allclose(pieces, whole, rtol=0, atol=1e-13 * np.abs(whole).max())
+
+
+def test_the_ensemble_space_analysis_does_not_depend_on_its_block_size():
+    from rivercal.assimilate.filters import _local_transformed_members
+
+    x, hx, y, r, rho = _case(50, 6, 20, seed=5)                      # more readings than members
+    xm, ym = x.mean(axis=1, keepdims=True), hx.mean(axis=1, keepdims=True)
+    groups, which = np.unique(rho, axis=0, return_inverse=True)
+    args = (x - xm, hx - ym, groups / r, y - ym[:, 0], which.ravel())
+    whole = _local_transformed_members(*args)
+    pieces = _local_transformed_members(*args, block=2 * 36)        # two groups at a time
+    np.testing.assert_allclose(pieces, whole, rtol=0, atol=1e-13 * np.abs(whole).max())
+    np.testing.assert_allclose(xm + whole, _hunt_local(x, hx, y, r, rho), rtol=0, atol=1e-10 * np.abs(x).max())

@@ -144,11 +144,7 @@ def etkf_analysis(ensemble: np.ndarray, predicted: np.ndarray, observed: np.ndar
     groups, which = np.unique(rho, axis=0, return_inverse=True)
     if y.size <= x.shape[1]:
         return xm + _local_transformed(a, b, groups / r, d, which.ravel())
-    out = np.empty_like(x)  # more readings than members: a thin SVD per group is the cheaper form
-    for g, weights in enumerate(groups):
-        rows = np.flatnonzero(which.ravel() == g)
-        out[rows] = xm[rows] + _transformed(a[rows], b, weights / r, d)
-    return out
+    return xm + _local_transformed_members(a, b, groups / r, d, which.ravel())
 
 
 def _transformed(a: np.ndarray, b: np.ndarray, r_inv: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -219,6 +215,41 @@ def _local_transformed(a: np.ndarray, b: np.ndarray, r_inv: np.ndarray, d: np.nd
             z = np.einsum("rij,rj->ri", lmat[grp], e[at])
             mean = np.einsum("ri,ri->r", e[at], mu[grp])
             out[at] += (z @ b + mean[:, None]) / nm1
+    return out
+
+
+def _local_transformed_members(a: np.ndarray, b: np.ndarray, r_inv: np.ndarray, d: np.ndarray, which: np.ndarray, *,
+                               block: int = 1 << 22) -> np.ndarray:
+    """:func:`_local_transformed` for more readings than members (m > N): in the N-dimensional ensemble space.
+
+    Per group of rows, Cᵢ = SᵢᵀSᵢ = Bᵀ diag(R⁻¹ρᵢ) B / (N − 1) = V diag(g) Vᵀ (the groups' N × N matrices in
+    batched eigendecompositions), the mean weights w̄ᵢ = V diag(1/(1 + g)) Vᵀ Bᵀ R⁻¹ρᵢ d / (N − 1) and the
+    transform Wᵢ = V diag((1 + g)^(-½)) Vᵀ (Hunt et al. 2007, Eqs. 21-24); row i of the analysis anomalies is
+    aᵢ (w̄ᵢ 1ᵀ + Wᵢ). The same analysis as :func:`_transformed` per group, to rounding. A group of zero weights
+    leaves its rows as they are. ``block`` bounds the doubles of the N × N matrices held at once.
+    """
+    nm1 = b.shape[1] - 1.0
+    n_mem = b.shape[1]
+    out = a.copy()
+    active = np.flatnonzero(np.any(r_inv > 0, axis=1))
+    step = max(1, block // (n_mem * n_mem))
+    rows_of = np.argsort(which, kind="stable")
+    bounds = np.searchsorted(which[rows_of], np.arange(r_inv.shape[0] + 1))
+    bd = b * d[:, None]                                             # B weighted by the innovation, (m, N)
+    for lo in range(0, active.size, step):
+        grp = active[lo : lo + step]
+        ri = r_inv[grp]                                             # (G, m)
+        c = np.einsum("gm,mk,ml->gkl", ri, b, b, optimize=True) / nm1
+        g, v = np.linalg.eigh(c)
+        g = np.clip(g, 0.0, None)
+        vt = np.swapaxes(v, 1, 2)
+        cd = ri @ bd / nm1                                          # Bᵀ R⁻¹ρ d / (N − 1), (G, N)
+        w_mean = np.einsum("gkl,gl->gk", (v * (1.0 / (1.0 + g))[:, None, :]) @ vt, cd)
+        w = (v * (1.0 / np.sqrt(1.0 + g))[:, None, :]) @ vt         # (G, N, N)
+        w += w_mean[:, :, None] * np.ones(n_mem)[None, None, :]     # w̄ 1ᵀ + W: the row's weights per member
+        for k, group in enumerate(grp):
+            rows = rows_of[bounds[group] : bounds[group + 1]]
+            out[rows] = a[rows] @ w[k]
     return out
 
 
