@@ -21,7 +21,7 @@ def test_the_oriege_imports_with_its_gauges_and_prints_the_summary(tmp_path: Pat
     assert set(summary) == {"folder", "branches", "points", "profiles", "friction_groups", "boundaries", "laterals",
                             "stations", "start", "end", "approximated", "refused"}
     assert (summary["profiles"], summary["stations"], summary["refused"]) == (84, 84 + 3, 0)
-    run = rivercal("case", "check", str(tmp_path / "case"))
+    run = rivercal("case", "check", str(tmp_path / "case"), "--json")
     assert run.returncode == 0, run.stderr
     assert "G05.h" in run.stdout
 

@@ -15,7 +15,7 @@ import pytest
 
 from rivercal.models import load_model
 from rivercal.models.config import ModelFileError
-from tests.unit.test_blackbox import make_model
+from tests.blackbox_models import make_model
 
 LONG = "a" * 3000
 

@@ -347,7 +347,8 @@ def _no_cycle_after(run: Run, cycles: pd.DataFrame, after: pd.Timestamp) -> str:
 def _no_observations(store: Store, series: list[str], fc: pd.DataFrame) -> str:
     """Why no forecast meets an observation: the observations end (or start) outside the forecasts' times."""
     table = store.availability(series)
-    first_fc = fc["time"].min()
+    ahead = fc[fc["lead_h"] > 0] if "lead_h" in fc and (fc["lead_h"] > 0).any() else fc
+    first_fc = ahead["time"].min()  # lead 0 is the issue time, which no forecast is scored at
     if table.empty:
         return "the store holds no observation of the forecast series"
     last_obs = pd.Timestamp(table["last"].max())

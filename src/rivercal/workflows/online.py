@@ -242,9 +242,7 @@ def ingest_file(store: Store, path: str | Path, model: Model, ranges: dict[str, 
     path = Path(path)
     delivery = read_observation_file(path)
     check_series(delivery, model.observables, path.name, model.name)
-    for note in check_delivery(delivery, path.name, ranges):
-        log.warning("%s", note)
-        progress.note(note)
+    _outlier_notes(check_delivery(delivery, path.name, ranges), path.name, progress)
     return store.ingest(delivery, source=path.name, screen=ScreenRule(),
                         plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
 
@@ -267,10 +265,28 @@ def _screen_deliveries(model: Model, config: OnlineConfig, first: pd.Timestamp, 
     ranges = plausible_ranges(model, measurable(model.observables), start, data_end(model, config, first, last),
                               config.dss, config.output_interval_s)
     for source, obs in observations:
-        for note in check_delivery(obs, source, ranges):
-            log.warning("%s", note)
-            progress.note(note)
+        _outlier_notes(check_delivery(obs, source, ranges), source, progress)
     return ranges
+
+
+#: A file with values outside their plausible range in more series than this is summarised in one line.
+OUTLIER_LINES = 5
+
+
+def _outlier_notes(notes: list[str], source: str, progress: Progress) -> None:
+    """Say which series of a file hold values outside their plausible range: each, or a summary of many.
+
+    Each note goes to the log (``--verbose`` shows it); the progress shows each of a few, or one line for many,
+    so that a file of hundreds of series (every structure of an imported model) does not fill the screen.
+    """
+    for note in notes:
+        log.info("%s", note)
+    if len(notes) <= OUTLIER_LINES:
+        for note in notes:
+            progress.note(note)
+        return
+    progress.note(f"{source}: {len(notes)} series hold values outside their plausible range (stored as outliers, "
+                  f"left out); the first: {notes[0].removeprefix(source + ': ')}; --verbose lists every one")
 
 
 def _follow(service: OnlineService, store: Store, folder: Path, last: pd.Timestamp, poll: float,
