@@ -48,16 +48,16 @@ from rivercal.engine.kernels.codes import (
 from rivercal.engine.kernels.lookup import flow_geometry
 from rivercal.engine.kernels.structures import G, friction_c2r, friction_c2r_any
 
-__all__ = ["channel_coefficients", "channel_coefficients_at"]
+__all__ = ["channel_coefficients"]
 
 
 @kernel
-def channel_coefficients(net, work, z, u, q, dt, min_depth):
-    """Flux area A (m²), f (1/s) and r (m/s) of every channel link from the state at time n.
+def channel_coefficients(net, work, z, zk, theta, u, q, dt, min_depth, iterate=True):
+    """Flux area A (m²), f (1/s) and r (m/s) of every channel link from the state at time n and the iterate ``zk``.
 
-    The geometry (flow area, friction), the upwind side and the momentum terms are those of the state at time n
-    (levels ``z``, m AD, velocities ``u``, m/s, fluxes ``q``, m³/s); :func:`channel_coefficients_at` takes the
-    geometry at an iterate.
+    The geometry (flow area, friction) is that of the geometry's levels (:func:`_at`) between ``z`` and the
+    iterate ``zk`` (m AD), or of ``z`` itself without ``iterate``; the upwind side and the momentum terms are
+    those of the state at time n (levels ``z``, m AD, velocities ``u``, m/s, fluxes ``q``, m³/s).
 
     Returns the largest |u| / Δx of the wet channel links (1/s), the screen of the step control
     (:func:`.timeloop.run`): times Δt their largest Courant number.
@@ -82,23 +82,7 @@ def channel_coefficients(net, work, z, u, q, dt, min_depth):
     The coefficients written for structure and pump links are replaced before use, by
     :func:`.structures.switch_pumps` and :func:`.structures.structure_coefficients`.
     """
-    fastest = _link_geometry(net, work, z, u, min_depth)
-    _momentum_simple(net, work, z, u, q, dt)
-    for link in net.mo_other:
-        _momentum_other(net, work, link, z, z, 1.0, u, q, dt)
-    _link_newton(net.lk_ilen, work.area, work.cb, work.cs, work.cc2r, work.cdz, work.fco, work.rco)
-    return fastest
-
-
-@kernel
-def channel_coefficients_at(net, work, z, zk, theta, u, q, dt, min_depth):
-    """:func:`channel_coefficients` with the geometry of the levels between ``z`` and the iterate ``zk`` (m AD).
-
-    The geometry (flow area, friction) is that of the geometry's levels (:func:`_at`) between the levels ``z`` at
-    time n and the iterate ``zk``; the upwind side and the momentum terms are those of the state at time n. Kept
-    apart from :func:`channel_coefficients`, which every step calls, so that its loop stays as lean as before.
-    """
-    fastest = _link_geometry_at(net, work, z, zk, theta, u, min_depth)
+    fastest = _link_geometry(net, work, z, zk, theta, u, min_depth, iterate)
     _momentum_simple(net, work, z, u, q, dt)
     for link in net.mo_other:
         _momentum_other(net, work, link, z, zk, theta, u, q, dt)
@@ -134,8 +118,11 @@ def _upwind(net, link, z, zk, theta, u):
 
 
 @kernel
-def _link_geometry(net, work, z, u, min_depth):
+def _link_geometry(net, work, z, zk, theta, u, min_depth, iterate):
     """Per link: flux area (m²; 0 when dry or not a channel) at the upwind depth, and the friction geometry.
+
+    The upwind side is that of time n (velocity ``u``, levels ``z``), the depths those of the geometry's levels
+    z + θ (zk - z) (:func:`_at`).
 
     The friction geometry — flow area (m²), wetted perimeter (m) and R^(4/3) (m^(4/3)) in ``work.cam``,
     ``work.cper`` and ``work.cr43`` — is that of the upwind depth, except where the surface falls towards the
@@ -162,54 +149,8 @@ def _link_geometry(net, work, z, u, min_depth):
             continue
         k1 = np.uint64(net.lk_k1[link])
         k2 = np.uint64(net.lk_k2[link])
-        g1 = z[k1]
-        g2 = z[k2]
-        u0 = u[link]
-        if u0 > 0.0 or (u0 == 0.0 and z[k1] >= z[k2]):  # as _upwind, with the downstream depth too
-            depth, other, prof = g1 - net.lk_b1[link], g2 - net.lk_b2[link], np.uint64(net.lk_p1[link])
-        else:
-            depth, other, prof = g2 - net.lk_b2[link], g1 - net.lk_b1[link], np.uint64(net.lk_p2[link])
-        if depth < min_depth:
-            continue
-        a_up, per, r43 = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af,
-                                       net.tab_pf, net.tab_flow, prof, depth)
-        if a_up <= 0.0:
-            continue
-        area[link] = a_up
-        fastest = max(fastest, math.fabs(u0) * ilen[link])
-        cam[link] = a_up
-        cper[link] = per
-        cr43[link] = r43
-        gap = depth - other
-        if FRICTION_SPLIT * depth < gap < FRICTION_GRADUAL * depth and other > min_depth:
-            shift = 0.5 * min(gap / (FRICTION_SPLIT * depth) - 1.0, 1.0) * gap
-            a_fr, per_fr, r43_fr = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top,
-                                                 net.tab_af, net.tab_pf, net.tab_flow, prof, depth - shift)
-            ratio = a_fr / a_up
-            cam[link] = a_fr
-            cper[link] = per_fr
-            cr43[link] = r43_fr * (ratio * ratio)
-    return fastest
-
-
-@kernel
-def _link_geometry_at(net, work, z, zk, theta, u, min_depth):
-    """:func:`_link_geometry` at the geometry's levels between ``z`` and the iterate ``zk`` (:func:`_at`).
-
-    The upwind side is that of time n (velocity ``u``, levels ``z``), the depths those of the geometry's levels.
-
-    Returns the largest |u| / Δx of the wet links (1/s), found on the way.
-    """
-    area, cam, cper, cr43, lk_type, ilen = work.area, work.cam, work.cper, work.cr43, net.lk_type, net.lk_ilen
-    fastest = 0.0
-    for link in range(lk_type.size):
-        area[link] = 0.0
-        if lk_type[link] != LINK_CHANNEL:
-            continue
-        k1 = np.uint64(net.lk_k1[link])
-        k2 = np.uint64(net.lk_k2[link])
-        g1 = _at(z, zk, theta, k1)
-        g2 = _at(z, zk, theta, k2)
+        g1 = _at(z, zk, theta, k1) if iterate else z[k1]
+        g2 = _at(z, zk, theta, k2) if iterate else z[k2]
         u0 = u[link]
         if u0 > 0.0 or (u0 == 0.0 and z[k1] >= z[k2]):  # as _upwind, with the downstream depth too
             depth, other, prof = g1 - net.lk_b1[link], g2 - net.lk_b2[link], np.uint64(net.lk_p1[link])

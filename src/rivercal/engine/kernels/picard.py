@@ -6,10 +6,10 @@ with their flow area and regime taken from the current iterate of the levels
 (:func:`.overfall.overfall_coefficients`) and the links that reach a free outfall
 (:func:`.outfall.outfall_coefficients`); the level system (:func:`.assemble.assemble`) is then
 solved by :func:`.solver.ldl_solve_packed`. Non-linear storage enters through the volume curve's
-linearisation at the iterate. Where the first solution moves a level by more than ``GEOMETRY_FROM``, the
-iterations go on in :func:`follow_geometry`, which also takes the channel links' flow area and friction at the
-iterate (:func:`.momentum.channel_coefficients_at`). The iterations stop when no level changes by ``tol`` or
-more.
+linearisation at the iterate, and the channel links' flow area and friction through their geometry at the
+iterate (:func:`.momentum.channel_coefficients`, evaluated first at the extrapolated level,
+:func:`first_iterate`, and again after every iteration that has not converged). The iterations stop when no
+level changes by ``tol`` or more.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import math
 from rivercal.engine.kernels._jit import kernel
 from rivercal.engine.kernels.assemble import assemble
 from rivercal.engine.kernels.codes import GEOMETRY_CONTRACT, GEOMETRY_FROM, STAT_SOLVES
-from rivercal.engine.kernels.momentum import channel_coefficients_at
+from rivercal.engine.kernels.momentum import channel_coefficients
 from rivercal.engine.kernels.outfall import outfall_coefficients
 from rivercal.engine.kernels.overfall import overfall_coefficients
 from rivercal.engine.kernels.solver import ldl_solve_packed
@@ -117,7 +117,7 @@ def follow_geometry(net, sx, work, z, vol, u, q, pump_on, crest, theta, dt, max_
     """Go on iterating a step whose first solution moved a level by more than ``GEOMETRY_FROM``, with the geometry.
 
     Each of at most ``max_iter`` iterations evaluates the channels' geometry at the current iterate
-    ``work.zk`` (:func:`.momentum.channel_coefficients_at`, from the state at time n: levels ``z`` m AD, velocities
+    ``work.zk`` (:func:`.momentum.channel_coefficients`, from the state at time n: levels ``z`` m AD, velocities
     ``u`` m/s, fluxes ``q`` m³/s; the pumps' fixed fluxes, which that overwrites, are set again from
     ``pump_on``), linearises the structures (``sx``: those of D-HYDRO's kinds, or None) and solves, until no level
     moves by ``tol``. Kept apart from the iterations of every step, whose compiled loop it would otherwise weigh
@@ -131,7 +131,7 @@ def follow_geometry(net, sx, work, z, vol, u, q, pump_on, crest, theta, dt, max_
     zk = work.zk
     last = math.inf
     for _ in range(max_iter):
-        channel_coefficients_at(net, work, z, zk, theta, u, q, dt, min_depth)
+        channel_coefficients(net, work, z, zk, theta, u, q, dt, min_depth)
         switch_pumps(net, work, z, pump_on)
         structure_coefficients(net, work, zk, u, crest, dt)
         if sx is not None:

@@ -337,7 +337,7 @@ def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forc
         h = dt * span / FULL
         lateral = apply_forcing(net, work, n, forcing, edges, h, vol, z, span / (FULL - done), done / FULL,
                                 (done + span) / FULL)
-        fastest = channel_coefficients(net, work, z, u0, q0, h, min_depth)
+        fastest = channel_coefficients(net, work, z, z, theta, u0, q0, h, min_depth, False)  # the geometry of time n
         if _too_fast(net, work, z, u0, h, theta, min_depth, fastest, level):
             continue
         switched = switch_pumps(net, work, z, pump_on)
@@ -415,7 +415,7 @@ def _explicit(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_it
     structures); counted in ``STAT_EXPLICIT``.
     """
     work.stats[STAT_EXPLICIT] += 1
-    channel_coefficients(net, work, z, u, q, dt, min_depth)
+    channel_coefficients(net, work, z, z, theta, u, q, dt, min_depth, False)
     switch_pumps(net, work, z, pump_on)
     if sx is None:
         picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, False)
