@@ -154,3 +154,14 @@ def test_scaled_swmm_inflows_are_its_scale_factors_and_a_variant_scales_the_seri
     assert np.allclose(scaled.series.to_numpy(), two.series.to_numpy(), atol=1e-4)
     with pytest.raises(ValueError, match="makes variants of its inflows only"):
         swmm.variant(grid_factor=0.5)
+
+
+def test_a_structural_error_on_a_model_without_branches_is_refused_as_bad_input(swmm) -> None:
+    from rivercal.errors import OptionError
+    from rivercal.twin.truth_model import truth_model
+
+    with pytest.raises(MissingCapability) as refused:
+        truth_model(swmm, "realistic")
+    assert isinstance(refused.value, OptionError)  # the request is wrong, not rivercal: the CLI's exit 2
+    assert "model 'dommel-swmm' (SwmmModel) has no branches to vary" in str(refused.value)
+    assert truth_model(swmm, "noisy") is swmm

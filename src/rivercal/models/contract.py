@@ -71,7 +71,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.errors import ModelRunError
+from rivercal.errors import ModelRunError, OptionError
 from rivercal.parameters import Parameter
 from rivercal.results import SimulationResult
 
@@ -234,8 +234,12 @@ class Model(Protocol):
 # -- optional capabilities --------------------------------------------------------------------------------
 
 
-class MissingCapability(ValueError):
-    """A model lacks an optional capability that was asked for; the message names both and what needed it."""
+class MissingCapability(OptionError):
+    """A model lacks an optional capability that was asked for; the message names both and what needed it.
+
+    The request, not the model, is what is wrong (an option such as ``--assimilate both`` or ``--realism``
+    asked for what this model cannot do): a command reports it as bad input.
+    """
 
 
 @dataclass(frozen=True)

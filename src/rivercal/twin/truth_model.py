@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.models.contract import Model, ModelState, Variants, require
+from rivercal.models.contract import MissingCapability, Model, ModelState, Variants, require
 from rivercal.results import SimulationResult
 from rivercal.twin.realism import Realism, event_factors, generator, get_realism
 
@@ -80,6 +80,16 @@ class PerturbedTruth:
         self.realism = realism
         self.seed = int(seed)
         inputs = model.variant_inputs()
+        if realism.structure is not None and not inputs.branches:
+            raise MissingCapability(
+                f"realism {realism.name!r} gives the truth a friction error per branch and a finer grid; model "
+                f"{model.name!r} ({type(model).__name__}) has no branches to vary (its variants scale its inflows "
+                "only): use a level without a structural error (e.g. 'noisy', or a realism file without "
+                "[structure]) and put an error on the inflows with --rain-error")
+        if (realism.rain is not None or realism.runoff is not None) and not inputs.catchments:
+            log.warning("realism %r: model %s has no rainfall-runoff catchments, so the level's rain and runoff "
+                        "errors do not apply to its truth (--rain-error puts an error on its inflows)",
+                        realism.name, model.name)
         self.branch_factors = dict.fromkeys(inputs.branches, 1.0)
         grid_factor = 1.0
         if realism.structure is not None:
