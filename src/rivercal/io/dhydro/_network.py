@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from rivercal.errors import CaseError
+from rivercal.io._summer_dike import summer_dike
 from rivercal.io.dhydro._context import Context, unquote
 from rivercal.io.dhydro._friction import FRICTION_TYPES, MAIN, branch_friction_entries, friction_groups, friction_of
 from rivercal.io.dhydro._source import is_file
@@ -268,28 +269,8 @@ def _summer_dike(ctx: Context, d: Any, bottom: float) -> tuple[dict | None, str]
     flow, total = given["leveeflowarea"], given["leveetotalrea"]
     if not (flow > 1e-5 or total > 1e-5):
         return None, ""
-    notes = []
-    if total < flow:
-        notes.append(f"summer dike: its total area {total:g} m² is below its flow area {flow:g} m²; the case raises it "
-                     "to the flow area")
-        total = flow
-    if crest < bottom:
-        notes.append(f"summer dike: its crest {crest:g} m lies below the lowest level of the table; taken at it")
-        crest = bottom
-    dike = {"crest": crest - bottom, "flow_area": flow, "total_area": total, "transition": SUMMER_DIKE_TRANSITION}
-    if crest < base < crest + SUMMER_DIKE_TRANSITION:
-        # flow1d (GetSummerDikeTotal) drains it then by a steeper curve from crest + transition to the base and
-        # returns to the rising curve below the base, a jump of the stored volume; a base at or above crest +
-        # transition never leaves the rising curve, which the crest as base gives exactly
-        notes.append(f"summer dike: its base level {base:g} m lies between its crest {crest:g} m and crest + "
-                     f"{SUMMER_DIKE_TRANSITION:g} m: taken at the crest (the storage behind it fills and drains by the "
-                     "rising curve; D-Flow FM drains it by a steeper one down to the base level and then returns to "
-                     "the rising one, a jump of the stored volume)")
-    elif base < bottom:
-        notes.append(f"summer dike: its base level {base:g} m lies below the lowest level of the table; taken at it")
-        dike["base"] = 0.0
-    elif base < crest:
-        dike["base"] = base - bottom  # drains along the falling curve down to it, as flow1d does
+    dike, notes = summer_dike(crest=crest, base=base, flow_area=flow, total_area=total, bottom=bottom,
+                              transition=SUMMER_DIKE_TRANSITION, kernel="D-Flow FM")
     return dike, "; ".join(notes)
 
 

@@ -26,6 +26,7 @@ from collections import defaultdict
 import numpy as np
 
 from rivercal.errors import CaseError
+from rivercal.io._summer_dike import summer_dike
 from rivercal.io.sobek3._context import Context
 from rivercal.io.sobek3._ini import Section
 from rivercal.network import FRICTION_RANGES
@@ -569,28 +570,9 @@ def _summer_dike(ctx: Context, s: Section, bottom: float) -> tuple[dict | None, 
         return None, ""
     if flow < 0 or total < 0:
         raise s.error("sd_flowArea" if flow < 0 else "sd_totalArea", "a summer dike's areas must not be negative")
-    notes = []
-    if total < flow:
-        notes.append(f"summer dike: total area {total:g} m² raised to its flow area {flow:g} m²")
-        total = flow
-    if crest < bottom:
-        notes.append(f"summer dike crest {crest:g} m AD below the profile's lowest level: taken at it")
-        crest = bottom
     transition = ctx.model.number("AdvancedOptions", "TransitionHeightSD", default=0.5) or 0.5
-    dike = {"crest": crest - bottom, "flow_area": flow, "total_area": total, "transition": transition}
-    if crest < base < crest + transition:
-        # SOBEK 3 drains it then by a steeper curve from crest + transition to the base and returns to the rising
-        # curve below the base, a jump in the volume at that level; a base at or above crest + transition never
-        # leaves the rising curve (GetSummerDikeTotal), which the crest as base gives exactly
-        notes.append(f"summer dike base level {base:g} m AD between its crest {crest:g} m AD and crest + "
-                     f"{transition:g} m: taken at the crest (the storage behind it fills and drains by the rising "
-                     "curve; SOBEK 3 drains it by a steeper one down to the base level and then returns to the rising "
-                     "one, a jump of the stored volume)")
-    elif base < bottom:
-        notes.append(f"summer dike base level {base:g} m AD below the profile's lowest level: taken at it")
-        dike["base"] = 0.0
-    elif base < crest:
-        dike["base"] = base - bottom
+    dike, notes = summer_dike(crest=crest, base=base, flow_area=flow, total_area=total, bottom=bottom,
+                              transition=transition, kernel="SOBEK 3")
     return dike, "; ".join(notes)
 
 
