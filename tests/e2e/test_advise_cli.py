@@ -93,3 +93,20 @@ def test_a_model_that_cannot_add_places_says_so(tmp_path: Path) -> None:
                     "--out", str(tmp_path / "out"))
     assert done.returncode == 2, done.stderr
     assert "lacks the optional capability VirtualStations" in " ".join(done.stderr.split())
+
+
+def test_only_the_gauges_of_today_count_as_present(tmp_path: Path) -> None:
+    """An imported model has a station at every observation point and structure; ``--gauges`` names the real ones."""
+    done = rivercal("advise", "gauges", "dommel", "--gauges", "0028,0040,0029,0030", "--params", "FA", "--window",
+                    WINDOW, "--candidates", "structures", "--add", "1", "--workers", "1", "--json", "--out",
+                    str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["stations"] == ["0028", "0029", "0030", "0040"]
+    table = (tmp_path / "out" / "candidates.csv").read_text()
+    assert "ZL1-13409_up" in table and "ZL1-13409_down" in table  # the weir of 0031, no gauge now, is a candidate
+    assert "ZL1-8052_up" not in table  # 0029's weir is measured
+    refused = rivercal("advise", "gauges", "dommel", "--gauges", "0029,0099", "--params", "FA", "--window", WINDOW,
+                       "--out", str(tmp_path / "out2"))
+    assert refused.returncode == 2, refused.stderr
+    assert "--gauges: '0099' is not a station of case 'dommel'" in " ".join(refused.stderr.split())

@@ -74,3 +74,20 @@ def test_a_place_at_a_chainage_and_bad_places(model) -> None:
     taken = model.location_at("ZL12", 10.0, id="0028", measure="level")
     with pytest.raises(ValueError, match="0028"):
         model.with_stations([taken])
+
+
+def test_a_copy_with_only_some_stations_offers_the_others_places_and_computes_the_same(model) -> None:
+    gauges = model.only_stations(["0029", "0031"])
+    assert gauges.observables == ["0029.h_up", "0029.h_down", "0029.Q", "0031.h_up", "0031.h_down"]
+    # the three stations left out give their six levels back to the candidate places; 0029, kept, still measures
+    # the only discharge the stations measure
+    assert len(gauges.candidate_locations("points", "level")) == len(model.candidate_locations("points", "level")) + 6
+    flows = {p.structure for p in gauges.candidate_locations("structures", "discharge")}
+    assert flows == {p.structure for p in model.candidate_locations("structures", "discharge")}
+    assert "ZL1-8052" not in flows
+    start = model.start + pd.Timedelta("2D")
+    full, _ = model.simulate(None, start=model.start, end=start)
+    part, _ = gauges.simulate(None, start=model.start, end=start)
+    assert np.array_equal(part.series["0031.h_up"].to_numpy(), full.series["0031.h_up"].to_numpy())
+    with pytest.raises(ValueError, match="'0099' is not a station of case 'dommel'"):
+        model.only_stations(["0029", "0099"])

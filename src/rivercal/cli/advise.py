@@ -44,6 +44,9 @@ def gauges(
     candidates: Annotated[str, typer.Option(
         help="Candidate places: points (every calculation point), structures (either side of every structure) "
              "or a CSV file with columns branch, chainage (m), name and optionally cost and id.")] = "points",
+    gauges: Annotated[str | None, typer.Option(
+        help="The stations that are gauges today, e.g. 0029,0031 (default: every station of the case; an imported "
+             "model has one at every observation point and structure, most of them no gauge).")] = None,
     add: Annotated[int | None, typer.Option(
         "--add", help="Gauges to add (default: as many as it takes until every parameter is identifiable).")] = None,
     kind: Annotated[str, typer.Option(help="What a new gauge measures: level, discharge or both.")] = "level",
@@ -76,7 +79,14 @@ def gauges(
     import pandas as pd
 
     from rivercal.analysis import IdentifiabilityOptions
-    from rivercal.workflows.advise import CANDIDATE_KINDS, MEASURES, advise_gauges, candidates_of, read_candidates
+    from rivercal.workflows.advise import (
+        CANDIDATE_KINDS,
+        MEASURES,
+        advise_gauges,
+        candidates_of,
+        gauges_only,
+        read_candidates,
+    )
 
     # -- everything is checked before the first model run: first what needs no case
     check_choice(kind, "--kind", MEASURES)
@@ -104,6 +114,8 @@ def gauges(
     options = IdentifiabilityOptions(sv_threshold=sv_threshold, correlation=corr_threshold)
     # -- then what needs the case
     model = open_model(case, show_compilation=not quiet)
+    if gauges is not None:
+        model = gauges_only(model, parse_names(gauges, "--gauges"))
     pset = select_parameters(model, params, start_values, [])
     win = parse_window(model, window, warmup=pd.Timedelta(hours=warmup))
     places = candidates_of(model, candidates, kind) if file is None else read_candidates(file, model, kind)

@@ -592,9 +592,11 @@ class VirtualStations(Protocol):
 
     A model with it offers its places (``where`` = ``points``: every calculation point; ``structures``:
     either side of every structure) for a gauge that measures ``level``, ``discharge`` or ``both``, leaving
-    out what its stations already measure; a place on a branch at a chainage; and a copy of itself that
-    also simulates the series of given places. The copy's states are interchangeable with the model's
-    (the places change what is written out, not what is computed).
+    out what its stations already measure; a place on a branch at a chainage; a copy of itself that
+    also simulates the series of given places; and a copy that keeps only some of its stations (an imported
+    model has a station at every observation point and structure, of which only some are gauges). The
+    copies' states are interchangeable with the model's (the places change what is written out, not what is
+    computed).
     """
 
     def candidate_locations(self, where: str, measure: str) -> list[Location]:
@@ -607,6 +609,13 @@ class VirtualStations(Protocol):
 
     def with_stations(self, locations: Iterable[Location]) -> Model:
         """A copy of the model that also simulates the series of ``locations``."""
+        ...
+
+    def only_stations(self, ids: Iterable[str]) -> Model:
+        """A copy whose stations are only ``ids`` (the gauges of today): the others' places become candidates.
+
+        ValueError naming an id that is not a station of the model.
+        """
         ...
 
 

@@ -233,6 +233,35 @@ class EmbeddedModel(Simulator):
         case = Case(spec=extended, root=self.case.root, forcing=self.case.forcing)
         return EmbeddedModel(case, forcing={k: v for k, v in self.forcing.items() if k in self.compiled.forcing_keys})
 
+    def only_stations(self, ids: Iterable[str]) -> EmbeddedModel:
+        """The model with only the stations ``ids`` of the case (same grid, forcing and quantities).
+
+        Raises
+        ------
+        ValueError
+            Naming an id that is not a station of the case.
+        """
+        from pydantic import ValidationError
+
+        from rivercal.errors import FieldProblem
+
+        keep = list(dict.fromkeys(ids))
+        spec = self.case.spec
+        known = [st.id for st in spec.stations]
+        unknown = [i for i in keep if i not in known]
+        if unknown:
+            raise ValueError(f"{unknown[0]!r} is not a station of case {self.name!r} (its stations: "
+                             f"{', '.join(known[:12])}{' …' if len(known) > 12 else ''})")
+        data = spec.model_dump(by_alias=True)
+        data["stations"] = [st.model_dump(by_alias=True, exclude_none=True) for st in spec.stations if st.id in keep]
+        try:
+            reduced = type(spec).model_validate(data)
+        except (ValidationError, FieldProblem, ValueError) as exc:  # e.g. a controller reads a station left out
+            raise ValueError(f"case {self.name!r} needs more of its stations than {', '.join(keep)}: "
+                             f"{_first_error(exc)}") from None
+        case = Case(spec=reduced, root=self.case.root, forcing=self.case.forcing)
+        return EmbeddedModel(case, forcing={k: v for k, v in self.forcing.items() if k in self.compiled.forcing_keys})
+
     def _observed(self) -> tuple[set[int], set[int]]:
         """The calculation points whose level and the links whose discharge the case's stations measure."""
         a = self.compiled.arrays

@@ -29,7 +29,7 @@ import pandas as pd
 from rivercal.errors import OptionError
 from rivercal.workflows.progress import NO_PROGRESS, Progress, jsonable
 
-__all__ = ["CANDIDATE_KINDS", "MEASURES", "advise_gauges", "candidates_of", "read_candidates"]
+__all__ = ["CANDIDATE_KINDS", "MEASURES", "advise_gauges", "candidates_of", "gauges_only", "read_candidates"]
 
 #: The candidate places a model offers itself.
 CANDIDATE_KINDS = ("points", "structures")
@@ -44,6 +44,23 @@ def _capable(model: Any, option: str) -> None:
         raise OptionError(f"{option}: model {getattr(model, 'name', '?')!r} cannot simulate series at places where it "
                           "has no station (it lacks the optional capability VirtualStations), so it cannot be "
                           "asked where a new gauge would help", option=option)
+
+
+def gauges_only(model: Any, stations: Sequence[str]) -> Any:
+    """The model measuring at ``stations`` only (``--gauges``): the places of its other stations become candidates.
+
+    Raises
+    ------
+    OptionError
+        When no station is named, a name is not a station of the model, or the model cannot drop stations.
+    """
+    _capable(model, "--gauges")
+    if not stations:
+        raise OptionError("--gauges: name at least one station that is a gauge today", option="--gauges")
+    try:
+        return model.only_stations(stations)
+    except ValueError as exc:
+        raise OptionError(f"--gauges: {exc}", option="--gauges") from None
 
 
 def candidates_of(model: Any, where: str, measure: str) -> list[Any]:
