@@ -8,15 +8,16 @@ FEWS calls ``rivercal fews run_info.xml``; :func:`run_module` then
    kind), the case, the inputs, the properties and the times;
 3. reads the PI time series FEWS exported: observations at the stations (locationId = station id,
    parameterId = ``h``, ``h_up``, ``h_down`` or ``Q``) go into the store, forcing at boundaries and
-   laterals (locationId = boundary or lateral id, parameterId ``Q`` in m³/s, ``h`` in m) replaces the
-   case's own series where FEWS has values, unless implausible (:func:`_screen_forcing`). Missing values,
+   laterals (locationId = boundary or lateral id, parameterId ``Q`` in m³/s, ``h`` in m) and structure
+   settings (locationId = structure id, parameterId of :data:`SETTINGS`) replaces the case's own series
+   where FEWS has values, unless implausible (:func:`_screen_forcing`). Missing values,
    flags and time zones as PI defines them (:func:`rivercal.io.read_pixml`); cm, mm, l/s, m3/h and m3/min
    converted. FEWS's id maps translate its own ids to these;
 4. takes the state FEWS handed over — the rivercal store of the previous run (SQLite: estimates,
    alerts, forecasts, the model states of the hot start) — copies it to the state's write location,
    or starts a new one when FEWS exported no state;
 5. runs one cycle of :class:`rivercal.online.OnlineService`: the calibration window ends at time zero,
-   the forecasts (updated parameters, and the fixed DSS) start there;
+   the forecasts (updated parameters, and the fixed DSS) start there, every ``timeStep``;
 6. writes the PI time series (forecasts with qualifier ``updated`` or ``dss``; per parameter the
    estimate with flag 0 when accepted, 3 (doubtful) when held, the reason as the event's comment, its σ
    (qualifier ``sigma``) and the value the forecast used (qualifier ``used``), at location
