@@ -322,3 +322,23 @@ def _children():
     import multiprocessing
 
     return multiprocessing.active_children()
+
+
+@pytest.mark.parametrize("what", ["constant setting", "time step"])
+def test_a_setting_the_case_holds_constant_and_a_time_step_off_the_model_s_are_refused(tmp_path: Path,
+                                                                                      what: str) -> None:
+    """A crest FEWS gives for a weir whose crest is a constant (a calibration parameter) in the case, and a
+    ``timeStep`` that is not a whole number of the model's own 60 s, are errors naming them; nothing runs."""
+    folder = tmp_path / "m"
+    run_file = module(folder)
+    if what == "constant setting":
+        frame = pd.DataFrame({"ZL1-5.crestLevel": 14.0}, index=observed().loc[T0 - pd.Timedelta("3D"):T0].index)
+        export_series(folder / "input" / "settings.xml", frame)
+        add_element(run_file, "inputTimeSeriesFile", "input/settings.xml")
+        words = ("settings.xml: series locationId=ZL1-5 parameterId=crestLevel", "the weir ZL1-5 has a constant "
+                 "crestLevel in the case")
+    else:
+        set_properties(run_file, timeStep="90s")
+        words = ("property 'timeStep': '90s' (90 s) is not a whole multiple of the model's time step (60 s)",)
+    _assert_refused(run_module(run_file), *words)
+    assert not (folder / "state").exists()

@@ -22,7 +22,8 @@ def _help() -> str:
         "",
         "Reads the run file's time0 (the calibration window ends there, the forecast starts there), its "
         "inputTimeSeriesFile (observations at stations: locationId = station, parameterId = h, h_up, h_down or Q; "
-        "forcing at boundaries and laterals: parameterId Q in m3/s or h in m), its inputStateDescriptionFile (the "
+        "forcing at boundaries and laterals: parameterId Q in m3/s or h in m; structure settings: parameterId "
+        "crestLevel, gateLowerEdgeLevel in m or capacity in m3/s), its inputStateDescriptionFile (the "
         "rivercal store of the previous run), and writes the outputTimeSeriesFile (forecasts with qualifierId "
         "updated or dss; estimates, their sigma and the values used), the outputStateDescriptionFile and the "
         "outputDiagnosticFile. Every problem goes to the diagnostics file with level error and a non-zero exit "

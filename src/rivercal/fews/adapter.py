@@ -8,15 +8,16 @@ FEWS calls ``rivercal fews run_info.xml``; :func:`run_module` then
    kind), the case, the inputs, the properties and the times;
 3. reads the PI time series FEWS exported: observations at the stations (locationId = station id,
    parameterId = ``h``, ``h_up``, ``h_down`` or ``Q``) go into the store, forcing at boundaries and
-   laterals (locationId = boundary or lateral id, parameterId ``Q`` in m³/s, ``h`` in m) replaces the
-   case's own series where FEWS has values, unless implausible (:func:`_screen_forcing`). Missing values,
+   laterals (locationId = boundary or lateral id, parameterId ``Q`` in m³/s, ``h`` in m) and structure
+   settings (locationId = structure id, parameterId of :data:`SETTINGS`) replaces the case's own series
+   where FEWS has values, unless implausible (:func:`_screen_forcing`). Missing values,
    flags and time zones as PI defines them (:func:`rivercal.io.read_pixml`); cm, mm, l/s, m3/h and m3/min
    converted. FEWS's id maps translate its own ids to these;
 4. takes the state FEWS handed over — the rivercal store of the previous run (SQLite: estimates,
    alerts, forecasts, the model states of the hot start) — copies it to the state's write location,
    or starts a new one when FEWS exported no state;
 5. runs one cycle of :class:`rivercal.online.OnlineService`: the calibration window ends at time zero,
-   the forecasts (updated parameters, and the fixed DSS) start there;
+   the forecasts (updated parameters, and the fixed DSS) start there, every ``timeStep``;
 6. writes the PI time series (forecasts with qualifier ``updated`` or ``dss``; per parameter the
    estimate with flag 0 when accepted, 3 (doubtful) when held, the reason as the event's comment, its σ
    (qualifier ``sigma``) and the value the forecast used (qualifier ``used``), at location
@@ -59,7 +60,7 @@ from rivercal.fews.pi import (
     write_diag,
     write_state_description,
 )
-from rivercal.fews.properties import PROPERTIES, AdapterError, prop
+from rivercal.fews.properties import PROPERTIES, AdapterError, duration, prop
 from rivercal.io.pixml import (
     EXPECTED_UNITS,
     PI_NAMESPACE,
@@ -163,11 +164,25 @@ def _config(run: RunFile, model: Model) -> OnlineConfig:
 
     values: dict[str, Any] = {field: prop(run, key) for field, key in _PROPERTY_OF.items() if field != "workers"}
     values["max_change"] = values["max_change"] or None
+    values["output_interval_s"] = _time_step(run, model)
     try:
         return OnlineConfig.from_options(model, **values, workers=_workers(run))
     except OnlineConfigError as exc:
         key = _PROPERTY_OF.get(exc.field, exc.field)
         raise AdapterError(exc.describe(f"property {key!r}"), file=str(run.path), field="properties") from None
+
+
+def _time_step(run: RunFile, model: Model) -> float:
+    """The ``timeStep`` property, s: a positive duration, a whole multiple of the model's own time step."""
+    text = duration(run, "timeStep")
+    step = pd.Timedelta(text).total_seconds()
+    dt = float(model.dt)
+    if abs(step / dt - round(step / dt)) > 1e-9:
+        low = max(1, math.floor(step / dt)) * dt
+        raise AdapterError(f"property 'timeStep': {text!r} ({step:g} s) is not a whole multiple of the model's time "
+                           f"step ({dt:g} s); e.g. {low:g} s or {low + dt:g} s", file=str(run.path),
+                           field="properties")
+    return step
 
 
 def _workers(run: RunFile) -> int:
@@ -194,45 +209,88 @@ def _case_source(run: RunFile) -> str:
     return str(folder) if _what(folder) != "missing" else text
 
 
+#: Structure settings FEWS may give, by parameterId (D-Flow FM's keywords, as ``rivercal import dhydro`` names the
+#: columns of a case's ``settings.csv``): (network table, the structure's series field, forcing prefix, quantity).
+#: A crest or gate level is in m (as ``h``), a pump capacity in m³/s (as ``Q``).
+SETTINGS = {"crestLevel": ("weirs", "crest_series", "crest", "h"),
+            "gateLowerEdgeLevel": ("orifices", "gate_series", "gate", "h"),
+            "capacity": ("pumps", "capacity_series", "capacity", "Q")}
+_SETTING_OF = {"weirs": "weir", "orifices": "orifice", "pumps": "pump"}
+
+
+def _settable(network: Any) -> tuple[dict[tuple[str, str], str], dict[tuple[str, str], str]]:
+    """The structure settings FEWS may give, and those it may not.
+
+    Returns (structure id, parameterId) -> forcing key where the case has a series for the setting, and
+    (structure id, parameterId) -> what the structure is (``weir``) where its setting is a constant.
+    """
+    series, constant = {}, {}
+    for parameter, (table, name, prefix, _) in SETTINGS.items():
+        for item in getattr(network, table):
+            if getattr(item, name) is not None:
+                series[(item.id, parameter)] = f"{prefix}:{item.id}"
+            else:
+                constant[(item.id, parameter)] = _SETTING_OF[table]
+    return series, constant
+
+
 def _classify(run: RunFile, case: Any, observables: list[str]) -> tuple[dict[Path, dict], dict[str, str]]:
     """Per input file the mapping (locationId, parameterId) -> series id; and forcing series id -> forcing key.
 
     Every series is checked here, all problems at once: a known location and parameter, a unit rivercal knows (a
-    standard one is converted: cm, mm to m; l/s, m3/h, m3/min to m³/s), times rivercal can handle.
+    standard one is converted: cm, mm to m; l/s, m3/h, m3/min to m³/s), times rivercal can handle. A series is an
+    observation when its location is a station that simulates the parameter; forcing when its location is a
+    boundary or lateral (``h`` or ``Q``), or a structure whose setting follows a series in the case
+    (:data:`SETTINGS`). A forcing series gets the id ``<forcing key>.<h or Q>`` (``lateral:L1.Q``), which no
+    station's series has.
     """
     network = case.network
     stations = {s.id for s in network.stations}
     kinds = {b.id: ("boundary", b.type) for b in network.boundaries}
     kinds.update({lat.id: ("lateral", "discharge") for lat in network.laterals})
+    settings, constant = _settable(network)
     mappings: dict[Path, dict] = {}
     forcing: dict[str, str] = {}
     problems: list[str] = []
     for path in run.input_series_files:
         mapping = {}
         for pi in read_pixml_series(path):
-            series_id = f"{pi.location_id}.{pi.parameter_id}"
             where = f"{path}: {pi.label}"
-            if pi.location_id in stations:
-                if series_id not in observables:
-                    problems.append(f"{where}: unknown parameter {pi.parameter_id!r} at station {pi.location_id} (the "
-                                    "model simulates "
-                                    f"{', '.join(o for o in observables if o.startswith(pi.location_id + '.'))})")
+            loc, par = pi.location_id, pi.parameter_id
+            if (loc, par) in settings:
+                key = settings[(loc, par)]
+                quantity = SETTINGS[par][3]
+            elif (loc, par) in constant:
+                problems.append(f"{where}: the {constant[(loc, par)]} {loc} has a constant {par} in the case; only a "
+                                f"structure whose {par} follows a series in the case takes one from FEWS (as the "
+                                "import writes for a setting of real-time control)")
+                continue
+            elif loc in stations:
+                if f"{loc}.{par}" not in observables:
+                    own = [o.rpartition(".")[2] for o in observables if o.rpartition(".")[0] == loc]
+                    takes = [p for (i, p) in [*settings, *constant] if i == loc]
+                    problems.append(f"{where}: unknown parameter {par!r} at station {loc} (the model simulates "
+                                    f"{', '.join(own)}" + (f"; the structure takes {', '.join(takes)}" if takes else "")
+                                    + ")")
                     continue
-            elif pi.location_id in kinds:
-                kind, btype = kinds[pi.location_id]
+                key, quantity = None, par
+            elif loc in kinds:
+                kind, btype = kinds[loc]
                 expected = "h" if btype == "level" else "Q"
-                if btype in ("rating", "critical") or pi.parameter_id != expected:
-                    problems.append(f"{where}: the {kind} {pi.location_id} ({btype}) takes "
+                if btype in ("rating", "critical") or par != expected:
+                    problems.append(f"{where}: the {kind} {loc} ({btype}) takes "
                                     + ("no series" if btype in ("rating", "critical") else f"parameterId {expected!r}"))
                     continue
-                forcing[series_id] = f"{kind}:{pi.location_id}"
+                key, quantity = f"{kind}:{loc}", expected
             else:
-                problems.append(f"{where}: unknown location {pi.location_id!r}; the case has stations "
-                                f"{', '.join(sorted(stations))} and boundaries/laterals {', '.join(sorted(kinds))}")
+                structures = sorted({i for i, _ in [*settings, *constant]} - stations)
+                problems.append(f"{where}: unknown location {loc!r}; the case has stations {_some(stations)}, "
+                                f"boundaries and laterals {_some(kinds)}"
+                                + (f" and structures {_some(structures)}" if structures else ""))
                 continue
-            if pi.units is not None and unit_factor(pi.units, pi.parameter_id, STANDARD_CONVERSIONS) is None:
-                unit = EXPECTED_UNITS[pi.parameter_id]
-                problems.append(f"{where}: unit {pi.units[:40]!r}, where parameterId {pi.parameter_id} is in {unit}; "
+            if pi.units is not None and unit_factor(pi.units, quantity, STANDARD_CONVERSIONS) is None:
+                unit = EXPECTED_UNITS[quantity]
+                problems.append(f"{where}: unit {pi.units[:40]!r}, where parameterId {par} is in {unit}; "
                                 "rivercal converts cm and mm to m, and l/s, m3/h and m3/min to m3/s; give the series "
                                 "in one of these or let FEWS convert it on export (unit conversions of the General "
                                 "Adapter's export)")
@@ -242,12 +300,22 @@ def _classify(run: RunFile, case: Any, observables: list[str]) -> tuple[dict[Pat
                 problems.append(f"{where}: an event at {odd:%Y-%m-%d %H:%M} UTC lies outside the years "
                                 f"{FIRST_TIME.year}-{LAST_TIME.year} that rivercal handles")
                 continue
-            mapping[(pi.location_id, pi.parameter_id)] = series_id
+            series_id = f"{loc}.{par}" if key is None else f"{key}.{quantity}"
+            if key is not None:
+                forcing[series_id] = key
+            mapping[(loc, par)] = series_id
         mappings[path] = mapping
     if problems:
         more = f" (and {len(problems) - 5} more)" if len(problems) > 5 else ""
         raise AdapterError("; ".join(problems[:5]) + more, file=str(run.path), field="inputTimeSeriesFile")
     return mappings, forcing
+
+
+def _some(ids: Any, shown: int = 8) -> str:
+    """Up to ``shown`` ids (sorted) and how many more: an imported model has hundreds of stations."""
+    ids = sorted(ids)
+    more = f" ... ({len(ids) - shown} more)" if len(ids) > shown else ""
+    return (", ".join(ids[:shown]) or "none") + more
 
 
 @dataclass(frozen=True)
@@ -276,10 +344,12 @@ def _inputs(run: RunFile, case: Any, observables: list[str],
             continue
         obs = read_pixml(path, mapping, unmapped="error", conversions=STANDARD_CONVERSIONS)
         kept = [s for s in obs if s.id not in forcing_ids]
+        exported = {series_id: pair for pair, series_id in mapping.items()}
         for s in obs:
             if s.id not in forcing_ids:
                 continue
-            source = f"{path}: series locationId={s.station} parameterId={s.quantity}"
+            loc, par = exported[s.id]
+            source = f"{path}: series locationId={loc} parameterId={par}"
             if s.n_missing:
                 diag.add("info", f"{source}: {s.n_missing} missing or unreliable forcing values dropped")
             if len(s):
@@ -299,20 +369,43 @@ def _own_forcing(case: Any) -> tuple[dict[str, pd.Series], dict[str, pd.Series]]
     return runoff, {**case.forcing, **runoff}
 
 
-def _screen_forcing(forcing: list[_Forcing], own: Mapping[str, pd.Series], run: RunFile) -> None:
-    """Refuse forcing FEWS exported that cannot be meant: far outside what the case itself has at that boundary.
+def _reference_scales(case: Any, own: Mapping[str, pd.Series]) -> dict[str, float]:
+    """The magnitude (m³/s) below which a discharge at each lateral or pump is never called implausible.
+
+    A lateral: the largest discharge of any of the case's laterals. An imported model's lateral series are one
+    run's (a coupled week of a rainfall-runoff model): the same lateral's largest value there may be a
+    thousandth of what the next shower brings (in the Dellen model, half of the laterals vary more than
+    76-fold within its own week, and one in four more than 1600-fold). A pump: its capacity in the case, which
+    real-time control may have kept at zero for the whole of the case's own series.
+    """
+    lateral_keys = [key for key in own if key.startswith("lateral:")]
+    largest = max((float(np.nanmax(np.abs(own[key].to_numpy(dtype=float)))) for key in lateral_keys
+                   if own[key].notna().any()), default=0.0)
+    scales = dict.fromkeys(lateral_keys, largest)
+    scales.update({f"lateral:{lat.id}": largest for lat in case.network.laterals})
+    scales.update({f"capacity:{p.id}": float(p.capacity) for p in case.network.pumps})
+    return scales
+
+
+def _screen_forcing(forcing: list[_Forcing], own: Mapping[str, pd.Series], run: RunFile,
+                    scales: Mapping[str, float] | None = None) -> None:
+    """Refuse forcing FEWS exported that cannot be meant: far outside what the case itself has there.
 
     FEWS's values replace the case's own. A discharge more than :data:`FORCING_SCALE` times the largest of the
-    case's own series there, or of the other sign where the case's series never changes sign (beyond
-    :data:`FORCING_SIGN_TOLERANCE` of that largest value), is a unit or sign-convention error (l/s for m³/s,
-    outflow counted positive), not a forecast; so is a level more than max(:data:`FORCING_LEVEL_MARGIN_M`, twice
-    the range of the case's own levels) outside that range. Either is an error naming the file, the series and
-    the first such value.
+    case's own series there (at a lateral or pump, at least its ``scales`` value: :func:`_reference_scales`), or
+    at a discharge boundary of the other sign where the case's series never changes sign (beyond
+    :data:`FORCING_SIGN_TOLERANCE` of that largest value), or a negative pump capacity, is a unit or
+    sign-convention error (l/s for m³/s, outflow counted positive), not a forecast; so is a level (a level
+    boundary, a crest or a gate) more than max(:data:`FORCING_LEVEL_MARGIN_M`, twice the range of the case's own
+    levels) outside that range. A lateral may take either sign (drainage and extraction, evaporation in a
+    rainfall-runoff model's output). Either is an error naming the file, the series and the first such value.
     """
+    scales = scales or {}
     for f in forcing:
         values = f.series.to_numpy(dtype=float)
         level = f.quantity == "h"
         unit = "m" if level else "m³/s"
+        kind = f.key.partition(":")[0]
         ref = own.get(f.key)
         ref_values = ref.to_numpy(dtype=float) if ref is not None else np.array([])
         ref_values = ref_values[np.isfinite(ref_values)]
@@ -327,14 +420,25 @@ def _screen_forcing(forcing: list[_Forcing], own: Mapping[str, pd.Series], run: 
                    "unit error")
         else:
             a, b = float(ref_values.min()), float(ref_values.max())
-            largest = max(abs(a), abs(b))
+            floor = float(scales.get(f.key, 0.0))
+            largest = max(abs(a), abs(b), floor)
             scale = FORCING_SCALE * largest if largest > 0 else 1.0
             tolerance = FORCING_SIGN_TOLERANCE * largest
-            low = -tolerance if a >= 0 else -scale
-            high = tolerance if b <= 0 else scale
+            if kind == "boundary":
+                low = -tolerance if a >= 0 else -scale
+                high = tolerance if b <= 0 else scale
+            else:
+                low, high = (0.0 if kind == "capacity" else -scale), scale
             low, high = max(low, -MAX_DISCHARGE), min(high, MAX_DISCHARGE)
-            why = (f"the case's own series there spans {a:.3g} .. {b:.3g} m³/s; a discharge {FORCING_SCALE:g} times "
-                   "larger, or of the other sign, is a unit or sign-convention error")
+            own_words = f"the case's own series there spans {a:.3g} .. {b:.3g} m³/s"
+            if kind == "lateral":
+                own_words += f", its laterals reach {floor:.3g} m³/s"
+            elif kind == "capacity":
+                own_words += f", the pump's capacity is {floor:.3g} m³/s"
+            why = (f"{own_words}; a discharge {FORCING_SCALE:g} times larger"
+                   + (", or of the other sign," if kind == "boundary" else
+                      ", or a negative capacity," if kind == "capacity" else "")
+                   + " is a unit or sign-convention error")
         bad = np.flatnonzero((values < low) | (values > high))
         if bad.size:
             i = int(bad[0])
@@ -669,13 +773,13 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
     observables = _observables(case)
     observations, forcing = _inputs(run, case, observables, diag)
     runoff, own = _own_forcing(case)
-    _screen_forcing(forcing, own, run)
+    _screen_forcing(forcing, own, run, _reference_scales(case, own))
     model = _model(run, case, runoff, own, forcing)
     config = _config(run, model)
     _check_times(run, model, config)
     schemas = _schemas(run)
     if forcing:
-        diag.add("info", f"forcing from FEWS at {', '.join(sorted({f.key for f in forcing}))}")
+        diag.add("info", _forcing_line(forcing))
     db = _open_state(handed, loc, diag)
     name = prop(run, "run")
     try:
@@ -717,6 +821,20 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
     return {"cycle": outcome.cycle, "issue_time": run.time0.isoformat(), "status": outcome.status,
             "estimates": outcome.estimates, "accepted": outcome.accepted, "held": outcome.held,
             "model_runs": outcome.model_runs, "state": str(db), "files": files}
+
+
+def _forcing_line(forcing: list[_Forcing], shown: int = 8) -> str:
+    """What FEWS's forcing replaced: every key, or (an imported model has a hundred laterals) counts by kind."""
+    keys = sorted({f.key for f in forcing})
+    if len(keys) <= shown:
+        return f"forcing from FEWS at {', '.join(keys)}"
+    kinds: dict[str, list[str]] = {}
+    for key in keys:
+        kind, _, ident = key.partition(":")
+        kinds.setdefault(kind, []).append(ident)
+    parts = [f"{len(ids)} {kind} series ({', '.join(ids[:3])}{', ...' if len(ids) > 3 else ''})"
+             for kind, ids in kinds.items()]
+    return f"forcing from FEWS at {len(keys)} places: {'; '.join(parts)}"
 
 
 def _check_schemas(run: RunFile, schemas: Mapping[str, Any], files: list[Path], diag: Diagnostics) -> None:

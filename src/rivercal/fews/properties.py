@@ -21,6 +21,8 @@ PROPERTIES: dict[str, tuple[str | None, str]] = {
     "warmup": ("24h", "simulated time before the window whose residuals do not count"),
     "period": ("1D", "time between forecasts; the model state for the next run's hot start is taken one period "
                      "after this run's warm-up start"),
+    "timeStep": ("1h", "time step of the forecasts and of the model output the calibration compares (e.g. 1h, "
+                       "10min); a whole multiple of the model's own time step"),
     "algorithm": ("dud", "optimiser"),
     "deadline": ("60", "wall-clock limit of the calibration, s (the last accepted estimate is kept on expiry)"),
     "maxChange": ("", "largest change per forecast, e.g. FA=5,Wd=0.1 (default: none)"),

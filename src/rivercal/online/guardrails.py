@@ -192,7 +192,10 @@ def data_alerts(observations: Any, window: Any, interval_s: float, min_coverage:
     thin = {k: v for k, v in coverage.items() if v < min_coverage and k not in never}
     out = []
     if never and first:
-        out.append(AlertRecord("data", "no reading of " + ", ".join(sorted(never)) + " is stored: "
+        named = sorted(never)
+        shown = ", ".join(named[:DATA_ALERT_NAMES]) + (f" and {len(named) - DATA_ALERT_NAMES} more series"
+                                                        if len(named) > DATA_ALERT_NAMES else "")
+        out.append(AlertRecord("data", "no reading of " + shown + " is stored: "
                                + ("it is" if len(never) == 1 else "they are") + " left out of the calibration and "
                                "the coverage check until readings arrive (said once, in the run's first cycle)"))
     if thin:
