@@ -28,10 +28,10 @@ from tests.conftest import PI_SCHEMA_DIR, assert_valid_pi
 
 NS = "http://www.wldelft.nl/fews/PI"
 FEWS_TZ = 1.0  # FEWS exports in CET; rivercal converts
-#: Four daily forecasts as the change of PI-Fg (11-01) leaves the 7-day window: the first window holds the change,
-#: the last (11-03 to 11-10) lies wholly after it; three hand-overs of the state between them.
+#: Three daily forecasts as the change of PI-Fg (11-01) leaves the 7-day window: the first window holds the change,
+#: the last (11-02 to 11-09) lies wholly after it; two hand-overs of the state between them.
 FIRST_T0 = pd.Timestamp("2010-11-07T00:00Z")
-N_RUNS = 4
+N_RUNS = 3
 
 
 def _q(tag: str) -> str:
