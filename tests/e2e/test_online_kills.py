@@ -1,8 +1,8 @@
 """SIGKILL ``rivercal online`` at random moments, resume it each time: the store ends as if never killed.
 
-A short PI-Fg replay of the dommel case (three daily cycles estimating the friction over 3-day windows,
-half the model time of the default week; one finds the change and dates it, the next carries it, so every
-table a cycle writes gets rows) runs once uninterrupted (the reference). Then the
+A short PI-Fg replay of the dommel case (three daily cycles estimating the friction over 2-day windows,
+runs of three days with the warm-up where the default week takes eight; one finds the change and dates it,
+the next carries it, so every table a cycle writes gets rows) runs once uninterrupted (the reference). Then the
 same command is started, killed with SIGKILL after a random delay, and started again with the same
 arguments, over and over; the last start runs to its end. Each delay is drawn (seeded) uniformly over the time the start
 would take to finish, judged from the reference's timeline and the cycles already stored, so that kills
@@ -78,7 +78,7 @@ CONTENT = {
 
 def command(db: str) -> list[str]:
     return [sys.executable, "-m", "rivercal.cli", "online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-02",
-            "--to", "2010-11-04", "--window", "3D", "--params", "FA", "--db", db, "--workers", "2", "--quiet",
+            "--to", "2010-11-04", "--window", "2D", "--params", "FA", "--db", db, "--workers", "2", "--quiet",
             "--assimilate", "parameters"]
 
 
