@@ -81,9 +81,9 @@ def test_the_first_window_touching_the_case_start(tmp_path: Path) -> None:
 
 
 def test_a_replay_whose_last_forecast_ends_at_the_case_end(tmp_path: Path) -> None:
-    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-29", "--to", "2010-11-29", "--db",
-                   str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2", "--assimilate",
-                   "parameters", "--json")
+    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-29", "--to", "2010-11-29", "--window",
+                   "3D", "--db", str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2",
+                   "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
