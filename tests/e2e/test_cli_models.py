@@ -1,6 +1,6 @@
 """The command line on a model.toml: the packaged SWMM case dommel-swmm wherever a CASE is taken.
 
-The on-line replay is the acceptance run: four daily cycles of scenario PI-Wg (the nine adjustable
+The on-line replay is the acceptance run: three daily cycles of scenario PI-Wg (the nine adjustable
 crests drop 15 cm on 2010-11-01, thesis §5-2-1) on EPA SWMM, every cycle after the first hot-started from
 the SWMM hotstart file the previous cycle stored in the run's store.
 """
@@ -56,18 +56,19 @@ def test_simulate_and_calibrate_a_swmm_twin(tmp_path) -> None:
 
 @pytest.mark.slow
 def test_online_replays_daily_cycles_on_swmm_from_hotstart_files(tmp_path) -> None:
-    """Four daily cycles: the first cold, its window before the crests drop; the others hot from the last one."""
+    """Three daily cycles: the first cold, its window before the crests drop; the others hot from the last one."""
     db = tmp_path / "run.sqlite"
     run = rivercal("online", "dommel-swmm", "--scenario", "PI-Wg", "--params", "FR,Wd", "--from", "2010-11-01",
-                   "--to", "2010-11-04", "--window", "1D", "--warmup", "12h", "--horizon", "12h", "--workers", "1",
+                   "--to", "2010-11-03", "--window", "1D", "--warmup", "12h", "--horizon", "12h", "--workers", "1",
                    "--no-transition", "--assimilate", "parameters", "--db", str(db), "--out", str(tmp_path / "report"),
                    "--json", "--quiet")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
-    assert summary["cycles"] == 4 and summary["status"] == {"done": 4} and summary["case"] == "dommel-swmm"
+    assert summary["cycles"] == 3 and summary["status"] == {"done": 3} and summary["case"] == "dommel-swmm"
     wd = {e["issue_time"][:10]: e["Wd"] for e in summary["estimates"]}
     assert abs(wd["2010-11-01"]) < 0.005  # its one-day window ends as the crests drop
-    assert all(abs(wd[f"2010-11-0{d}"] + 0.15) < 0.005 for d in range(3, 5))  # runs after the drop
+    # its window after the drop, hot-started from a state that was itself hot-started (a hand-over of a hand-over)
+    assert abs(wd["2010-11-03"] + 0.15) < 0.005
     # a one-day window never holds the change inside it, so the transition estimator cannot date it; without
     # it (--no-transition) the jump of the one-value estimate alerts
     assert any(a["kind"] == "jump" and a["parameter"] == "Wd" for a in summary["alerts"])

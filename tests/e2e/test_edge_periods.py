@@ -1,6 +1,6 @@
 """Edge periods on the dommel case (2010-09-01 … 2010-12-01): short replays, single cycles, case start and end.
 
-- the replay of 2010-11-04 … 2010-11-06 (three cycles, none of whose windows has left the change of
+- the replay of 2010-11-02 … 2010-11-03 on 3-day windows (two cycles, neither of whose windows has left the change of
   2010-11-01) ends with exit 0, a summary that says why no forecast of a window past the change could
   be compared yet (and gives the errors of the cycles issued after the change), and a report;
 - a single cycle on observations that end at its issue time: its forecasts cannot be scored, and the
@@ -28,22 +28,23 @@ pytestmark = pytest.mark.slow
 
 def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:
     db, out = tmp_path / "run.sqlite", tmp_path / "x"
-    args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-04", "--to", "2010-11-06", "--params", "FA",
-            "--no-transition", "--assimilate", "parameters", "--db", str(db), "--out", str(out), "--workers", "2")
+    args = ("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-02", "--to", "2010-11-03", "--window", "3D",
+            "--params", "FA", "--no-transition", "--assimilate", "parameters", "--db", str(db), "--out", str(out),
+            "--workers", "2")
     run = rivercal(*args, "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
-    assert summary["cycles"] == 3 and summary["status"] == {"done": 3}
+    assert summary["cycles"] == 2 and summary["status"] == {"done": 2}
     fe = summary["forecast_errors"]
     assert fe["n"] == 0 and fe["updated_mae_m"] is None
     assert "starts at or after the change at 2010-11-01 00:00" in fe["reason"]
-    assert "the first such cycle is issued at 2010-11-08 00:00" in fe["reason"]
+    assert "the first such cycle is issued at 2010-11-04 00:00" in fe["reason"]
     page = html.unescape((out / "index.html").read_text(encoding="utf-8"))
     # the report gives the headline's figure, over the cycles issued after the change, and says so
-    covers = "forecasts issued by cycles 0–2 (the cycles issued after the change at 2010-11-01 00:00)"
+    covers = "forecasts issued by cycles 0–1 (the cycles issued after the change at 2010-11-01 00:00)"
     assert covers in " ".join(page.split()) and "nothing to compare yet" not in page
     assert "'rivercal after' is empty" in page
-    # the change leaves a window only at 2010-11-08, after the replay: no figure to show, and no "nan" either
+    # the change leaves a window only at 2010-11-04, after the replay: no figure to show, and no "nan" either
     assert "What the stations see of the change: not yet measurable here" in page and "nan cm" not in page
     again = rivercal(*args)  # the same command resumes: nothing left to run, the summary is printed
     assert again.returncode == 0, again.stderr
@@ -80,14 +81,14 @@ def test_the_first_window_touching_the_case_start(tmp_path: Path) -> None:
 
 
 def test_a_replay_whose_last_forecast_ends_at_the_case_end(tmp_path: Path) -> None:
-    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-28", "--to", "2010-11-29", "--db",
-                   str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2", "--assimilate",
-                   "parameters", "--json")
+    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-29", "--to", "2010-11-29", "--window",
+                   "3D", "--db", str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"), "--workers", "2",
+                   "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
-    assert summary["cycles"] == 2 and summary["status"] == {"done": 2}
-    assert summary["forecast_errors"]["n"] > 0  # the first cycle's first day is observed
-    assert [round(e["FA"]) for e in summary["estimates"]] == [25, 25]
+    assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
+    assert summary["forecast_errors"]["n"] > 0  # its forecast, to the case end, is observed
+    assert [round(e["FA"]) for e in summary["estimates"]] == [25]
     # a cycle issued at the case's end would forecast 48 h on forcing the case does not have: refused
     last = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01", "--db",
                     str(tmp_path / "last.sqlite"))

@@ -21,8 +21,8 @@ pytestmark = pytest.mark.slow
 def pifg(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     folder = tmp_path_factory.mktemp("online")
     run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--db", str(folder / "run.sqlite"), "--out", str(folder / "report"), "--workers", "2",
-                   "--assimilate", "parameters", "--json")
+                   "--window", "3D", "--db", str(folder / "run.sqlite"), "--out", str(folder / "report"), "--workers",
+                   "2", "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     return folder, json.loads(run.stdout)
 
@@ -66,7 +66,8 @@ def test_report_command_rewrites_from_the_store_alone(pifg, tmp_path: Path) -> N
 def test_restart_with_the_same_arguments_computes_nothing_again(pifg) -> None:
     folder, _ = pifg
     run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--db", str(folder / "run.sqlite"), "--workers", "2", "--assimilate", "parameters", "--json")
+                   "--window", "3D", "--db", str(folder / "run.sqlite"), "--workers", "2", "--assimilate", "parameters",
+                   "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles_done_now"] == 0 and summary["cycles"] == 2
@@ -114,12 +115,13 @@ def test_sparse_dud_with_the_dependency_map_of_analyse_finds_the_local_friction(
                         "--out", str(tmp_path / "analyse"), "--quiet")
     assert analysed.returncode == 0, analysed.stderr
     dependency = tmp_path / "analyse" / "dependency.csv"
-    run = rivercal("online", "dommel", "--scenario", "PI-Fl", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--params", "FA,F1,FL,W2", "--algorithm", "sparse_dud", "--dependency", str(dependency),
-                   "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate", "parameters", "--json")
+    run = rivercal("online", "dommel", "--scenario", "PI-Fl", "--from", "2010-11-09", "--to", "2010-11-09",
+                   "--window", "3D", "--params", "FA,F1,FL,W2", "--algorithm", "sparse_dud", "--dependency",
+                   str(dependency), "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate",
+                   "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
-    assert summary["status"] == {"done": 2}
+    assert summary["status"] == {"done": 1}
     last = summary["estimates"][-1]
     assert last["FL"] == pytest.approx(25.0, abs=0.5) and last["FA"] == pytest.approx(16.0, abs=0.5)
 
