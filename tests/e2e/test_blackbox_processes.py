@@ -78,9 +78,12 @@ def wait_for(pattern: str, root: Path, proc: subprocess.Popen | None = None, wit
 def test_stopping_rivercal_simulate_stops_the_program_and_all_it_started(tmp_path: Path, sig: signal.Signals) -> None:
     make_model(tmp_path, mode="escape", timeout=120.0, runs_dir="runs")
     runs = tmp_path / "runs"
+    # A shell's background job (CI started with `&`) ignores SIGINT, and a process inherits that: rivercal
+    # would rightly ignore Ctrl-C too. It is started as from a terminal, with SIGINT's default action.
     proc = subprocess.Popen([sys.executable, "-m", "rivercal.cli", "simulate", str(tmp_path / "model.toml"),
                              "--end", "2020-01-02T00:00:00Z", "--out", str(tmp_path / "out")],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     tracked: set[int] = set()
     try:
         pids_file = wait_for("run-*/pids.txt", runs, proc)
