@@ -3,21 +3,30 @@
 The data are GPL-3 and never copied into the repository; without them the test is skipped with the
 reason, except in CI, where ``.ci/run`` sets ``RIVERCAL_REQUIRE_HUPSEL`` and the suite stops at once
 without them (``tests/conftest.py`` finds them beside the repository, in ``../shared``).
+
+Each method's calibration runs once per test process (the tests of a file share a worker): the test that
+compares DuD and TRF reads the same results as the tests of each method.
 """
 
 from __future__ import annotations
 
+from functools import cache
 from pathlib import Path
 
 import pytest
 
-from rivercal.bench.hupsel import HUPSEL_METHODS, calibrate_hupsel
+from rivercal.bench.hupsel import HUPSEL_METHODS, HupselCalibration, calibrate_hupsel
+
+
+@cache
+def _calibrated(method: str, path: Path) -> HupselCalibration:
+    return calibrate_hupsel(method, str(path))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("method", list(HUPSEL_METHODS))
 def test_calibration_improves_the_validation_year(method: str, hupsel_file: Path) -> None:
-    result = calibrate_hupsel(method, str(hupsel_file))
+    result = _calibrated(method, hupsel_file)
     # the fit improves on the a-priori parameters in the calibration year ...
     assert result.nse_calibration > result.nse_calibration_default + 0.1
     assert result.nse_calibration > 0.85 and result.kge_calibration > 0.8
@@ -28,6 +37,6 @@ def test_calibration_improves_the_validation_year(method: str, hupsel_file: Path
 
 def test_methods_agree_on_the_optimum(hupsel_file: Path) -> None:
     """DuD and TRF (the two fast methods) reach the same validation score."""
-    dud, trf = calibrate_hupsel("dud", str(hupsel_file)), calibrate_hupsel("trf", str(hupsel_file))
+    dud, trf = _calibrated("dud", hupsel_file), _calibrated("trf", hupsel_file)
     assert dud.nse_validation == pytest.approx(trf.nse_validation, abs=0.005)
     assert dud.model_runs < 100
