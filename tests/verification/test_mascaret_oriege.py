@@ -2,8 +2,10 @@
 
 Mascaret's computed levels at the 13 staff gauges (its validation note, ``Test19.tex``) are an independent
 reference: the same model run by another engine. Imported as it is (cross-sections interpolated between the
-profiles, Mascaret's grid, its 1 s step and Strickler 20), rivercal's steady levels lie within 4 cm of Mascaret's
-at every gauge, on a torrent with supercritical stretches and pools.
+profiles, Mascaret's grid, its 1 s step and Strickler 20), rivercal's levels should settle within 4 cm of
+Mascaret's at every gauge, on a torrent with supercritical stretches and pools; they do not yet (expected to
+fail: ``G03`` keeps swinging, ``G05`` and ``G06`` stay 0.26 and 0.21 m high). With the nearest profile at each
+point they settle, and the calibration on the measured levels uses that.
 """
 
 from __future__ import annotations
@@ -19,14 +21,21 @@ from rivercal.models import load_model
 from tests.shared_data import shared_model
 
 
-@pytest.mark.xfail(strict=True, reason="with cross-sections interpolated on its supercritical stretches the engine's "
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="with cross-sections interpolated on its supercritical stretches the engine's "
                    "levels alternate from point to point (a 2Δx mode) at steps other than 1 s, and the step control's "
                    "half steps wake it (docs/mascaret.md)")
 def test_the_imported_torrent_reaches_mascarets_steady_levels(tmp_path: Path) -> None:
+    """Run for 80 minutes of Mascaret's 133 (its own step, grid and placement; only the period is shorter).
+
+    From the import's cold start the same torrent with the nearest profile at each point is steady within 0.1 mm
+    after 70 minutes (its levels change by less than a micrometre over the last 10 of 80), so a run that settles
+    passes here; with interpolated cross-sections the levels swing by 1-4 cm from 60 minutes on and never settle.
+    """
     folder = shared_model("oriege-mascaret-test19")
     gauges = read_gauges(folder)
     stations = tuple(StationSpec(g.id, "Bief_1", g.x) for g in gauges.itertuples())
-    import_mascaret(folder / "mascaret0.xcas", tmp_path / "case", ImportOptions(stations=stations))
+    import_mascaret(folder / "mascaret0.xcas", tmp_path / "case", ImportOptions(stations=stations, hours=80 / 60))
     model = load_model(tmp_path / "case")
     result, _ = model.simulate({}, start=model.start, end=model.end)
     levels = result.series[[f"{g}.h" for g in gauges["id"]]]
@@ -51,7 +60,7 @@ def test_the_gauge_table_is_read_from_the_note() -> None:
 
 @pytest.mark.slow
 def test_calibrated_on_7_gauges_the_6_held_out_are_within_mascarets_fit(tmp_path: Path) -> None:
-    """The benchmark's acceptance: held-out RMSE ≤ 0.17 m after calibrating on 7, RMSE < 0.17 m on all 13 (~60 s)."""
+    """The benchmark's acceptance: held-out RMSE ≤ 0.17 m after calibrating on 7, RMSE < 0.17 m on all 13 (~35 s)."""
     result = calibrate_oriege(shared_model("oriege-mascaret-test19"), tmp_path)
     summary = result.summary()
     assert len(summary["gauges"]) == 13 and all(np.isfinite(g["calibrated_13"]) for g in summary["gauges"])

@@ -44,8 +44,10 @@ __all__ = ["CALIBRATION_GAUGES", "ZONES", "OriegeCalibration", "build_oriege_cas
            "oriege_folder", "read_gauges"]
 
 #: How long before the calibration window its runs start, from the flow at the initial coefficients: the levels of
-#: a new friction settle along the torrent in well under an hour (waves at u + √(gh), about 5 m/s, over 5 km).
-HOT_START = pd.Timedelta(hours=2)
+#: a new friction settle along the torrent within it (from Strickler 20 to the estimates, the levels at the end
+#: are those of a run from the case's start within 0.06 mm; 45 minutes leave 0.4 mm, enough to make the
+#: calibration take more runs).
+HOT_START = pd.Timedelta(hours=1)
 
 ENV_VAR = "RIVERCAL_ORIEGE_DIR"
 #: Calibration zones of the minor bed: (name, first abscissa, last abscissa, m). The upper reach with its pools
@@ -245,8 +247,8 @@ def calibrate_oriege(folder: Path | None = None, out: Path | None = None, *, alg
         return result.series[[f"{g}.h" for g in gauges["id"]]].iloc[-1].set_axis(list(gauges["id"]))
 
     # The calibration's runs start from the flow at the initial coefficients HOT_START before the window: a new
-    # friction settles along the 5 km within it, and each run is a tenth of a run from the case's start. The
-    # levels reported (initial, after 7 and after 13 gauges) are of whole runs from the case's start.
+    # friction settles along the 5 km within it, and each run is 70 of the case's 133 minutes. The levels
+    # reported (initial, after 7 and after 13 gauges) are of whole runs from the case's start.
     hot = window[0] - HOT_START
     state = None
     if hot > pd.Timestamp(model.start):
