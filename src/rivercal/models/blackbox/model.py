@@ -585,9 +585,7 @@ def _supervised(argv: list[str], run_dir: Path, env: Mapping[str, str], timeout:
                     if left <= 0:
                         _stop(proc)
                         return "timeout"
-                    # wake at least every second: a signal (Ctrl-C) whose handler the kernel ran on another
-                    # thread (numpy's BLAS threads) reaches Python only when this thread runs again
-                    if waiting.select(min(left, 1.0)):
+                    if waiting.select(min(left, 3600.0)):
                         chunk = os.read(status_r, 256)
                         if not chunk:  # the supervisor ended
                             break
