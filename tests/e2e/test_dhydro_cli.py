@@ -15,19 +15,27 @@ from tests.dhydro_models import write_model
 from tests.shared_data import shared_model
 
 
-def test_import_prints_the_summary_as_json(tmp_path: Path) -> None:
-    mdu = shared_model("dhydro-dellen", "dflowfm", "Flow1D.mdu")
-    folder = mdu.parents[1]
-    run = rivercal("import", "dhydro", str(mdu), "--out", str(tmp_path / "case"), "--realtime",
-                   str(folder / "rr_to_flow.nc"), "--realtime", str(folder / "rtc_to_flow.nc"), "--json")
+@pytest.fixture(scope="module")
+def dellen(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    """``rivercal import dhydro`` of Dellen with its real-time forcing, as a user runs it: the case and the summary.
+
+    One import serves the summary's test and the commands run on the model as imported."""
+    mdu = shared_model(*_SHARED["dellen"][0])
+    case = tmp_path_factory.mktemp("dellen") / "case"
+    extra = [str(mdu.parents[1] / x) if x.endswith(".nc") else x for x in _SHARED["dellen"][1]]
+    run = rivercal("import", "dhydro", str(mdu), "--out", str(case), *extra, "--json")
     assert run.returncode == 0, run.stderr
-    summary = json.loads(run.stdout)
+    return case, json.loads(run.stdout)
+
+
+def test_import_prints_the_summary_as_json(dellen) -> None:
+    case, summary = dellen
     assert set(summary) == {"branches", "points", "profiles", "structures", "boundaries", "laterals", "stations",
                             "approximated", "refused", "parameters"}
     assert (summary["branches"], summary["points"], summary["laterals"]) == (171, 653, 143)
     assert summary["structures"] == {"weir": 19, "culvert": 147, "pump": 2, "bridge": 7}
     assert summary["refused"] == 0
-    assert (tmp_path / "case" / "import.md").is_file()
+    assert (case / "import.md").is_file()
 
 
 def test_a_refusal_is_an_error_naming_the_objects_and_the_way_out(tmp_path: Path) -> None:
@@ -142,16 +150,21 @@ _SHARED = {
 
 
 @pytest.mark.parametrize("name", [pytest.param("dellen", marks=pytest.mark.slow), "c01", "korte-woerden"])
-def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: str) -> None:
+def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: str,
+                                                          request: pytest.FixtureRequest) -> None:
     """Import, simulate, calibrate (a twin of one parameter the import wrote), one on-line cycle, analyse and
-    export, exit 0 each."""
+    export, exit 0 each (Dellen's import is the module's, that of the summary's test)."""
     parts, extra, param, truth, window, warmup, (issue, span, online_warmup) = _SHARED[name]
-    mdu = shared_model(*parts)
-    extra = tuple(str(mdu.parents[1] / x) if x.endswith(".nc") else x for x in extra)
-    case = tmp_path / "case"
-    run = rivercal("import", "dhydro", str(mdu), "--out", str(case), *extra, "--json")
-    assert run.returncode == 0, run.stderr
-    assert param in json.loads(run.stdout)["parameters"]
+    if name == "dellen":
+        case, summary = request.getfixturevalue("dellen")
+    else:
+        mdu = shared_model(*parts)
+        extra = tuple(str(mdu.parents[1] / x) if x.endswith(".nc") else x for x in extra)
+        case = tmp_path / "case"
+        run = rivercal("import", "dhydro", str(mdu), "--out", str(case), *extra, "--json")
+        assert run.returncode == 0, run.stderr
+        summary = json.loads(run.stdout)
+    assert param in summary["parameters"]
     # simulate to the end of the on-line cycle's forecast (Dellen's week: its first four days and a quarter)
     until = (pd.Timestamp(issue) + pd.Timedelta(span)).strftime("%Y-%m-%dT%H:%M")
     run = rivercal("simulate", str(case), "--end", until, "--out", str(tmp_path / "sim"), "--json")
@@ -170,8 +183,9 @@ def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: 
                    "--workers", "1", "--assimilate", "parameters", "--quiet", "--json")
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["status"] == {"done": 1}
+    # against the same few gauges (a twin of every station drew a panel for each of Dellen's 200 stations)
     run = rivercal("analyse", str(case), "--params", param, "--window", window, "--warmup", warmup, "--workers", "1",
-                   "--out", str(tmp_path / "analyse"), "--json")
+                   "--observations", str(tmp_path / "observed.csv"), "--out", str(tmp_path / "analyse"), "--json")
     assert run.returncode == 0, run.stderr
     run = rivercal("export", "dhydro", str(case), "--out", str(tmp_path / "exported"), "--json")
     assert run.returncode == 0, run.stderr

@@ -29,7 +29,8 @@ def test_every_command_runs_on_the_sobek3_compound_channel_as_imported(tmp_path:
     assert run.returncode == 0, run.stderr
     imported = json.loads(run.stdout)
     assert imported["parameters"] == ["F_scale"] and imported["stations"] == 1
-    run = rivercal("simulate", str(case), "--out", str(tmp_path / "sim"), "--json")
+    # simulated up to the end of the on-line cycle's forecast (its observations), not the model's 38 days
+    run = rivercal("simulate", str(case), "--end", "2001-01-21", "--out", str(tmp_path / "sim"), "--json")
     assert run.returncode == 0, run.stderr
     window = "2001-01-10/2001-01-12"
     run = rivercal("calibrate", str(case), "--params", "F_scale", "--window", window, "--twin", "F_scale=1.2",
@@ -44,7 +45,7 @@ def test_every_command_runs_on_the_sobek3_compound_channel_as_imported(tmp_path:
     run = rivercal("online", str(case), "--observations", str(tmp_path / "observed.csv"), "--params", "F_scale",
                    "--from", "2001-01-20", "--to", "2001-01-20", "--max-cycles", "1", "--window", "2D",
                    "--cycle", "1D", "--horizon", "1D", "--db", str(tmp_path / "run.sqlite"), "--workers", "1",
-                   "--quiet", "--json")
+                   "--members", "8", "--quiet", "--json")  # states and parameters (the default), a small ensemble
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["status"] == {"done": 1}
     run = rivercal("export", "dhydro", str(case), "--out", str(tmp_path / "dflowfm"), "--json")
