@@ -90,3 +90,26 @@ def test_default_scenarios() -> None:
     assert len(serial.table) == 11 and serial.nfev == 9  # thesis steps ± 0.15 / 0.30 m for the stub's crests
     summary = serial.summary()
     assert summary["model_runs"] == 9 and summary["ranking"][0]["max_cost"] > 0
+
+
+def test_a_model_with_many_stations_gets_the_panels_of_the_stations_the_scenarios_move_most(tmp_path) -> None:
+    # an imported model has a station at every observation point and structure: one panel each made a figure
+    # tens of thousands of pixels tall; the figure keeps the stations whose cost the scenarios move most
+    from PIL import Image
+
+    from rivercal.analysis.figures import most_moved_stations, plot_sensitivity_stations
+
+    a = random_a(seed=8, m=200, p=2)
+    a[40:50] *= 30.0  # station S4's rows: the scenarios move its cost most
+    problem = linear_problem(a, n_series=20)
+    result = sensitivity(problem, {"P0": [0.5, 1.0, 1.5], "P1": [1.5, 2.0, 2.5]},
+                         batch=lambda points: [problem.residuals(x) for x in points])
+    costs = result.costs("station")
+    stations = [f"S{k}" for k in range(20)]
+    spread = costs[stations].max() - costs[stations].min()
+    chosen = most_moved_stations(costs, stations, 4)
+    assert "S4" in chosen and len(chosen) == 4 and chosen == sorted(chosen, key=stations.index)
+    assert spread[chosen].min() >= spread.drop(chosen).max()
+    few = plot_sensitivity_stations(result, tmp_path / "few.png", max_panels=4)
+    every = plot_sensitivity_stations(result, tmp_path / "every.png", max_panels=20)
+    assert Image.open(few).height < Image.open(every).height / 3

@@ -69,10 +69,21 @@ def plot_sensitivity(result: SensitivityResult, path: str | Path, *, title: str 
     return save_figure(fig, path, dpi=120)
 
 
-def plot_sensitivity_stations(result: SensitivityResult, path: str | Path, *, title: str = "") -> Path:
-    """Cost per station of every scenario, one panel per station (thesis Figs. C-1 … C-5)."""
+def plot_sensitivity_stations(result: SensitivityResult, path: str | Path, *, title: str = "",
+                              max_panels: int = 12) -> Path:
+    """Cost per station of every scenario, one panel per station (thesis Figs. C-1 … C-5).
+
+    A model with more than ``max_panels`` stations (an imported model has one at every observation point and
+    structure) gets the ``max_panels`` stations whose cost the scenarios move most (largest minus smallest
+    cost), in the model's order; the title says how many of how many. The costs of all stations are in the
+    table the figure is drawn from (``sensitivity_costs.csv`` of ``rivercal analyse``).
+    """
     costs = result.costs("station")
     stations = [c for c in costs.columns if c not in ("parameter", "value", "total")]
+    if len(stations) > max_panels:
+        title = (f"{title or 'one-at-a-time sensitivity per station'} — the {max_panels} stations the "
+                 f"scenarios move most, of {len(stations)}")
+        stations = most_moved_stations(costs, stations, max_panels)
     fig, axes = subplots(len(stations), 1, figsize=(10, 2.3 * len(stations) + 0.8), squeeze=False)
     for row, st in enumerate(stations):
         ax = axes[row, 0]
@@ -82,6 +93,13 @@ def plot_sensitivity_stations(result: SensitivityResult, path: str | Path, *, ti
     fig.suptitle(title or "one-at-a-time sensitivity per station")
     fig.tight_layout()
     return save_figure(fig, path, dpi=120)
+
+
+def most_moved_stations(costs: pd.DataFrame, stations: list[str], k: int) -> list[str]:
+    """The ``k`` of ``stations`` whose cost (dimensionless) the scenarios move most, in their given order."""
+    spread = (costs[stations].max() - costs[stations].min()).fillna(0.0)
+    chosen = set(spread.sort_values(ascending=False, kind="stable").index[:k])
+    return [st for st in stations if st in chosen]
 
 
 def plot_svd(result: Identifiability, path: str | Path, *, title: str = "") -> Path:
