@@ -6,10 +6,10 @@ with the reference study's sensor noise (uniform within ±2.5 cm), are the obser
 model as imported (factor 1), must find the factor within 1 % and stop by its own rules. The 1 % holds for
 this noise draw (seed 1); other draws end 3–7 % off, as a 20 % change of roughness moves Dellen's levels by
 about a millimetre on average against noise of ±2.5 cm: what the test proves is that DuD converges on an
-imported model to the optimum of its data, not that one day of these gauges pins the roughness to 1 %. Each run starts 12 h
-before the window from the truth's state (the model's first two days, its recession from the initial levels,
-are by far its slowest to simulate: a day's warm-up cost 3/4 of every run). (Without noise, DuD
-would chase differences below a millimetre that the engine's step control makes between neighbouring
+imported model to the optimum of its data, not that one day of these gauges pins the roughness to 1 %. Each
+run starts 12 h before the window from the truth's state (the model's first two days, its recession from the
+initial levels, are by far its slowest to simulate: a day's warm-up cost 3/4 of every run). (Without noise,
+DuD would chase differences below a millimetre that the engine's step control makes between neighbouring
 parameter values, and end on its iteration limit: no gauge resolves them.)
 """
 
