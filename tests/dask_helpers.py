@@ -83,9 +83,10 @@ def started(path: Path, x: float, seconds: float) -> float:
     return x
 
 
-def hold_interpreter(additions: float) -> float:
+def hold_interpreter(additions: float, started: Path | None = None) -> float:
     """Add ``additions`` times in one compiled call that keeps the interpreter lock (the worst case for a worker's
-    own threads: Python code, or compiled code without ``nogil``, in the middle of a long task)."""
+    own threads: Python code, or compiled code without ``nogil``, in the middle of a long task). With ``started``,
+    that file is written once the function is compiled, just before the long call begins."""
     import numba
 
     @numba.njit
@@ -95,4 +96,7 @@ def hold_interpreter(additions: float) -> float:
             x += 1e-9
         return x
 
+    spin(1)  # compiled now, not in the long call
+    if started is not None:
+        Path(started).write_text(str(os.getpid()))
     return spin(int(additions))

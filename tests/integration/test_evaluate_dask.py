@@ -236,12 +236,16 @@ def parent() -> None:
         time.sleep(600)
 
 
-def busy_parent() -> None:
+def busy_parent(folder: Path) -> None:
     """A parent whose two workers are each in a long compiled call (holding their interpreter lock)."""
     with DaskCluster("local:2") as c, Tasks(None, c) as pool:
         pool.map(_square, [1.0, 2.0])
-        futures = [pool.submit(_hold, 1e12) for _ in range(2)]
-        time.sleep(3.0)  # the calls have started
+        marks = [folder / f"started-{i}" for i in range(2)]
+        futures = [pool.submit(_hold, 1e12, mark) for mark in marks]
+        deadline = time.monotonic() + 120
+        while not all(m.exists() for m in marks) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.3)  # both calls have started: each worker is in its long compiled call
         print("ready", flush=True)
         for f in futures:
             f.result()
@@ -251,15 +255,17 @@ def _square(obj: object, x: float) -> float:
     return x * x
 
 
-def _hold(obj: object, additions: float) -> float:
-    return dask_helpers.hold_interpreter(additions)
+def _hold(obj: object, additions: float, started: Path) -> float:
+    return dask_helpers.hold_interpreter(additions, started)
 
 
 @pytest.mark.parametrize(("role", "how"), [("parent", signal.SIGKILL), ("parent", signal.SIGTERM),
                                            ("busy_parent", signal.SIGTERM)])
-def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed(role: str, how: signal.Signals) -> None:
+def test_the_workers_of_a_local_cluster_end_when_its_parent_is_killed(role: str, how: signal.Signals,
+                                                                     tmp_path: Path) -> None:
     """Idle or in the middle of a long task that keeps a worker's interpreter lock, the workers go at once."""
-    proc = subprocess.Popen([sys.executable, "-m", "tests.integration.test_evaluate_dask", role], cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "tests.integration.test_evaluate_dask", role, str(tmp_path)],
+                            cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
@@ -300,8 +306,9 @@ def test_the_command_line_runs_on_a_dask_cluster_quietly_and_checks_the_address(
     assert not [line for line in quiet.stderr.splitlines() if line.startswith(("INFO", "DEBUG"))], quiet.stderr[-2000:]
     a, b = json.loads(serial.stdout.splitlines()[-1]), json.loads(quiet.stdout.splitlines()[-1])
     assert a["estimates"] == b["estimates"] and a["model_runs"] == b["model_runs"]
-    verbose = subprocess.run([*cli, "--verbose", *base, "--dask", "local:1", "--out", str(tmp_path / "c")], cwd=ROOT,
-                             capture_output=True, text=True, timeout=600, check=False)
+    # the log is the point here, not the calibration: two model runs are enough
+    verbose = subprocess.run([*cli, "--verbose", *base, "--max-nfev", "2", "--dask", "local:1", "--out",
+                              str(tmp_path / "c")], cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
     assert verbose.returncode == 0, verbose.stderr[-2000:]
     assert "INFO distributed.scheduler" in verbose.stderr
     for args, text in ((["--dask", "localhost"], "local:N"), (["--dask", "local:2", "--workers", "2"], "not both")):
@@ -310,4 +317,7 @@ def test_the_command_line_runs_on_a_dask_cluster_quietly_and_checks_the_address(
 
 
 if __name__ == "__main__":
-    {"parent": parent, "busy_parent": busy_parent}[sys.argv[1]]()
+    if sys.argv[1] == "busy_parent":
+        busy_parent(Path(sys.argv[2]))
+    else:
+        parent()
