@@ -163,10 +163,15 @@ def _kill(proc: subprocess.Popen) -> None:
 
 
 def _finish(backend: tuple[str, Path]) -> None:
+    """The restart that runs to the end, in this process (no start-up of one more interpreter): the killed
+    worker is gone, and all the restart has is what the store kept, here as in a new process."""
     db, folder = backend
-    done = subprocess.run([sys.executable, str(HERE), db, str(N_CYCLES), "none", str(folder)], capture_output=True,
-                          text=True, timeout=60)
-    assert done.returncode == 0, done.stderr[-3000:]
+    log = logging.getLogger("rivercal.store")
+    level = log.level
+    try:
+        worker(db, N_CYCLES, "none", folder)
+    finally:
+        log.setLevel(level)  # the worker turns the store's debug log on
 
 
 def _n_observations(k_last: int) -> int:
