@@ -35,12 +35,21 @@ def model():
     return load_model("dommel")
 
 
-def _problem(model, setup: str, noise: str) -> CalibrationProblem:
+@pytest.fixture(scope="module")
+def twins() -> dict:
+    """The twins made so far, by (setup, noise): each is deterministic (seed 3), so the tests that share one
+    (e.g. DuD, Sparse DuD and TRF on the same noisy observations) share one truth run."""
+    return {}
+
+
+def _problem(model, setup: str, noise: str, twins: dict) -> CalibrationProblem:
     truth, start = SETUPS[setup]
     names = list(truth)
     params = ParameterSet(p for p in model.case.spec.parameters if p.name in names).subset(names)
     window = next((w.start, w.end) for w in model.case.spec.windows if w.name == "moderate")
-    twin = twin_truth(model, params.quantities(truth), window, noise=noise, seed=3)
+    if (setup, noise) not in twins:
+        twins[setup, noise] = twin_truth(model, params.quantities(truth), window, noise=noise, seed=3)
+    twin = twins[setup, noise]
     return CalibrationProblem(model, params.with_initial(start), twin.observations, window, state=twin.state)
 
 
@@ -50,8 +59,8 @@ def _problem(model, setup: str, noise: str) -> CalibrationProblem:
     ("dud", "FA-W2-W3-W5", "white"), ("sparse_dud", "FA-W2-W3-W5", "white"), ("trf", "FA-W2-W3-W5", "white"),
     ("sparse_dud", "FA-W2-W3-W5", "none"),
 ])
-def test_std_and_correlation_match_a_reference_jacobian(model, method, setup, noise):
-    problem = _problem(model, setup, noise)
+def test_std_and_correlation_match_a_reference_jacobian(model, twins, method, setup, noise):
+    problem = _problem(model, setup, noise, twins)
     result = calibrate(problem, method, workers=1).result
     reference = fd_jacobian(problem, result.x, rel_step=1e-4, scheme="central", workers=1)
     ref = covariance(reference.matrix)
