@@ -28,9 +28,9 @@ from tests.conftest import PI_SCHEMA_DIR, assert_valid_pi
 
 NS = "http://www.wldelft.nl/fews/PI"
 FEWS_TZ = 1.0  # FEWS exports in CET; rivercal converts
-#: Three daily forecasts as the change of PI-Fg (11-01) leaves the 3-day window: the first window holds the change,
-#: the last (11-02 to 11-05) lies wholly after it; two hand-overs of the state between them.
-FIRST_T0 = pd.Timestamp("2010-11-03T00:00Z")
+#: Three daily forecasts as the change of PI-Fg (11-01) leaves the 2-day window: the first window holds the change,
+#: the last (11-02 to 11-04) lies wholly after it; two hand-overs of the state between them.
+FIRST_T0 = pd.Timestamp("2010-11-02T00:00Z")
 N_RUNS = 3
 
 
@@ -128,7 +128,7 @@ def truth():
     return practical_truth(model, "PI-Fg", start, FIRST_T0 + pd.Timedelta(days=N_RUNS)).observations.to_frame()
 
 
-PROPS = {"case": "dommel", "parameters": "FA,Wd", "window": "3D", "horizon": "48h", "warmup": "24h",
+PROPS = {"case": "dommel", "parameters": "FA,Wd", "window": "2D", "horizon": "48h", "warmup": "24h",
          "deadline": "120", "run": "fews-test", "piSchemaDir": str(PI_SCHEMA_DIR)}
 
 
