@@ -81,17 +81,19 @@ def plot_sensitivity_stations(result: SensitivityResult, path: str | Path, *, ti
     costs = result.costs("station")
     stations = [c for c in costs.columns if c not in ("parameter", "value", "total")]
     if len(stations) > max_panels:
-        title = (f"{title or 'one-at-a-time sensitivity per station'} — the {max_panels} stations the "
+        title = (f"{title or 'one-at-a-time sensitivity per station'}\nthe {max_panels} stations the "
                  f"scenarios move most, of {len(stations)}")
         stations = most_moved_stations(costs, stations, max_panels)
-    fig, axes = subplots(len(stations), 1, figsize=(10, 2.3 * len(stations) + 0.8), squeeze=False)
+    height = 2.3 * len(stations) + 0.8
+    fig, axes = subplots(len(stations), 1, figsize=(10, height), squeeze=False)
     for row, st in enumerate(stations):
         ax = axes[row, 0]
         _grouped_bars(ax, costs, st, result.table, legend=row == 0)
         ax.set_ylabel(f"cost at {st} (-)")
         ax.set_title(f"station {st}", fontsize=9, loc="left")
-    fig.suptitle(title or "one-at-a-time sensitivity per station")
-    fig.tight_layout()
+    title = title or "one-at-a-time sensitivity per station"
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - (0.3 * (title.count("\n") + 1) + 0.1) / height))  # room for the title
     return save_figure(fig, path, dpi=120)
 
 
