@@ -99,6 +99,9 @@ def test_a_series_the_model_does_not_simulate_is_refused_with_the_known_ids() ->
     ({"window": "90D"}, "2010-10-25", "2010-10-26", "window 90D: with the warm-up (1D) longer than the model's "
      "period (60D) allows; give 1h to 58D23h"),
     ({}, "2010-10-25", "2010-12-02", "last issue 2010-12-02 00:00: after the end of the model's period"),
+    ({"window": "12h", "warmup": "6h"}, "2010-10-25", "2010-10-26", "window 12h: with the warm-up (6h) shorter "
+     "than the cycle (period 1D); each cycle starts from the state the cycle before saved one cycle after the start "
+     "of its warm-up, so the window and its warm-up must span at least one cycle: lengthen warmup to 12h or more"),
 ])
 def test_impossible_times_are_refused_with_the_allowed_range(settings, first, last, message) -> None:
     config = OnlineConfig(parameters=("FA",), workers=1, **settings)

@@ -399,6 +399,14 @@ def check_schedule(model: Model, config: OnlineConfig, first: Any, last: Any | N
             near = sorted({span(v) for v in (lower, lower + step) if v >= smallest})
             raise ValueError(f"{name[key]} {getattr(config, key)}: must be a whole number of {grid}, "
                              f"{'0 or more' if key == 'warmup' else 'at least one'}; e.g. {' or '.join(near)}")
+    if values["window"] + values["warmup"] < values["period"]:
+        # a cycle's run starts at its window's warm-up, from the state the cycle before saved one cycle after
+        # its own run start: that moment must not lie after the issue time
+        raise ValueError(f"{name['window']} {config.window}: with the warm-up ({span(values['warmup'])}) shorter "
+                         f"than the cycle ({name['period']} {config.period}); each cycle starts from the state the "
+                         f"cycle before saved one cycle after the start of its warm-up, so the window and its "
+                         f"warm-up must span at least one cycle: lengthen {name['warmup']} to "
+                         f"{span(values['period'] - values['window'])} or more, or shorten {name['period']}")
     if values["period"] > length:
         raise ValueError(f"{name['period']} {config.period}: longer than {whose} ({span(length)}); give "
                          f"{span(step)} to {span((length // step) * step)}")
