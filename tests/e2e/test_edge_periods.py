@@ -89,6 +89,10 @@ def test_a_replay_whose_last_forecast_ends_at_the_case_end(tmp_path: Path) -> No
     assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
     assert summary["forecast_errors"]["n"] > 0  # its forecast, to the case end, is observed
     assert [round(e["FA"]) for e in summary["estimates"]] == [25]
+    # the report of that run says the same: the forecast to the case end, scored on the same values
+    page = " ".join((tmp_path / "r" / "index.html").read_text().split())
+    n, dss = summary["forecast_errors"]["n"], summary["forecast_errors"]["dss_mae_m"]
+    assert f"n = {n} values" in page and f"the fixed DSS {100 * dss:.2f} cm" in page
     # a cycle issued at the case's end would forecast 48 h on forcing the case does not have: refused
     last = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-30", "--to", "2010-12-01", "--db",
                     str(tmp_path / "last.sqlite"))
