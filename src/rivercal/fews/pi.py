@@ -43,6 +43,8 @@ DIAG_LEVELS = {"fatal": 0, "error": 1, "warn": 2, "info": 3, "debug": 4}
 FIRST_TIME = pd.Timestamp("1678-01-01T00:00:00Z")
 LAST_TIME = pd.Timestamp("2261-12-31T23:59:59Z")
 _DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
+#: The longest diagnostics line, characters (a message quoting a huge value is cut).
+_MAX_LINE = 2000
 _TIME = re.compile(r"\d{2}:\d{2}(:\d{2}(\.\d{1,9})?)?")
 
 
@@ -337,6 +339,25 @@ class DiagLine:
 
     level: int
     text: str
+
+
+@dataclass
+class Diagnostics:
+    """The lines of the PI diagnostics file, collected while the module runs."""
+
+    lines: list[DiagLine] = field(default_factory=list)
+
+    def add(self, level: str, text: str) -> None:
+        """Add a line (``fatal``, ``error``, ``warn``, ``info`` or ``debug``); a very long text is cut."""
+        text = str(text)
+        if len(text) > _MAX_LINE:
+            text = f"{text[:_MAX_LINE]} ... ({len(text) - _MAX_LINE} more characters)"
+        self.lines.append(DiagLine(DIAG_LEVELS[level], text))
+
+    @property
+    def worst(self) -> int:
+        """The most severe level (lowest number), 3 (info) when there is nothing worse."""
+        return min((line.level for line in self.lines), default=DIAG_LEVELS["info"])
 
 
 def write_diag(path: str | Path, lines: Sequence[DiagLine], *, comment: str | None = None) -> Path:
