@@ -178,6 +178,24 @@ def test_a_time0_rivercal_cannot_represent_is_a_clean_error(tmp_path: Path, zone
     _assert_refused(outcome, "run_info.xml: time0:", "lies outside the years 1678-2261")
 
 
+@pytest.mark.parametrize(("properties", "time0", "words"), [
+    ({"horizon": "40D"}, None, ("properties: property 'horizon' 40D: the cycle, issued at 2010-11-07 00:00, would "
+                                "forecast to 2010-12-17 00:00, after the end of the case (2010-12-01 00:00)",
+                                "the horizon can be 1h to 24D, or issue the cycle at 2010-10-22 00:00 or earlier")),
+    ({"period": "5D"}, None, ("properties: property 'window' 1D: with the warm-up (3h) shorter than the cycle "
+                              "(property 'period' 5D)", "lengthen property 'warmup' to 4D or more")),
+    ({}, ("2010-11-07", "01:30:00"), ("time0: time0 2010-11-07 00:30: cycles are issued at the model's output times",
+                                      "check the run file's timeZone, +1 h")),
+])
+def test_times_that_do_not_fit_the_case_are_refused_as_the_command_line_refuses_them(tmp_path: Path, properties,
+                                                                                     time0, words) -> None:
+    run_file = module(tmp_path / "m")
+    set_properties(run_file, **properties)
+    if time0 is not None:
+        set_element(run_file, "time0", date=time0[0], time=time0[1])
+    _assert_refused(run_module(run_file), *words)
+
+
 @pytest.mark.parametrize(("flag", "value"), [("100000000000000000000", None), ("²", None), ("0", "9999-01-01")])
 def test_a_flag_or_date_out_of_range_in_the_observations_names_the_file_and_series(tmp_path: Path, flag: str,
                                                                                    value: str | None) -> None:

@@ -210,37 +210,26 @@ def _estimate_series(store: Store, run: Run, cycle: int, used: Mapping[str, floa
 
 
 def _check_times(run: RunFile, model: Model, config: OnlineConfig) -> None:
-    """time0 and the durations fit the case's period and the forecasts' time step (seconds: no overflow).
+    """time0 and the durations fit the case's period and the forecasts' time step.
 
-    The service runs the model from ``time0 - window - warmup``, takes the state for the next run's hot start
-    one ``period`` later, and forecasts ``horizon`` ahead, all on the grid of the forecasts' time step from the
-    case's start.
+    The service's own check of a run's times (:func:`rivercal.online.config.check_schedule`), for the one cycle at
+    time0, with the run file's names: the window, warm-up, period and horizon whole numbers of the forecasts' time
+    step, the window with its warm-up at least one period (the next run's hot start is taken one period after this
+    run's warm-up starts), time0 on the step's grid from the case's start, and the window, warm-up and forecast
+    inside the case's period.
     """
-    t0 = run.time0
-    step = float(config.output_interval_s)
-    seconds = {key: pd.Timedelta(getattr(config, key)).total_seconds() for key in ("window", "warmup", "horizon",
-                                                                                   "period")}
-    for key, value in seconds.items():
-        if abs(value / step - round(value / step)) > 1e-9:
-            raise AdapterError(f"property {key!r}: {getattr(config, key)!r} is not a whole number of the forecasts' "
-                               f"time step ({step:g} s)", file=str(run.path), field="properties")
-    if seconds["period"] > seconds["window"] + seconds["warmup"]:
-        raise AdapterError(f"property 'period': {config.period!r} is longer than the window and warm-up "
-                           f"({config.window} + {config.warmup}); the next run's hot start is taken one period after "
-                           "this run's warm-up starts, so it must lie before time0", file=str(run.path),
-                           field="properties")
-    after_start, before_end = t0.timestamp() - model.start.timestamp(), model.end.timestamp() - t0.timestamp()
-    if seconds["window"] + seconds["warmup"] > after_start:
-        raise AdapterError(f"time0 {t0:%Y-%m-%d %H:%M} UTC: the window ({config.window}) and warm-up "
-                           f"({config.warmup}) before it need the model from before the case starts "
-                           f"({model.start:%Y-%m-%d %H:%M} UTC)", file=str(run.path), field="time0")
-    if seconds["horizon"] > before_end:
-        raise AdapterError(f"time0 {t0:%Y-%m-%d %H:%M} UTC: the forecast ({config.horizon}) runs past the end of the "
-                           f"case ({model.end:%Y-%m-%d %H:%M} UTC)", file=str(run.path), field="time0")
-    if abs(after_start / step - round(after_start / step)) > 1e-9:
-        raise AdapterError(f"time0 {t0:%Y-%m-%d %H:%M:%S} UTC is not on the forecasts' time step ({step:g} s from the "
-                           f"case's start, {model.start:%Y-%m-%d %H:%M} UTC); check the run file's timeZone "
-                           f"({run.time_zone:+g} h)", file=str(run.path), field="time0")
+    from rivercal.online.config import check_schedule
+
+    names = {key: f"property {_PROPERTY_OF[key]!r}" for key in ("window", "period", "horizon", "warmup")}
+    names.update(first="time0", last="time0")
+    try:
+        check_schedule(model, config, run.time0, run.time0, names=names)
+    except ValueError as exc:
+        text = str(exc)
+        if text.startswith("time0") and "output times" in text:
+            text += f" (check the run file's timeZone, {run.time_zone:+g} h)"
+        raise AdapterError(text, file=str(run.path), field="time0" if text.startswith("time0") else "properties") \
+            from None
 
 
 def _schemas(run: RunFile) -> dict[str, Any]:

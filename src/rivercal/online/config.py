@@ -443,10 +443,14 @@ def check_schedule(model: Model, config: OnlineConfig, first: Any, last: Any | N
         longest = ((end - final) // step) * step
         latest = end - values["horizon"]
         ways = [f"the horizon can be {span(step)} to {span(longest)}"] if longest >= step else []
-        which = f"the last cycle ({name['last']})" if latest >= first else \
-            f"every cycle ({name['first']} and {name['last']})"
+        if final == first:  # one cycle
+            which = "the cycle" if name["first"] == name["last"] else f"the cycle ({name['first']} and {name['last']})"
+        else:
+            which = f"the last cycle ({name['last']})" if latest >= first else \
+                f"every cycle ({name['first']} and {name['last']})"
         ways.append(f"issue {which} at {latest:%Y-%m-%d %H:%M} or earlier")
-        raise ValueError(f"{name['horizon']} {config.horizon}: the last cycle, issued at {final:%Y-%m-%d %H:%M}, "
+        cycle = "the cycle" if final == first else "the last cycle"
+        raise ValueError(f"{name['horizon']} {config.horizon}: {cycle}, issued at {final:%Y-%m-%d %H:%M}, "
                          f"would forecast to {final + values['horizon']:%Y-%m-%d %H:%M}, after the end of {whose} "
                          f"({end:%Y-%m-%d %H:%M}), where its forcing ends; " + ", or ".join(ways))
 
