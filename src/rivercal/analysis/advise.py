@@ -48,7 +48,7 @@ import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -62,6 +62,10 @@ from rivercal.analysis.identifiability import (
 from rivercal.analysis.jacobian import fd_jacobian, parameter_scales
 from rivercal.analysis.verdict import identifiability_index, verdict_frame
 from rivercal.optimise import covariance
+
+if TYPE_CHECKING:
+    from rivercal.models.contract import Model, ModelState
+    from rivercal.parameters import ParameterSet
 
 __all__ = [
     "PRIOR_RANGE_SIGMAS",
@@ -108,7 +112,7 @@ class Candidate:
     location: Any = None
 
 
-def model_candidates(model: Any, where: str, measure: str) -> list[Candidate]:
+def model_candidates(model: Model, where: str, measure: str) -> list[Candidate]:
     """The places a model offers for a gauge (``points``: every calculation point; ``structures``: either side).
 
     Asked through the optional capability :class:`~rivercal.models.contract.VirtualStations`; ``measure`` is
@@ -128,7 +132,7 @@ def model_candidates(model: Any, where: str, measure: str) -> list[Candidate]:
     return [Candidate(loc.id, loc.series, loc.name, None, loc) for loc in model.candidate_locations(where, measure)]
 
 
-def prior_std(parameters: Any, scale: np.ndarray | None = None) -> np.ndarray:
+def prior_std(parameters: ParameterSet, scale: np.ndarray | None = None) -> np.ndarray:
     """Prior σ per parameter, optimiser units: its ``prior_std``, else (ub − lb) / :data:`PRIOR_RANGE_SIGMAS`."""
     lb, ub = (np.asarray(b, dtype=float) for b in parameters.bounds())
     default = (ub - lb) / PRIOR_RANGE_SIGMAS
@@ -536,12 +540,12 @@ class Advice:
 # --------------------------------------------------------------------------------------------------
 
 
-def advice_jacobian(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.Timestamp], *,
+def advice_jacobian(model: Model, parameters: ParameterSet, window: tuple[pd.Timestamp, pd.Timestamp], *,
                     candidates: Sequence[Candidate], base_series: Sequence[str] | None = None,
                     sigma: Mapping[str, float] | None = None, forecasts: Sequence[str] = (),
-                    horizon: pd.Timedelta | str = "48h", warmup: pd.Timedelta | str = "24h", state: Any = None,
-                    rel_step: float = 0.01, scheme: Literal["forward", "central"] = "forward",
-                    workers: Any = None) -> dict[str, Any]:
+                    horizon: pd.Timedelta | str = "48h", warmup: pd.Timedelta | str = "24h",
+                    state: ModelState | None = None, rel_step: float = 0.01,
+                    scheme: Literal["forward", "central"] = "forward", workers: Any = None) -> dict[str, Any]:
     """One finite-difference Jacobian of the present stations', the candidates' and the forecasts' series.
 
     The candidates' places are added to the model through its optional capability
@@ -647,10 +651,10 @@ def advice_jacobian(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.
             "sigma": {s: sigma_of(s) for s in observed}}
 
 
-def advise(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.Timestamp], candidates: Sequence[Candidate],
-           *, add: int | None = None, base_series: Sequence[str] | None = None,
+def advise(model: Model, parameters: ParameterSet, window: tuple[pd.Timestamp, pd.Timestamp],
+           candidates: Sequence[Candidate], *, add: int | None = None, base_series: Sequence[str] | None = None,
            sigma: Mapping[str, float] | None = None, forecasts: Sequence[str] = (),
-           horizon: pd.Timedelta | str = "48h", warmup: pd.Timedelta | str = "24h", state: Any = None,
+           horizon: pd.Timedelta | str = "48h", warmup: pd.Timedelta | str = "24h", state: ModelState | None = None,
            rel_step: float = 0.01, scheme: Literal["forward", "central"] = "forward",
            options: IdentifiabilityOptions | None = None, exchange: bool = True, workers: Any = None,
            progress: Callable[[str], None] | None = None) -> Advice:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -32,6 +32,9 @@ from rivercal.dashboard.words import ALERT_NAMES, DECISIONS, describe_series
 from rivercal.online.service import OPTIMISER_NOTE
 from rivercal.report.online_figures import headline_lines
 from rivercal.store import FINAL_STATUSES
+
+if TYPE_CHECKING:
+    from rivercal.store import Run, Store
 
 __all__ = ["COLOURS", "ERROR_COLOURSCALE", "cycles_view", "estimates_view", "forecast_view", "forecasts_view",
            "map_view", "now_view", "run_version"]
@@ -87,7 +90,7 @@ def _plain(message: Any) -> str:
     return re.sub(OPTIMISER_NOTE, "", message) if isinstance(message, str) else ""
 
 
-def run_version(store: Any, run: Any) -> str:
+def run_version(store: Store, run: Run) -> str:
     """A token that changes whenever a cycle of the run is stored or finished (the page polls it)."""
     cycles = store.cycles(run)
     if cycles.empty:
@@ -112,7 +115,7 @@ def _issued_words(kind: str, skill_updated: Any, skill_dss: Any, skill_cycles: i
             "itself is the evidence that the DSS's parameters no longer hold")
 
 
-def now_view(store: Any, run: Any) -> dict[str, Any]:
+def now_view(store: Store, run: Run) -> dict[str, Any]:
     """The forecast in use and why, what changed and how sure, the parameters behind the forecast, open alerts.
 
     Decisions as in the glossary: an estimate is *accepted* (the parameter takes it) or *held* (it keeps its
@@ -187,7 +190,7 @@ def now_view(store: Any, run: Any) -> dict[str, Any]:
     return out
 
 
-def _change(store: Any, run: Any, facts: Any, latest: int, std: pd.Series) -> dict[str, Any] | None:
+def _change(store: Store, run: Run, facts: Any, latest: int, std: pd.Series) -> dict[str, Any] | None:
     """The latest transition the run found: what changed, since when, how sure, and whether it is still refined."""
     moves = store.transitions(run)
     if moves.empty:
@@ -212,7 +215,7 @@ def _change(store: Any, run: Any, facts: Any, latest: int, std: pd.Series) -> di
             "p_value": None if _num(first["p_value"]) is None else f"{float(first['p_value']):.1g}"}
 
 
-def _events(store: Any, run: Any) -> list[dict[str, Any]]:
+def _events(store: Store, run: Run) -> list[dict[str, Any]]:
     """The jump alerts and transitions of a run, each with the parameter it concerns, in time order.
 
     A jump alert at the issue time of the cycle that raised it; a transition at the estimated time of the
@@ -256,7 +259,7 @@ def _event_marks(events: list[dict[str, Any]], start: pd.Timestamp | None = None
     return shapes, notes, listed
 
 
-def estimates_view(store: Any, run: Any) -> dict[str, Any]:
+def estimates_view(store: Store, run: Run) -> dict[str, Any]:
     """One figure per parameter: the estimate per cycle with ±σ, held ones open, the DSS's value, alerts marked."""
     est = store.estimates(run)
     facts = model_facts(run.case)
@@ -298,7 +301,7 @@ def _layout(ytitle: str, xtitle: str, **extra: Any) -> dict[str, Any]:
             "font": {"size": 12}, **extra}
 
 
-def _latest_with_forecasts(store: Any, run: Any, cycles: pd.DataFrame) -> tuple[Any, pd.DataFrame]:
+def _latest_with_forecasts(store: Store, run: Run, cycles: pd.DataFrame) -> tuple[Any, pd.DataFrame]:
     """The latest final cycle that stored forecasts (among the last three) and its forecasts."""
     for cycle in _final(cycles)["cycle"].iloc[::-1][:3]:
         fc = store.forecasts(run, cycle=int(cycle))
@@ -307,7 +310,7 @@ def _latest_with_forecasts(store: Any, run: Any, cycles: pd.DataFrame) -> tuple[
     return None, pd.DataFrame()
 
 
-def forecast_view(store: Any, run: Any) -> dict[str, Any]:
+def forecast_view(store: Store, run: Run) -> dict[str, Any]:
     """The latest issued forecast per series: 48 h of observations before, 48 h of forecast after.
 
     Per series: the observations of the 48 h before the issue time (and those stored since, lighter), the
@@ -374,7 +377,7 @@ def forecast_view(store: Any, run: Any) -> dict[str, Any]:
     return {"latest": latest, "figures": figures, "events": events}
 
 
-def forecast_choices(store: Any, run: Any) -> tuple[list[str], list[float]]:
+def forecast_choices(store: Store, run: Run) -> tuple[list[str], list[float]]:
     """The forecast series of the run and the lead times stored (h), from its latest cycle with forecasts."""
     _, fc = _latest_with_forecasts(store, run, store.cycles(run))
     if fc.empty:
@@ -382,7 +385,7 @@ def forecast_choices(store: Any, run: Any) -> tuple[list[str], list[float]]:
     return sorted(fc["series"].unique()), sorted(float(v) for v in fc["lead_h"].unique())
 
 
-def forecasts_view(store: Any, run: Any, series: str, lead_h: float) -> dict[str, Any]:
+def forecasts_view(store: Store, run: Run, series: str, lead_h: float) -> dict[str, Any]:
     """Forecasts at one lead time against the observations and the DSS, and the scores by lead time.
 
     Scores of a level series are shown in cm (stored in m); of a discharge in m³/s.
@@ -423,7 +426,7 @@ def forecasts_view(store: Any, run: Any, series: str, lead_h: float) -> dict[str
             "scores": table}
 
 
-def map_view(store: Any, run: Any) -> dict[str, Any]:
+def map_view(store: Store, run: Run) -> dict[str, Any]:
     """The network with each station's mean level-forecast error (forecast − observed, cm), DSS and rivercal.
 
     One colour scale (:data:`ERROR_COLOURSCALE`, symmetric about zero) for both maps: red where the forecasts
@@ -495,7 +498,7 @@ def _cost(value: Any) -> str:
     return f"{x:,.0f}".replace(",", " ") if abs(x) >= 100 else f"{x:.3g}"
 
 
-def cycles_view(store: Any, run: Any) -> dict[str, Any]:
+def cycles_view(store: Store, run: Run) -> dict[str, Any]:
     """The cycle log, newest first: status, the forecast issued, model runs, wall time, costs and the message."""
     cycles = store.cycles(run)
     rows = []

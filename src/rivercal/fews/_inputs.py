@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -21,6 +21,10 @@ from rivercal.fews.properties import AdapterError, prop
 from rivercal.io.pixml import EXPECTED_UNITS, STANDARD_CONVERSIONS, read_pixml, read_pixml_series, unit_factor
 from rivercal.network import MAX_DISCHARGE, MAX_LEVEL
 from rivercal.observations import ObservationSet
+
+if TYPE_CHECKING:
+    from rivercal.case import Case
+    from rivercal.network import Network
 
 #: A discharge from FEWS may be at most this many times the largest of the case's own series at its boundary.
 FORCING_SCALE = 100.0
@@ -45,7 +49,7 @@ SETTINGS = {"crestLevel": ("weirs", "crest_series", "crest", "h"),
 _SETTING_OF = {"weirs": "weir", "orifices": "orifice", "pumps": "pump"}
 
 
-def _settable(network: Any) -> tuple[dict[tuple[str, str], str], dict[tuple[str, str], str]]:
+def _settable(network: Network) -> tuple[dict[tuple[str, str], str], dict[tuple[str, str], str]]:
     """The structure settings FEWS may give, and those it may not.
 
     Returns (structure id, parameterId) -> forcing key where the case has a series for the setting, and
@@ -61,7 +65,7 @@ def _settable(network: Any) -> tuple[dict[tuple[str, str], str], dict[tuple[str,
     return series, constant
 
 
-def _classify(run: RunFile, case: Any, observables: list[str]) -> tuple[dict[Path, dict], dict[str, str]]:
+def _classify(run: RunFile, case: Case, observables: list[str]) -> tuple[dict[Path, dict], dict[str, str]]:
     """Per input file the mapping (locationId, parameterId) -> series id; and forcing series id -> forcing key.
 
     Every series is checked here, all problems at once: a known location and parameter, a unit rivercal knows (a
@@ -155,7 +159,7 @@ class Forcing:
     source: str
 
 
-def read_inputs(run: RunFile, case: Any, observables: list[str],
+def read_inputs(run: RunFile, case: Case, observables: list[str],
             diag: Diagnostics) -> tuple[list[tuple[str, Any]], list[Forcing]]:
     """Observation sets by file (source name) and the forcing series FEWS exported (m³/s or m, UTC)."""
     for path in run.input_series_files:
@@ -188,7 +192,7 @@ def read_inputs(run: RunFile, case: Any, observables: list[str],
     return observations, forcing
 
 
-def own_forcing(case: Any) -> tuple[dict[str, pd.Series], dict[str, pd.Series]]:
+def own_forcing(case: Case) -> tuple[dict[str, pd.Series], dict[str, pd.Series]]:
     """The runoff of the case's catchments, and all its own forcing series with that runoff (m³/s or m, UTC)."""
     from rivercal.hydrology.catchments import catchment_forcing
 
@@ -196,7 +200,7 @@ def own_forcing(case: Any) -> tuple[dict[str, pd.Series], dict[str, pd.Series]]:
     return runoff, {**case.forcing, **runoff}
 
 
-def reference_scales(case: Any, own: Mapping[str, pd.Series]) -> dict[str, float]:
+def reference_scales(case: Case, own: Mapping[str, pd.Series]) -> dict[str, float]:
     """The magnitude (m³/s) below which a discharge at each lateral or pump is never called implausible.
 
     A lateral: the largest discharge of any of the case's laterals. An imported model's lateral series are one
@@ -274,7 +278,7 @@ def screen_forcing(forcing: list[Forcing], own: Mapping[str, pd.Series], run: Ru
                                f"{unit} for {f.key} ({why})", file=str(run.path), field="inputTimeSeriesFile")
 
 
-def model_with_forcing(run: RunFile, case: Any, runoff: Mapping[str, pd.Series], own: Mapping[str, pd.Series],
+def model_with_forcing(run: RunFile, case: Case, runoff: Mapping[str, pd.Series], own: Mapping[str, pd.Series],
            forcing: list[Forcing]) -> Any:
     """The case's model with FEWS's forcing in place of the case's own where FEWS has values."""
     from rivercal.models import EmbeddedModel
@@ -312,6 +316,6 @@ def forcing_line(forcing: list[Forcing], shown: int = 8) -> str:
     return f"forcing from FEWS at {len(keys)} places: {'; '.join(parts)}"
 
 
-def case_observables(case: Any) -> list[str]:
+def case_observables(case: Case) -> list[str]:
     """The series the case's model simulates (its stations' observables), without compiling it."""
     return [o for s in case.network.stations for o in s.observables]

@@ -21,13 +21,17 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from rivercal.errors import OptionError
 from rivercal.workflows.progress import NO_PROGRESS, Progress, jsonable
+
+if TYPE_CHECKING:
+    from rivercal.models.contract import Model
+    from rivercal.parameters import ParameterSet
 
 __all__ = ["CANDIDATE_KINDS", "MEASURES", "advise_gauges", "candidates_of", "gauges_only", "read_candidates"]
 
@@ -37,7 +41,7 @@ CANDIDATE_KINDS = ("points", "structures")
 MEASURES = ("level", "discharge", "both")
 
 
-def _capable(model: Any, option: str) -> None:
+def _capable(model: Model, option: str) -> None:
     from rivercal.models.contract import VirtualStations
 
     if not isinstance(model, VirtualStations):
@@ -46,7 +50,7 @@ def _capable(model: Any, option: str) -> None:
                           "asked where a new gauge would help", option=option)
 
 
-def gauges_only(model: Any, stations: Sequence[str]) -> Any:
+def gauges_only(model: Model, stations: Sequence[str]) -> Any:
     """The model measuring at ``stations`` only (``--gauges``): the places of its other stations become candidates.
 
     Raises
@@ -63,7 +67,7 @@ def gauges_only(model: Any, stations: Sequence[str]) -> Any:
         raise OptionError(f"--gauges: {exc}", option="--gauges") from None
 
 
-def candidates_of(model: Any, where: str, measure: str) -> list[Any]:
+def candidates_of(model: Model, where: str, measure: str) -> list[Any]:
     """The model's own candidate places (``points`` or ``structures``) for a gauge measuring ``measure``."""
     from rivercal.analysis.advise import model_candidates
 
@@ -71,7 +75,7 @@ def candidates_of(model: Any, where: str, measure: str) -> list[Any]:
     return model_candidates(model, where, measure)
 
 
-def read_candidates(path: str | Path, model: Any, measure: str) -> list[Any]:
+def read_candidates(path: str | Path, model: Model, measure: str) -> list[Any]:
     """Candidates from a CSV file of practical places: ``branch``, ``chainage`` (m), ``name``, ``cost``, ``id``.
 
     ``cost`` (any unit, the same for all rows) and ``id`` (a station id; default from the name) are optional.
@@ -147,7 +151,7 @@ def read_candidates(path: str | Path, model: Any, measure: str) -> list[Any]:
     return out
 
 
-def advise_gauges(model: Any, parameters: Any, window: tuple[pd.Timestamp, pd.Timestamp], out: str | Path, *,
+def advise_gauges(model: Model, parameters: ParameterSet, window: tuple[pd.Timestamp, pd.Timestamp], out: str | Path, *,
                   candidates: Sequence[Any], add: int | None = None, forecasts: Sequence[str] = (),
                   sigma: Mapping[str, float] | None = None, horizon: str = "48h", warmup: str = "24h",
                   rel_step: float = 0.01, scheme: str = "forward", options: Any = None, exchange: bool = True,
@@ -261,7 +265,7 @@ def _table_row(table: pd.DataFrame, i: str, by_id: Mapping[str, Any]) -> dict[st
             "smallest_singular_value": float(r["smallest_singular_value"]), "cost": by_id[i].cost}
 
 
-def _worth_map(model: Any, result: Any, path: Path) -> Path | None:
+def _worth_map(model: Model, result: Any, path: Path) -> Path | None:
     """The network with each candidate's point coloured by its worth, the chosen gauges numbered; None without a map."""
     case = getattr(model, "case", None)
     compiled = getattr(model, "compiled", None)
