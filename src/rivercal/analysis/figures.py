@@ -88,12 +88,16 @@ def plot_sensitivity_stations(result: SensitivityResult, path: str | Path, *, ti
     fig, axes = subplots(len(stations), 1, figsize=(10, height), squeeze=False)
     for row, st in enumerate(stations):
         ax = axes[row, 0]
-        _grouped_bars(ax, costs, st, result.table, legend=row == 0)
+        _grouped_bars(ax, costs, st, result.table, legend=False)
         ax.set_ylabel(f"cost at {st} (-)")
         ax.set_title(f"station {st}", fontsize=9, loc="left")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    # above the first panel, right of its station's name: inside the panel it covered the tallest bars
+    axes[0, 0].legend(handles, labels, fontsize=7, ncol=len(labels), loc="lower right", bbox_to_anchor=(1.0, 1.0),
+                      frameon=False, borderaxespad=0.2)
     title = title or "one-at-a-time sensitivity per station"
     fig.suptitle(title)
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - (0.3 * (title.count("\n") + 1) + 0.1) / height))  # room for the title
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - (0.22 * (title.count("\n") + 1) + 0.05) / height))  # the title
     return save_figure(fig, path, dpi=120)
 
 
