@@ -81,19 +81,16 @@ import logging
 import math
 import re
 import tomllib
-from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Literal
-from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from rivercal._time import parse_iso
 from rivercal.errors import CaseError
+from rivercal.io._clock import TimeZoneSpec, check_order, parse_time_zone, parse_times
 from rivercal.observations import QUANTITIES, ObservationSeries, ObservationSet
 
 __all__ = ["SIDECAR_SCHEMA", "FlagMeaning", "SensorSpec", "Sidecar", "TimeZoneSpec", "parse_time_zone",
@@ -106,13 +103,9 @@ LEVEL_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "dm": 0.1, "ft": 0.3048}
 DISCHARGE_UNITS = {"m3/s": 1.0, "l/s": 0.001, "m3/h": 1.0 / 3600.0, "m3/min": 1.0 / 60.0}
 _UNIT_SPELLINGS = {"m³/s": "m3/s", "m^3/s": "m3/s", "m3 s-1": "m3/s", "m3.s-1": "m3/s", "cms": "m3/s",
                    "m³/h": "m3/h", "m³/min": "m3/min", "feet": "ft", "l/sec": "l/s", "meter": "m", "metre": "m"}
-#: Time-zone abbreviations as the fixed offsets (h) they name in a time stamp (``Fri Dec 6 10:00 CET 2013``).
-ABBREVIATIONS = {"UTC": 0.0, "GMT": 0.0, "UT": 0.0, "Z": 0.0, "WET": 0.0, "WEST": 1.0, "CET": 1.0, "MET": 1.0,
-                 "CEST": 2.0, "MEST": 2.0, "EET": 2.0, "EEST": 3.0}
 #: MATROOS quantity names that are water levels (values in m).
 _NOOS_LEVELS = re.compile(r"^water_?level", re.IGNORECASE)
 _NOOS_DISCHARGES = re.compile(r"^(discharge|flow|debiet)", re.IGNORECASE)
-_OFFSET = re.compile(r"^(?:(?:UTC|GMT)\s*)?([+-])(\d{1,2})(?::?(\d{2}))?$", re.IGNORECASE)
 
 
 # -- the sidecar schema ------------------------------------------------------------------------------------
@@ -221,74 +214,6 @@ class Sidecar(BaseModel):
 
 #: JSON Schema of a sidecar file.
 SIDECAR_SCHEMA: dict[str, Any] = Sidecar.model_json_schema()
-
-
-# -- time zones ----------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class TimeZoneSpec:
-    """A time zone of a file: a fixed offset, or a region whose clock changes (IANA name).
-
-    Attributes
-    ----------
-    text
-        As written.
-    offset_h
-        The fixed offset east of UTC, h (None for a region).
-    region
-        The IANA region (None for a fixed offset).
-    """
-
-    text: str
-    offset_h: float | None = None
-    region: str | None = None
-
-    @property
-    def fixed(self) -> bool:
-        """True for a fixed offset."""
-        return self.region is None
-
-
-def parse_time_zone(text: str) -> TimeZoneSpec:
-    """A time zone as written in a sidecar or a file header (module docstring).
-
-    Raises
-    ------
-    ValueError
-        For anything else, with the accepted forms.
-    """
-    raw = str(text).strip()
-    key = raw.upper()
-    if key in ABBREVIATIONS:
-        return TimeZoneSpec(raw, offset_h=ABBREVIATIONS[key])
-    m = _OFFSET.match(raw.replace(" ", ""))
-    if m:
-        sign, hours, minutes = m.group(1), int(m.group(2)), int(m.group(3) or 0)
-        if hours > 14 or minutes >= 60:
-            raise ValueError(f"time zone {raw!r}: an offset is at most ±14:00")
-        offset = hours + minutes / 60.0
-        return TimeZoneSpec(raw, offset_h=-offset if sign == "-" else offset)
-    if "/" in raw:
-        try:
-            ZoneInfo(raw)
-        except (ZoneInfoNotFoundError, ValueError):
-            guess = difflib.get_close_matches(raw, _regions(), n=1, cutoff=0.7)
-            hint = f"; did you mean {guess[0]!r}?" if guess else ""
-            raise ValueError(f"time zone {raw!r} is not a region of the IANA time-zone database{hint}") from None
-        return TimeZoneSpec(raw, region=raw)
-    raise ValueError(f"time zone {raw!r} is not understood; write UTC, a fixed offset such as UTC+01:00, an "
-                     "abbreviation (CET is UTC+1, CEST UTC+2), or a region such as Europe/Amsterdam for clock "
-                     "time with summer time")
-
-
-def _regions() -> list[str]:
-    import zoneinfo
-
-    try:
-        return sorted(zoneinfo.available_timezones())
-    except Exception:  # only for a suggestion
-        return []
 
 
 # -- reading ---------------------------------------------------------------------------------------------
@@ -465,7 +390,7 @@ def read_sensor_series(spec: SensorSpec, root: str | Path, *,
             raise side_error("unit", f"unit {spec.unit!r} contradicts line {header_line} of {label} (Unit : "
                                      f"{header_text})")
         _header_unit_factor(header_text, header_line, measures, spec, label)  # the quantity must fit
-    times = _parse_times(raw, spec, zone, label, side_error)
+    times = parse_times(raw, spec, zone, label, side_error)
     values, missing = _parse_values(raw, spec, label)
     keep = np.ones(len(values), dtype=bool)
     n_flagged = 0
@@ -484,7 +409,7 @@ def read_sensor_series(spec: SensorSpec, root: str | Path, *,
                     n_flagged += 1
                 keep[i] = False
     values = values * factor + (spec.datum_offset or 0.0)
-    index, order = _check_order(times, raw.lines, spec, label, zone)
+    index, order = check_order(times, raw.lines, spec, label, zone)
     values, missing, keep = values[order], missing[order], keep[order]
     values = np.where(keep & ~missing, values, np.nan)
     if n_flagged:
@@ -633,143 +558,6 @@ def _read_csv(lines: list[str], spec: SensorSpec, label: str) -> _Raw:
     if not out_lines:
         raise CaseError(f"has a header (line {hl}) but no data lines", file=label)
     return _Raw(out_lines, times, values, flags if f_col is not None else None)
-
-
-# -- times ----------------------------------------------------------------------------------------------
-
-
-def _parse_times(raw: _Raw, spec: SensorSpec, zone: TimeZoneSpec | None, label: str, side_error) -> np.ndarray:
-    """UTC times (datetime64[ns]) of the rows, in file order."""
-    fmt = spec.time_format
-    naive = np.empty(len(raw.times), dtype="datetime64[ns]")
-    aware = np.zeros(len(raw.times), dtype=bool)
-    utc_ns = np.empty(len(raw.times), dtype="datetime64[ns]")
-    for i, text in enumerate(raw.times):
-        t = _one_time(text, fmt, spec.format, raw.lines[i], label)
-        if t.tzinfo is not None:
-            aware[i] = True
-            utc_ns[i] = np.datetime64(t.astimezone(UTC).replace(tzinfo=None), "ns")
-        else:
-            naive[i] = np.datetime64(t, "ns")
-    if (~aware).any():
-        if zone is None:
-            i = int(np.flatnonzero(~aware)[0])
-            where = ("neither the sidecar nor the file's header says" if spec.format != "csv"
-                     else "the sidecar does not say")
-            raise side_error("time_zone", f"line {raw.lines[i]} of {label} has a time without an offset "
-                                          f"({raw.times[i]!r}), and {where} in which zone: give time_zone (UTC, "
-                                          "UTC+01:00, CET, or a region such as Europe/Amsterdam)")
-        local = naive[~aware]
-        lines = [raw.lines[i] for i in np.flatnonzero(~aware)]
-        utc_ns[~aware] = _localize(local, zone, lines, label)
-    return utc_ns
-
-
-def _one_time(text: str, fmt: str | None, file_format: str, line: int, label: str) -> datetime:
-    text = text.strip()
-    if fmt is None and file_format != "csv":
-        digits = text
-        if digits.isdigit() and len(digits) in (12, 14):
-            try:
-                return datetime.strptime(digits, "%Y%m%d%H%M%S" if len(digits) == 14 else "%Y%m%d%H%M")
-            except ValueError:
-                pass
-        raise CaseError(f"line {line}: {text!r} is not a time YYYYMMDDHHMM", file=label)
-    if fmt is not None:
-        try:
-            return datetime.strptime(text, fmt)
-        except ValueError:
-            raise CaseError(f"line {line}: {text!r} does not match time_format {fmt!r}", file=label) from None
-    try:
-        return parse_iso(text).to_pydatetime()
-    except ValueError as exc:
-        raise CaseError(f"line {line}: {exc}; or give time_format", file=label) from None
-
-
-def _localize(local: np.ndarray, zone: TimeZoneSpec, lines: Sequence[int], label: str) -> np.ndarray:
-    """UTC of local times in ``zone`` (file order); errors for non-existent and ambiguous clock times."""
-    if zone.fixed:
-        return local - np.timedelta64(round(zone.offset_h * 3600), "s")
-    index = pd.DatetimeIndex(local)
-    skipped = index.tz_localize(zone.region, ambiguous="NaT", nonexistent="NaT")
-    probe = index.tz_localize(zone.region, ambiguous=np.ones(len(index), dtype=bool), nonexistent="NaT")
-    gap = np.flatnonzero(probe.isna())
-    if gap.size:
-        i = int(gap[0])
-        raise CaseError(f"line {lines[i]}: {index[i]:%Y-%m-%d %H:%M} does not exist in {zone.region}: the clocks were "
-                        "put forward an hour that night (summer time began); a file in winter time all year is "
-                        f"UTC+01:00 (say time_zone = 'UTC+01:00' or 'CET'), not {zone.region}", file=label)
-    ambiguous = np.flatnonzero(skipped.isna())
-    if not ambiguous.size:
-        return skipped.tz_convert("UTC").tz_localize(None).to_numpy()
-    # in the repeated hour: summer time (the first pass) until the local clock steps back, then winter time
-    dst = np.ones(len(index), dtype=bool)
-    ns = index.asi8
-    for run in _runs(ambiguous):
-        back = [j for j in run[1:] if ns[j] <= ns[j - 1]]
-        if not back and not (run[0] > 0 and ns[run[0]] <= ns[run[0] - 1]):
-            i = run[0]
-            raise CaseError(f"line {lines[i]}: {index[i]:%Y-%m-%d %H:%M} is ambiguous in {zone.region}: that clock "
-                            "hour came twice (summer time ended), and nothing in the file tells which pass this is "
-                            "(the times do not step back); a file in winter time all year is UTC+01:00 (time_zone = "
-                            "'UTC+01:00' or 'CET')", file=label)
-        switch = back[0] if back else run[0]
-        dst[[j for j in run if j >= switch]] = False
-    out = index.tz_localize(zone.region, ambiguous=dst, nonexistent="raise")
-    return out.tz_convert("UTC").tz_localize(None).to_numpy()
-
-
-def _runs(positions: np.ndarray) -> list[list[int]]:
-    """Consecutive positions grouped into runs."""
-    runs: list[list[int]] = []
-    for p in positions.tolist():
-        if runs and p == runs[-1][-1] + 1:
-            runs[-1].append(p)
-        else:
-            runs.append([p])
-    return runs
-
-
-def _check_order(times: np.ndarray, lines: Sequence[int], spec: SensorSpec, label: str,
-                 zone: TimeZoneSpec | None) -> tuple[pd.DatetimeIndex, np.ndarray]:
-    """The UTC index in file order (duplicates resolved by ``spec.duplicates``) and the positions it keeps."""
-    order = np.arange(times.size)
-    steps = np.diff(times)
-    back = np.flatnonzero(steps < np.timedelta64(0, "ns"))
-    if back.size:
-        i = int(back[0]) + 1
-        raise CaseError(f"line {lines[i]}: {_show(times[i])} comes before {_show(times[i - 1])} on line "
-                        f"{lines[i - 1]}; times must increase{_dst_hint(times[i - 1], times[i], zone)}", file=label)
-    same = np.flatnonzero(steps == np.timedelta64(0, "ns"))
-    if same.size:
-        if spec.duplicates == "error":
-            i = int(same[0]) + 1
-            raise CaseError(f"line {lines[i]}: the time {_show(times[i])} appears twice (also on line {lines[i - 1]})"
-                            f"{_dst_hint(times[i - 1], times[i], zone)}; if the repeats are expected, say duplicates "
-                            "= 'first' or 'last'", file=label)
-        drop = same + 1 if spec.duplicates == "first" else same
-        order = np.delete(order, drop)
-        log.info("%s: %d repeated time(s); the %s value of each kept", label, same.size, spec.duplicates)
-    index = pd.DatetimeIndex(times[order]).tz_localize("UTC")
-    return index, order
-
-
-def _dst_hint(before: np.datetime64, after: np.datetime64, zone: TimeZoneSpec | None) -> str:
-    """Advice when a step back or a repeat looks like the end of summer time in a file read with a fixed offset."""
-    if zone is None or not zone.fixed:
-        return ""
-    back = (before - after) / np.timedelta64(1, "m")
-    t = pd.Timestamp(after)
-    sunday = t.weekday() == 6
-    autumn = (t.month == 10 and t.day >= 25) or (t.month == 11 and t.day <= 7)  # Europe's last Sunday, the US's first
-    if sunday and autumn and 0 <= back <= 60:
-        return ("; the clocks went back an hour that night (summer time ended): if the file is in local clock time, "
-                "give its region (time_zone = 'Europe/Amsterdam') instead of a fixed offset")
-    return ""
-
-
-def _show(t: np.datetime64) -> str:
-    return f"{pd.Timestamp(t):%Y-%m-%d %H:%M:%S} UTC"
 
 
 # -- values and units -------------------------------------------------------------------------------------
