@@ -249,9 +249,9 @@ def test_exchange_files_supply_realtime_values(imported, tmp_path) -> None:
     case = load_case(result.folder)
     lat = case.forcing["lateral:lat_node"]
     t = (lat.index - case.start).total_seconds().to_numpy()
-    # each held value sits in the middle of its interval: the volume of every interval is kept
-    assert np.interp(300.0, t, lat.to_numpy()) == pytest.approx(0.1)
-    assert np.interp(6300.0, t, lat.to_numpy()) == pytest.approx(0.1 + 6000.0 / 86400.0)
+    # each value holds from its coupling time to the next, as DIMR hands it to D-Flow FM
+    assert np.interp([0.0, 300.0, 599.0, 600.0, 6300.0, 86000.0], t, lat.to_numpy()) == pytest.approx(
+        0.1 + np.array([0.0, 0.0, 0.0, 600.0, 6000.0, 85800.0]) / 86400.0, rel=1e-12)
     crest = case.forcing["crest:weir1"]
     t = (crest.index - case.start).total_seconds().to_numpy()
     assert np.interp([3598.0, 3600.0, 80000.0], t, crest.to_numpy()) == pytest.approx([0.5, 0.7, 0.7])

@@ -438,15 +438,19 @@ class Simulator:
 
     # -- forcing -------------------------------------------------------------------------------
 
-    def _values_at(self, key: str, seconds: np.ndarray, start: pd.Timestamp) -> np.ndarray:
-        """Forcing series ``key`` at ``seconds`` (s after ``start``), linear in time."""
+    def _knots(self, key: str, start: pd.Timestamp) -> tuple[np.ndarray, np.ndarray]:
+        """Forcing series ``key``'s times (s after ``start``) and values."""
         series = self.forcing[key]
         cached = self._forcing_arrays.get(key)
         if cached is None or cached[0] is not series:   # times as integer ns, values as floats: once per series
             cached = (series, series.index.as_unit("ns").asi8, series.to_numpy(dtype=float))
             self._forcing_arrays[key] = cached
         _, ns, values = cached
-        t = (ns - pd.Timestamp(start).as_unit("ns").value) / 1e9   # as pandas' total_seconds, to the bit
+        return (ns - pd.Timestamp(start).as_unit("ns").value) / 1e9, values   # as pandas' total_seconds, to the bit
+
+    def _values_at(self, key: str, seconds: np.ndarray, start: pd.Timestamp) -> np.ndarray:
+        """Forcing series ``key`` at ``seconds`` (s after ``start``), linear in time."""
+        t, values = self._knots(key, start)
         return np.interp(seconds, t, values)
 
     def forcing_matrix(self, start: pd.Timestamp, n_steps: int, *, constant: bool = False) -> np.ndarray:
@@ -457,10 +461,14 @@ class Simulator:
         return self._forcing(start, n_steps, constant)[0]
 
     def forcing_edges(self, start: pd.Timestamp, n_steps: int) -> np.ndarray:
-        """The forcing at the edges of the steps (``n_steps + 1`` rows): discharges (m³/s) and levels (m AD).
+        """The course of each discharge within each step (two rows per step): its values at the step's start and end.
 
-        The sub-steps of a divided step take the discharge that moves linearly between the step's edges
-        (:func:`rivercal.engine.kernels.forcing.apply_forcing`).
+        Per step ``n``, rows ``2n`` and ``2n + 1`` hold, per forcing column, the ends (m³/s) of the straight line
+        that the sub-steps of a divided step follow (:func:`rivercal.engine.kernels.forcing.apply_forcing`): the
+        discharge at the step's edges where the series has no time within the step, else the line of the same
+        volume that is nearest to the series over the step (its least-squares fit), so that a value held from one
+        time of the series to the next is held within the step too. Level columns hold the level at the step's
+        edges (m AD).
         """
         return self._forcing(start, n_steps, False)[1]
 
@@ -474,15 +482,20 @@ class Simulator:
         if constant:
             edges = np.zeros(n_steps + 1)
         out = np.empty((n_steps, len(c.forcing_keys)))
-        at_edges = np.empty((n_steps + 1, len(c.forcing_keys)))
+        course = np.empty((2 * n_steps, len(c.forcing_keys)))
         for col, fkey in enumerate(c.forcing_keys):
             v = self._values_at(fkey, edges, start)
-            out[:, col] = v[1:] if c.forcing_is_level[col] else 0.5 * (v[:-1] + v[1:])
-            at_edges[:, col] = v
+            course[0::2, col] = v[:-1]
+            course[1::2, col] = v[1:]
+            if c.forcing_is_level[col]:
+                out[:, col] = v[1:]
+                continue
+            out[:, col] = 0.5 * (v[:-1] + v[1:])
+            _within_steps(*self._knots(fkey, start), edges, out[:, col], course[:, col])
         if len(self._forcing_cache) > 4:
             self._forcing_cache.clear()
-        self._forcing_cache[key] = (out, at_edges)
-        return out, at_edges
+        self._forcing_cache[key] = (out, course)
+        return out, course
 
     # -- running -------------------------------------------------------------------------------
 
@@ -729,6 +742,44 @@ def _shown_bound(value: float | None, none: float) -> float:
     return float(value)
 
 
+def _within_steps(t: np.ndarray, v: np.ndarray, edges: np.ndarray, mean: np.ndarray, course: np.ndarray) -> None:
+    """The mean and the course of a discharge within each step where its series has a time inside the step.
+
+    The series has times ``t`` (s) and values ``v`` (m³/s), linear between them; the steps have the edges
+    ``edges`` (s). Per step with a time of the series inside it: its exact mean (m³/s, into ``mean``) and the
+    ends of the line of the same volume nearest to the series over the step (its least-squares fit, m³/s, into
+    ``course``, rows ``2n`` and ``2n + 1``).
+
+    The mean of the values at a step's edges, which holds where the series is straight within the step, would
+    take a value held up to one edge and the next value from it as their average over the whole step; a value
+    held over a step, as a coupled model's inflow over its coupling interval, is held within it.
+    """
+    inside = t[(t > edges[0]) & (t < edges[-1])]
+    step = np.searchsorted(edges, inside, side="right") - 1
+    keep = inside > edges[step]
+    inside, step = inside[keep], step[keep]
+    if not inside.size:
+        return
+    steps = np.unique(step)
+    ta = np.unique(np.concatenate([edges[steps], edges[steps + 1], inside]))   # sorted
+    n = np.searchsorted(edges, ta[:-1], side="right") - 1   # the step of each piece between two of them
+    piece = ta[1:] <= edges[n + 1]   # not a gap between two steps apart
+    n, a, b = n[piece], ta[:-1][piece], ta[1:][piece]
+    length = edges[n + 1] - edges[n]
+    sa = (a - edges[n]) / length   # the piece's ends as fractions of its step
+    sb = (b - edges[n]) / length
+    qa, qb = np.interp(a, t, v), np.interp(b, t, v)
+    width = sb - sa
+    volume = np.bincount(n, 0.5 * (qa + qb) * width, minlength=mean.size)   # ∫ q ds over the step
+    moment = np.bincount(n, width * (qa * (2.0 * sa + sb) + qb * (sa + 2.0 * sb)) / 6.0,
+                         minlength=mean.size)   # ∫ q s ds
+    m = volume[steps]
+    slope = 12.0 * (moment[steps] - 0.5 * m)   # the fit m + slope (s - 1/2)
+    mean[steps] = m
+    course[2 * steps] = m - 0.5 * slope
+    course[2 * steps + 1] = m + 0.5 * slope
+
+
 def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, state: tuple, forcing: np.ndarray,
               out_every: int, out: tuple, *, private: bool = False, dikes: np.ndarray | None = None,
               edges: np.ndarray | None = None) -> tuple[int, int, int]:
@@ -740,8 +791,8 @@ def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, sta
     call on a thread beside others. ``dikes`` (for a network with summer dikes whose storage changes curve,
     :class:`~rivercal.engine.compile.DikeArrays`) holds per such dike 1 while it is on its falling curve, else 0,
     and is updated in place; the run stores with its own copy of the contributions' tables. ``edges`` is the
-    forcing at the steps' edges (:meth:`Simulator.forcing_edges`), which the sub-steps of a divided step follow;
-    without it they take the step's means. Returns the status code, the step and the index where it stopped.
+    forcing's course within each step (:meth:`Simulator.forcing_edges`), which the sub-steps of a divided step
+    follow; without it they take the step's means. Returns the status code, the step and the index where it stopped.
     """
     s, a, sx, dk = sim.settings, sim.compiled.arrays, sim.compiled.structures, sim.compiled.dikes
     settings = (float(s.dt), float(s.theta), int(s.max_iterations), float(s.tolerance), float(s.min_depth),

@@ -22,11 +22,12 @@ def apply_forcing(net, work, n, forcing, edges, dt, vol, z, weight, start, end):
     level boundary reaches its level for the end of step ``n`` over the rest of the step: its level moves from
     ``z`` (m AD, the current level) by the share ``weight`` of the way (1 for a whole step, or for the last
     sub-step of one). A whole step takes the step-mean discharges of ``forcing``; a sub-step, where ``edges`` holds
-    the forcing at the steps' edges (one row more than ``forcing``), the mean over the sub-step of the discharge
-    that moves linearly from the step's start to its end (:func:`_discharge`): a divided step then follows the
-    forcing's own course and its levels bend no more at the step's start than within it (with the step's mean
-    in every sub-step, an hourly flood wave divided into 128 sub-steps bent its upstream level by centimetres at
-    every hour, and the step control kept dividing). The sub-steps of a step take its mean volume, to round-off.
+    the forcing's course within each step (two rows per step, :meth:`~rivercal.engine.Simulator.forcing_edges`),
+    the mean over the sub-step of the discharge that moves linearly from the step's start to its end
+    (:func:`_discharge`): a divided step then follows the forcing's own course and its levels bend no more at the
+    step's start than within it (with the step's mean in every sub-step, an hourly flood wave divided into 128
+    sub-steps bent its upstream level by centimetres at every hour, and the step control kept dividing). The
+    sub-steps of a step take its mean volume, to round-off.
 
     Withdrawals (a negative discharge of a boundary or a lateral) take at most half of the water present
     at their point per (sub-)step: what they ask beyond that is not delivered. Per boundary, then per
@@ -43,7 +44,7 @@ def apply_forcing(net, work, n, forcing, edges, dt, vol, z, weight, start, end):
     for lat in range(net.lat_hp.size):
         src[net.lat_hp[lat]] = 0.0
         qlat[net.lat_hp[lat]] = 0.0
-    whole = end - start >= 1.0 or edges.shape[0] <= n + 1
+    whole = end - start >= 1.0 or edges.shape[0] <= 2 * n + 1
     for bnd in range(n_b):
         i = b_hp[bnd]
         if b_type[bnd] == BOUNDARY_DISCHARGE:
@@ -70,13 +71,13 @@ def apply_forcing(net, work, n, forcing, edges, dt, vol, z, weight, start, end):
 def _discharge(forcing, edges, n, col, whole, start, end):
     """Discharge (m³/s) of forcing column ``col`` in step ``n``: its mean, or its mean from ``start`` to ``end``.
 
-    Within the step the discharge moves linearly from ``edges[n, col]`` to ``edges[n + 1, col]``; the mean over
+    Within the step the discharge moves linearly from ``edges[2n, col]`` to ``edges[2n + 1, col]``; the mean over
     the fractions ``start`` to ``end`` of the step is its value at their middle.
     """
     if whole:
         return forcing[n, col]
-    q0 = edges[n, col]
-    return q0 + (edges[n + 1, col] - q0) * (0.5 * (start + end))
+    q0 = edges[2 * n, col]
+    return q0 + (edges[2 * n + 1, col] - q0) * (0.5 * (start + end))
 
 
 @kernel

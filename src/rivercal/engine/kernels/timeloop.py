@@ -190,8 +190,8 @@ def run(net, work, crest, fric, z, dz, vol, u, q, pump_on, forcing, edges, dt, t
         Per step and forcing column: the step-mean discharge (m³/s) or the level at the end of
         the step (m AD).
     edges
-        Per step edge (one row more than ``forcing``) and forcing column: the discharge there (m³/s), for the
-        sub-steps of a divided step (:func:`.forcing.apply_forcing`); without rows, they take the step's mean.
+        Per step (two rows: its start and end) and forcing column: the discharge (m³/s) that the sub-steps of a
+        divided step follow (:func:`.forcing.apply_forcing`); without rows, they take the step's mean.
     dt, theta, max_iter, tol, min_depth, vmax, courant
         Step (s), implicitness, Picard iterations, level tolerance (m), minimum flow depth (m),
         divergence velocity (m/s), largest flow Courant number of a (sub-)step (0: none).
@@ -262,8 +262,8 @@ def run_ext(net, sx, cx, dk, work, crest, fric, z, dz, vol, u, q, pump_on, forci
         Per step and forcing column: the step-mean discharge (m³/s) or the level at the end of
         the step (m AD).
     edges
-        Per step edge (one row more than ``forcing``) and forcing column: the discharge there (m³/s), for the
-        sub-steps of a divided step (:func:`.forcing.apply_forcing`); without rows, they take the step's mean.
+        Per step (two rows: its start and end) and forcing column: the discharge (m³/s) that the sub-steps of a
+        divided step follow (:func:`.forcing.apply_forcing`); without rows, they take the step's mean.
     dt, theta, max_iter, tol, min_depth, vmax, courant
         Step (s), implicitness, Picard iterations, level tolerance (m), minimum flow depth (m),
         divergence velocity (m/s), largest flow Courant number of a (sub-)step (0: none).

@@ -20,7 +20,7 @@ import pandas as pd
 
 from rivercal.io.dhydro._context import Context, unquote
 
-__all__ = ["FREE_OUTFALL_LEVEL", "convert_forcing", "forcing_series", "read_exchange"]
+__all__ = ["FREE_OUTFALL_LEVEL", "convert_forcing", "forcing_series", "held_series", "read_exchange"]
 
 #: A level boundary at or below this level (m AD) is D-Flow FM's free outfall.
 FREE_OUTFALL_LEVEL = -998.0
@@ -252,17 +252,27 @@ def _cover(ctx: Context, series: pd.Series) -> pd.Series:
     return pd.Series(values, index=ctx.start + pd.to_timedelta(times, unit="s"))
 
 
-def _centred(ctx: Context, series: pd.Series) -> pd.Series:
-    """An exchange series of values held over each coupling interval, as a linear series of the same volume.
+def held_series(ctx: Context, series: pd.Series) -> pd.Series:
+    """An exchange series (a value per coupling time, held until the next) as change points with 1 s ramps.
 
-    Each value is placed in the middle of the interval it was applied over, so that linear interpolation
-    carries the same volume wherever the values change linearly.
+    DIMR hands a coupled model's value to D-Flow FM at each coupling time and D-Flow FM keeps it until the next
+    one: each value holds from its time to the next (a case interpolates linearly, hence the ramp of a second
+    before each change). Beyond the series' ends its first and last values hold over the period.
     """
-    if len(series) < 2:
-        return _constant(ctx, float(series.iloc[0]))
-    step = series.index[1] - series.index[0]
-    shifted = pd.Series(series.to_numpy(dtype=float), index=series.index + step / 2)
-    return _cover(ctx, shifted)
+    values = series.to_numpy(dtype=float)
+    times = series.index
+    keep_t, keep_v = [times[0]], [values[0]]
+    for k in range(1, len(values)):
+        if values[k] != values[k - 1]:
+            keep_t += [times[k] - pd.Timedelta(seconds=1), times[k]]
+            keep_v += [values[k - 1], values[k]]
+    if keep_t[-1] < ctx.end:
+        keep_t.append(ctx.end)
+        keep_v.append(keep_v[-1])
+    if keep_t[0] > ctx.start:
+        keep_t.insert(0, ctx.start)
+        keep_v.insert(0, keep_v[0])
+    return pd.Series(keep_v, index=pd.DatetimeIndex(keep_t))
 
 
 # -- boundaries ----------------------------------------------------------------------------------------
@@ -479,10 +489,10 @@ def _lateral(ctx: Context, lat: Any) -> dict | None:
     if isinstance(discharge, str) or str(getattr(discharge, "value", "")) == "realtime":
         if key in ctx.exchange:
             ctx.exchange_used.add(key)
-            series = _centred(ctx, ctx.exchange[key])
+            series = _cover(ctx, held_series(ctx, ctx.exchange[key]))
             item["series"] = ctx.add_series(LATERAL_FILE, lid, series)
-            notes.append("realtime: the inflow of the exchange file, each value (held over its coupling interval) "
-                         "placed in the middle of that interval and interpolated linearly (the same volume)")
+            notes.append("realtime: the inflow of the exchange file, each value held from its coupling time to the "
+                         "next, as D-HYDRO's coupler hands it over")
         elif ctx.options.realtime_lateral is not None:
             item["value"] = float(ctx.options.realtime_lateral)
             notes.append(f"realtime (supplied at run time by a coupled model, not in the files): a constant "

@@ -12,10 +12,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from rivercal.io.dhydro._context import Context, unquote
-from rivercal.io.dhydro._forcing import forcing_series
+from rivercal.io.dhydro._forcing import forcing_series, held_series
 from rivercal.io.dhydro._network import add_profile, friction_of
 
 __all__ = ["convert_structures"]
@@ -117,7 +116,7 @@ def _setting(ctx: Context, s: Any, field: str, quantity: str, what: str, notes: 
     value = getattr(s, field.lower())
     if exchanged is not None:
         ctx.exchange_used.add(key)
-        series = _held(exchanged, ctx)
+        series = held_series(ctx, exchanged)
         ref = ctx.add_series(SETTINGS_FILE, f"{sid}.{field}", series)
         notes.append(f"{what} follows its series in the exchange file (each value held until the next exchange "
                      "time); the value in the structure file is not used")
@@ -135,24 +134,6 @@ def _setting(ctx: Context, s: Any, field: str, quantity: str, what: str, notes: 
         return float(series.iloc[0]), None, ""
     ref = ctx.add_series(SETTINGS_FILE, f"{sid}.{field}", series)
     return float(series.iloc[0]), ref, ""
-
-
-def _held(series: pd.Series, ctx: Context) -> pd.Series:
-    """An exchange series (a value per coupling time, held until the next) as change points with 1 s ramps."""
-    values = series.to_numpy(dtype=float)
-    times = series.index
-    keep_t, keep_v = [times[0]], [values[0]]
-    for k in range(1, len(values)):
-        if values[k] != values[k - 1]:
-            keep_t += [times[k] - pd.Timedelta(seconds=1), times[k]]
-            keep_v += [values[k - 1], values[k]]
-    if keep_t[-1] < ctx.end:
-        keep_t.append(ctx.end)
-        keep_v.append(keep_v[-1])
-    if keep_t[0] > ctx.start:
-        keep_t.insert(0, ctx.start)
-        keep_v.insert(0, keep_v[0])
-    return pd.Series(keep_v, index=pd.DatetimeIndex(keep_t))
 
 
 # -- one handler per type: (table, item, notes, refusal) -------------------------------------------------
