@@ -32,7 +32,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.models.contract import MissingCapability, Model, ModelState, Variants, has_capability, require
+from rivercal.models.contract import (
+    MissingCapability,
+    Model,
+    ModelState,
+    VariantInputs,
+    Variants,
+    has_capability,
+    require,
+)
 from rivercal.results import SimulationResult
 from rivercal.twin.realism import Realism, event_factors, generator, get_realism, inflow_factors
 
@@ -131,7 +139,7 @@ class PerturbedTruth:
         log.info("perturbed truth of %s (%s, seed %d)", model.name, realism.name, seed)
 
     @staticmethod
-    def _inflow_errors(model: Variants, inputs: Any, realism: Realism, seed: int) -> dict[str, pd.Series]:
+    def _inflow_errors(model: Variants, inputs: VariantInputs, realism: Realism, seed: int) -> dict[str, pd.Series]:
         """The rain and runoff errors of a model without catchments, as factor series on its inflows."""
         what = " and ".join(k for k in ("rain", "runoff") if getattr(realism, k) is not None)
         if not has_capability(model, "perturbable forcing") or not model.perturbable_forcing():  # type: ignore[attr-defined]
@@ -152,7 +160,7 @@ class PerturbedTruth:
         factors = inflow_factors({k: forcing[k] for k in keys}, seed, rain=realism.rain, runoff=realism.runoff,
                                  measured_rain=inputs.rain)
         log.info("realism %r: model %s has no rainfall-runoff catchments; its truth takes the %s errors on its "
-                    "%d inflow series (docs/realism.md)", realism.name, model.name, what, len(keys))
+                 "%d inflow series (docs/realism.md)", realism.name, model.name, what, len(keys))
         return factors
 
     # -- what the twin machinery asks of a model --------------------------------------------------------
