@@ -155,3 +155,150 @@ def test_the_realistic_truth_runs_finer_with_friction_per_branch_around_the_glob
     assert truth.rain_factor is not None and set(truth.runoff_factors) == {c.id for c in dommel.case.spec.catchments}
     wet = truth.rain_factor[truth.rain_factor != 1.0]
     assert len(wet) > 0 and 0.5 < float(np.median(wet.unique())) < 2.0
+
+
+# -- rain and runoff errors on given inflow series (a model without catchments) -------------------------------
+
+
+def test_each_event_scales_the_flow_above_its_start_flow() -> None:
+    from rivercal.twin.realism import layered_event_factors
+
+    # base 1; event A at step 2 rises to 3 and recedes; event B starts at step 8 in A's recession (flow 2), rises
+    # to 4; the flow falls below both starts and event C starts at step 16 (flow 0.9) below them
+    q = np.array([1, 1, 1, 2, 3, 2.8, 2.5, 2.2, 2, 3, 4, 3, 2.4, 1.5, 1.0, 0.95, 0.9, 1.4, 0.9, 0.0])
+    fa, fb, fc = 1.5, 0.6, 2.0
+    got = layered_event_factors(q, np.array([2, 8, 16]), np.array([fa, fb, fc]))
+    want = q.copy()
+    want[2:8] = 1 + fa * (q[2:8] - 1)
+    want[8:16] = np.where(q[8:16] > 2, 1 + fa * 1 + fb * (q[8:16] - 2), 1 + fa * np.maximum(q[8:16] - 1, 0))
+    want[8:16] = np.where(q[8:16] < 1, q[8:16], want[8:16])
+    want[16:] = 0.9 + fc * (q[16:] - 0.9).clip(0)
+    np.testing.assert_allclose(got[:-1] * q[:-1], want[:-1], rtol=1e-12)
+    assert got[-1] == 1.0  # no flow: nothing to scale
+    # continuous: no step in the truth's flow where an event starts
+    assert np.abs(np.diff(got[:-1] * q[:-1])).max() <= max(fa, fb, fc) * np.abs(np.diff(q[:-1])).max() + 1e-12
+
+
+def _hydrographs(n_events: int = 400, every: int = 48) -> dict[str, pd.Series]:
+    """Two inflows with isolated events: a 4 h rise each ``every`` hours, an exponential recession to the base."""
+    hours = pd.date_range(ORIGIN, periods=n_events * every + 24, freq="h")
+    quick = np.zeros(hours.size)
+    for j in range(n_events):
+        k = 10 + j * every
+        quick[k:k + 4] = np.arange(1, 5) * (1.0 + 0.5 * (j % 3))
+        quick[k + 4:k + every - 8] = quick[k + 3] * np.exp(-np.arange(1, every - 11) / 6.0)
+    return {"inflow:a": pd.Series(2.0 + quick, index=hours), "inflow:b": pd.Series(0.5 + 0.3 * quick, index=hours)}
+
+
+def test_inflow_rises_give_the_events_and_one_lognormal_factor_each() -> None:
+    from rivercal.twin.realism import generator, inflow_event_starts, inflow_factors
+
+    forcing, errors = _hydrographs(), RainErrors(sigma_ln=0.3)
+    starts = inflow_event_starts(forcing, errors)
+    assert len(starts) == 400 and (starts == ORIGIN + pd.to_timedelta(9 + 48 * np.arange(400), "h")).all()
+    f = inflow_factors(forcing, seed=7, rain=errors)
+    eps = generator(7, "rain").standard_normal(400)
+    for key, q in forcing.items():
+        base = q.iloc[9]
+        peaks = 13 + 48 * np.arange(400)
+        flow = q.to_numpy()[peaks]
+        recovered = 1 + (f[key].to_numpy()[peaks] - 1) * flow / (flow - base)  # F_j from Q*/Q at each peak
+        np.testing.assert_allclose(recovered, np.exp(0.3 * eps), rtol=1e-9)
+        assert (f[key].to_numpy()[48 * np.arange(400) + 9] == 1.0).all()  # at an event's start flow: nothing added
+    ln = np.log(recovered)  # the event factors' own statistics: median 1, σ of ln as set
+    assert abs(ln.mean()) < 4 * 0.3 / np.sqrt(400) and ln.std() == pytest.approx(0.3, rel=0.1)
+    # the same seed, the same factors; another seed, others
+    pd.testing.assert_series_equal(inflow_factors(forcing, seed=7, rain=errors)["inflow:a"], f["inflow:a"])
+    assert not np.allclose(inflow_factors(forcing, seed=8, rain=errors)["inflow:a"], f["inflow:a"])
+
+
+def test_events_come_from_the_measured_rain_where_the_model_has_one() -> None:
+    from rivercal.twin.realism import inflow_event_starts
+
+    forcing = _hydrographs(n_events=3)
+    rain = pd.Series(0.0, index=forcing["inflow:a"].index)
+    rain.iloc[[5, 6, 30, 100]] = 1.0  # events from hours 5, 30 and 100: not where the inflows rise
+    assert list(inflow_event_starts(forcing, RainErrors(), rain)) == list(rain.index[[5, 30, 100]])
+
+
+def test_runoff_error_is_one_constant_factor_per_inflow_seeded_by_its_name() -> None:
+    from rivercal.twin.realism import RunoffErrors, inflow_factors
+
+    hours = pd.date_range(ORIGIN, periods=5, freq="h")
+    forcing = {f"inflow:n{i}": pd.Series(1.0 + np.arange(5.0), index=hours) for i in range(2000)}
+    f = inflow_factors(forcing, seed=3, runoff=RunoffErrors(sigma_ln=0.2))
+    ln = np.log([s.iloc[0] for s in f.values()])
+    assert all(s.nunique() == 1 for s in f.values())
+    assert abs(ln.mean()) < 4 * 0.2 / np.sqrt(2000) and ln.std() == pytest.approx(0.2, rel=0.05)
+    alone = inflow_factors({"inflow:n7": forcing["inflow:n7"]}, seed=3, runoff=RunoffErrors(sigma_ln=0.2))
+    assert alone["inflow:n7"].iloc[0] == f["inflow:n7"].iloc[0]  # a series' factor does not depend on the others
+
+
+def test_the_inflow_rises_of_dommel_follow_its_rain_events(dommel) -> None:
+    from rivercal.twin.realism import inflow_event_starts
+
+    inputs = dommel.variant_inputs()
+    rain = inflow_event_starts(inputs.forcing, RainErrors(), inputs.rain)
+    rises = inflow_event_starts(inputs.forcing, RainErrors())
+    gap_h = np.array([np.abs((rain - t).total_seconds()).min() / 3600 for t in rises])
+    assert len(rises) > 30 and np.mean(gap_h <= 3) > 0.75
+
+
+class _Inflows:
+    """A model with two given inflows and variants that only scale them (what a SWMM model offers)."""
+
+    name = "stub"
+    start, end = ORIGIN, ORIGIN + pd.Timedelta("20D")
+
+    def __init__(self, perturbable: bool = True):
+        self.forcing = _hydrographs(n_events=10)
+        self.made: dict = {}
+        if perturbable:
+            self.perturbable_forcing = lambda: tuple(self.forcing)
+            self.simulate_perturbed = lambda *a, **k: None
+
+    def variant_inputs(self):
+        from rivercal.models.contract import VariantInputs
+
+        return VariantInputs(branches={}, inherit=(), catchments=(), rain=None, forcing=self.forcing)
+
+    def variant(self, **kwargs):
+        self.made = kwargs
+        return self
+
+
+def test_a_model_without_catchments_takes_rain_and_runoff_errors_on_its_inflows() -> None:
+    from rivercal.models.contract import MissingCapability
+    from rivercal.twin.realism import inflow_factors
+    from rivercal.twin.truth_model import PerturbedTruth
+
+    model, level = _Inflows(), REALISM_LEVELS["realistic-forcing"]
+    truth = PerturbedTruth(model, level, seed=5)
+    want = inflow_factors(model.forcing, 5, rain=level.rain, runoff=level.runoff)
+    assert set(model.made["forcing_factors"]) == set(model.forcing)
+    for key in model.forcing:
+        pd.testing.assert_series_equal(model.made["forcing_factors"][key], want[key])
+    assert model.made["branch_factors"] is None and model.made["runoff_factors"] is None
+    # no structural error: the scenario's quantities pass to the truth unchanged (friction:global too)
+    assert truth.quantities_of({"friction:global": 25.0, "weir:W.crest_level": 7.0}) == {
+        "friction:global": 25.0, "weir:W.crest_level": 7.0}
+    with pytest.raises(MissingCapability, match="realistic-forcing"):
+        PerturbedTruth(model, REALISM_LEVELS["realistic"], seed=5)  # refused, not applied in part
+    with pytest.raises(MissingCapability, match="perturbable forcing"):
+        PerturbedTruth(_Inflows(perturbable=False), level, seed=5)
+
+
+def test_the_swmm_truth_runs_on_its_inflow_series_times_the_factors() -> None:
+    from rivercal.model import load_model
+    from rivercal.twin.truth_model import truth_model
+
+    swmm = load_model("dommel-swmm")
+    truth = truth_model(swmm, "realistic-forcing", seed=2)
+    before, after = swmm.variant_inputs().forcing, truth.truth.variant_inputs().forcing
+    assert set(truth.forcing_factors) == set(before) == set(swmm.perturbable_forcing())
+    for key, q in before.items():
+        f = truth.forcing_factors[key]
+        at = (q.index - f.index[0]).total_seconds()
+        expected = q.to_numpy() * np.interp(at, (f.index - f.index[0]).total_seconds(), f.to_numpy())
+        np.testing.assert_allclose(after[key].to_numpy(), expected, rtol=1e-8)
+        assert not np.allclose(after[key].to_numpy(), q.to_numpy(), rtol=1e-3)

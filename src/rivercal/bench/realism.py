@@ -27,7 +27,7 @@ from rivercal.online.assimilation import ASSIMILATE_MODES, AssimilationConfig
 from rivercal.online.service import OnlineConfig, OnlineService
 from rivercal.store import Store
 from rivercal.twin.practical import PRACTICAL_SCENARIOS, SCENARIOS, practical_truth
-from rivercal.twin.realism import REALISM_LEVELS, get_realism
+from rivercal.twin.realism import get_realism
 
 __all__ = ["DEFINITIONS", "FIGURES", "bench_realism", "realism_run"]
 
@@ -101,7 +101,7 @@ def bench_realism(case: str = "dommel", *, scenarios: Sequence[str] | None = Non
                   levels: Sequence[str] | None = None, seed: int = 0, workers: int | None = None,
                   keep: str | Path | None = None, modes: Sequence[str] = ("both", "parameters"),
                   members: int = 64) -> dict[str, Any]:
-    """Every scenario × level × mode (default all scenarios and levels): the rows of :func:`realism_run`.
+    """Every scenario × level × mode (default all scenarios; ideal, noisy, realistic): the rows of :func:`realism_run`.
 
     ``keep``: a folder for the stores (``<scenario>-<level>-<mode>.sqlite``); None: temporary ones.
     """
@@ -109,7 +109,7 @@ def bench_realism(case: str = "dommel", *, scenarios: Sequence[str] | None = Non
         if mode not in ASSIMILATE_MODES:
             raise ValueError(f"unknown mode {mode!r}; choose among {', '.join(ASSIMILATE_MODES)}")
     scenarios = list(scenarios or PRACTICAL_SCENARIOS)
-    levels = list(levels or REALISM_LEVELS)
+    levels = list(levels or ("ideal", "noisy", "realistic"))
     model = load_model(case)
     config = OnlineConfig(workers=workers)
     rows = []

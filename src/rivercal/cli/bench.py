@@ -274,7 +274,8 @@ def online(
 @guard
 def realism(
     scenarios: Annotated[str | None, typer.Option(help="Comma-separated practical scenarios (default: all).")] = None,
-    levels: Annotated[str | None, typer.Option(help="Comma-separated realism levels (default: all).")] = None,
+    levels: Annotated[str | None, typer.Option(
+        help="Comma-separated realism levels (default: ideal, noisy, realistic).")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the realism errors (≥ 0).")] = 0,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
     keep: Annotated[Path | None, typer.Option(help="Keep the stores in this folder (for reports).")] = None,

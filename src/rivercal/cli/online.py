@@ -82,8 +82,8 @@ def online(
     noise: Annotated[str, typer.Option(help="Twin noise of --scenario: none, white, gaussian or pink.")] = "none",
     seed: Annotated[int, typer.Option(help="Seed of the twin noise and the realism errors (≥ 0).")] = 0,
     realism: Annotated[str | None, typer.Option(
-        help="Errors of the twin of --scenario: ideal, noisy, realistic, or a TOML file of error models "
-             "(docs/realism.md).")] = None,
+        help="Errors of the twin of --scenario: ideal, noisy, realistic, realistic-forcing (realistic without "
+             "the structural error), or a TOML file of error models (docs/realism.md).")] = None,
     max_cycles: Annotated[int | None, typer.Option("--max-cycles", help="Stop after this many cycles.")] = None,
     assimilate: Annotated[str | None, typer.Option(
         help="What the service updates: parameters (daily), states (ensemble Kalman filter, hourly) or both (default "

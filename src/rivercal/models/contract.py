@@ -428,12 +428,17 @@ class VariantInputs:
         Ids of the catchments whose rainfall-runoff model feeds the model.
     rain
         The measured rain per hour (mm, UTC index) that feeds them, or None without catchments.
+    forcing
+        Per key of :meth:`PerturbableForcing.perturbable_forcing` the series the model runs with (m³/s, UTC
+        index), which ``variant(forcing_factors=…)`` scales; None: not given. A twin puts the rain and runoff
+        errors of a model without catchments on them (:func:`rivercal.twin.realism.inflow_factors`).
     """
 
     branches: Mapping[str, float]
     inherit: tuple[str, ...]
     catchments: tuple[str, ...]
     rain: pd.Series | None
+    forcing: Mapping[str, pd.Series] | None = None
 
 
 @runtime_checkable

@@ -480,14 +480,15 @@ class EmbeddedModel(Simulator):
         return self.case
 
     def variant_inputs(self) -> VariantInputs:
-        """The case's branches (lengths, m), those that inherit its friction, its catchments and their rain."""
+        """The case's branches (lengths, m), those inheriting its friction, its catchments, their rain, its forcing."""
         from rivercal.hydrology.catchments import hourly_weather
 
         spec = self.case.spec
         rain = hourly_weather(self.case)["P"] if spec.catchments else None
         return VariantInputs(branches={b.id: float(b.length) for b in spec.branches},
                              inherit=tuple(self.compiled.branch_inherits),
-                             catchments=tuple(c.id for c in spec.catchments), rain=rain)
+                             catchments=tuple(c.id for c in spec.catchments), rain=rain,
+                             forcing={k: self.forcing[k] for k in self.perturbable_forcing() if k in self.forcing})
 
     def variant(self, *, branch_factors: Mapping[str, float] | None = None, grid_factor: float = 1.0,
                 rain_factor: pd.Series | None = None, runoff_factors: Mapping[str, Mapping[str, float]] | None = None,

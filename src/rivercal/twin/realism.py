@@ -11,10 +11,12 @@ each in its own table:
 ``rain`` (:class:`RainErrors`)
     The true rain is the measured rain times a factor per rain event (lognormal, one factor for all
     hours of an event), run through the truth's rainfall-runoff model: the model keeps the measured
-    rain, also in its forecasts.
+    rain, also in its forecasts. A model whose inflows are given series (no rainfall-runoff catchments:
+    SWMM ``[INFLOWS]``, a BMI component) takes it on them instead (:func:`inflow_factors`): the flow above
+    the flow at an event's start is that event's, and the truth's is the model's times the event's factor.
 ``runoff`` (:class:`RunoffErrors`)
     The truth's rainfall-runoff parameters differ from the model's a-priori ones by a lognormal
-    factor per catchment and parameter.
+    factor per catchment and parameter; on given inflow series, one constant lognormal factor per series.
 ``structure`` (:class:`StructureErrors`)
     The truth runs on a finer grid, and each branch's friction differs from the global value by a
     lognormal factor (normalised so that their length-weighted mean is 1: the global value is the
@@ -24,7 +26,9 @@ The levels of :data:`REALISM_LEVELS`:
 
 - ``ideal`` — none of them (the identical twin of thesis chapters 4 and 5);
 - ``noisy`` — the sensor errors only;
-- ``realistic`` — all four.
+- ``realistic`` — all four;
+- ``realistic-forcing`` — those of ``realistic`` but the structural error: for a model whose structure a
+  twin cannot vary (SWMM, BMI), and to compare the embedded engine with it under the same errors.
 
 The magnitudes of ``noisy`` and ``realistic`` and where they come from are in ``docs/realism.md``. A
 TOML file with the same tables (:func:`load_realism`) defines other levels. The same seed gives the same
@@ -37,6 +41,7 @@ from __future__ import annotations
 
 import tomllib
 import zlib
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +62,9 @@ __all__ = [
     "event_factors",
     "generator",
     "get_realism",
+    "inflow_event_starts",
+    "inflow_factors",
+    "layered_event_factors",
     "load_realism",
 ]
 
@@ -103,6 +111,8 @@ class RainErrors(_Table):
 
     sigma_ln: float = Field(0.15, ge=0, description="σ of ln(factor) per rain event, -")
     dry_hours: int = Field(6, ge=1, description="dry hours that separate two rain events, h")
+    rise_rel: float = Field(0.001, gt=0, description="a model without rain: the rise of its total inflow in an hour, "
+                                                     "as a share of the flow, that counts as an event's, -")
 
 
 class RunoffErrors(_Table):
@@ -162,6 +172,10 @@ REALISM_LEVELS: dict[str, Realism] = {
                          description="gauge errors, rainfall and runoff-parameter errors, and a truth on a finer grid "
                                      "with friction varying per branch",
                          sensor=SensorErrors(), rain=RainErrors(), runoff=RunoffErrors(), structure=StructureErrors()),
+    "realistic-forcing": Realism(name="realistic-forcing",
+                                 description="gauge errors, rainfall and runoff-parameter errors (those of 'realistic' "
+                                             "without its structural error)",
+                                 sensor=SensorErrors(), rain=RainErrors(), runoff=RunoffErrors()),
 }
 
 
@@ -330,6 +344,30 @@ def _outages(rng: np.random.Generator, n: int, fraction: float, mean_steps: floa
 # -- rain events ------------------------------------------------------------------------------------------
 
 
+def _events(active: np.ndarray, gap: int) -> tuple[np.ndarray, int]:
+    """Per step the index of its event (-1 outside one) and the number of events.
+
+    An event is a run of active steps together with the inactive spells inside it that are shorter than
+    ``gap`` steps; events are counted from the first step.
+    """
+    event = np.full(active.size, -1)
+    count, idle, current = 0, gap, -1
+    for i, a in enumerate(active):
+        if a:
+            if idle >= gap:
+                current, count = count, count + 1
+            event[i] = current
+            idle = 0
+        else:
+            idle += 1
+    return event, count
+
+
+def _event_epsilons(seed: int, count: int) -> np.ndarray:
+    """The standard normal ε_j of the rain events j = 0 … count − 1 (generator of (seed, "rain"))."""
+    return generator(seed, "rain").standard_normal(max(count, 1))
+
+
 def event_factors(rain: pd.Series, errors: RainErrors, seed: int) -> pd.Series:
     """One lognormal factor (median 1) per rain event of an hourly rain series; 1 in dry hours.
 
@@ -337,17 +375,130 @@ def event_factors(rain: pd.Series, errors: RainErrors, seed: int) -> pd.Series:
     than ``errors.dry_hours``. Event j (counted from the series' start) takes exp(σ ε_j) with ε_j from
     the generator of (seed, "rain").
     """
-    wet = rain.to_numpy(float) > 0
-    event = np.full(wet.size, -1)
-    count, dry, current = 0, errors.dry_hours, -1
-    for i, w in enumerate(wet):
-        if w:
-            if dry >= errors.dry_hours:
-                current, count = count, count + 1
-            event[i] = current
-            dry = 0
-        else:
-            dry += 1
-    eps = generator(seed, "rain").standard_normal(max(count, 1))
+    event, count = _events(rain.to_numpy(float) > 0, errors.dry_hours)
+    eps = _event_epsilons(seed, count)
     factors = np.where(event >= 0, np.exp(errors.sigma_ln * eps[np.maximum(event, 0)]), 1.0)
     return pd.Series(factors, index=rain.index, name="rain_factor")
+
+
+# -- rain and runoff errors on given inflow series (a model without rainfall-runoff catchments) -------------
+
+
+def _hourly(forcing: Mapping[str, pd.Series]) -> pd.DataFrame:
+    """The series on one hourly UTC grid over all of them, linear in time between their points (ends held)."""
+    first = min(s.index[0] for s in forcing.values()).floor("h")
+    last = max(s.index[-1] for s in forcing.values()).ceil("h")
+    hours = pd.date_range(first, last, freq="h")
+    at = (hours - first).total_seconds().to_numpy()
+    return pd.DataFrame({key: np.interp(at, (s.index - first).total_seconds().to_numpy(), s.to_numpy(float))
+                         for key, s in forcing.items()}, index=hours)
+
+
+def inflow_event_starts(forcing: Mapping[str, pd.Series], errors: RainErrors,
+                        rain: pd.Series | None = None) -> pd.DatetimeIndex:
+    """The start times of the rain events behind a model's inflow series (UTC, in order).
+
+    With the model's ``rain`` (mm per hour, UTC index): the first hour of each rain event
+    (:func:`event_factors`). Without it, the inflows' own rises stand for the rain: an hour in which the
+    total inflow rises by more than ``errors.rise_rel`` of its value is "wet", events are runs of them
+    apart by at least ``errors.dry_hours`` hours, and an event starts at the hour before its first rise
+    (the flow before the event).
+    """
+    if rain is not None:
+        event, _ = _events(rain.to_numpy(float) > 0, errors.dry_hours)
+        first = np.flatnonzero((event >= 0) & (np.r_[-1, event[:-1]] != event))
+        return pd.DatetimeIndex(rain.index[first])
+    frame = _hourly(forcing)
+    total = frame.sum(axis=1).to_numpy()
+    rise = np.r_[False, np.diff(total) > errors.rise_rel * np.abs(total[:-1])]
+    event, _ = _events(rise, errors.dry_hours)
+    first = np.flatnonzero((event >= 0) & (np.r_[-1, event[:-1]] != event))
+    return pd.DatetimeIndex(frame.index[np.maximum(first - 1, 0)])
+
+
+def layered_event_factors(flow: np.ndarray, starts: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """Per step Q*/Q: the flow above each event's start flow is that event's and is scaled by its factor.
+
+    Event j starts at step ``starts[j]`` (ascending) with the flow b_j there: from then on the flow above
+    b_j, up to the start flow of a later event still under way, is event j's (the constant-discharge
+    separation of a hydrograph, one layer per event; an event whose start flow the flow has fallen below
+    when a later one starts is over). The truth's flow is Q* = Q + Σ_j (F_j − 1) · layer_j; it is
+    continuous in time, as the layer of a starting event is empty. Steps with Q ≤ 0 keep 1.
+
+    Parameters
+    ----------
+    flow
+        Q per step, m³/s (any unit: only shares count).
+    starts
+        Step index of each event's start.
+    factors
+        F_j per event, -.
+    """
+    flow = np.asarray(flow, dtype=float)
+    out = np.ones(flow.size)
+    begins = dict(zip(np.asarray(starts, dtype=int).tolist(), np.asarray(factors, dtype=float).tolist(),
+                      strict=True))
+    stack: list[tuple[float, float]] = []  # (start flow, factor) of the events under way, start flows rising
+    for k, q in enumerate(flow):
+        if k in begins:
+            while stack and stack[-1][0] >= q:
+                stack.pop()
+            stack.append((q, begins[k]))
+        if q <= 0:
+            continue
+        extra = 0.0
+        for i, (base, f) in enumerate(stack):
+            top = stack[i + 1][0] if i + 1 < len(stack) else np.inf
+            layer = min(q, top) - base
+            if layer <= 0:
+                break
+            extra += (f - 1.0) * layer
+        out[k] = 1.0 + extra / q
+    return out
+
+
+def inflow_factors(forcing: Mapping[str, pd.Series], seed: int, *, rain: RainErrors | None = None,
+                   runoff: RunoffErrors | None = None, measured_rain: pd.Series | None = None) -> dict[str, pd.Series]:
+    """The rain and runoff errors of a twin's truth on given inflow series: a factor series per inflow.
+
+    For a model without rainfall-runoff catchments, whose inflows are given series (SWMM ``[INFLOWS]``,
+    a BMI component's forcing):
+
+    - ``runoff``: each series times one constant factor exp(σ ε), ε from the generator of
+      (seed, "runoff", key): the runoff error of a catchment, on the series it makes;
+    - ``rain``: one factor F_j = exp(σ ε_j) per rain event (ε_j from the generator of (seed, "rain"), as
+      for the rain of catchments) on every series, applied to the flow the event adds
+      (:func:`layered_event_factors`); the events from ``measured_rain`` if given, else from the total
+      inflow's rises (:func:`inflow_event_starts`).
+
+    Parameters
+    ----------
+    forcing
+        Per forcing key the series (m³/s, UTC index) the model runs with.
+    seed
+        Seed of the errors.
+    rain, runoff
+        The error tables; None: no such error.
+    measured_rain
+        The rain behind the inflows (mm per hour, UTC index), or None.
+
+    Returns
+    -------
+    dict
+        Per key a factor series (-) on an hourly grid over the series (for ``variant(forcing_factors=…)``).
+    """
+    frame = _hourly(forcing)
+    out = {key: pd.Series(1.0, index=frame.index, name=key) for key in forcing}
+    if rain is not None:
+        starts = inflow_event_starts(forcing, rain, measured_rain)
+        steps = np.searchsorted(frame.index, starts)
+        keep = steps < len(frame.index)
+        eps = _event_epsilons(seed, len(starts))[:len(starts)]
+        steps, f = steps[keep], np.exp(rain.sigma_ln * eps[keep])
+        steps, first = np.unique(steps, return_index=True)  # two rain events in one hour of the grid: the first
+        for key in forcing:
+            out[key] = out[key] * layered_event_factors(frame[key].to_numpy(), steps, f[first])
+    if runoff is not None:
+        for key in forcing:
+            out[key] = out[key] * float(np.exp(runoff.sigma_ln * generator(seed, "runoff", key).standard_normal()))
+    return out

@@ -11,6 +11,12 @@
   global value (or the branch's own) times a lognormal factor f_b, normalised so that the
   length-weighted mean of f_b is 1.
 
+A model without rainfall-runoff catchments whose inflows are given series (SWMM ``[INFLOWS]``, a BMI
+component) takes the rain and runoff errors on those series (:func:`~rivercal.twin.realism.inflow_factors`,
+through ``variant(forcing_factors=…)``: it needs the capability *perturbable forcing*). A structural error
+needs branches to vary: a level with one is refused on a model without them (``realistic-forcing`` is
+``realistic`` without it), never applied in part.
+
 The truth takes the model's quantities: ``friction:global = v`` sets every branch that inherits the
 global friction in the model to v · f_b, ``friction:branch:<id> = v`` sets that branch to v · f_b, crests
 pass unchanged. So a scenario written against the model (``friction:global`` 16 → 25) changes the
@@ -26,9 +32,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.models.contract import MissingCapability, Model, ModelState, Variants, require
+from rivercal.models.contract import (
+    MissingCapability,
+    Model,
+    ModelState,
+    VariantInputs,
+    Variants,
+    has_capability,
+    require,
+)
 from rivercal.results import SimulationResult
-from rivercal.twin.realism import Realism, event_factors, generator, get_realism
+from rivercal.twin.realism import Realism, event_factors, generator, get_realism, inflow_factors
 
 __all__ = ["PerturbedTruth", "truth_model"]
 
@@ -41,8 +55,8 @@ def truth_model(model: Model, realism: str | Realism, seed: int = 0) -> Model:
     Raises
     ------
     MissingCapability
-        When the level changes the truth but the model cannot make variants of itself (rainfall, runoff and
-        structural errors need a model built from a case, e.g. the embedded engine).
+        When the level changes the truth but the model cannot make variants of itself, or cannot take one of
+        the level's errors (:class:`PerturbedTruth`).
     """
     realism = get_realism(realism)
     if not realism.changes_truth:
@@ -73,6 +87,15 @@ class PerturbedTruth:
         The factor on the measured rain per hour (-), or None.
     runoff_factors
         Per catchment, the factors on its rainfall-runoff parameters (-).
+    forcing_factors
+        A model without catchments: per inflow (forcing key), the factor series (-, hourly UTC index) of its
+        rain and runoff errors (:func:`~rivercal.twin.realism.inflow_factors`); else empty.
+
+    Raises
+    ------
+    MissingCapability
+        For a structural error on a model without branches, and for rain or runoff errors on a model without
+        catchments that has no perturbable forcing (or, for the rain, does not give its inflow series).
     """
 
     def __init__(self, model: Variants, realism: Realism, seed: int = 0):
@@ -84,12 +107,8 @@ class PerturbedTruth:
             raise MissingCapability(
                 f"realism {realism.name!r} gives the truth a friction error per branch and a finer grid; model "
                 f"{model.name!r} ({type(model).__name__}) has no branches to vary (its variants scale its inflows "
-                "only): use a level without a structural error (e.g. 'noisy', or a realism file without "
-                "[structure]) and put an error on the inflows with --rain-error")
-        if (realism.rain is not None or realism.runoff is not None) and not inputs.catchments:
-            log.warning("realism %r: model %s has no rainfall-runoff catchments, so the level's rain and runoff "
-                        "errors do not apply to its truth (--rain-error puts an error on its inflows)",
-                        realism.name, model.name)
+                "only): use --realism realistic-forcing (the same errors without the structural one) or a realism "
+                "file without [structure]")
         self.branch_factors = dict.fromkeys(inputs.branches, 1.0)
         grid_factor = 1.0
         if realism.structure is not None:
@@ -102,6 +121,7 @@ class PerturbedTruth:
             grid_factor = s.grid_factor
         self.rain_factor = None
         self.runoff_factors: dict[str, dict[str, float]] = {}
+        self.forcing_factors: dict[str, pd.Series] = {}
         if realism.rain is not None and inputs.catchments and inputs.rain is not None:
             self.rain_factor = event_factors(inputs.rain, realism.rain, seed)
         if realism.runoff is not None and inputs.catchments:
@@ -109,11 +129,39 @@ class PerturbedTruth:
             for c in inputs.catchments:
                 rng = generator(seed, "runoff", c)
                 self.runoff_factors[c] = {p: float(np.exp(r.sigma_ln * rng.standard_normal())) for p in r.parameters}
+        if (realism.rain is not None or realism.runoff is not None) and not inputs.catchments:
+            self.forcing_factors = self._inflow_errors(model, inputs, realism, self.seed)
         self.truth = model.variant(branch_factors=self.branch_factors if realism.structure is not None else None,
                                    grid_factor=grid_factor, rain_factor=self.rain_factor,
-                                   runoff_factors=self.runoff_factors or None)
+                                   runoff_factors=self.runoff_factors or None,
+                                   forcing_factors=self.forcing_factors or None)
         self._inherit = list(inputs.inherit)
         log.info("perturbed truth of %s (%s, seed %d)", model.name, realism.name, seed)
+
+    @staticmethod
+    def _inflow_errors(model: Variants, inputs: VariantInputs, realism: Realism, seed: int) -> dict[str, pd.Series]:
+        """The rain and runoff errors of a model without catchments, as factor series on its inflows."""
+        what = " and ".join(k for k in ("rain", "runoff") if getattr(realism, k) is not None)
+        if not has_capability(model, "perturbable forcing") or not model.perturbable_forcing():  # type: ignore[attr-defined]
+            raise MissingCapability(
+                f"realism {realism.name!r} puts {what} errors on the truth; model {model.name!r} "
+                f"({type(model).__name__}) has no rainfall-runoff catchments and no inflows to scale (capability "
+                "'perturbable forcing'): use a level without [rain] and [runoff] (e.g. 'noisy')")
+        keys = tuple(model.perturbable_forcing())  # type: ignore[attr-defined]
+        forcing = dict(inputs.forcing or {})
+        missing = [k for k in keys if k not in forcing]
+        if missing and realism.rain is not None:
+            raise MissingCapability(
+                f"realism {realism.name!r} puts a rain error on the inflows of model {model.name!r}, but the model "
+                f"does not give the series of {missing[0]!r} to find its events in: use a level without [rain]")
+        if missing:  # the runoff error alone needs no values: a constant factor on each inflow
+            span = pd.DatetimeIndex([model.start, model.end])
+            forcing = {k: pd.Series(1.0, index=span) for k in keys}
+        factors = inflow_factors({k: forcing[k] for k in keys}, seed, rain=realism.rain, runoff=realism.runoff,
+                                 measured_rain=inputs.rain)
+        log.info("realism %r: model %s has no rainfall-runoff catchments; its truth takes the %s errors on its "
+                 "%d inflow series (docs/realism.md)", realism.name, model.name, what, len(keys))
+        return factors
 
     # -- what the twin machinery asks of a model --------------------------------------------------------
 
@@ -152,7 +200,9 @@ class PerturbedTruth:
         return self.model.default_parameters()
 
     def quantities_of(self, parameters: Mapping[str, float]) -> dict[str, float]:
-        """The truth's own quantities for the model's (module docstring)."""
+        """The truth's own quantities for the model's (module docstring); the model's own without structural error."""
+        if self.realism.structure is None:
+            return {k: float(v) for k, v in parameters.items()}
         out: dict[str, float] = {}
         branch = {}
         for key, value in parameters.items():

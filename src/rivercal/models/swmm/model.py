@@ -512,8 +512,22 @@ class SwmmModel:
         return FileState(time=state.time, files={**state.files, HOTSTART: data}, origin=state.origin)
 
     def variant_inputs(self) -> VariantInputs:
-        """No branches or catchments: a SWMM model's variants take forcing factors only."""
-        return VariantInputs(branches={}, inherit=(), catchments=(), rain=None)
+        """No branches or catchments: a SWMM model's variants take forcing factors only, on its inflow series.
+
+        ``forcing``: per ``inflow:<node>`` its ``[TIMESERIES]`` series times the row's ``Mfactor`` and
+        ``Sfactor`` (m³/s; a baseline of the row is left out); None when the section cannot be read as
+        ``Name Date Time Value`` rows.
+        """
+        points = self._series_points
+        forcing = None
+        if points is not None:
+            forcing = {}
+            for node, row in self._inflow_rows.items():
+                times, lines = points[row.tokens[2]]
+                values = np.array([float(line.partition(";")[0].split()[3]) for line in lines])
+                scale = float(row.tokens[4]) * float(row.tokens[5])
+                forcing[f"inflow:{node}"] = pd.Series(values * scale, index=pd.DatetimeIndex(times, tz="UTC"))
+        return VariantInputs(branches={}, inherit=(), catchments=(), rain=None, forcing=forcing)
 
     def variant(self, *, branch_factors: Mapping[str, float] | None = None, grid_factor: float = 1.0,
                 rain_factor: pd.Series | None = None, runoff_factors: Mapping[str, Mapping[str, float]] | None = None,
