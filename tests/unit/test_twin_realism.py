@@ -302,3 +302,30 @@ def test_the_swmm_truth_runs_on_its_inflow_series_times_the_factors() -> None:
         expected = q.to_numpy() * np.interp(at, (f.index - f.index[0]).total_seconds(), f.to_numpy())
         np.testing.assert_allclose(after[key].to_numpy(), expected, rtol=1e-8)
         assert not np.allclose(after[key].to_numpy(), q.to_numpy(), rtol=1e-3)
+
+
+def test_two_inflows_that_share_a_series_each_take_their_own_factors() -> None:
+    # a SWMM file may give two [INFLOWS] rows one [TIMESERIES] series; each inflow's error is its own
+    from rivercal.model import load_model
+    from rivercal.models.swmm.inp import InpFile
+
+    swmm = load_model("dommel-swmm")
+    rows = swmm._inflow_rows
+    first, second = list(rows)[:2]
+    inp = InpFile(swmm._inp.text(), source="shared.inp")
+    for row in inp.rows("INFLOWS"):
+        if row.tokens[0] == second and row.tokens[1].upper() == "FLOW":
+            row.tokens[2] = rows[first].tokens[2]  # the second inflow now reads the first one's series
+    shared = type(swmm)(InpFile(inp.text(), source="shared.inp"), swmm.stations, name=swmm.name, start=swmm.start,
+                        end=swmm.end, output_interval=swmm.output_interval, spinup=swmm.spinup,
+                        calibration=swmm.calibration)
+    base = shared.variant_inputs().forcing
+    hours = pd.date_range(swmm.start - pd.Timedelta("1D"), swmm.end + pd.Timedelta("1D"), freq="1h")
+    factors = {f"inflow:{first}": pd.Series(2.0, index=hours), f"inflow:{second}": pd.Series(3.0, index=hours)}
+    varied = shared.variant(forcing_factors=factors).variant_inputs().forcing
+    for key, factor in ((f"inflow:{first}", 2.0), (f"inflow:{second}", 3.0)):
+        np.testing.assert_allclose(varied[key].to_numpy(), factor * base[key].to_numpy(), rtol=1e-9)
+    np.testing.assert_array_equal(base[f"inflow:{first}"].to_numpy() / float(rows[first].tokens[4]) /
+                                  float(rows[first].tokens[5]),
+                                  base[f"inflow:{second}"].to_numpy() / float(rows[second].tokens[4]) /
+                                  float(rows[second].tokens[5]))  # one series, read twice

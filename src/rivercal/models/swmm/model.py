@@ -548,7 +548,9 @@ class SwmmModel:
         if forcing_factors and points is None:
             raise ValueError(f"{self.inp_path}: [TIMESERIES] rows are not all 'Name Date Time Value'; the inflows "
                              "cannot be scaled")
-        lines = None
+        added: list[str] = []
+        renamed: dict[str, str] = {}
+        taken = set(points or ())
         for key, factor in (forcing_factors or {}).items():
             node = key.removeprefix("inflow:")
             if node not in self._inflow_rows or not key.startswith("inflow:"):
@@ -559,15 +561,24 @@ class SwmmModel:
             origin = factor.index[0]
             f = np.interp((pd.DatetimeIndex(times, tz="UTC") - origin).total_seconds(),
                           (factor.index - origin).total_seconds(), factor.to_numpy(dtype=float))
-            scaled = {}
+            # the inflow's own copy of its series: another inflow may share the original, with factors of its own
+            own = f"{series}@{node}"
+            while own in taken:
+                own += "_"
+            taken.add(own)
+            renamed[node] = own
             for row, value in zip(rows, f, strict=True):
-                name, date, clock, number = row.partition(";")[0].split()
-                scaled[row] = f"{name} {date} {clock} {float(number) * value:.10g}"
-            lines = [scaled.get(line, line) for line in (lines or self._inp.raw_lines("TIMESERIES"))]
-        if lines is not None:
-            inp = InpFile("\n".join(f"[{name}]\n" + "\n".join(lines if name == "TIMESERIES" else
-                                                                self._inp.raw_lines(name))
-                                     for name in self._inp.sections()), source=self._inp.source)
+                _, date, clock, number = row.partition(";")[0].split()
+                added.append(f"{own} {date} {clock} {float(number) * value:.10g}")
+        if renamed:
+            sections = {name: self._inp.raw_lines(name) for name in self._inp.sections()}
+            sections["TIMESERIES"] = sections["TIMESERIES"] + added
+            inp = InpFile("\n".join(f"[{name}]\n" + "\n".join(lines) for name, lines in sections.items()),
+                          source=self._inp.source)
+            for row in inp.rows("INFLOWS"):
+                if len(row.tokens) >= 6 and row.tokens[1].upper() == "FLOW" and row.tokens[0] in renamed:
+                    row.tokens[2] = renamed[row.tokens[0]]
+            inp = InpFile(inp.text(), source=self._inp.source)
         return SwmmModel(inp, self.stations, name=self.name, start=self.start, end=self.end,
                          output_interval=self.output_interval, spinup=self.spinup, calibration=self.calibration,
                          runs_dir=self.runs_dir)
