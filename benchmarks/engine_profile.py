@@ -31,9 +31,9 @@ from rivercal.model import load_model
 
 
 @numba.njit
-def _geometry(net, work, z, u, md, calls):
+def _geometry(net, work, z, theta, u, md, calls):
     for _ in range(calls):
-        _link_geometry(net, work, z, u, md)
+        _link_geometry(net, work, z, z, theta, u, md, False)  # the geometry of time n, as each step's first call
 
 
 @numba.njit
@@ -43,10 +43,10 @@ def _simple(net, work, z, u, q, dt, calls):
 
 
 @numba.njit
-def _other(net, work, z, u, q, dt, calls):
+def _other(net, work, z, theta, u, q, dt, calls):
     for _ in range(calls):
         for link in net.mo_other:
-            _momentum_other(net, work, link, z, u, q, dt)
+            _momentum_other(net, work, link, z, z, theta, u, q, dt)
 
 
 @numba.njit
@@ -137,9 +137,9 @@ def main() -> None:
                 "fluxes_and_drying": 1 + resolves / steps}
     c, r = args.calls, args.repeats
     ns = {
-        "geometry": _time(_geometry, (net, work, z, u, md), c, r),
+        "geometry": _time(_geometry, (net, work, z, theta, u, md), c, r),
         "momentum_inner": _time(_simple, (net, work, z, u, q, dt), c, r),
-        "momentum_other": _time(_other, (net, work, z, u, q, dt), c, r),
+        "momentum_other": _time(_other, (net, work, z, theta, u, q, dt), c, r),
         "newton": _time(_newton, (net, work), c, r),
         "structures": _time(_structures, (net, sim.compiled.structures, work, z, u, crest, state.pump_on.copy(), dt),
                             c, r),
