@@ -312,7 +312,7 @@ def run_ext(net, sx, cx, dk, work, crest, fric, z, dz, vol, u, q, pump_on, forci
     return STATUS_OK, forcing.shape[0], -1
 
 
-@kernel
+@kernel(inline=True)
 def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, edges, dt, theta, max_iter, tol,
           min_depth, vmax, courant, balance):
     """Advance the state over step ``n`` of ``dt`` s, in sub-steps where the step control divides it.
