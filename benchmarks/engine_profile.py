@@ -24,16 +24,16 @@ import pandas as pd
 
 from rivercal.engine.kernels.assemble import assemble
 from rivercal.engine.kernels.fluxes import compute_fluxes, limit_draining_links
-from rivercal.engine.kernels.momentum import _link_geometry, _link_newton, _momentum_other, _momentum_simple
+from rivercal.engine.kernels.momentum import _link_geometry, _momentum_other, _momentum_simple
 from rivercal.engine.kernels.solver import ldl_solve_packed
 from rivercal.engine.kernels.structures import extended_coefficients, structure_coefficients, switch_pumps
 from rivercal.model import load_model
 
 
 @numba.njit
-def _geometry(net, work, z, u, md, calls):
+def _geometry(net, work, z, theta, u, md, calls):
     for _ in range(calls):
-        _link_geometry(net, work, z, u, md)
+        _link_geometry(net, work, z, z, theta, u, md, False)  # the geometry of time n, as each step's first call
 
 
 @numba.njit
@@ -43,16 +43,10 @@ def _simple(net, work, z, u, q, dt, calls):
 
 
 @numba.njit
-def _other(net, work, z, u, q, dt, calls):
+def _other(net, work, z, theta, u, q, dt, calls):
     for _ in range(calls):
         for link in net.mo_other:
-            _momentum_other(net, work, link, z, u, q, dt)
-
-
-@numba.njit
-def _newton(net, work, calls):
-    for _ in range(calls):
-        _link_newton(net.lk_ilen, work.area, work.cb, work.cs, work.cc2r, work.cdz, work.fco, work.rco)
+            _momentum_other(net, work, link, z, z, theta, u, q, dt)
 
 
 @numba.njit
@@ -132,15 +126,14 @@ def main() -> None:
     un, qn = work.un.copy(), work.qn.copy()
 
     steps, solves, resolves = counts["steps"], counts["solves"], counts["drying_resolves"]
-    per_step = {"geometry": 1, "momentum_inner": 1, "momentum_other": 1, "newton": 1, "structures": solves / steps,
+    per_step = {"geometry": 1, "momentum_inner": 1, "momentum_other": 1, "structures": solves / steps,
                 "assemble": (solves + resolves) / steps, "ldl_solve": (solves + resolves) / steps,
                 "fluxes_and_drying": 1 + resolves / steps}
     c, r = args.calls, args.repeats
     ns = {
-        "geometry": _time(_geometry, (net, work, z, u, md), c, r),
+        "geometry": _time(_geometry, (net, work, z, theta, u, md), c, r),
         "momentum_inner": _time(_simple, (net, work, z, u, q, dt), c, r),
-        "momentum_other": _time(_other, (net, work, z, u, q, dt), c, r),
-        "newton": _time(_newton, (net, work), c, r),
+        "momentum_other": _time(_other, (net, work, z, theta, u, q, dt), c, r),
         "structures": _time(_structures, (net, sim.compiled.structures, work, z, u, crest, state.pump_on.copy(), dt),
                             c, r),
         "assemble": _time(_assemble, (net, work, z.copy(), vol, u, theta, dt), c, r),

@@ -66,6 +66,10 @@ def test_packed_schedule_is_bit_identical_to_the_csr_solve() -> None:
         "loops": [*tree, (3, 40), (10, 55), (0, 59), (20, 21)],
         "grid": [(i * 6 + j, i * 6 + j + 1) for i in range(6) for j in range(5)]
         + [(i * 6 + j, (i + 1) * 6 + j) for i in range(5) for j in range(6)],
+        "big grid": [(i * 12 + j, i * 12 + j + 1) for i in range(12) for j in range(11)]
+        + [(i * 12 + j, (i + 1) * 12 + j) for i in range(11) for j in range(12)],
+        "ring with trees": [(i, (i + 1) % 90) for i in range(90)]
+        + [(int(rng.integers(0, i)), i) for i in range(90, 200)],
     }
     for seed, pairs in enumerate(graphs.values()):
         sym, diag, off, rhs, _ = _random_system(1 + max(max(p) for p in pairs), pairs, seed)
@@ -75,3 +79,17 @@ def test_packed_schedule_is_bit_identical_to_the_csr_solve() -> None:
         ldl_solve(sym.order, sym.cptr, sym.cedge, sym.cother, sym.uptr, sym.ue1, sym.ue2, sym.utgt, diag.copy(),
                   off.copy(), np.zeros(sym.n_edges), y)
         assert np.array_equal(x, y)
+
+
+def test_a_loop_is_eliminated_in_rounds_that_the_solver_runs_side_by_side() -> None:
+    """On a ring every point has two neighbours: eliminated one after the other, each elimination would wait for
+    the one before (a chain of the ring's length, as many solver steps as points). The order eliminates it in
+    rounds of points that share no entry, and the four-lane schedule runs each round side by side."""
+    from rivercal.engine.kernels.codes import SCHED_LANES, SCHED_WIDTH
+    from rivercal.engine.plan import solver_schedule
+
+    n = 120
+    sym = elimination_order(n, [(i, (i + 1) % n) for i in range(n)])
+    assert sym.fill == n - 3  # a ring's fill whatever the order
+    steps = solver_schedule(sym).size // (SCHED_LANES * SCHED_WIDTH)
+    assert steps < n / 2

@@ -167,7 +167,7 @@ class NetArrays(NamedTuple):
     sv_ue2: np.ndarray
     sv_utgt: np.ndarray
     sv_nedge: int
-    sv_sched: np.ndarray  # the same as a two-lane schedule for ldl_solve_packed (uint32, plan.solver_schedule)
+    sv_sched: np.ndarray  # the same as a four-lane schedule for ldl_solve_packed (uint32, plan.solver_schedule)
     # observables
     ob_type: np.ndarray
     ob_i1: np.ndarray

@@ -33,6 +33,7 @@ from rivercal.engine.kernels.codes import (
     NB_NONE,
     NB_OUTFALL,
     RUN_WIDTH,
+    SCHED_LANES,
     SCHED_WIDTH,
 )
 
@@ -232,14 +233,15 @@ def elimination_order(n: int, pairs: Sequence[tuple[int, int]]) -> SymbolicLDL:
         adj[i].add(j)
         adj[j].add(i)
     n_original = len(edge_of)
-    heap = [(len(adj[i]), i) for i in range(n)]
+    heap = [(len(adj[i]), 0, i) for i in range(n)]
     heapq.heapify(heap)
     eliminated = np.zeros(n, dtype=bool)
+    gen_of = np.zeros(n, dtype=np.int64)
     order: list[int] = []
     later: list[list[int]] = []
     while heap:
-        deg, i = heapq.heappop(heap)
-        if eliminated[i] or deg != len(adj[i]):
+        deg, gen, i = heapq.heappop(heap)
+        if eliminated[i] or deg != len(adj[i]) or gen != gen_of[i]:
             continue
         eliminated[i] = True
         order.append(i)
@@ -254,8 +256,20 @@ def elimination_order(n: int, pairs: Sequence[tuple[int, int]]) -> SymbolicLDL:
                     adj[a].add(b)
                     adj[b].add(a)
                     edge_of[_key(a, b)] = len(edge_of)
+        # Of the points of least degree, those of the earliest round go first. The points whose entries this
+        # elimination updates, and their neighbours, move to the next round: the eliminations of one round
+        # touch no entry in common, so the solver can run them side by side (on a loop of the network the
+        # order goes round it in rounds instead of point after point: a dependency chain of the length of the loop
+        # became one of some dozen rounds). A point whose degree changed gets a fresh entry.
+        near = set(nbrs)
         for a in nbrs:
-            heapq.heappush(heap, (len(adj[a]), a))
+            near.update(adj[a])
+        for a in near:
+            later_round = gen_of[a] <= gen
+            if later_round:
+                gen_of[a] = gen + 1
+            if later_round or a in nbrs:
+                heapq.heappush(heap, (len(adj[a]), int(gen_of[a]), a))
     cptr, cedge, cother = [0], [], []
     uptr, ue1, ue2, utgt = [0], [], [], []
     for nbrs, i in zip(later, order, strict=True):
@@ -289,21 +303,20 @@ def elimination_order(n: int, pairs: Sequence[tuple[int, int]]) -> SymbolicLDL:
 
 
 def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
-    """The symbolic factorisation as a two-lane schedule for :func:`~rivercal.engine.kernels.solver.ldl_solve_packed`.
+    """The symbolic factorisation as a schedule for :func:`~rivercal.engine.kernels.solver.ldl_solve_packed`.
 
     Along a branch every elimination depends on the previous one, so the solve is bound by the latency of
-    that chain; two independent eliminations per step let the processor overlap two chains. A step holds
-    two lanes of ``SCHED_WIDTH`` unsigned integers: the point eliminated (``n``: the lane is empty), the
-    number m of its later neighbours, their edges and points when m is 1 or 2 (``k, m, e1, o1, e2, o2``),
-    then the edge between the two (m = 2) or the elimination position in ``sym`` (m > 2, read from the
-    CSR arrays; such a step has one lane), and which later point the lane carries to its next step
-    (0: o1, 1: o2, 2: none).
+    that chain; independent eliminations in one step (up to ``SCHED_LANES``) let the processor overlap their
+    chains. A step holds ``SCHED_LANES`` lanes of ``SCHED_WIDTH`` unsigned integers: the point eliminated (``n``:
+    the lane is empty), the number m of its later neighbours, their edges and points when m is 1 or 2
+    (``k, m, e1, o1, e2, o2``), then the edge between the two (m = 2) or the elimination position in ``sym``
+    (m > 2, read from the CSR arrays; such a step has one lane, the first), and which later point the lane
+    carries to its next step (0: o1, 1: o2, 2: none).
 
-    Two eliminations are paired only when neither touches an entry (pivot, later point, edge, fill
-    target) that the other touches, and every entry is updated by the same eliminations in the same
-    order as in ``sym.order``: the result is bit-identical to the one-lane solve. The steps follow a
-    list schedule by longest remaining chain, keeping each chain in its lane so that the value it
-    updates stays in a register (the "carry").
+    Eliminations share a step only when none touches an entry (pivot, later point, edge, fill target) that
+    another touches, and every entry is updated by the same eliminations in the same order as in ``sym.order``:
+    the result is bit-identical to the one-lane solve. The steps follow a list schedule by longest remaining
+    chain, keeping each chain in its lane so that the value it updates stays in a register (the "carry").
 
     Parameters
     ----------
@@ -313,8 +326,8 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        ``uint32`` array of ``2 * SCHED_WIDTH`` entries per step (half the bytes of ``uint64``: at board size the
-        solve streams it from memory every step).
+        ``uint32`` array of ``SCHED_LANES * SCHED_WIDTH`` entries per step (half the bytes of ``uint64``: at board
+        size the solve streams it from memory every step).
     """
     n = sym.order.size
     touches: list[set[tuple[str, int]]] = []
@@ -345,19 +358,22 @@ def solver_schedule(sym: SymbolicLDL) -> np.ndarray:
     ready = [(-int(chain[p]), p) for p in range(n) if waits[p] == 0]
     heapq.heapify(ready)
     steps: list[list[np.ndarray]] = []
-    carried = [n, n]  # the point each lane carries into its next step
+    carried = [n] * SCHED_LANES  # the point each lane carries into its next step
     while ready:
         first = heapq.heappop(ready)[1]
         take = [first]
-        if width[first] <= 2 and ready and width[ready[0][1]] <= 2:
+        while width[first] <= 2 and len(take) < SCHED_LANES and ready and width[ready[0][1]] <= 2:
             take.append(heapq.heappop(ready)[1])
-        lanes: list[int | None] = [None, None]
-        for p in take:  # an elimination of a carried point goes to the lane that carries it
-            if int(sym.order[p]) in carried:
-                lanes[carried.index(int(sym.order[p]))] = p
-        for p in take:
-            if p not in lanes:
-                lanes[lanes.index(None)] = p
+        lanes: list[int | None] = [None] * SCHED_LANES
+        if width[first] > 2:  # alone, in the first lane (the solver reads the CSR arrays for it there)
+            lanes[0] = first
+        else:
+            for p in take:  # an elimination of a carried point goes to the lane that carries it
+                if int(sym.order[p]) in carried:
+                    lanes[carried.index(int(sym.order[p]))] = p
+            for p in take:
+                if p not in lanes:
+                    lanes[lanes.index(None)] = p
         step = []
         for lane, p in enumerate(lanes):
             rec = np.zeros(SCHED_WIDTH, dtype=np.uint32)

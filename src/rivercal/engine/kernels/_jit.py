@@ -17,6 +17,12 @@ caller of eight such kernels compiled in 10.3 s with the wrappers, 4.2 s without
 from Python raises ``TypeError`` (without the wrapper there would be nothing to call); its pure-Python
 version stays reachable as ``kernel.py_func``. ``entry`` keeps them: the time loops, and the look-ups and
 solvers that Python code calls too.
+
+``kernel(inline=True)`` has LLVM always inline the kernel into its callers (numba's ``forceinline``). A kernel that
+LLVM keeps as a function of its own receives every array of the named tuples it is passed, flattened into some
+950 arguments for the network and the scratch arrays, which the caller copies onto the stack at each call; the
+per-step kernels that take them (the step itself, the Picard iterations and their solve, the fluxes) are inlined
+(measured on the synthetic network: a step 9 % faster, results bit for bit the same, the compile as long).
 """
 
 from __future__ import annotations
@@ -41,13 +47,19 @@ class InnerKernel(CPUDispatcher):
                         "kernels only (no Python wrapper); call a kernel made with 'entry', or its py_func")
 
 
-def kernel(func):
-    """Compile a non-allocating kernel for calls from other kernels (cached, no reference counting, no GIL)."""
+def kernel(func=None, *, inline=False):
+    """Compile a non-allocating kernel for calls from other kernels (cached, no reference counting, no GIL).
+
+    With ``inline`` LLVM always inlines it into its callers (``@kernel(inline=True)``).
+    """
+    if func is None:
+        return lambda f: kernel(f, inline=inline)
     if config.DISABLE_JIT:
         return func
-    dispatcher = InnerKernel(py_func=func, locals={},
-                             targetoptions={**_OPTIONS, "nopython": True, "no_cpython_wrapper": True,
-                                            "no_cfunc_wrapper": True})
+    options = {**_OPTIONS, "nopython": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+    if inline:
+        options["forceinline"] = True
+    dispatcher = InnerKernel(py_func=func, locals={}, targetoptions=options)
     dispatcher.enable_caching()
     return dispatcher
 

@@ -176,6 +176,8 @@ MO_WIDTH = 3
 
 #: Values per elimination step and lane of the solver schedule (:func:`rivercal.engine.plan.solver_schedule`).
 SCHED_WIDTH = 8
+#: Lanes per step of the solver schedule: eliminations whose dependency chains the processor overlaps.
+SCHED_LANES = 4
 
 #: Values per table cell in ``tab_flow`` (:func:`rivercal.engine.geometry.flow_records`): af, its increment,
 #: pf, its increment, r43, its increment, 2 unused (one 64-byte cache line).

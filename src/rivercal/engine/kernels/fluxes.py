@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 
-@kernel
+@kernel(inline=True)
 def fluxes_within_volume(net, work, vol, theta, dt, tol, u, un, qn):
     """The fluxes of the solved levels (:func:`compute_fluxes`), throttled where they would drain a point dry.
 

@@ -74,19 +74,20 @@ def channel_coefficients(net, work, z, zk, theta, u, q, dt, min_depth, iterate=T
     (their shares add up to one); a link that carries nothing away, such as a dead-end branch at rest,
     takes none, and rests at the junction's level.
 
-    Four passes: :func:`_link_geometry` looks up the flow geometry at the upwind depth (a gather from
+    Three passes: :func:`_link_geometry` looks up the flow geometry at the upwind depth (a gather from
     the tables); :func:`_momentum_simple` gathers the momentum terms of the links inside a branch, whose
     neighbours are the links before and after them (``net.mo_runs``), in a branch-free loop that
     reads contiguously and vectorises; :func:`_momentum_other` does the same for the other channel links
-    (at junctions, structures and branch ends); :func:`_link_newton` solves each link's momentum equation.
-    The coefficients written for structure and pump links are replaced before use, by
+    (at junctions, structures and branch ends). Both solve each link's momentum equation as soon as its terms
+    are known (:func:`_link_newton`), so the terms never go through memory (a fourth pass over every link that
+    read them back took a tenth of the step). The coefficients of a link without flow are 0 (set with its flux
+    area by :func:`_link_geometry`); those of structure and pump links are replaced before use, by
     :func:`.structures.switch_pumps` and :func:`.structures.structure_coefficients`.
     """
     fastest = _link_geometry(net, work, z, zk, theta, u, min_depth, iterate)
     _momentum_simple(net, work, z, u, q, dt)
     for link in net.mo_other:
         _momentum_other(net, work, link, z, zk, theta, u, q, dt)
-    _link_newton(net.lk_ilen, work.area, work.cb, work.cs, work.cc2r, work.cdz, work.fco, work.rco)
     return fastest
 
 
@@ -139,12 +140,16 @@ def _link_geometry(net, work, z, zk, theta, u, min_depth, iterate):
     upwind section errs on the safe side, and a friction that falls as the level downstream rises made fast
     flow on a steep reach unstable.
 
-    Returns the largest |u| / Δx of the wet links (1/s), found on the way.
+    Returns the largest |u| / Δx of the wet links (1/s), found on the way. The coefficients f and r of every link
+    (``work.fco``, ``work.rco``) are set to 0 here; the momentum passes set those of the links with flow.
     """
     area, cam, cper, cr43, lk_type, ilen = work.area, work.cam, work.cper, work.cr43, net.lk_type, net.lk_ilen
+    fco, rco = work.fco, work.rco
     fastest = 0.0
     for link in range(lk_type.size):
         area[link] = 0.0
+        fco[link] = 0.0  # a link without flow: the momentum passes leave it
+        rco[link] = 0.0
         if lk_type[link] != LINK_CHANNEL:
             continue
         k1 = np.uint64(net.lk_k1[link])
@@ -186,11 +191,11 @@ def _momentum_simple(net, work, z, u, q, dt):
     Such a link joins points k1 and k1 + 1, neither of which receives a lateral, has no Chézy friction, and
     its upwind neighbour is link - 1 (flowing into k1) or link + 1 (flowing out of k2, so -q and -u point
     towards it). Every quantity is computed for every link and the right one selected, in the same
-    floating-point operations as :func:`_momentum_other`; a dry link gets meaningless terms (numpy's error
-    model: a division by its zero area gives inf, no exception), which :func:`_link_newton` masks.
+    floating-point operations as :func:`_momentum_other`, and solved (:func:`_link_newton`); a dry link gets
+    meaningless terms (numpy's error model: a division by its zero area gives inf, no exception), which the
+    loop masks: its f and r are 0.
     """
-    area, cr43, lfric = work.area, work.cr43, work.lfric
-    cb, cs, cc2r, cdz = work.cb, work.cs, work.cc2r, work.cdz
+    area, cr43, lfric, fco, rco = work.area, work.cr43, work.lfric, work.fco, work.rco
     lk_ilen, lk_ftype = net.lk_ilen, net.lk_ftype
     inv_dt = 1.0 / dt
     one = np.uint64(1)
@@ -217,20 +222,23 @@ def _momentum_simple(net, work, z, u, q, dt):
             uc = 0.5 * (ul + uin) if uin < ul else 0.5 * (qin + math.fabs(q[link])) / a_up
             advect = (qin > 0.0) & (uc > 0.0)
             dzl = z2 - z1
-            cb[link] = (b + uc * ilen) if advect else b
-            cs[link] = ((rhs_u + sign * uc * uin * ilen) if advect else rhs_u) - G * ilen * dzl
-            cc2r[link] = friction_c2r(lk_ftype[link], lfric[link], 0.0, cr43[link])  # not Chézy: no radius
-            cdz[link] = dzl
+            f_u, r_u = _link_newton(ilen, (b + uc * ilen) if advect else b,
+                                    ((rhs_u + sign * uc * uin * ilen) if advect else rhs_u) - G * ilen * dzl,
+                                    friction_c2r(lk_ftype[link], lfric[link], 0.0, cr43[link]),  # not Chézy: no radius
+                                    dzl)
+            wet = a_up > 0.0
+            fco[link] = f_u if wet else 0.0
+            rco[link] = r_u if wet else 0.0
 
 
 @kernel
 def _momentum_other(net, work, link, z, zk, theta, u, q, dt):
-    """The momentum terms of one channel link with flux area > 0, in ``work`` (see :func:`_link_newton`).
+    """The coefficients f and r (``work.fco``, ``work.rco``) of one channel link with flux area > 0.
 
     The momentum equation of a link, per unit mass, is ``b u + kappa |u| u = s - g (z2 - z1) / dx`` with
     b (1/s) the inertia, lateral-inflow and implicit advection terms, kappa = g / (C² R) (1/m), and
-    s (m/s²) the explicit terms; ``cs`` holds s - g (z2 - z1) / dx at the levels of time n, ``cc2r``
-    C² R (m²/s²), ``cb`` b and ``cdz`` z2 - z1 (m).
+    s (m/s²) the explicit terms; :func:`_link_newton` solves it from b, s - g (z2 - z1) / dx at the levels of
+    time n, C² R (m²/s²) and z2 - z1 (m).
     """
     a_up = work.area[link]
     if a_up <= 0.0:
@@ -299,10 +307,8 @@ def _momentum_other(net, work, link, z, zk, theta, u, q, dt):
                 b += uc * ilen
                 rhs_u += sign * uc * uin * ilen
     dzl = z[k2] - z[k1]
-    work.cb[link] = b
-    work.cs[link] = rhs_u - G * ilen * dzl
-    work.cc2r[link] = friction_c2r_any(ftype, work.lfric[link], radius, work.cr43[link]) * conveyance
-    work.cdz[link] = dzl
+    c2r = friction_c2r_any(ftype, work.lfric[link], radius, work.cr43[link]) * conveyance
+    work.fco[link], work.rco[link] = _link_newton(ilen, b, rhs_u - G * ilen * dzl, c2r, dzl)
 
 
 @kernel
@@ -330,23 +336,18 @@ def _toward_outfall(net, work, link, z, zk, theta, sign, a_up, conveyance):
     return a_down, conveyance * ratio * ratio
 
 
-@kernel
-def _link_newton(lk_ilen, area, cb, cs, cc2r, cdz, fco, rco):
-    """Coefficients f (1/s) and r (m/s) of ``u = r - f (z2 - z1)`` per link with flux area > 0 (0 for the others).
+@kernel(inline=True)
+def _link_newton(ilen, b, s_u, c2r, dzl):
+    """Coefficients f (1/s) and r (m/s) of ``u = r - f (z2 - z1)`` of one link from its momentum terms.
 
-    Newton linearisation of b u + kappa |u| u = s - g (z2 - z1) / dx around its solution u* at the
-    levels of time n: u* = 2 s / (b + sqrt(b² + 4 kappa |s|)), du/d(z2 - z1) = -g / (dx sqrt(...)).
-    Exact in steady flow, and bounded by friction when flow starts from rest. The loop has no
-    branches (links without flow are masked at the end) so that it runs in SIMD lanes; the inputs
-    of a masked link may be stale, which is harmless.
+    ``ilen`` is 1/Δx (1/m), ``b`` (1/s) and ``s_u`` (m/s²) the terms of b u + kappa |u| u = s - g (z2 - z1) / dx with
+    ``s_u`` = s - g (z2 - z1) / dx at the levels of time n, ``c2r`` C² R (m²/s², kappa = g / (C² R)) and ``dzl``
+    z2 - z1 (m). Newton linearisation around its solution u* at the levels of time n:
+    u* = 2 s / (b + sqrt(b² + 4 kappa |s|)), du/d(z2 - z1) = -g / (dx sqrt(...)). Exact in steady flow, and
+    bounded by friction when flow starts from rest. Branch-free, so that the loops that call it stay vectorised;
+    they mask the links without flow.
     """
-    for link in range(area.size):
-        s_u = cs[link]
-        b = cb[link]
-        kappa = G / cc2r[link]
-        root = math.sqrt(b * b + 4.0 * kappa * math.fabs(s_u))
-        f_u = G * lk_ilen[link] / root
-        r_u = 2.0 * s_u / (b + root) + f_u * cdz[link]
-        wet = area[link] > 0.0
-        fco[link] = f_u if wet else 0.0
-        rco[link] = r_u if wet else 0.0
+    kappa = G / c2r
+    root = math.sqrt(b * b + 4.0 * kappa * math.fabs(s_u))
+    f_u = G * ilen / root
+    return f_u, 2.0 * s_u / (b + root) + f_u * dzl

@@ -52,7 +52,7 @@ def first_iterate(net, zk, z, dz, min_depth, near):
     return far > 0
 
 
-@kernel
+@kernel(inline=True)
 def picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, follow):
     """Iterate the levels of step n+1 in ``work.zk`` (m AD): at most ``max_iter`` solves, until none moves by ``tol``.
 
@@ -160,7 +160,7 @@ def moves(z, zk):
     return far > 0
 
 
-@kernel
+@kernel(inline=True)
 def solve_levels(net, work, zk, vol, u, theta, dt, tol):
     """Assemble at ``zk``, solve, store the solution in ``zk``; returns whether no level changed by ``tol`` (m) or more.
 

@@ -8,9 +8,9 @@ needed: the level matrix is a symmetric, diagonally dominant M-matrix.
 :func:`ldl_solve` is the plain algorithm on the CSR arrays of the symbolic factorisation (factorisation and
 forward elimination in one pass, then the back substitution).
 :func:`ldl_solve_packed`, which the time loop uses, does the same arithmetic in the same order
-(bit-identical results) about twice as fast: along a branch every elimination step depends on
+(bit-identical results) several times as fast: along a branch every elimination step depends on
 the previous one (divide, multiply, multiply, subtract), so the solve is bound by the latency of
-that chain, and the packed version keeps the chain short (see its notes).
+that chain, and the packed version overlaps up to four chains and keeps each short (see its notes).
 """
 
 from __future__ import annotations
@@ -18,12 +18,13 @@ from __future__ import annotations
 import numpy as np
 
 from rivercal.engine.kernels._jit import entry
-from rivercal.engine.kernels.codes import SCHED_WIDTH
+from rivercal.engine.kernels.codes import SCHED_LANES, SCHED_WIDTH
 
 __all__ = ["ldl_solve", "ldl_solve_packed"]
 
-#: Values per step of the schedule: two lanes.
-_STEP = 2 * SCHED_WIDTH
+#: Values per step of the schedule: ``SCHED_LANES`` lanes (the solve below is written out for four).
+_STEP = SCHED_LANES * SCHED_WIDTH
+assert SCHED_LANES == 4, "ldl_solve_packed is written out for four lanes"
 
 
 @entry
@@ -151,7 +152,7 @@ def _back(rec, solved, x_solved, lval, rhs):
 
 @entry
 def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval, rhs):
-    """:func:`ldl_solve` on the two-lane schedule of the factorisation (bit-identical result).
+    """:func:`ldl_solve` on the four-lane schedule of the factorisation (bit-identical result).
 
     Parameters
     ----------
@@ -168,8 +169,10 @@ def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off
     - Factorisation, forward substitution and the scaling by 1/D run in one pass: when point k is
       eliminated, all updates of its right-hand side have been made (they come from points
       eliminated before it).
-    - Each step eliminates one or two independent points (the schedule's two lanes): their
-      dependency chains (divide, multiply, multiply, subtract) overlap in the processor.
+    - Each step eliminates up to four independent points (the schedule's lanes): their
+      dependency chains (divide, multiply, multiply, subtract) overlap in the processor. With two lanes
+      the synthetic network's solve took 243 steps, with four 126 (its longest chain; the elimination
+      order of :func:`rivercal.engine.plan.elimination_order` keeps that short).
     - Along a chain the point a lane updates is the one it eliminates next: its pivot and
       right-hand side stay in registers (the lane's "carry") instead of a store and a reload;
       the back substitution carries the last value each lane solved.
@@ -177,19 +180,23 @@ def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off
     """
     n = np.uint64(diag.size)
     n_steps = sched.size // _STEP
-    ka = kb = n  # the point each lane carries, with its pivot and right-hand side
-    da = db = ba = bb = 0.0
+    w = SCHED_WIDTH
+    ka = kb = kc = kd = n  # the point each lane carries, with its pivot and right-hand side
+    da = db = dc = dd = ba = bb = bc = bd = 0.0
     for s in range(n_steps):
-        ra = sched[_STEP * s : _STEP * s + SCHED_WIDTH]
-        rb = sched[_STEP * s + SCHED_WIDTH : _STEP * s + _STEP]
+        at = _STEP * s
+        ra = sched[at : at + w]
         ka, da, ba, inv, bk = _forward(ra, ka, da, ba, diag, off, lval, rhs)
-        kb, db, bb, _, _ = _forward(rb, kb, db, bb, diag, off, lval, rhs)
+        kb, db, bb, _, _ = _forward(sched[at + w : at + 2 * w], kb, db, bb, diag, off, lval, rhs)
+        kc, dc, bc, _, _ = _forward(sched[at + 2 * w : at + 3 * w], kc, dc, bc, diag, off, lval, rhs)
+        kd, dd, bd, _, _ = _forward(sched[at + 3 * w : at + _STEP], kd, dd, bd, diag, off, lval, rhs)
         if ra[1] > 2:  # such a step has one lane
             _eliminate_general(ra[6], inv, bk, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off, lval, rhs)
-    ka = kb = n  # the point each lane solved last, with its value
-    xa = xb = 0.0
+    ka = kb = kc = kd = n  # the point each lane solved last, with its value
+    xa = xb = xc = xd = 0.0
     for s in range(n_steps - 1, -1, -1):
-        ra = sched[_STEP * s : _STEP * s + SCHED_WIDTH]
+        at = _STEP * s
+        ra = sched[at : at + w]
         if ra[1] > 2:
             xa = rhs[ra[0]]
             for c in range(cptr[ra[6]], cptr[ra[6] + 1]):
@@ -198,4 +205,6 @@ def ldl_solve_packed(sched, cptr, cedge, cother, uptr, ue1, ue2, utgt, diag, off
             rhs[ka] = xa
         else:
             ka, xa = _back(ra, ka, xa, lval, rhs)
-        kb, xb = _back(sched[_STEP * s + SCHED_WIDTH : _STEP * s + _STEP], kb, xb, lval, rhs)
+        kb, xb = _back(sched[at + w : at + 2 * w], kb, xb, lval, rhs)
+        kc, xc = _back(sched[at + 2 * w : at + 3 * w], kc, xc, lval, rhs)
+        kd, xd = _back(sched[at + 3 * w : at + _STEP], kd, xd, lval, rhs)

@@ -117,7 +117,7 @@ SCREEN_REDO = -1
 #: state's arrays every step, rating-boundary linearisation (m³/s, m²/s), the structure and pump links,
 #: counters (``STAT_*`` of :mod:`.codes`), per point the piece of its volume curve last looked up
 #: (:func:`.assemble.assemble`): low and high end and reference level (m AD), the volume there (m³) and the
-#: storage area (m²); the momentum terms of each channel link (:func:`.momentum.channel_coefficients`), the
+#: storage area (m²); of each channel link (:func:`.momentum.channel_coefficients`) the
 #: flow area (m²), wetted perimeter (m) and R^(4/3) (m^(4/3)) of its friction, and its friction value (unit of
 #: its friction type); per discharge boundary its delivered discharge (m³/s), and per boundary then lateral the
 #: withdrawal asked and not delivered in the (sub-)step (m³/s) and over the run (m³); the channel coefficients
@@ -128,7 +128,7 @@ Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
-     "cb", "cs", "cc2r", "cdz", "cam", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum",
+     "cam", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum",
      "ovf", "anum", "aden", "floor", "flick", "swing"],
 )
 
@@ -150,8 +150,7 @@ def make_work(net, sx=None) -> Work:
         pump_links=np.flatnonzero(net.lk_type == LINK_PUMP).astype(np.int64),
         stats=np.zeros(N_STATS, dtype=np.int64),
         zlo=np.full(n_h, np.inf), zhi=np.full(n_h, -np.inf), p_z=np.zeros(n_h), p_v=np.zeros(n_h), p_w=np.zeros(n_h),
-        cb=np.ones(n_l), cs=np.zeros(n_l), cc2r=np.ones(n_l), cdz=np.zeros(n_l), cam=np.ones(n_l), cper=np.ones(n_l),
-        cr43=np.ones(n_l),
+        cam=np.ones(n_l), cper=np.ones(n_l), cr43=np.ones(n_l),
         lfric=np.ones(n_l),
         bq=np.zeros(n_b), wreq=np.zeros(n_b + net.lat_hp.size), wshort=np.zeros(n_b + net.lat_hp.size),
         wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
@@ -312,7 +311,7 @@ def run_ext(net, sx, cx, dk, work, crest, fric, z, dz, vol, u, q, pump_on, forci
     return STATUS_OK, forcing.shape[0], -1
 
 
-@kernel
+@kernel(inline=True)
 def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forcing, edges, dt, theta, max_iter, tol,
           min_depth, vmax, courant, balance):
     """Advance the state over step ``n`` of ``dt`` s, in sub-steps where the step control divides it.
