@@ -60,7 +60,7 @@ from rivercal.analysis.identifiability import (
     analyse_jacobian,
 )
 from rivercal.analysis.jacobian import fd_jacobian, parameter_scales
-from rivercal.analysis.verdict import identifiability_index, verdict_frame
+from rivercal.analysis.verdict import identifiability_index, verdict_labels
 from rivercal.optimise import covariance
 
 if TYPE_CHECKING:
@@ -338,7 +338,7 @@ class LinearWorth:
                           posterior_std=np.sqrt(np.clip(np.diag(cov), 0.0, None)), forecast_std=forecast_std,
                           relative_variance=float(np.mean(var / self.prior_target_var)))
 
-    def verdicts(self, information: np.ndarray) -> tuple[pd.Series, np.ndarray]:
+    def verdicts(self, information: np.ndarray) -> tuple[dict[str, str], np.ndarray]:
         """The verdict per parameter and the singular values of J_D for information F.
 
         Steps 1-3 of the verdict of :mod:`rivercal.analysis.identifiability` on R with RᵀR = F, without the
@@ -351,8 +351,7 @@ class LinearWorth:
             k = min(opts.k, len(self.names))
         else:
             k = int(np.count_nonzero((s > 0) & (s >= opts.sv_threshold * s[0]))) if s[0] > 0 else 0
-        frame = verdict_frame(r, self.names, s, v, k, identifiability_index(v, k), cov.std, opts)
-        return frame["verdict"], s
+        return dict(zip(self.names, verdict_labels(r, identifiability_index(v, k), opts), strict=True)), s
 
     def _row_names(self, candidate: str) -> list[str]:
         c = next(c for c in self.candidates if c.id == candidate)
@@ -388,10 +387,10 @@ class LinearWorth:
         for i, c in enumerate(left):
             verdicts, sv = self.verdicts(stack[i])
             row: dict[str, Any] = {"candidate": c.id, "name": c.name, "cost": c.cost, "worth": float(worth[i]),
-                                   "identifiable": int((verdicts == IDENTIFIABLE).sum()),
+                                   "identifiable": sum(v == IDENTIFIABLE for v in verdicts.values()),
                                    "smallest_singular_value": float(sv[-1]),
                                    "relative_variance": float(np.mean(var[i] / self.prior_target_var))}
-            row.update({f"verdict:{n}": str(v) for n, v in verdicts.items()})
+            row.update({f"verdict:{n}": v for n, v in verdicts.items()})
             row.update({f"std:{n}": float(math.sqrt(max(cov[i, j, j], 0.0))) for j, n in enumerate(self.names)})
             row.update({f"var:{t}": float(var[i, k]) for k, t in enumerate(self.targets)})
             rows.append(row)
@@ -451,7 +450,7 @@ class LinearWorth:
         """(identifiable parameters, − mean fractional variance of the targets) of a set: higher is better."""
         info = self.information(gauges)
         verdicts, _ = self.verdicts(info)
-        return int((verdicts == IDENTIFIABLE).sum()), -float(np.mean(self.target_variance(info)
+        return sum(v == IDENTIFIABLE for v in verdicts.values()), -float(np.mean(self.target_variance(info)
                                                                        / self.prior_target_var))
 
     def exchange(self, chosen: Sequence[str], *, passes: int = 3) -> list[str]:

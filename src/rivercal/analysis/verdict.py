@@ -133,6 +133,22 @@ def _reduced_correlation(jac: np.ndarray, keep: np.ndarray, rcond: float) -> np.
     return out
 
 
+def _verdicts(index: np.ndarray, reduced: np.ndarray, opts: IdentifiabilityOptions) -> list[str]:
+    """Step 2: the verdict per parameter from its identifiability index and its reduced correlations."""
+    others = np.abs(np.nan_to_num(reduced, nan=0.0))
+    np.fill_diagonal(others, 0.0)
+    strong = np.any(others > opts.correlation, axis=1)  # correlated with another parameter beyond the threshold
+    return [NOT_IDENTIFIABLE if ident < opts.unidentifiable else
+            IDENTIFIABLE if not corr and ident >= opts.identifiable else COMBINATION
+            for ident, corr in zip(index.tolist(), strong.tolist(), strict=True)]
+
+
+def verdict_labels(jac: np.ndarray, index: np.ndarray, opts: IdentifiabilityOptions) -> list[str]:
+    """Step 2 alone: the verdict per parameter, as :func:`verdict_frame` gives it (for ranking many sets fast)."""
+    reduced = _reduced_correlation(jac, index >= opts.unidentifiable, opts.rcond)
+    return _verdicts(index, reduced, opts)
+
+
 def verdict_frame(jac: np.ndarray, names: tuple[str, ...], s: np.ndarray, v: np.ndarray, k: int, index: np.ndarray,
              std: np.ndarray, opts: IdentifiabilityOptions) -> pd.DataFrame:
     """Steps 2 and 3: the verdict per parameter, its partners and strongest correlation."""
@@ -140,19 +156,14 @@ def verdict_frame(jac: np.ndarray, names: tuple[str, ...], s: np.ndarray, v: np.
     not_id = index < opts.unidentifiable
     reduced = _reduced_correlation(jac, ~not_id, opts.rcond)
     loads = v**2 >= opts.loading
-    verdicts, partners, max_corr, corr_with = [], [], [], []
+    verdicts = _verdicts(index, reduced, opts)
+    partners, max_corr, corr_with = [], [], []
     for i in range(p):
         share_partners = sorted({q for j in range(k, p) if loads[i, j] for q in range(p) if q != i and loads[q, j]})
         row = np.abs(np.nan_to_num(reduced[i], nan=0.0))
         row[i] = 0.0
         c_idx = int(np.argmax(row)) if p > 1 else i
         strong = sorted(q for q in range(p) if q != i and row[q] > opts.correlation)
-        if not_id[i]:
-            verdicts.append(NOT_IDENTIFIABLE)
-        elif not strong and index[i] >= opts.identifiable:
-            verdicts.append(IDENTIFIABLE)
-        else:
-            verdicts.append(COMBINATION)
         partners.append(", ".join(names[q] for q in sorted(set(share_partners) | set(strong))))
         seen = p > 1 and c_idx != i and row[c_idx] > 0
         max_corr.append(float(reduced[i, c_idx]) if seen else np.nan)
