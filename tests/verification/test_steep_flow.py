@@ -93,6 +93,7 @@ def test_an_hour_long_step_on_a_10_m_grid_is_divided_until_it_is_right(tmp_path:
 def test_a_step_the_smallest_sub_step_cannot_save_stops_with_the_place_and_what_to_change() -> None:
     """The messages of a run that stops at the smallest sub-step (the step control's last resort) name the
     point, the sub-step, the Courant number there and what to change."""
+    from rivercal.engine.diagnosis import divergence
     from rivercal.engine.kernels.codes import MAX_HALVINGS, STATUS_DRY, STATUS_FLICKER
 
     sim = simulator(case_dict(
@@ -106,7 +107,7 @@ def test_a_step_the_smallest_sub_step_cannot_save_stops_with_the_place_and_what_
     smallest = f"{3600.0 / 2**MAX_HALVINGS:.3g} s"
     for status, words, levels in ((STATUS_DRY, "the level falls 0.2 m below the bed", z - 1.2),
                                   (STATUS_FLICKER, "goes up and down", z)):
-        when, where, detail = sim.divergence(status, 0, 3, levels, u, sim.start, None)
+        when, where, detail = divergence(sim, status, 0, 3, levels, u, sim.start, None)
         assert where == sim.compiled.hp_label[3] and when.startswith("2020")
         assert words in detail and f"sub-steps of {smallest}" in detail and "reduce engine.dt" in detail
         assert "Courant number u·dt/dx up to 0.0439" in detail  # 2 m/s × 0.22 s / 10 m

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
+from rivercal.engine.diagnosis import divergence
 from rivercal.engine.kernels.codes import CONTROL_STATS, STATUS_OK
 from rivercal.engine.kernels.timeloop import make_work
 from rivercal.engine.simulator import Simulator, _ratio, time_loop
@@ -292,7 +293,7 @@ def _check(sim, status, start, stack, on_failure, phase) -> dict[int, str]:
     failures = {}
     for m in np.flatnonzero(status[:, 0] != STATUS_OK):
         code, step, index = (int(v) for v in status[m])
-        when, where, what = sim.divergence(code, step, index, stack.z[m], stack.u[m], start, phase)
+        when, where, what = divergence(sim, code, step, index, stack.z[m], stack.u[m], start, phase)
         if on_failure == "raise":
             raise EngineDivergedError(when, where, f"member {m}: {what}")
         failures[int(m)] = str(EngineDivergedError(when, where, what))

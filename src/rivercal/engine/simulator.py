@@ -40,12 +40,10 @@ from rivercal.case.load import Case
 from rivercal.engine.channels import initial_levels
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network, own_friction_slots
 from rivercal.engine.controllers import Controls, ControlValues
+from rivercal.engine.diagnosis import divergence
 from rivercal.engine.kernels.codes import (
     BOUNDARY_LEVEL,
     CONTROL_STATS,
-    DRY_TOLERANCE,
-    FLICKER_DZ,
-    MAX_HALVINGS,
     STAT_DRYING,
     STAT_EXPLICIT,
     STAT_FLICKERS,
@@ -55,15 +53,13 @@ from rivercal.engine.kernels.codes import (
     STAT_SOLVES,
     STAT_STEPS,
     STAT_SUBSTEPS,
-    STATUS_DRY,
-    STATUS_FLICKER,
     STATUS_OK,
-    STATUS_VELOCITY,
 )
 from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import make_work, run, run_ext
 from rivercal.engine.quantities import FactorProblem, Settable, settable_table
 from rivercal.engine.state import EngineState, Shortfall, SimulationResult, VolumeBalance
+from rivercal.engine.step_forcing import step_forcing
 from rivercal.errors import CaseError, EngineDivergedError
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
 
@@ -484,14 +480,8 @@ class Simulator:
         out = np.empty((n_steps, len(c.forcing_keys)))
         course = np.empty((2 * n_steps, len(c.forcing_keys)))
         for col, fkey in enumerate(c.forcing_keys):
-            v = self._values_at(fkey, edges, start)
-            course[0::2, col] = v[:-1]
-            course[1::2, col] = v[1:]
-            if c.forcing_is_level[col]:
-                out[:, col] = v[1:]
-                continue
-            out[:, col] = 0.5 * (v[:-1] + v[1:])
-            _within_steps(*self._knots(fkey, start), edges, out[:, col], course[:, col])
+            out[:, col], course[:, col] = step_forcing(*self._knots(fkey, start), edges,
+                                                       level=bool(c.forcing_is_level[col]))
         if len(self._forcing_cache) > 4:
             self._forcing_cache.clear()
         self._forcing_cache[key] = (out, course)
@@ -626,7 +616,7 @@ class Simulator:
         log.debug("%s%s", phase + ": " if phase else "", self.last_run_stats)
         self.last_run_shortfalls = self._shortfalls(self._work.wreq_sum, self._work.wshort_sum, start, phase)
         if status != STATUS_OK:
-            raise EngineDivergedError(*self.divergence(status, step, index, state.z, state.u, start, phase))
+            raise EngineDivergedError(*divergence(self, status, step, index, state.z, state.u, start, phase))
         return obs, zs, qs, balance, initial_volume
 
     def _shortfalls(self, asked: np.ndarray, lacking: np.ndarray, start: pd.Timestamp,
@@ -647,51 +637,6 @@ class Simulator:
                             f"{phase}: " if phase else "", key, start.isoformat(), want, want - short,
                             100.0 * (want - short) / want)
         return out
-
-    def divergence(self, status: int, step: int, index: int, z: np.ndarray, u: np.ndarray, start: pd.Timestamp,
-                   phase: str | None) -> tuple[str, str, str]:
-        """When, where and what of a run the time loop stopped with ``status`` (for :class:`EngineDivergedError`).
-
-        ``step`` and ``index`` are the time loop's step and point (or link) at fault, ``z`` (m AD) and ``u``
-        (m/s) the run's levels and velocities as the loop left them.
-        """
-        when = (start + pd.Timedelta(seconds=(step + 1) * self.dt)).isoformat()
-        if phase:
-            when += f" ({phase}, forcing held at its start value)"
-        if status == STATUS_VELOCITY:
-            return when, self.compiled.link_label[index], (
-                f"velocity {float(u[index]):.6g} m/s exceeds engine.max_velocity ({self.settings.max_velocity} m/s)")
-        where = self.compiled.hp_label[index]
-        smallest = self.dt / 2**MAX_HALVINGS
-        courant = self._courant_near(index, u)
-        if status == STATUS_DRY:
-            depth = float(z[index] - self.compiled.arrays.hp_bed[index])
-            return when, where, (
-                f"the level falls {-depth:.3g} m below the bed (more than {DRY_TOLERANCE:g} m) even with the time "
-                f"step divided into {2**MAX_HALVINGS} sub-steps of {smallest:.3g} s{courant}; the point loses more "
-                "water per sub-step than it holds: reduce engine.dt (the longest step), or check the withdrawals and "
-                "pumps there")
-        if status == STATUS_FLICKER:
-            return when, where, (
-                f"the level there goes up and down by more than {FLICKER_DZ * 100:g} cm again and again, every few "
-                f"steps, even with the time step divided into {2**MAX_HALVINGS} sub-steps "
-                f"of {smallest:.3g} s{courant}: the flow there cannot be resolved; reduce engine.dt (the longest "
-                "step), or check the structures and the cross-sections at that point (a structure on a nearly dry "
-                "bed, a profile narrower than its "
-                "neighbours)")
-        return when, where, f"level {float(z[index]):.6g} m AD"
-
-    def _courant_near(self, point: int, u: np.ndarray) -> str:
-        """``" (Courant number u·dt/dx up to C at the links there)"`` at the smallest sub-step, for messages.
-
-        Empty without flow.
-        """
-        a = self.compiled.arrays
-        links = np.flatnonzero((a.lk_k1 == point) | (a.lk_k2 == point))
-        if links.size == 0:
-            return ""
-        courant = float(np.max(np.abs(u[links]) * self.dt / 2**MAX_HALVINGS * a.lk_ilen[links]))
-        return f" (Courant number u·dt/dx up to {courant:.3g} at the links there)" if courant > 0 else ""
 
     # -- views ---------------------------------------------------------------------------------------
 
@@ -740,44 +685,6 @@ def _shown_bound(value: float | None, none: float) -> float:
     if value is None or abs(float(value)) >= MAX_LEVEL:
         return none
     return float(value)
-
-
-def _within_steps(t: np.ndarray, v: np.ndarray, edges: np.ndarray, mean: np.ndarray, course: np.ndarray) -> None:
-    """The mean and the course of a discharge within each step where its series has a time inside the step.
-
-    The series has times ``t`` (s) and values ``v`` (m³/s), linear between them; the steps have the edges
-    ``edges`` (s). Per step with a time of the series inside it: its exact mean (m³/s, into ``mean``) and the
-    ends of the line of the same volume nearest to the series over the step (its least-squares fit, m³/s, into
-    ``course``, rows ``2n`` and ``2n + 1``).
-
-    The mean of the values at a step's edges, which holds where the series is straight within the step, would
-    take a value held up to one edge and the next value from it as their average over the whole step; a value
-    held over a step, as a coupled model's inflow over its coupling interval, is held within it.
-    """
-    inside = t[(t > edges[0]) & (t < edges[-1])]
-    step = np.searchsorted(edges, inside, side="right") - 1
-    keep = inside > edges[step]
-    inside, step = inside[keep], step[keep]
-    if not inside.size:
-        return
-    steps = np.unique(step)
-    ta = np.unique(np.concatenate([edges[steps], edges[steps + 1], inside]))   # sorted
-    n = np.searchsorted(edges, ta[:-1], side="right") - 1   # the step of each piece between two of them
-    piece = ta[1:] <= edges[n + 1]   # not a gap between two steps apart
-    n, a, b = n[piece], ta[:-1][piece], ta[1:][piece]
-    length = edges[n + 1] - edges[n]
-    sa = (a - edges[n]) / length   # the piece's ends as fractions of its step
-    sb = (b - edges[n]) / length
-    qa, qb = np.interp(a, t, v), np.interp(b, t, v)
-    width = sb - sa
-    volume = np.bincount(n, 0.5 * (qa + qb) * width, minlength=mean.size)   # ∫ q ds over the step
-    moment = np.bincount(n, width * (qa * (2.0 * sa + sb) + qb * (sa + 2.0 * sb)) / 6.0,
-                         minlength=mean.size)   # ∫ q s ds
-    m = volume[steps]
-    slope = 12.0 * (moment[steps] - 0.5 * m)   # the fit m + slope (s - 1/2)
-    mean[steps] = m
-    course[2 * steps] = m - 0.5 * slope
-    course[2 * steps + 1] = m + 0.5 * slope
 
 
 def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, state: tuple, forcing: np.ndarray,
