@@ -1,10 +1,9 @@
-"""The real D-HYDRO models of ../shared/data, imported and run: D-HYDRO's own levels, mass balance, a sewer network.
+"""The real D-HYDRO models of ../shared/data, imported and run: mass balance, a sewer network.
 
-- Dellen: driven by the lateral inflows and structure settings of the coupled D-HYDRO run, the levels at the
-  144 locations D-HYDRO computed must lie within a median RMSE of 5 cm, and 10 cm at 90 % of them.
+(Dellen against D-HYDRO's own levels, and its water balance over the week: test_dhydro_dellen_fidelity.py.)
 - Korte Woerden (an urban sewer network): every object accounted for, and with a constant inflow of 1 l/s on
   each of its 72 realtime laterals it runs its two hours without diverging, and its schematic is drawn.
-- Every imported model closes its water balance to 1e-6 with finite levels.
+- Every other imported model closes its water balance to 1e-6 with finite levels.
 """
 
 from __future__ import annotations
@@ -12,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rivercal.bench.dhydro import compare_dellen
 from rivercal.io.dhydro import ImportOptions, import_dhydro
 from rivercal.model import load_model
 from rivercal.report.figures import plot_network
@@ -21,18 +19,6 @@ from tests.shared_data import shared_model
 
 #: The documented constant inflow of each realtime lateral of Korte Woerden, m³/s (1 l/s per sewer area).
 KORTE_WOERDEN_INFLOW = 0.001
-
-
-@pytest.mark.slow
-def test_dellen_reproduces_dhydro_levels(tmp_path) -> None:
-    folder = shared_model("dhydro-dellen")
-    result = compare_dellen(folder, tmp_path / "case")
-    summary = result.summary()
-    assert summary["locations"] == 144
-    assert summary["rmse_median_m"] <= 0.05, result.table.head(10)
-    assert summary["rmse_p90_m"] <= 0.10, result.table.head(20)
-    assert result.balance_error < 1e-6
-    assert np.isfinite(result.series.to_numpy()).all()
 
 
 @pytest.mark.slow
@@ -56,14 +42,10 @@ def test_korte_woerden_runs_two_hours_with_a_constant_inflow(tmp_path) -> None:
     assert written.stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("model", ["dellen", "steady", "korte-woerden", "hydrolib-built"])
+@pytest.mark.parametrize("model", ["steady", "korte-woerden", "hydrolib-built"])
 def test_imported_models_close_their_water_balance(model, tmp_path) -> None:
     options = ImportOptions(realtime_lateral=KORTE_WOERDEN_INFLOW)
-    if model == "dellen":
-        folder = shared_model("dhydro-dellen")
-        mdu = folder / "dflowfm" / "Flow1D.mdu"
-        options = ImportOptions(realtime=(folder / "rr_to_flow.nc", folder / "rtc_to_flow.nc"))
-    elif model == "steady":
+    if model == "steady":
         mdu = shared_model("dhydro-1d-steady-state-flow", "Boundary.mdu")
     elif model == "korte-woerden":
         mdu = shared_model("dhydro-korte-woerden-1d", "dflowfm", "FlowFM.mdu")
