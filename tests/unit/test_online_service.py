@@ -11,6 +11,7 @@ bound on the change per cycle, the identifiability gate, the jump alert, a windo
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -140,6 +141,9 @@ def test_cycles_follow_a_jump_warm_hot_and_alert(tmp_path) -> None:
         first = next(o for o in out if o.issue_time > CHANGE)
         assert first.transition is None and 16.5 < first.estimates["FA"] < 20.0
         assert first.accepted == {"FA": 16.0, "Wd": 10.0} and "too recent" in first.held["FA"]
+        shown, needed = re.search(r"only ([\d.]+) h of the window follow it \(fewer than ([\d.]+) h\)",
+                                  first.held["FA"]).groups()
+        assert float(shown) < float(needed)  # never printed as the threshold it missed
         assert all(abs(o.accepted["FA"] - 25.0) < 0.25 for o in after)
         assert after[0].transition is not None and after[0].transition.found_cycle == after[0].cycle
         assert abs(after[0].transition.time - CHANGE) <= pd.Timedelta("1h")

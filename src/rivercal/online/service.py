@@ -492,7 +492,8 @@ class OnlineService:
             return None, est.model_runs, words
         need_h = min(self.config.transition_min_after_h, 0.5 * self.window / pd.Timedelta("1h"))
         if after_h < need_h:
-            words += (f" at {est.time:%Y-%m-%d %H:%M}, but only {after_h:.0f} h of the window follow it (fewer than "
+            shown = math.floor(after_h * 10.0) / 10.0  # rounded down: never printed as the threshold it missed
+            words += (f" at {est.time:%Y-%m-%d %H:%M}, but only {shown:g} h of the window follow it (fewer than "
                       f"{need_h:g} h){_TOO_RECENT}")
             return None, est.model_runs, words
         found = TransitionRecord(parameter=name, time=est.time.floor("s"), before=est.before, after=est.after,
