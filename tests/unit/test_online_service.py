@@ -254,6 +254,12 @@ def test_bad_configurations_are_refused_before_any_run(tmp_path) -> None:
     assert (bad.value.field, bad.value.value) == ("window", "0D")
     assert bad.value.describe("property 'window'") == ("property 'window' '0D': not a positive duration (e.g. 7D, "
                                                         "48h, 90min)")
+    # a number without a unit: pandas would read 24 as 24 ns; refused, with the unit the user left out
+    for value in ("24", 24, "1.5"):
+        with pytest.raises(OnlineConfigError, match="a duration needs its unit") as bad:
+            OnlineConfig(warmup=value)
+        assert (bad.value.field, bad.value.value) == ("warmup", value)
+    assert OnlineConfig(warmup="0h").warmup == "0h"
     with pytest.raises(OnlineConfigError) as bad:
         OnlineConfig.from_options(parameters="FA,Wd", max_change="FA=-1")
     assert bad.value.describe("--max-change") == "--max-change 'FA=-1': the value of FA must be a positive number"

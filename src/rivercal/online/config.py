@@ -462,7 +462,12 @@ _NUMBERS = ("deadline_s", "alert_k", "gate_sv", "gate_index", "loss_scale", "tra
 
 
 def _duration(name: str, value: Any, *, zero: bool = False) -> pd.Timedelta:
-    """A duration field, checked: positive (``zero``: zero or more)."""
+    """A duration field, checked: positive (``zero``: zero or more).
+
+    A bare number has no unit and is refused: pandas would read ``24`` as 24 nanoseconds, which nobody means.
+    """
+    if _bare_number(value):
+        raise OnlineConfigError(name, "a duration needs its unit (e.g. 24h, 7D, 90min)", value)
     try:
         out = pd.Timedelta(value)
     except (ValueError, TypeError, OverflowError):
@@ -471,6 +476,21 @@ def _duration(name: str, value: Any, *, zero: bool = False) -> pd.Timedelta:
         raise OnlineConfigError(name, f"not a {'duration of zero or more' if zero else 'positive duration'} (e.g. "
                                       f"{'24h, 0h' if zero else '7D, 48h, 90min'})", value)
     return out
+
+
+def _bare_number(value: Any) -> bool:
+    """Whether ``value`` is a number without a unit (an int, a float, or text such as ``"24"`` or ``" 1.5 "``)."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, int | float):
+        return True
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return False
+        return True
+    return False
 
 
 def _number(name: str, value: Any, *, above: float | None = None, low: float | None = None) -> float:
