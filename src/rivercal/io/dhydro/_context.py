@@ -26,6 +26,14 @@ def unquote(text: object) -> str:
     return value
 
 
+def _numbers(text: str) -> list[float]:
+    """The numbers of a value written as numbers separated by spaces; [] when one is not a number."""
+    try:
+        return [float(v) for v in text.split()]
+    except ValueError:
+        return []
+
+
 @dataclass(frozen=True)
 class ImportOptions:
     """Options of an import.

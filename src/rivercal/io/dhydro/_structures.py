@@ -15,7 +15,8 @@ import numpy as np
 
 from rivercal.io.dhydro._context import Context, unquote
 from rivercal.io.dhydro._forcing import forcing_series, held_series
-from rivercal.io.dhydro._network import add_profile, friction_of
+from rivercal.io.dhydro._friction import friction_of
+from rivercal.io.dhydro._profiles import add_profile
 
 __all__ = ["convert_structures"]
 
