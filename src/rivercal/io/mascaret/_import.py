@@ -36,7 +36,6 @@ geometry steps are in ``_geometry``, the forcing steps in ``_forcing``, and what
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,7 +52,6 @@ from rivercal.io.mascaret._xcas import read_xcas
 
 __all__ = ["ImportOptions", "ImportResult", "StationSpec", "import_mascaret"]
 
-log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
