@@ -45,9 +45,13 @@ def test_every_command_runs_on_the_sobek3_compound_channel_as_imported(tmp_path:
     run = rivercal("online", str(case), "--observations", str(tmp_path / "observed.csv"), "--params", "F_scale",
                    "--from", "2001-01-20", "--to", "2001-01-20", "--max-cycles", "1", "--window", "2D",
                    "--cycle", "1D", "--horizon", "1D", "--db", str(tmp_path / "run.sqlite"), "--workers", "1",
-                   "--members", "8", "--quiet", "--json")  # states and parameters (the default), a small ensemble
+                   "--members", "8", "--out", str(tmp_path / "online"), "--quiet", "--json")
+    # states and parameters (the default), a small ensemble
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["status"] == {"done": 1}
+    # the report's parameter table has the factor the run estimated (the DSS keeps the model's own friction)
+    table = pd.read_csv(tmp_path / "online" / "parameters.csv", index_col="parameter")
+    assert table.loc["F_scale", "rivercal after"] == pytest.approx(1.0, abs=0.05)
     run = rivercal("export", "dhydro", str(case), "--out", str(tmp_path / "dflowfm"), "--json")
     assert run.returncode == 0, run.stderr
 

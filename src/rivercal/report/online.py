@@ -184,9 +184,10 @@ def _error_time_figure(errors: dict[str, pd.DataFrame], change: pd.Timestamp | N
 def _parameter_table(model: Model, run: Run, est: pd.DataFrame, change: pd.Timestamp | None) -> pd.DataFrame:
     """Thesis Tables 5-1 … 5-5: crest per adjustable weir and friction — true, DSS and rivercal.
 
-    Rows: every single-target parameter of the case that the DSS or the truth sets, plus the quantities
-    the scenario changes (e.g. the friction of one section). A branch friction that rivercal does not
-    estimate takes its global friction.
+    Rows: every single-target parameter of the case that the DSS or the truth sets, every single-target
+    parameter the run estimates (a factor the DSS keeps at the model's own value shows no DSS number), plus
+    the quantities the scenario changes (e.g. the friction of one section). A branch friction that rivercal
+    does not estimate takes its global friction.
     """
     from rivercal.parameters import ParameterSet
     from rivercal.twin.practical import SCENARIOS
@@ -203,6 +204,9 @@ def _parameter_table(model: Model, run: Run, est: pd.DataFrame, change: pd.Times
     for target in changed_after:
         rows_for.setdefault(target, target.split(":", 1)[1])
     params = ParameterSet(known[n] for n in run.config["parameters"])
+    for p in params:  # every estimated parameter has its row, also a factor the DSS has no number for
+        if len(p.targets) == 1 and p.name not in rows_for.values():
+            rows_for.setdefault(p.targets[0], p.name)
     windows = est.drop_duplicates("cycle").set_index("cycle")
 
     def rivercal_at(pick: int | None) -> dict[str, float]:
@@ -239,7 +243,9 @@ def _parameter_table(model: Model, run: Run, est: pd.DataFrame, change: pd.Times
             row["true after"] = value({**dss, **changed_after}, target)
         row["rivercal after"] = value(q_after, target) if q_after else np.nan
         rows.append(row)
-    return pd.DataFrame(rows).set_index("parameter")
+    columns = ["parameter", "target", "unit", "DSS", *(["true before"] if scenario is not None else []),
+               "rivercal before", *(["true after"] if scenario is not None else []), "rivercal after"]
+    return pd.DataFrame(rows, columns=columns).set_index("parameter")
 
 
 def _station_scores(scores: pd.DataFrame) -> pd.DataFrame:
