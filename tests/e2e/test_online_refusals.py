@@ -56,8 +56,9 @@ def test_levels_in_cm_are_refused_before_anything_is_stored(delivered, tmp_path:
     db = tmp_path / "run.sqlite"
     run = _online(db, delivered["cm"], "--from", "2010-11-05", "--to", "2010-11-06")
     assert run.returncode == 2, run.stderr
-    assert "cm.csv: column '0028.h_up': 337 of 337 values lie outside the plausible range" in run.stderr
-    assert "they look like cm (99.98 times the model's 10.56 m AD): give levels in m" in run.stderr
+    assert "cm.csv: column '0028.h_up': 265 of 265 values lie outside the plausible range" in run.stderr
+    assert "from 2010-10-28 00:00 to 2010-11-08 00:00, the period the model ran" in run.stderr  # the values judged
+    assert "they look like cm (100 times the model's 10.56 m AD): give levels in m" in run.stderr
     assert _runs(db) == 0
 
 

@@ -65,11 +65,34 @@ def test_a_few_implausible_values_are_stored_as_outliers_and_left_out(tmp_path) 
     assert "column 'A.h': 2 of 241 values outside the plausible range" in note and "-999" in note
     with Store(tmp_path / "s.sqlite") as store:
         store.ingest(delivery, "levels.csv", screen=ScreenRule(),
-                     plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
+                     plausible={sid: r.bounds() for sid, r in ranges.items()})
         used = store.observation_table(["A.h"], a.times[0], a.times[-1])
         assert len(used) == len(a) - 2 and used["value"].min() > ranges["A.h"].low
         flagged = store.observation_table(["A.h"], a.times[0], a.times[-1], flagged=True)
         assert sorted(flagged.loc[flagged["flag"] == "outlier", "value"]) == [-999.0, -999.0]
+
+
+def test_values_before_the_period_the_model_ran_are_stored_unjudged(tmp_path) -> None:
+    """A file with months of history: its values before the data period (a flood, levels metres apart from the
+    period's) are neither refused nor flagged; a spike inside the period still is."""
+    model = ToyRiver()
+    obs = _observations(model, [], start="2010-10-03", end="2010-10-27")
+    a = obs["A.h"]
+    ranges = _ranges(model)
+    before = np.asarray(a.times < ranges["A.h"].start)
+    assert before.sum() > (~before).sum()  # most of the file lies before the period
+    values = np.where(before, a.values - 10.0, a.values)  # far outside the period's range
+    inside = int(np.flatnonzero(~before)[5])
+    values[inside] = -999.0
+    delivery = ObservationSet((ObservationSeries("A.h", a.times, values, a.sigma),))
+    (note,) = check_delivery(delivery, "history.csv", ranges)
+    assert f"1 of {(~before).sum()} values outside the plausible range" in note and "-999" in note
+    assert "the period the model ran" in note
+    with Store(tmp_path / "s.sqlite") as store:
+        store.ingest(delivery, "history.csv", plausible={sid: r.bounds() for sid, r in ranges.items()})
+        flagged = store.observation_table(["A.h"], a.times[0], a.times[-1], flagged=True)
+        assert flagged.loc[flagged["flag"] == "outlier", "value"].tolist() == [-999.0]
+        assert len(store.observation_table(["A.h"], a.times[0], a.times[-1])) == len(a) - 1
 
 
 def test_a_series_the_model_does_not_simulate_is_refused_with_the_known_ids() -> None:

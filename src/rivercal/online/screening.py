@@ -14,11 +14,13 @@ they are stored flagged as outliers and left out, like the spikes the ingestion'
 (:meth:`rivercal.store.Store.ingest` with ``plausible``).
 
 The plausible range of a series comes from the model's own run of the data period with the DSS's
-quantities: for a level (``h``, ``h_up``, ``h_down``, m AD) the simulated levels widened by
-:data:`LEVEL_MARGIN_M` or by their own range, whichever is larger (a level metres below the lowest the
-model ever simulates there lies below the bed); for a discharge (``Q``, m³/s) up to
-:data:`DISCHARGE_FACTOR` times the largest simulated discharge plus :data:`DISCHARGE_FLOOR`, in either
-direction. The margins are wide on purpose: they catch units and datums, not model error.
+quantities, and judges only the values inside that period (a file may hold months before it, a flood the
+period's levels say nothing about, which no cycle uses and which are stored unjudged). For a level (``h``,
+``h_up``, ``h_down``, m AD) it is the simulated levels widened by :data:`LEVEL_MARGIN_M` or by their own
+range, whichever is larger (a level metres below the lowest the model ever simulates there lies below the
+bed); for a discharge (``Q``, m³/s) up to :data:`DISCHARGE_FACTOR` times the largest simulated discharge plus
+:data:`DISCHARGE_FLOOR`, in either direction. The margins are wide on purpose: they catch units and
+datums, not model error.
 """
 
 from __future__ import annotations
@@ -71,6 +73,8 @@ class PlausibleRange:
         The model's own range over the data period, same unit.
     simulated_median
         The median of the model's values, same unit (for the unit hint).
+    start, end
+        The period of the model's run (UTC): only values inside it are judged.
     """
 
     series: str
@@ -79,16 +83,27 @@ class PlausibleRange:
     simulated_low: float
     simulated_high: float
     simulated_median: float
+    start: pd.Timestamp
+    end: pd.Timestamp
 
     @property
     def unit(self) -> str:
         """The unit of the values: m AD for levels, m³/s for discharges."""
         return "m³/s" if self.series.rpartition(".")[2] == "Q" else "m AD"
 
-    def outside(self, values: np.ndarray) -> np.ndarray:
-        """Which of ``values`` lie outside the range (a boolean mask)."""
+    def judged(self, times: pd.DatetimeIndex) -> np.ndarray:
+        """Which of ``times`` (UTC) lie in the period of the model's run, whose values the range judges."""
+        return np.asarray((times >= self.start) & (times <= self.end), dtype=bool)
+
+    def outside(self, values: np.ndarray, times: pd.DatetimeIndex | None = None) -> np.ndarray:
+        """Which of ``values`` lie outside the range (a boolean mask); with ``times``, only those in its period."""
         v = np.asarray(values, dtype=float)
-        return (v < self.low) | (v > self.high)
+        out = (v < self.low) | (v > self.high)
+        return out & self.judged(times) if times is not None else out
+
+    def bounds(self) -> tuple[float, float, pd.Timestamp, pd.Timestamp]:
+        """The range as the store takes it (:meth:`rivercal.store.Store.ingest`, ``plausible``)."""
+        return self.low, self.high, self.start, self.end
 
     def describe(self) -> str:
         """The range in words, with where it comes from."""
@@ -96,7 +111,8 @@ class PlausibleRange:
                 if self.unit == "m AD" else
                 f"up to {DISCHARGE_FACTOR:g} times the model's largest discharge there "
                 f"({max(abs(self.simulated_low), abs(self.simulated_high)):.3g} m³/s)")
-        return f"{self.low:.4g} to {self.high:.4g} {self.unit} ({what})"
+        return (f"{self.low:.4g} to {self.high:.4g} {self.unit} ({what}; for the values from "
+                f"{self.start:%Y-%m-%d %H:%M} to {self.end:%Y-%m-%d %H:%M}, the period the model ran)")
 
 
 def plausible_ranges(model: Model, series: Iterable[str], start: Any, end: Any, quantities: Mapping[str, float],
@@ -107,6 +123,7 @@ def plausible_ranges(model: Model, series: Iterable[str], start: Any, end: Any, 
     (:func:`~rivercal.models.contract.spun_up`, kept on disk by the embedded engine); ``output_interval`` in s.
     Series the run does not give, or gives without a finite value, get no range.
     """
+    start, end = pd.Timestamp(start), pd.Timestamp(end)
     state = spun_up(model, dict(quantities), start) if start > model.start else None
     result, _ = model.simulate(dict(quantities), start=start, end=end, state=state, output_interval=output_interval)
     out: dict[str, PlausibleRange] = {}
@@ -120,10 +137,10 @@ def plausible_ranges(model: Model, series: Iterable[str], start: Any, end: Any, 
         lo, hi, median = float(values.min()), float(values.max()), float(np.median(values))
         if sid.rpartition(".")[2] == "Q":
             bound = DISCHARGE_FACTOR * max(abs(lo), abs(hi)) + DISCHARGE_FLOOR
-            out[sid] = PlausibleRange(sid, -bound, bound, lo, hi, median)
+            out[sid] = PlausibleRange(sid, -bound, bound, lo, hi, median, start, end)
         else:
             margin = max(LEVEL_MARGIN_M, hi - lo)
-            out[sid] = PlausibleRange(sid, lo - margin, hi + margin, lo, hi, median)
+            out[sid] = PlausibleRange(sid, lo - margin, hi + margin, lo, hi, median, start, end)
     return out
 
 
@@ -180,17 +197,19 @@ def check_delivery(observations: ObservationSet, file: str, ranges: Mapping[str,
         rng = ranges.get(s.id)
         if rng is None or len(s) == 0:
             continue
-        outside = rng.outside(s.values)
+        outside = rng.outside(s.values, s.times)
         n = int(outside.sum())
         if n == 0:
             continue
-        if n > REFUSE_SHARE * len(s):
-            median = float(np.median(s.values))
-            raise CaseError(f"{n} of {len(s)} values lie outside the plausible range {rng.describe()}; their median is "
+        inside_period = rng.judged(s.times)
+        judged = int(inside_period.sum())
+        if n > REFUSE_SHARE * judged:
+            median = float(np.median(s.values[inside_period]))
+            raise CaseError(f"{n} of {judged} values lie outside the plausible range {rng.describe()}; their median is "
                             f"{median:.6g}{_unit_hint(rng, median)} (nothing of this file was stored)", file=file,
                             field=_column(file, s.id))
         first = s.times[outside][0]
-        notes.append(f"{file}: {_column(file, s.id)}: {n} of {len(s)} values outside the plausible range "
+        notes.append(f"{file}: {_column(file, s.id)}: {n} of {judged} values outside the plausible range "
                      f"{rng.describe()} (first {float(s.values[outside][0]):.6g} at {first:%Y-%m-%d %H:%M}): "
                      "stored as outliers, left out")
     return notes

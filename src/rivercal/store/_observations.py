@@ -28,7 +28,7 @@ class ObservationTables(StoreBase):
 
     def ingest(self, observations: ObservationSet, source: str, *,
                on_conflict: Literal["keep", "replace"] = "keep", screen: ScreenRule | None = None,
-               plausible: Mapping[str, tuple[float, float]] | None = None) -> IngestResult:
+               plausible: Mapping[str, tuple[Any, ...]] | None = None) -> IngestResult:
         """Store observations from ``source`` in one transaction; values already stored are not duplicated.
 
         A value whose (series, time, source) is stored already is a duplicate. If its value differs, it is
@@ -56,9 +56,10 @@ class ObservationTables(StoreBase):
         screen
             The spike screening rule; None: no spike screening.
         plausible
-            (low, high) per series id, m AD or m³/s (e.g. from :func:`rivercal.online.screening.plausible_ranges`);
-            values outside are flagged. Give the same ranges at every ingestion of a source (the flags of the
-            values near new ones are set anew).
+            (low, high) per series id, m AD or m³/s, or (low, high, start, end) with the period (UTC) whose values
+            the range judges (e.g. :meth:`rivercal.online.screening.PlausibleRange.bounds`); values outside the
+            range (in its period) are flagged. Give the same ranges at every ingestion of a source (the flags of
+            the values near new ones are set anew).
 
         Returns
         -------
@@ -103,7 +104,7 @@ class ObservationTables(StoreBase):
                 inserted += len(new)
                 duplicates += int(stored.sum())
                 conflicts += int(differ.sum())
-                bounds = (plausible or {}).get(series)
+                bounds = _bounds((plausible or {}).get(series))
                 if screen is not None or bounds is not None:
                     outliers += self._screen(conn, series, source, int(times.min()), int(times.max()), screen,
                                              bounds)
@@ -114,11 +115,12 @@ class ObservationTables(StoreBase):
 
     @staticmethod
     def _screen(conn: Any, series: str, source: str, first: int, last: int, rule: ScreenRule | None,
-                bounds: tuple[float, float] | None = None) -> int:
+                bounds: tuple[float, float, int, int] | None = None) -> int:
         """Screen the stored values of a series and source around [first, last]; set their flags anew.
 
         Values within one window of the new ones are judged (with the values within two windows as their
-        context); values outside ``bounds`` (low, high) are outliers, and the spike screening judges the rest.
+        context); values outside ``bounds`` (low, high, and the period in Unix seconds whose values they judge)
+        are outliers, and the spike screening judges the rest.
         Returns how many of the judged values are outliers.
         """
         half = round(rule.half_window_h * 3600) if rule is not None else 0
@@ -132,7 +134,7 @@ class ObservationTables(StoreBase):
         was = np.array([r[2] == "outlier" for r in rows], dtype=bool)
         now = np.zeros(values.shape, dtype=bool)
         if bounds is not None:
-            now = (values < bounds[0]) | (values > bounds[1])
+            now = ((values < bounds[0]) | (values > bounds[1])) & (times >= bounds[2]) & (times <= bounds[3])
         if rule is not None:
             keep = ~now
             now[keep] = screen_outliers(times[keep], values[keep], series.rpartition(".")[2], rule)
@@ -316,3 +318,17 @@ class ObservationTables(StoreBase):
         out["last"] = fr.from_unix(out["last"].astype("int64"))
         out["max_gap_h"] = out["max_gap_h"].astype(float)
         return out
+
+
+#: The period of a plausible range given without one: every time (Unix seconds).
+_EVER = (-(2**62), 2**62)
+
+
+def _bounds(given: Any) -> tuple[float, float, int, int] | None:
+    """A plausible range as ``_screen`` takes it: (low, high) or (low, high, start, end), the period in Unix s."""
+    if given is None:
+        return None
+    if len(given) == 2:
+        return float(given[0]), float(given[1]), *_EVER
+    low, high, start, end = given
+    return float(low), float(high), int(pd.Timestamp(start).timestamp()), int(pd.Timestamp(end).timestamp())

@@ -175,7 +175,7 @@ def run_online(model: Model, db: str | Path, run: str, config: OnlineConfig, fir
             truth_series = truth.series
         for source, obs in observations:
             store.ingest(obs, source=source, screen=ScreenRule(),
-                         plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
+                         plausible={sid: r.bounds() for sid, r in ranges.items()})
         finished = int(store.cycles(service.run)["status"].isin(FINAL_STATUSES).sum())
         total = int((last - service.schedule.first_issue) // service.period) + 1
         if max_cycles is not None:
@@ -244,7 +244,7 @@ def ingest_file(store: Store, path: str | Path, model: Model, ranges: dict[str, 
     check_series(delivery, model.observables, path.name, model.name)
     _outlier_notes(check_delivery(delivery, path.name, ranges), path.name, progress)
     return store.ingest(delivery, source=path.name, screen=ScreenRule(),
-                        plausible={sid: (r.low, r.high) for sid, r in ranges.items()})
+                        plausible={sid: r.bounds() for sid, r in ranges.items()})
 
 
 def _screen_deliveries(model: Model, config: OnlineConfig, first: pd.Timestamp, last: pd.Timestamp,
