@@ -297,11 +297,13 @@ def test_dud_dates_the_friction_jump_on_the_default_case(dommel) -> None:
 
 @pytest.mark.slow
 def test_week_with_the_jump_dud_dates_it_and_one_value_averages_it(dommel) -> None:
-    """7-day window 2010-10-28 .. 11-04 (τ = 96 h), 24 h warm-up, truth from the case start, with the reference
-    study's sensor noise (noise-free observations are dated by the two-day test above)."""
+    """7-day window 2010-10-28 .. 11-04 (τ = 96 h), 24 h warm-up, truth cold-started four days before it (as the
+    two-day test: the case's 96 h spin-up, then four days of the real forcing), with the reference study's sensor
+    noise (noise-free observations are dated by the two-day test above)."""
     sim, fa = dommel
     window = (pd.Timestamp("2010-10-28", tz="UTC"), pd.Timestamp("2010-11-04", tz="UTC"))
-    state, series = _truth(sim, window[0] - pd.Timedelta("24h"), window[1])
+    cold = pd.Timestamp("2010-10-23", tz="UTC")
+    state, series = _truth(sim, window[0] - pd.Timedelta("24h"), window[1], cold_from=cold)
     est = estimate_transition(sim, fa, _observations(series, *window, "white"), window, state=state,
                               options=sim.calibration.options)
     assert est.test.transition, est.test.reason
@@ -313,9 +315,12 @@ def test_week_with_the_jump_dud_dates_it_and_one_value_averages_it(dommel) -> No
 
 @pytest.mark.slow
 def test_week_without_a_change_is_not_a_transition(dommel) -> None:
+    """7-day window 2010-10-21 .. 10-28 with sensor noise, the truth k_s = 16 throughout (cold-started four days
+    before the warm-up, as above)."""
     sim, fa = dommel
     window = (pd.Timestamp("2010-10-21", tz="UTC"), pd.Timestamp("2010-10-28", tz="UTC"))
-    _, state = sim.simulate({FG: 16.0}, end=window[0] - pd.Timedelta("24h"))
+    cold = pd.Timestamp("2010-10-16", tz="UTC")
+    _, state = sim.simulate({FG: 16.0}, start=cold, end=window[0] - pd.Timedelta("24h"))
     result, _ = sim.simulate({FG: 16.0}, window[0] - pd.Timedelta("24h"), window[1], state)
     est = estimate_transition(sim, fa, _observations(result.series, *window, "white"), window, state=state,
                               options=sim.calibration.options, max_nfev=40)
