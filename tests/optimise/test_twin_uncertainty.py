@@ -53,11 +53,13 @@ def _problem(model, setup: str, noise: str, twins: dict) -> CalibrationProblem:
     return CalibrationProblem(model, params.with_initial(start), twin.observations, window, state=twin.state)
 
 
+# Sparse DuD noise-free adds nothing to these: its fresh Jacobian (taken at the end of every run that stops by
+# its own rules) is checked on the noisy twin, and the end of a noise-free fit (a negligible cost: the fresh
+# Jacobian without a Gauss-Newton polish) is the DuD engine's, which Sparse DuD shares, checked by DuD on FaWc.
 @pytest.mark.slow
 @pytest.mark.parametrize(("method", "setup", "noise"), [
     ("dud", "FaWc", "none"), ("trf", "FaWc", "none"),
     ("dud", "FA-W2-W3-W5", "white"), ("sparse_dud", "FA-W2-W3-W5", "white"), ("trf", "FA-W2-W3-W5", "white"),
-    ("sparse_dud", "FA-W2-W3-W5", "none"),
 ])
 def test_std_and_correlation_match_a_reference_jacobian(model, twins, method, setup, noise):
     problem = _problem(model, setup, noise, twins)
