@@ -84,6 +84,8 @@ class ToyRiver:
         z = np.array([q["weir:W.crest_level"] + 0.5, 1.5]) if state is None else state.z.copy()
         if state is not None and state.time != start:
             raise ValueError(f"the state is at {state.time}, the run starts at {start}")
+        if not end > start:  # as every adapter (rivercal.models.contract.check_run)
+            raise ValueError(f"the period {start} .. {end} must be a positive multiple of the output interval")
         out = np.empty((len(times), 2))
         out[0] = z
         flow = self.discharge(times.as_unit("ns").asi8)
@@ -191,6 +193,18 @@ def test_a_second_service_on_the_same_store_resumes_without_repeating(tmp_path) 
         assert more[0].hot_start
         with pytest.raises(Exception, match="another configuration"):
             OnlineService(ToyRiver(), store, "toy", OnlineConfig(parameters=("FA",), workers=1), "2010-10-25")
+
+
+def test_a_window_and_warm_up_of_one_cycle_hot_start_each_cycle_at_its_issue_time(tmp_path) -> None:
+    """Window + warm-up = the cycle: the next cycle's run starts at this cycle's issue time, where the saved state
+    is the run's own (no run of no length, which a model refuses)."""
+    config = OnlineConfig(parameters=("FA",), workers=1, deadline_s=None, window="12h", warmup="12h",
+                          transition=False)
+    store, svc = _service(tmp_path, config, _observations(ToyRiver(), []))
+    with store:
+        out = svc.replay("2010-10-27")
+        assert [o.status for o in out] == ["done"] * 3 and all(o.hot_start for o in out[1:])
+        assert all(abs(o.accepted["FA"] - 16.0) < 0.05 for o in out)
 
 
 def test_deadline_aborts_and_keeps_the_last_accepted_estimate(tmp_path) -> None:

@@ -557,7 +557,9 @@ class OnlineService:
             q = intervention.transition_quantities(model, q, change, accepted[change.parameter])
         next_start = run_start + self.period
         _, s_next = model.simulate(q, start=run_start, end=next_start, state=state, output_interval=interval)
-        _, s_t0 = model.simulate(q, start=next_start, end=t0, state=s_next, output_interval=interval)
+        s_t0 = s_next  # a window and warm-up of one cycle start the next cycle's run at t0 itself
+        if t0 > next_start:
+            _, s_t0 = model.simulate(q, start=next_start, end=t0, state=s_next, output_interval=interval)
         updated, _ = model.simulate(q, start=t0, end=t0 + self.horizon, state=s_t0, output_interval=interval)
         dss_q = dict(self.config.dss)
         dss_state, _ = self._state("dss", t0 - self.period, dss_q)
