@@ -1,7 +1,8 @@
 """The optional capabilities of the model contract, on every adapter that has them, against the models' own results.
 
 - the embedded engine: levels written into a state set the volumes of the same levels (the engine's own
-  geometry) and a run from the state keeps its water balance; perturbed members are one batched call;
+  geometry) and a run from the state keeps its water balance; perturbed members are one batched call, and a
+  member with factors of one is the single run, also where the engine divides its steps;
 - SWMM: the hotstart file read as arrays holds the heads SWMM itself reports at the stations, in SWMM's node
   order; heads written into it are what the next SWMM run starts from; scaled inflows are SWMM's scale
   factors, and a variant's scaled series gives the same run;
@@ -99,6 +100,32 @@ def test_perturbed_members_in_one_call_equal_their_runs_one_by_one(dommel) -> No
     assert np.array_equal(together.values, alone.values)
     q = dommel.observables.index("0029.Q")
     assert (together.values[1, 1:, q] > together.values[0, 1:, q]).all()  # 50 % more inflow, more discharge
+
+
+def test_a_member_with_factors_of_one_is_the_single_run_also_where_steps_are_divided(tmp_path) -> None:
+    """dommel at a 1-hour step: the engine divides every step (its hourly inflows change within one), and a
+    member's divided steps follow the inflows' course within the step, scaled by its factor, as the single run's
+    do (holding each step's mean instead moved the series by up to 4e-5)."""
+    import shutil
+    from importlib import resources
+    from pathlib import Path
+
+    case = tmp_path / "dommel"
+    shutil.copytree(Path(str(resources.files("rivercal.cases") / "dommel")), case)
+    text = (case / "case.toml").read_text(encoding="utf-8")
+    assert text.count("dt = 60.0") == 1
+    (case / "case.toml").write_text(text.replace("dt = 60.0", "dt = 3600.0"), encoding="utf-8")
+    model = load_model(case)
+    t0 = model.start + pd.Timedelta("30D")
+    state = model.state_at(None, t0)
+    single, _ = model.simulate(None, start=t0, end=t0 + pd.Timedelta("12h"), state=state)
+    assert model.last_run_stats["divided_steps"] == 12
+    k = len(model.perturbable_forcing())
+    member = model.run_members(None, t0, t0 + pd.Timedelta("12h"), [state, state],
+                               factors=np.stack([np.ones((12, k)), np.full((12, k), 1.2)]), interval=3600.0)
+    assert np.array_equal(member.values[0], single.series.to_numpy())
+    q = model.observables.index("0029.Q")
+    assert (member.values[1, 1:, q] > member.values[0, 1:, q]).all()
 
 
 def test_the_swmm_hotstart_file_holds_the_heads_swmm_reports(tmp_path, swmm, swmm_state) -> None:

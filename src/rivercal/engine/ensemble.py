@@ -102,6 +102,7 @@ def run_ensemble(
     states: Sequence[EngineState] | None = None,
     *,
     forcing: np.ndarray | None = None,
+    edges: np.ndarray | None = None,
     output_interval: float | None = None,
     snapshots: bool = False,
     n_threads: int | None = None,
@@ -125,6 +126,11 @@ def run_ensemble(
         Per member forcing, shape (members, steps, columns) in the columns of
         :attr:`CompiledNetwork.forcing_keys` (m³/s or m AD per step, as :meth:`Simulator.forcing_matrix`
         gives them); None: the case's forcing for all.
+    edges
+        With ``forcing``: each member's discharges at the edges of each step, shape (members, 2 × steps, columns)
+        as :meth:`Simulator.forcing_edges` gives them for the case (the line a divided step's sub-steps follow;
+        its mean is the step's value of ``forcing``); None: a divided step holds each member's step mean. Without
+        ``forcing`` the case's own edges are used.
     output_interval
         Interval of the output series, s (default from the case).
     snapshots
@@ -158,7 +164,6 @@ def run_ensemble(
     fric = np.array([a[1] for a in arrays]).reshape(n_mem, -1)
     control = [sim.control_values(p) for p in parameters]
     n_cols = len(sim.compiled.forcing_keys)
-    edges = None
     if forcing is None:
         forcing = sim.forcing_matrix(start, n_steps)[None]
         edges = sim.forcing_edges(start, n_steps)
@@ -167,6 +172,11 @@ def run_ensemble(
         if forcing.shape != (n_mem, n_steps, n_cols):
             raise ValueError(f"forcing must have shape (members, steps, columns) = {(n_mem, n_steps, n_cols)}, "
                              f"got {forcing.shape}")
+        if edges is not None:
+            edges = np.ascontiguousarray(edges, dtype=float)
+            if edges.shape != (n_mem, 2 * n_steps, n_cols):
+                raise ValueError(f"edges must have shape (members, 2 x steps, columns) = "
+                                 f"{(n_mem, 2 * n_steps, n_cols)}, got {edges.shape}")
     n_threads = threads(n_threads)
     if states is None:
         stack = _Stack.of([sim.initial_state(start) for _ in range(n_mem)], sim.compiled.dikes.sc.size)
@@ -245,7 +255,8 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
     ``control`` holds each member's controller quantities (None entries without controllers); ``held`` holds
     the controllers' time tables at their value at the end of the run (a spin-up, as the single run does).
     The members run on ``n_threads`` threads, each its single run's compiled time loop on its own rows; ``edges``
-    (the forcing at the steps' edges, :meth:`Simulator.forcing_edges`) guides divided steps of the case's own forcing.
+    (the forcing at the steps' edges, :meth:`Simulator.forcing_edges`; per member with a leading members axis)
+    guides divided steps.
     """
     c = sim.compiled
     a, sx = c.arrays, c.structures
@@ -271,7 +282,8 @@ def _call(sim, stack, crest, fric, control, forcing, out_every, snapshots, start
         work.swing[:] = stack.swing[m]
         status[m] = time_loop(sim, work, cxs[m], crest[m], fric[m], state,
                               forcing[0] if forcing.shape[0] == 1 else forcing[m], out_every,
-                              (obs[m], zs[m], qs[m], balance[m]), private=True, dikes=stack.dikes[m], edges=edges)
+                              (obs[m], zs[m], qs[m], balance[m]), private=True, dikes=stack.dikes[m],
+                              edges=edges if edges is None or edges.ndim == 2 else edges[m])
         stack.control[m] = work.stats[list(CONTROL_STATS)]
         stack.flicker[m] = work.flick
         stack.swing[m] = work.swing

@@ -373,11 +373,14 @@ class EmbeddedModel(Simulator):
         return np.array(sorted(cols), dtype=np.int64)
 
     def _perturbed_forcing(self, start: pd.Timestamp, end: pd.Timestamp, factors: np.ndarray,
-                           interval: float) -> np.ndarray:
-        """Per-member forcing matrices (members, steps, columns): the case's forcing with ``factors`` applied.
+                           interval: float) -> tuple[np.ndarray, np.ndarray]:
+        """Per-member forcing and its course within each step: the case's, with ``factors`` applied.
 
-        ``factors`` (members, intervals, columns): a factor per perturbable forcing, then optionally an offset
-        (m) per level boundary (:class:`~.contract.PerturbableLevels`).
+        Returns the forcing (members, steps, columns) and the course (members, 2 × steps, columns; as
+        :meth:`forcing_edges`). ``factors`` (members, intervals, columns): a factor per perturbable forcing, then
+        optionally an offset (m) per level boundary (:class:`~.contract.PerturbableLevels`). A member's factor is
+        constant within a step, so a divided step follows the case's own course scaled by it: with factors of one
+        a member is the single run, also where the engine divides its steps.
         """
         factors = np.asarray(factors, dtype=float)
         n_steps = round((end - start).total_seconds() / self.dt)
@@ -392,11 +395,15 @@ class EmbeddedModel(Simulator):
                              f"or {widths[1]}), got {factors.shape}")
         base = self.forcing_matrix(start, n_steps)
         forcing = np.repeat(base[None], factors.shape[0], axis=0)
+        course = np.repeat(self.forcing_edges(start, n_steps)[None], factors.shape[0], axis=0)
         steps = np.repeat(factors, per, axis=1)[:, :n_steps]
+        edges = np.repeat(steps, 2, axis=1)  # a step's factor at both of its edges
         forcing[:, :, cols] *= steps[:, :, : cols.size]
+        course[:, :, cols] *= edges[:, :, : cols.size]
         if factors.shape[2] == widths[1] and levels.size:
             forcing[:, :, levels] += steps[:, :, cols.size :]
-        return forcing
+            course[:, :, levels] += edges[:, :, cols.size :]
+        return forcing, course
 
     def run_members(self, parameters: Mapping[str, float] | None, start: Any, end: Any,
                     states: Sequence[EngineState], *, factors: np.ndarray | None = None, interval: float | None = None,
@@ -404,8 +411,10 @@ class EmbeddedModel(Simulator):
                     on_failure: Literal["raise", "report"] = "raise") -> MemberRuns:
         """Every member from its state, with its forcing scaled by its ``factors``, in one batched engine call."""
         start, end = utc(start), utc(end)
-        forcing = None if factors is None else self._perturbed_forcing(start, end, factors, float(interval))
-        ens = run_ensemble(self, [parameters] * len(states), start, end, list(states), forcing=forcing,
+        forcing = course = None
+        if factors is not None:
+            forcing, course = self._perturbed_forcing(start, end, factors, float(interval))
+        ens = run_ensemble(self, [parameters] * len(states), start, end, list(states), forcing=forcing, edges=course,
                            output_interval=output_interval, n_threads=_threads(threads), on_failure=on_failure)
         return _member_runs(ens)
 
