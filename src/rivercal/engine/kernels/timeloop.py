@@ -123,13 +123,14 @@ SCREEN_REDO = -1
 #: withdrawal asked and not delivered in the (sub-)step (m³/s) and over the run (m³); the channel coefficients
 #: (area, f, r) of the links that may become free overfalls (:mod:`.overfall`); per point the sums of the step
 #: control's forecast (:mod:`.stability`, m²/s); per point the lowest level a step may leave (m AD); per point the
-#: flicker count and the level's change since it last turned (m) (:func:`.fluxes.finish_step`).
+#: flicker count and the level's change since it last turned (m) (:func:`.fluxes.finish_step`); the points whose
+#: level left the piece of its volume curve last looked up (:func:`.assemble.assemble`).
 Work = namedtuple(
     "Work",
     ["diag", "rhs", "zk", "src", "qlat", "netq", "fixed", "fixed_val", "off", "lval", "area", "fco", "rco",
      "un", "qn", "rq0", "rslope", "struct_links", "pump_links", "stats", "zlo", "zhi", "p_z", "p_v", "p_w",
      "cam", "cper", "cr43", "lfric", "bq", "wreq", "wshort", "wreq_sum", "wshort_sum",
-     "ovf", "anum", "aden", "floor", "flick", "swing"],
+     "ovf", "anum", "aden", "floor", "flick", "swing", "outside"],
 )
 
 
@@ -156,6 +157,7 @@ def make_work(net, sx=None) -> Work:
         wreq_sum=np.zeros(n_b + net.lat_hp.size), wshort_sum=np.zeros(n_b + net.lat_hp.size),
         ovf=np.zeros((3, net.dl_link.size)), anum=np.zeros(n_h), aden=np.zeros(n_h),
         floor=_floor(net), flick=np.zeros(n_h, dtype=np.int32), swing=np.zeros(n_h),
+        outside=np.zeros(n_h, dtype=np.int64),
     )
 
 
