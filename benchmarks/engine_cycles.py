@@ -166,17 +166,22 @@ def run_ext""")
             followed = _picard(net, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol, min_depth,
                                True, clk)""")
     s += "\n\n@kernel(inline=True)\n" + re.sub(r"  # noqa: F821.*", "", inspect.getsource(_picard))
-    s = s.replace("@entry\n", "@_plain\n").replace("@kernel\n", "@_plain\n").replace("@kernel(inline=True)\n",
-                                                                                      "@_plain_inline\n")
-    s = _replace(s, "from rivercal.engine.kernels._jit import entry, kernel\n",
-                 "from numba import njit as _njit\n"
-                 "_plain = _njit(error_model='numpy', _nrt=False, nogil=True)\n"
-                 "_plain_inline = _njit(error_model='numpy', _nrt=False, nogil=True, forceinline=True)\n")
-    path = folder / "timeloop_cycles.py"
-    path.write_text(s)
-    spec = importlib.util.spec_from_file_location("timeloop_cycles", path)
+    return _load_plain(s, folder, "timeloop_cycles")
+
+
+def _load_plain(text: str, folder: Path, name: str):
+    """Import the patched time loop ``text`` as module ``name``, compiled without rivercal's on-disk cache."""
+    text = text.replace("@entry\n", "@_plain\n").replace("@kernel\n", "@_plain\n").replace(
+        "@kernel(inline=True)\n", "@_plain_inline\n")
+    text = _replace(text, "from rivercal.engine.kernels._jit import entry, kernel\n",
+                    "from numba import njit as _njit\n"
+                    "_plain = _njit(error_model='numpy', _nrt=False, nogil=True)\n"
+                    "_plain_inline = _njit(error_model='numpy', _nrt=False, nogil=True, forceinline=True)\n")
+    path = folder / f"{name}.py"
+    path.write_text(text)
+    spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
-    sys.modules["timeloop_cycles"] = module
+    sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
 

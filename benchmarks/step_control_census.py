@@ -20,16 +20,14 @@ from __future__ import annotations
 
 import argparse
 import collections
-import importlib.util
 import inspect
 import json
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from engine_cycles import _before, _replace
+from engine_cycles import _before, _load_plain, _replace
 
 import rivercal.engine.simulator as simulator
 from rivercal.engine.kernels import timeloop
@@ -96,19 +94,7 @@ def _instrumented(folder: Path):
             clk[64 + best] += 1
     stats[STAT_ACC_NEXT] = max(stats[STAT_ACC_NEXT], wanted)
 """)
-    s = s.replace("@entry\n", "@_plain\n").replace("@kernel\n", "@_plain\n").replace("@kernel(inline=True)\n",
-                                                                                      "@_plain_inline\n")
-    s = _replace(s, "from rivercal.engine.kernels._jit import entry, kernel\n",
-                 "from numba import njit as _njit\n"
-                 "_plain = _njit(error_model='numpy', _nrt=False, nogil=True)\n"
-                 "_plain_inline = _njit(error_model='numpy', _nrt=False, nogil=True, forceinline=True)\n")
-    path = folder / "timeloop_census.py"
-    path.write_text(s)
-    spec = importlib.util.spec_from_file_location("timeloop_census", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["timeloop_census"] = module
-    spec.loader.exec_module(module)
-    return module
+    return _load_plain(s, folder, "timeloop_census")
 
 
 def _census(case: str, days: float, chunk_hours: float) -> dict:
