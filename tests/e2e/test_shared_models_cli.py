@@ -69,7 +69,9 @@ def test_bench_models_scores_the_cheap_models_and_sweeps_one(tmp_path: Path) -> 
     for row in rows.values():
         assert row["runs_as_imported"] and row["points_compared"] > 0
         assert set(row) >= {"model", "format", "objects", "exact", "approximated", "refused", "runs_as_imported",
-                            "dt_s", "points_compared", "level_rmse_m", "after_spinup", "wall_s"}
+                            "dt_s", "points_compared", "level_rmse_m", "after_spinup", "wall_s", "solves_per_step"}
+        assert row["solves_per_step"] >= 1.0  # each step at least one solve; more where the engine divided it
     assert c01["level_rmse_m"]["max"] < 0.01  # the ODE at every point
     assert compound["after_spinup"]["level_rmse_m"]["median"] <= 0.01  # SOBEK 3's own levels
     assert compound["sweep"]["within_1cm"] and [s["ok"] for s in compound["sweep"]["steps"]] == [True] * 4
+    assert all(s["solves_per_step"] >= 1.0 for s in compound["sweep"]["steps"])

@@ -78,6 +78,8 @@ class DellenComparison:
         The import's summary (:attr:`rivercal.io.dhydro.ImportResult.summary`).
     dt_s, imported_dt_s
         The time step run (the longest, s) and the model's own.
+    run_stats
+        The engine's counts of the run (steps, solves, divided steps …, :attr:`Simulator.last_run_stats`).
     """
 
     table: pd.DataFrame
@@ -89,6 +91,7 @@ class DellenComparison:
     imported: dict = field(default_factory=dict)
     dt_s: float = 0.0
     imported_dt_s: float = 0.0
+    run_stats: dict = field(default_factory=dict)
 
     def summary(self) -> dict:
         """The scores over the whole run and after the spin-up day.
@@ -162,7 +165,8 @@ def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
     return DellenComparison(table=table, wall_s=wall, period_s=(sim.end - sim.start).total_seconds(),
                             balance_error=run.balance.relative_error, case_folder=case,
                             series=pd.DataFrame(columns), imported=ledger_counts(result.ledger),
-                            dt_s=float(data["engine"]["dt"]), imported_dt_s=imported_dt)
+                            dt_s=float(data["engine"]["dt"]), imported_dt_s=imported_dt,
+                            run_stats=dict(sim.last_run_stats))
 
 
 def ledger_counts(ledger) -> dict[str, int]:

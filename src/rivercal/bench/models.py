@@ -78,6 +78,8 @@ class ModelRun:
         The first time of the ``after_spinup`` figures.
     wall_s
         Wall time of the simulation, s.
+    run_stats
+        The engine's counts of the run (steps, solves …): ``solves_per_step`` in the row.
     extra
         Further figures of the row (discharge scores, the reference's name).
     """
@@ -92,14 +94,17 @@ class ModelRun:
     reference: pd.DataFrame | None
     spinup: pd.Timestamp | None
     wall_s: float
+    run_stats: dict
     extra: dict
 
     def row(self) -> dict:
         """The JSON line of ``rivercal bench models``."""
+        from rivercal.bench.sobek3 import solves_per_step
+
         out = {"model": self.model, "format": self.format, **self.imported,
                "runs_as_imported": self.error is None and self.dt_s == self.imported_dt_s, "dt_s": self.dt_s,
                "points_compared": 0, "level_rmse_m": None, "after_spinup": None, "wall_s": round(self.wall_s, 3),
-               **self.extra}
+               "solves_per_step": solves_per_step(self.run_stats), **self.extra}
         if self.error is not None:
             out["error"] = self.error
         if self.reference is not None and self.error is None:
@@ -132,7 +137,7 @@ def _dellen(root: Path, out: Path, dt: float | None) -> ModelRun:
     points = c.table.drop_duplicates("station_point").set_index("station")["station_point"]
     keep = [f"{st}.h" for st in points.index]
     return ModelRun("dhydro-dellen", "dhydro", c.imported, c.dt_s, c.imported_dt_s, None, levels[keep],
-                    reference[keep], levels.index[0] + pd.Timedelta(days=1), c.wall_s,
+                    reference[keep], levels.index[0] + pd.Timedelta(days=1), c.wall_s, c.run_stats,
                     {"reference": "D-HYDRO's coupled-run levels (flow_to_rr.nc, flow_to_rtc.nc)",
                      "locations": int(c.table.shape[0])})
 
@@ -180,17 +185,18 @@ def _steady(root: Path, out: Path, dt: float | None) -> ModelRun:
         gvf = steady_gvf_levels(100.0, 45.0, 0.5, 0.0, 2000.0, 2.5)
         reference = pd.DataFrame([gvf(c.hp_chainage[keep])], index=last.index, columns=levels.columns)
     return ModelRun("dhydro-1d-steady-state-flow", "dhydro", counts, dt or own, own, error,
-                    levels if levels is not None else pd.DataFrame(), reference, None, wall,
+                    levels if levels is not None else pd.DataFrame(), reference, None, wall, dict(sim.last_run_stats),
                     {"reference": "the gradually-varied-flow ODE (scipy) at the steady state after 3 days"})
 
 
 def _korte_woerden(root: Path, out: Path, dt: float | None) -> ModelRun:
     mdu = root / "dhydro-korte-woerden-1d" / "dflowfm" / "FlowFM.mdu"
     data, counts, folder = _dhydro_import(mdu, out, None, realtime_lateral=0.001)
-    _, result, error, wall, own = _run(data, folder, dt)
+    sim, result, error, wall, own = _run(data, folder, dt)
     levels = pd.DataFrame() if result is None else result.levels
     spinup = None if result is None else levels.index[0] + (levels.index[-1] - levels.index[0]) / 10
     return ModelRun("dhydro-korte-woerden-1d", "dhydro", counts, dt or own, own, error, levels, None, spinup, wall,
+                    dict(sim.last_run_stats),
                     {"reference": "none published (72 realtime laterals at a constant 1 l/s each)"})
 
 
@@ -213,7 +219,8 @@ def _sobek3(name: str) -> Callable[[Path, Path, float | None], ModelRun]:
                                            "discharge_relative_rmse": _stats(c.discharge_relative_rmse)}
         return ModelRun(name, "sobek3", {k: s[k] for k in ("objects", "exact", "approximated", "refused")}, c.dt_s,
                         c.imported_dt_s, c.error, levels, reference,
-                        None if c.error else levels.index[0] + pd.Timedelta(hours=c.spinup_h), c.wall_s, extra)
+                        None if c.error else levels.index[0] + pd.Timedelta(hours=c.spinup_h), c.wall_s, c.run_stats,
+                        extra)
 
     return run
 
@@ -227,7 +234,7 @@ def _oriege(root: Path, out: Path, dt: float | None) -> ModelRun:
     specs = tuple(StationSpec(g.id, "Bief_1", float(g.x)) for g in gauges.itertuples())
     result = import_mascaret(folder / "mascaret0.xcas", out, ImportOptions(stations=specs))
     data = tomllib.loads((out / "case.toml").read_text(encoding="utf-8"))
-    _, run, error, wall, own = _run(data, out, dt)
+    sim, run, error, wall, own = _run(data, out, dt)
     levels = reference = None
     if run is not None:
         levels = run.series[[f"{g}.h" for g in gauges["id"]]].iloc[[-1]]
@@ -236,7 +243,7 @@ def _oriege(root: Path, out: Path, dt: float | None) -> ModelRun:
     counts = {"objects": len(ledger.entries), "exact": ledger.counts("exact"),
               "approximated": ledger.counts("approximated"), "refused": ledger.counts("refused")}
     return ModelRun("oriege-mascaret-test19", "mascaret", counts, dt or own, own, error,
-                    levels if levels is not None else pd.DataFrame(), reference, None, wall,
+                    levels if levels is not None else pd.DataFrame(), reference, None, wall, dict(sim.last_run_stats),
                     {"reference": "Mascaret's steady levels at the 13 gauges (Test19.tex)"})
 
 
@@ -279,17 +286,21 @@ def model_row(name: str, out: Path | None = None, *, dt: float | None = None) ->
 def sweep(name: str, steps: tuple[float, ...] = (10.0, 60.0, 300.0, 600.0), out: Path | None = None) -> dict:
     """Run a shared model at each longest time step of ``steps``; compare every run with the shortest one's.
 
-    Returns ``{"model", "steps": [{"dt_s", "ok", "error", "max_diff_m", "where", "points_over_1cm", "wall_s"}],
+    Returns ``{"model", "steps": [{"dt_s", "ok", "error", "max_diff_m", "where", "points_over_1cm", "wall_s",
+    "solves_per_step"}],
     "within_1cm"}``: the largest absolute level difference (m) at a compared point (every point where the model
     has no reference), after the spin-up (the first day; the first tenth of a run of hours), from the run at the
     shortest step that ran.
     """
+    from rivercal.bench.sobek3 import solves_per_step
+
     out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"sweep-{name}-"))
     runs = [model_row(name, out / f"dt{dt:g}", dt=dt) for dt in sorted(steps)]
     finest = next((r for r in runs if r.error is None), None)
     rows = []
     for r in runs:
-        item = {"dt_s": r.dt_s, "ok": r.error is None, "error": r.error, "wall_s": round(r.wall_s, 3)}
+        item = {"dt_s": r.dt_s, "ok": r.error is None, "error": r.error, "wall_s": round(r.wall_s, 3),
+                "solves_per_step": solves_per_step(r.run_stats)}
         if r.error is None and finest is not None:
             if len(finest.levels) == 1:  # a steady state: the last levels, whatever the last time
                 diff = (r.levels.iloc[-1] - finest.levels.iloc[-1]).abs()

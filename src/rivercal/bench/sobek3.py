@@ -60,6 +60,15 @@ def sobek3_model(name: str) -> Path:
     return path
 
 
+def solves_per_step(stats: dict) -> float | None:
+    """Level solves per time step of a run (its engine counts): 1 where no step was divided; None without a step.
+
+    How far the engine's step control divided the model's own step: 256 means sub-steps of 1/256 of it.
+    """
+    steps = int(stats.get("steps", 0) or 0)
+    return round(float(stats.get("solves", 0)) / steps, 2) if steps else None
+
+
 def _stats(values: pd.Series) -> dict:
     return {"median": round(float(values.median()), 4), "p90": round(float(values.quantile(0.9)), 4),
             "max": round(float(values.max()), 4)}
@@ -89,6 +98,8 @@ class Sobek3Comparison:
         Wall time of the simulation, s.
     levels
         rivercal's and SOBEK 3's levels at the grid points (columns ``<grid point>`` and ``<grid point>.sobek3``).
+    run_stats
+        The engine's counts of the run (steps, solves, divided steps …, :attr:`Simulator.last_run_stats`).
     """
 
     model: str
@@ -102,6 +113,7 @@ class Sobek3Comparison:
     spinup_h: float
     wall_s: float
     levels: pd.DataFrame = field(repr=False)
+    run_stats: dict = field(default_factory=dict)
 
     @property
     def runs_as_imported(self) -> bool:
@@ -124,6 +136,7 @@ class Sobek3Comparison:
                                             if self.discharge_relative_rmse.size else None),
             },
             "wall_s": round(self.wall_s, 3),
+            "solves_per_step": solves_per_step(self.run_stats),
         }
         if self.error is not None:
             out["error"] = self.error
@@ -176,7 +189,7 @@ def compare_sobek3(model: str | Path, out: Path | None = None, *, dt: float | No
     empty = pd.Series(dtype=float)
     if run is None:
         return Sobek3Comparison(name, result.summary, run_dt, imported_dt, error, empty, empty, empty, spinup_h, wall,
-                                pd.DataFrame())
+                                pd.DataFrame(), dict(sim.last_run_stats))
     columns = _grid_columns(sim, case, sobek.points)
     ours = run.levels.iloc[:, columns]
     ours.columns = sobek.levels.columns
@@ -202,7 +215,7 @@ def compare_sobek3(model: str | Path, out: Path | None = None, *, dt: float | No
         discharge = pd.Series(rel, dtype=float)
     levels = pd.concat([ours.loc[common], sobek.levels.loc[common].add_suffix(".sobek3")], axis=1)
     return Sobek3Comparison(name, result.summary, run_dt, imported_dt, None, level_rmse, level_after, discharge,
-                            spinup_h, wall, levels)
+                            spinup_h, wall, levels, dict(sim.last_run_stats))
 
 
 def _grid_columns(sim: Simulator, case, points: pd.DataFrame) -> list[int]:
