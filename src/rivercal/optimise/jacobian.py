@@ -258,10 +258,8 @@ def scaled_svd(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     _, s, vt = np.linalg.svd(jac, full_matrices=m < p)
     v = vt.T
     s = np.concatenate([s, np.zeros(p - s.size)])
-    for j in range(p):
-        i = int(np.argmax(np.abs(v[:, j])))
-        if v[i, j] < 0:
-            v[:, j] = -v[:, j]
+    largest = v[np.argmax(np.abs(v), axis=0), np.arange(p)]  # each column's largest component (the first of ties)
+    v[:, largest < 0] *= -1.0
     return s, v
 
 
