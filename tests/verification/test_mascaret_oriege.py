@@ -60,7 +60,7 @@ def test_the_gauge_table_is_read_from_the_note() -> None:
 
 @pytest.mark.slow
 def test_calibrated_on_7_gauges_the_6_held_out_are_within_mascarets_fit(tmp_path: Path) -> None:
-    """The benchmark's acceptance: held-out RMSE ≤ 0.17 m after calibrating on 7, RMSE < 0.17 m on all 13 (~35 s)."""
+    """The benchmark's acceptance: held-out RMSE ≤ 0.17 m after calibrating on 7, RMSE < 0.17 m on all 13 (~27 s)."""
     result = calibrate_oriege(shared_model("oriege-mascaret-test19"), tmp_path)
     summary = result.summary()
     assert len(summary["gauges"]) == 13 and all(np.isfinite(g["calibrated_13"]) for g in summary["gauges"])

@@ -16,7 +16,7 @@ against the measurements is 0.17 m).
 3. writes the measured levels as an ordinary observation file (``observations.csv``: the steady levels at the
    end of the period) and calibrates the three Strickler coefficients with DuD through the model contract
    (:class:`rivercal.problem.CalibrationProblem`) on the 7 gauges of :data:`CALIBRATION_GAUGES`, then scores the 6
-   held-out gauges; then calibrates on all 13;
+   held-out gauges; then calibrates on all 13, starting from the 7 gauges' estimates;
 4. checks that the computed levels are steady (the change over the last 10 minutes of the period).
 
 The model is run as imported except for the placement of cross-sections: ``nearest`` (each calculation point
@@ -256,16 +256,16 @@ def calibrate_oriege(folder: Path | None = None, out: Path | None = None, *, alg
                                   end=hot)
         warmup = HOT_START
 
-    def fit(ids: list[str]):
-        problem = CalibrationProblem(model, params, observations.select([f"{g}.h" for g in ids]), window,
+    def fit(ids: list[str], start: ParameterSet):
+        problem = CalibrationProblem(model, start, observations.select([f"{g}.h" for g in ids]), window,
                                      warmup=warmup, state=state)
         cal = calibrate(problem, algorithm, workers=workers)
         return cal
 
     initial = levels({p.name: p.initial for p in params})
-    cal7 = fit(list(CALIBRATION_GAUGES))
+    cal7 = fit(list(CALIBRATION_GAUGES), params)
     at7 = levels(cal7.estimates)
-    cal13 = fit(list(gauges["id"]))
+    cal13 = fit(list(gauges["id"]), params.with_initial(cal7.estimates))  # all 13 refine the 7 gauges' estimates
     result, _ = model.simulate(params.quantities(cal13.estimates), start=model.start, end=model.end)
     series = result.series[[f"{g}.h" for g in gauges["id"]]]
     at13 = series.iloc[-1].set_axis(list(gauges["id"]))
