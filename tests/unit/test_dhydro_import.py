@@ -369,3 +369,19 @@ def test_a_dead_end_stores_the_water_of_its_whole_end_link(imported, tmp_path) -
     assert node.storage_table.levels == pytest.approx([-0.8, 0.2, 2.2])
     assert node.storage_table.areas == pytest.approx([200.0, 400.0, 1000.0])
     assert result.ledger.status_of("setting", "dxDoubleAt1DEndNodes") == "exact"
+
+
+def test_an_exchange_series_holds_each_value_until_the_next_with_one_second_ramps() -> None:
+    """DIMR hands a value at each coupling time and D-Flow FM keeps it until the next: change points only."""
+    from types import SimpleNamespace
+
+    from rivercal.io.dhydro._forcing import held_series
+
+    t = pd.date_range("2000-06-01", periods=5, freq="10min", tz="UTC", unit="s")
+    ctx = SimpleNamespace(start=t[0] - pd.Timedelta("10min"), end=t[-1] + pd.Timedelta("1h"))
+    held = held_series(ctx, pd.Series([1.0, 1.0, 2.0, 2.0, 0.5], index=t))
+    second = pd.Timedelta(seconds=1)
+    assert list(held.index) == [ctx.start, t[0], t[2] - second, t[2], t[4] - second, t[4], ctx.end]
+    assert held.tolist() == [1.0, 1.0, 1.0, 2.0, 2.0, 0.5, 0.5]
+    steady = held_series(ctx, pd.Series([3.0] * 5, index=t))  # no change: its first value over the period
+    assert list(steady.index) == [ctx.start, t[0], ctx.end] and steady.tolist() == [3.0] * 3

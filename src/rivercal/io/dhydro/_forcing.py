@@ -261,11 +261,15 @@ def held_series(ctx: Context, series: pd.Series) -> pd.Series:
     """
     values = series.to_numpy(dtype=float)
     times = series.index
-    keep_t, keep_v = [times[0]], [values[0]]
-    for k in range(1, len(values)):
-        if values[k] != values[k - 1]:
-            keep_t += [times[k] - pd.Timedelta(seconds=1), times[k]]
-            keep_v += [values[k - 1], values[k]]
+    changes = np.flatnonzero(values[1:] != values[:-1]) + 1  # each time whose value differs from the one before
+    at = times[changes].as_unit("ns")
+    ramp_t = np.empty(2 * changes.size, dtype=np.int64)
+    ramp_t[0::2], ramp_t[1::2] = (at - pd.Timedelta(seconds=1)).asi8, at.asi8  # ns since 1970 (UTC)
+    ramp_v = np.empty(2 * changes.size)
+    ramp_v[0::2], ramp_v[1::2] = values[changes - 1], values[changes]
+    ramps = pd.DatetimeIndex(ramp_t.view("datetime64[ns]"))
+    keep_t = [times[0], *(ramps.tz_localize("UTC").tz_convert(times.tz) if times.tz is not None else ramps)]
+    keep_v = [values[0], *ramp_v.tolist()]
     if keep_t[-1] < ctx.end:
         keep_t.append(ctx.end)
         keep_v.append(keep_v[-1])
