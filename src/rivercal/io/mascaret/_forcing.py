@@ -166,23 +166,15 @@ class _ForcingSteps(_Context):
                 if law is None:
                     self.ledger.refused("boundary", name, entry["why"])
                     continue
-            if kind == 1:
-                if law.type not in (1, 3):
+            if kind in (1, 2):  # an imposed discharge or level: its law's type, column and series name
+                quantity, types, prefix = ("discharge", (1, 3), "Q") if kind == 1 else ("level", (2, 3), "h")
+                if law.type not in types:
                     raise self.x.error(self.x.find(f"{free}/numLoi"), f"{free}/numLoi",
-                                       f"boundary {name!r} imposes a discharge but its law {entry['name']!r} is a "
+                                       f"boundary {name!r} imposes a {quantity} but its law {entry['name']!r} is a "
                                        f"{LAW_NAMES[law.type]}")
-                item = {"id": bid, "node": node, "type": "discharge",
-                        **self._series(law["discharge"], law["time"], f"Q_{bid}")}
-                self._covers(law, "discharge", name, "boundary")
-                self.ledger.exact("boundary", name, f"{what} from law {entry['name']!r} at node {node!r}")
-            elif kind == 2:
-                if law.type not in (2, 3):
-                    raise self.x.error(self.x.find(f"{free}/numLoi"), f"{free}/numLoi",
-                                       f"boundary {name!r} imposes a level but its law {entry['name']!r} is a "
-                                       f"{LAW_NAMES[law.type]}")
-                item = {"id": bid, "node": node, "type": "level",
-                        **self._series(law["level"], law["time"], f"h_{bid}")}
-                self._covers(law, "level", name, "boundary")
+                item = {"id": bid, "node": node, "type": quantity,
+                        **self._series(law[quantity], law["time"], f"{prefix}_{bid}")}
+                self._covers(law, quantity, name, "boundary")
                 self.ledger.exact("boundary", name, f"{what} from law {entry['name']!r} at node {node!r}")
             elif kind in (3, 4):
                 if law.type not in (4, 5):
