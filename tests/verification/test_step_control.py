@@ -19,19 +19,26 @@ from tests.verification._support import START, case_dict, simulator, write_serie
 pytestmark = pytest.mark.slow
 
 
+def _reach(hours: float, engine: dict, initial: dict, strickler: float, width: float, length: float, dx: float,
+           bed_up: float, bed_down: float, inflow: dict, level: dict) -> dict:
+    """One rectangular reach from ``up`` to ``down`` (m), Strickler friction (m^(1/3)/s), a discharge boundary
+    upstream and a level downstream (``inflow``, ``level``: ``{"value": …}`` or ``{"series": …}``)."""
+    return case_dict(
+        hours=hours, engine=engine, initial=initial, friction={"type": "strickler", "value": strickler},
+        profiles=[{"id": "r", "type": "rectangular", "width": width}],
+        nodes=[{"id": "up"}, {"id": "down"}],
+        branches=[{"id": "A", "from_node": "up", "to_node": "down", "length": length, "dx": dx,
+                   "cross_sections": [{"chainage": 0.0, "profile": "r", "bed_level": bed_up},
+                                      {"chainage": length, "profile": "r", "bed_level": bed_down}]}],
+        boundaries=[{"id": "Q", "node": "up", "type": "discharge", **inflow},
+                    {"id": "h", "node": "down", "type": "level", **level}],
+    )
+
+
 def steep(root: Path, dt: float, hours: float = 6.0, **engine):
     """A steep reach (slope 0.01, 2.6 m/s) on a 25 m grid: any step above ~20 s is divided."""
-    data = case_dict(
-        hours=hours, engine={"dt": dt, "output_interval": max(600.0, dt), **engine}, initial={"depth": 0.5},
-        friction={"type": "strickler", "value": 30.0},
-        profiles=[{"id": "r", "type": "rectangular", "width": 7.0}],
-        nodes=[{"id": "up"}, {"id": "down"}],
-        branches=[{"id": "A", "from_node": "up", "to_node": "down", "length": 3000.0, "dx": 25.0,
-                   "cross_sections": [{"chainage": 0.0, "profile": "r", "bed_level": 30.0},
-                                      {"chainage": 3000.0, "profile": "r", "bed_level": 0.0}]}],
-        boundaries=[{"id": "Q", "node": "up", "type": "discharge", "value": 20.0},
-                    {"id": "h", "node": "down", "type": "level", "value": 1.0}],
-    )
+    data = _reach(hours, {"dt": dt, "output_interval": max(600.0, dt), **engine}, {"depth": 0.5}, 30.0, 7.0,
+                  3000.0, 25.0, 30.0, 0.0, {"value": 20.0}, {"value": 1.0})
     root.mkdir(parents=True, exist_ok=True)
     return simulator(data, root)
 
@@ -94,17 +101,9 @@ def _rising(root: Path, dt: float, **engine):
     t = np.arange(0.0, 40.25, 0.25)
     h = 3.0 + 1.0 * (1.0 - np.cos(np.pi * np.clip(t, 0.0, 36.0) / 36.0))
     write_series(root, "h.csv", START + pd.to_timedelta(t, unit="h"), h=h)
-    data = case_dict(
-        hours=40.0, engine={"dt": dt, "output_interval": 3600.0, **engine},
-        initial={"level": 3.0, "depth": 0.0, "spinup": 24.0}, friction={"type": "strickler", "value": 30.0},
-        profiles=[{"id": "r", "type": "rectangular", "width": 100.0}],
-        nodes=[{"id": "up"}, {"id": "down"}],
-        branches=[{"id": "A", "from_node": "up", "to_node": "down", "length": 20000.0, "dx": 500.0,
-                   "cross_sections": [{"chainage": 0.0, "profile": "r", "bed_level": 1.0},
-                                      {"chainage": 20000.0, "profile": "r", "bed_level": 0.0}]}],
-        boundaries=[{"id": "Q", "node": "up", "type": "discharge", "value": 300.0},
-                    {"id": "h", "node": "down", "type": "level", "series": {"file": "h.csv", "column": "h"}}],
-    )
+    data = _reach(40.0, {"dt": dt, "output_interval": 3600.0, **engine},
+                  {"level": 3.0, "depth": 0.0, "spinup": 24.0}, 30.0, 100.0, 20000.0, 500.0, 1.0, 0.0,
+                  {"value": 300.0}, {"series": {"file": "h.csv", "column": "h"}})
     return simulator(data, root)
 
 
@@ -158,16 +157,8 @@ def test_a_smooth_flood_wave_is_not_divided_where_its_forcing_changes_from_step_
     q = 1000.0 + 3000.0 * np.clip(np.minimum(t - 12.0, 72.0 - t) / 30.0, 0.0, 1.0)
     tmp_path.mkdir(parents=True, exist_ok=True)
     write_series(tmp_path, "q.csv", START + pd.to_timedelta(t, unit="h"), q=q)
-    data = case_dict(
-        hours=96.0, engine={"dt": 3600.0, "output_interval": 3600.0}, initial={"depth": 4.0},
-        friction={"type": "strickler", "value": 35.0}, profiles=[{"id": "r", "type": "rectangular", "width": 300.0}],
-        nodes=[{"id": "up"}, {"id": "down"}],
-        branches=[{"id": "A", "from_node": "up", "to_node": "down", "length": 40000.0, "dx": 500.0,
-                   "cross_sections": [{"chainage": 0.0, "profile": "r", "bed_level": 4.0},
-                                      {"chainage": 40000.0, "profile": "r", "bed_level": 0.0}]}],
-        boundaries=[{"id": "Q", "node": "up", "type": "discharge", "series": {"file": "q.csv", "column": "q"}},
-                    {"id": "h", "node": "down", "type": "level", "value": 4.5}],
-    )
+    data = _reach(96.0, {"dt": 3600.0, "output_interval": 3600.0}, {"depth": 4.0}, 35.0, 300.0, 40000.0, 500.0,
+                  4.0, 0.0, {"series": {"file": "q.csv", "column": "q"}}, {"value": 4.5})
     sim = simulator(data, tmp_path)
     result, _ = sim.simulate()
     stats = sim.last_run_stats
@@ -189,17 +180,8 @@ def _held_inflow(root: Path, dt: float):
     values.append(0.0)
     root.mkdir(parents=True, exist_ok=True)
     write_series(root, "q.csv", pd.DatetimeIndex(times), q=np.array(values))
-    data = case_dict(
-        hours=8.0, engine={"dt": dt, "output_interval": 1200.0}, initial={"depth": 1.0},
-        friction={"type": "strickler", "value": 30.0},
-        profiles=[{"id": "r", "type": "rectangular", "width": 4.0}],
-        nodes=[{"id": "up"}, {"id": "down"}],
-        branches=[{"id": "A", "from_node": "up", "to_node": "down", "length": 2000.0, "dx": 100.0,
-                   "cross_sections": [{"chainage": 0.0, "profile": "r", "bed_level": 0.2},
-                                      {"chainage": 2000.0, "profile": "r", "bed_level": 0.0}]}],
-        boundaries=[{"id": "Q", "node": "up", "type": "discharge", "series": {"file": "q.csv", "column": "q"}},
-                    {"id": "h", "node": "down", "type": "level", "value": 1.0}],
-    )
+    data = _reach(8.0, {"dt": dt, "output_interval": 1200.0}, {"depth": 1.0}, 30.0, 4.0, 2000.0, 100.0, 0.2, 0.0,
+                  {"series": {"file": "q.csv", "column": "q"}}, {"value": 1.0})
     return simulator(data, root), (pd.DatetimeIndex(times) - START).total_seconds().to_numpy(), np.array(values)
 
 
