@@ -146,7 +146,7 @@ def _check_out(out: Path) -> None:
 
 def _period(model) -> tuple[pd.Timestamp, pd.Timestamp, pd.Timestamp]:
     """Reference date, start and end (UTC) from the MDU's [time] section; an error naming the key when unusable."""
-    from rivercal.io.dhydro._read import mdu_line
+    from rivercal.io.dhydro._mdu import mdu_line
 
     fm, mdu = model.fm, model.mdu
     index = model.sources.ini(mdu)

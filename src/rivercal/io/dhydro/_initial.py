@@ -111,7 +111,7 @@ def _branch_initial(ctx: Context, quantity: str, branch: str, chainages: list[fl
 
 
 def _ini_field_path(ctx: Context) -> Path | None:
-    from rivercal.io.dhydro._read import _dropped_paths
+    from rivercal.io.dhydro._mdu import _dropped_paths
 
     if ("geometry", "inifieldfile") in ctx.model.sources.dropped:
         found = _dropped_paths(ctx.model.sources.ini(ctx.model.mdu), "geometry", "inifieldfile")
