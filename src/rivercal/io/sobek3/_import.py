@@ -16,7 +16,8 @@ from rivercal.io._calibration import write_parameters
 from rivercal.io.ledger import conclude
 from rivercal.io.sobek3._context import Context, ImportOptions, Sobek3Ledger, load_model
 from rivercal.io.sobek3._forcing import convert_forcing
-from rivercal.io.sobek3._network import SECTION_NAMES, convert_network, unused_definitions
+from rivercal.io.sobek3._network import convert_network
+from rivercal.io.sobek3._profiles import SECTION_NAMES, unused_definitions
 from rivercal.io.sobek3._structures import convert_structures
 from rivercal.network import Branch, Bridge, Culvert, Orifice, Pump, UniversalWeir, Weir
 from rivercal.network.grid import branch_layout, chainages

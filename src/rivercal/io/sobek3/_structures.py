@@ -23,8 +23,9 @@ from __future__ import annotations
 import itertools
 
 from rivercal.io.sobek3._context import Context
+from rivercal.io.sobek3._friction import convert_value, law_of
 from rivercal.io.sobek3._ini import Section
-from rivercal.io.sobek3._network import add_profile, convert_value, law_of
+from rivercal.io.sobek3._profiles import add_profile
 from rivercal.network import FRICTION_RANGES
 
 __all__ = ["convert_structures"]
