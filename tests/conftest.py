@@ -13,6 +13,7 @@ from hypothesis import settings
 from rivercal.case import case_from_dict
 from rivercal.hydrology.hupsel import ENV_VAR as HUPSEL_ENV_VAR
 from rivercal.models.spinups import ENV_VAR as CACHE_ENV_VAR
+from tests.run_artefacts import ENV_VAR as ARTEFACTS_ENV_VAR
 
 #: The repository's root folder.
 REPOSITORY = Path(__file__).resolve().parents[1]
@@ -46,25 +47,25 @@ def hupsel_missing() -> str | None:
             f"PEQ_Hupsel.dat from the repository root, as CI clones it) or set {HUPSEL_ENV_VAR} to the file")
 
 
-#: Where this run's spin-up cache lies (set in the first process only).
-_CACHE_KEY = pytest.StashKey[str]()
+#: Where this run's spin-up cache and its shared artefacts lie (set in the first process only).
+_CACHE_KEY = pytest.StashKey[tuple[str, str]]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """One spin-up cache for this run, fresh, shared by its workers and the processes they start.
+    """One spin-up cache for this run, fresh, shared by its workers and the processes they start; and one
+    folder for the read-only artefacts that several modules start from (:mod:`tests.run_artefacts`).
 
-    Set in the first process (the workers and every command a test starts inherit it), never the user's own
+    Set in the first process (the workers and every command a test starts inherit them), never the user's own
     cache: what one run computed never reaches another, and a test's result never depends on an earlier run.
     """
     if not hasattr(config, "workerinput"):
-        folder = tempfile.mkdtemp(prefix="rivercal-test-cache-")
-        config.stash[_CACHE_KEY] = folder
-        os.environ[CACHE_ENV_VAR] = folder
+        folders = tempfile.mkdtemp(prefix="rivercal-test-cache-"), tempfile.mkdtemp(prefix="rivercal-test-artefacts-")
+        config.stash[_CACHE_KEY] = folders
+        os.environ[CACHE_ENV_VAR], os.environ[ARTEFACTS_ENV_VAR] = folders
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    folder = config.stash.get(_CACHE_KEY, None)
-    if folder:
+    for folder in config.stash.get(_CACHE_KEY, ()):
         shutil.rmtree(folder, ignore_errors=True)
 
 

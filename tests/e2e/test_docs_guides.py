@@ -4,10 +4,12 @@ Per page (the landing page, the how-to guides, the explanations), the fenced blo
 of the page, as a reader would type them, in a fresh folder where ``docs`` is the repository's docs/
 (the pages name their example folders as ``docs/howto/...``, relative to a clone): each ``$`` line of a
 ``console`` block through bash (continuation lines joined; a ``<<'TOML'`` here-document with its lines),
-each ``python`` block with this interpreter. A ``rivercal`` command with nothing for a shell to expand or
-redirect runs on the real app in this process (:mod:`tests.cli`), which saves each one the start of a
-process with the numerical stack; its words are split as bash splits them. A command that fails fails the
-test with its output.
+each ``python`` block as ``python block.py`` runs it, but in this process (as ``__main__``, its output
+captured, warnings ignored as ``PYTHONWARNINGS=ignore`` would, its figures closed after it). A ``rivercal``
+command with nothing for a shell to expand or redirect runs on the real app in this process
+(:mod:`tests.cli`); its words are split as bash splits them. Both save each block or command the start of a
+process with the numerical stack (about 1 s of processor time). A command or block that fails fails the test
+with its output.
 
 Two kinds of lines are not run as written: ``pip install`` (the ``dev`` extra that ``make test`` installs
 already holds every extra), and ``rivercal dashboard``, a server that runs until stopped: it is started
@@ -16,14 +18,19 @@ on a free port, must answer its page, and is stopped.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import re
+import runpy
 import shlex
 import socket
 import subprocess
 import sys
 import time
+import traceback
 import urllib.request
+import warnings
 from pathlib import Path
 
 import pytest
@@ -101,10 +108,36 @@ def _serve_and_probe(cmd: str, cwd: Path, env: dict[str, str]) -> None:
         server.wait(timeout=30)
 
 
+def run_script(script: Path) -> str | None:
+    """Run ``script`` in this process as ``python SCRIPT`` would (``__main__``, ``sys.argv``); None, or why it failed.
+
+    Its standard output and error are captured (the error's text ends what is returned), warnings are ignored,
+    and the figures it left open are closed.
+    """
+    out = io.StringIO()
+    argv = sys.argv
+    sys.argv = [str(script)]
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            runpy.run_path(str(script), run_name="__main__")
+    except SystemExit as exc:
+        if exc.code not in (None, 0):
+            return f"{out.getvalue()}\nSystemExit({exc.code!r})"
+    except Exception:
+        return f"{out.getvalue()}\n{traceback.format_exc()}"
+    finally:
+        sys.argv = argv
+        if "matplotlib.pyplot" in sys.modules:
+            sys.modules["matplotlib.pyplot"].close("all")
+    return None
+
+
 @pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(DOCS)) for p in PAGES])
 def test_every_block_of_the_page_runs(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     (tmp_path / "docs").symlink_to(DOCS)
-    monkeypatch.chdir(tmp_path)  # for the commands run in this process
+    monkeypatch.chdir(tmp_path)  # for the commands and blocks run in this process
+    monkeypatch.setenv("MPLBACKEND", "Agg")
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
            "MPLBACKEND": "Agg", "PYTHONWARNINGS": "ignore"}
     ran = 0  # PAGES holds only pages with blocks; a page of pip lines alone would be a test that cannot fail
@@ -112,9 +145,8 @@ def test_every_block_of_the_page_runs(page: Path, tmp_path: Path, monkeypatch: p
         if lang == "python":
             script = tmp_path / f"block{k}.py"
             script.write_text(text, encoding="utf-8")
-            run = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True,
-                                 text=True, timeout=900)
-            assert run.returncode == 0, f"{page.name}, python block {k}:\n{text}\n{run.stderr[-4000:]}"
+            error = run_script(script)
+            assert error is None, f"{page.name}, python block {k}:\n{text}\n{error[-4000:]}"
             ran += 1
             continue
         for cmd in commands(text):

@@ -20,22 +20,18 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from rivercal.io.dhydro import ImportOptions, import_dhydro
 from rivercal.model import load_model
 from rivercal.parameters import Parameter, ParameterSet
 from rivercal.problem import CalibrationProblem, calibrate
 from rivercal.twin import twin_truth
-from tests.shared_data import shared_model
+from tests.run_artefacts import dellen
 
 TRUTH = 1.2
 
 
 @pytest.mark.slow
 def test_dud_recovers_a_scaled_roughness_of_dellen(tmp_path) -> None:
-    folder = shared_model("dhydro-dellen")
-    result = import_dhydro(folder / "dflowfm" / "Flow1D.mdu", tmp_path / "case",
-                           ImportOptions(realtime=(folder / "rr_to_flow.nc", folder / "rtc_to_flow.nc")))
-    sim = load_model(result.folder)
+    sim = load_model(dellen(tmp_path / "case"))  # imported with its two exchange files, once in the run
     params = ParameterSet([Parameter(name="FS", targets=["friction:scale"], min=0.5, max=2.0, initial=1.0,
                                      transform="factor", perturbation=0.1)])
     window = (sim.start + pd.Timedelta("2D"), sim.start + pd.Timedelta("3D"))
