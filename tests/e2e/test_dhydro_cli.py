@@ -141,7 +141,7 @@ def test_observation_cross_sections_given_as_polylines_are_stations(tmp_path: Pa
 _SHARED = {
     "dellen": (("dhydro-dellen", "dflowfm", "Flow1D.mdu"), ("--realtime", "rr_to_flow.nc", "--realtime",
                                                             "rtc_to_flow.nc"),
-               "F_Manning_0_03", 0.036, "2000-06-03/2000-06-03T06:00", "6", ("2000-06-05", "6h", "6h")),
+               "F_Manning_0_03", 0.036, "2000-06-03/2000-06-03T06:00", "6", ("2000-06-03T12:00", "6h", "6h")),
     "c01": (("dhydro-1d-steady-state-flow", "Boundary.mdu"), (), "F_T2", 50.0, "2015-01-02/2015-01-02T06:00", "6",
             ("2015-01-02T12:00", "6h", "6h")),
     "korte-woerden": (("dhydro-korte-woerden-1d", "dflowfm", "FlowFM.mdu"), ("--realtime-lateral", "0.001"),
@@ -165,7 +165,7 @@ def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: 
         assert run.returncode == 0, run.stderr
         summary = json.loads(run.stdout)
     assert param in summary["parameters"]
-    # simulate to the end of the on-line cycle's forecast (Dellen's week: its first four days and a quarter)
+    # simulate to the end of the on-line cycle's forecast (Dellen's week: its first two days and three quarters)
     until = (pd.Timestamp(issue) + pd.Timedelta(span)).strftime("%Y-%m-%dT%H:%M")
     run = rivercal("simulate", str(case), "--end", until, "--out", str(tmp_path / "sim"), "--json")
     assert run.returncode == 0, run.stderr
