@@ -92,6 +92,10 @@ def online(
     ensemble_filter: Annotated[str, typer.Option(
         "--filter", help="With --assimilate states|both: etkf (square root) or enkf (perturbed observations).")]
     = "etkf",
+    issued: Annotated[str, typer.Option(
+        "--issue", help="With --assimilate states|both, the forecast issued: mean (of the members' forecasts) or "
+                        "central (one more run from the members' mean state and expected inflow errors: no bias "
+                        "from the members' spread, e.g. on a large river).")] = "mean",
     rain_error: Annotated[float, typer.Option(
         "--rain-error", help="Twin of --scenario: error of the inflows and laterals, e.g. 0.3 for about 30 %.")] = 0.0,
     workers: Annotated[int | None, typer.Option(help="Worker processes per calibration (default: all cores).")] = None,
@@ -108,6 +112,7 @@ def online(
     from rivercal.models.contract import require
     from rivercal.online.assimilation import (
         ASSIMILATE_MODES,
+        ISSUED,
         NEEDS,
         AssimilationConfig,
         can_update_states,
@@ -158,6 +163,7 @@ def online(
         check_choice(assimilate, "--assimilate", ASSIMILATE_MODES)
     check_number(members, "--members", low=2, high=10_000)
     check_choice(ensemble_filter, "--filter", ("etkf", "enkf"))
+    check_choice(issued, "--issue", ISSUED)
     check_number(rain_error, "--rain-error", low=0, high=2)
     if rain_error and scenario is None:
         raise OptionError("--rain-error applies to the twin observations of --scenario only", option="--rain-error")
@@ -184,7 +190,7 @@ def online(
                              noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
                              max_cycles=max_cycles, report=out, progress=reporter,
                              assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
-                                                             seed=seed),
+                                                             seed=seed, issued=issued),
                              rain_error=rain_error, take_over=take_over)
     summary["final_state"] = _final_state(summary)
     if as_json:

@@ -65,13 +65,15 @@ from rivercal.store import CycleSpec, Run, Store
 if TYPE_CHECKING:
     from rivercal.online.service import OnlineService
 
-__all__ = ["ASSIMILATE_MODES", "NEEDS", "AssimilationConfig", "EnsembleFilter", "EnsembleForecast",
+__all__ = ["ASSIMILATE_MODES", "ISSUED", "NEEDS", "AssimilationConfig", "EnsembleFilter", "EnsembleForecast",
            "assimilation_cycle", "can_update_states", "default_mode"]
 
 log = logging.getLogger(__name__)
 
 #: The modes of the on-line service (module docstring).
 ASSIMILATE_MODES = ("parameters", "states", "both")
+#: The forecasts state updating can issue (:attr:`AssimilationConfig.issued`).
+ISSUED = ("mean", "central")
 #: The model capabilities state updating needs (:mod:`rivercal.models.contract`).
 NEEDS = ("state arrays", "perturbable forcing")
 #: Format tag of a stored ensemble: a zip archive with each member's state as the model saves it
@@ -132,6 +134,12 @@ class AssimilationConfig:
         Seed of the perturbations (per cycle, the seed and the cycle number).
     threads
         Threads of a model that runs members in one call (None: all).
+    issued
+        The forecast issued (stored as ``updated``): ``mean``, the mean of the members' forecasts, or ``central``,
+        one more run from the members' mean state with the forcing errors they are expected to have
+        (:meth:`EnsembleFilter.expected_factors`). Where levels respond non-linearly to the inflow, the members'
+        spread lowers their mean (a level rises less than in proportion to the discharge); the central run has
+        no such bias. The 90 % band comes from the members either way.
     """
 
     mode: Literal["parameters", "states", "both"] = "parameters"
@@ -145,6 +153,7 @@ class AssimilationConfig:
     level_error: float = 0.3
     seed: int = 0
     threads: int | None = None
+    issued: Literal["mean", "central"] = "mean"
 
     def __post_init__(self) -> None:
         if self.mode not in ASSIMILATE_MODES:
@@ -159,23 +168,31 @@ class AssimilationConfig:
             raise ValueError("inflation must be >= 1, the localisation half-width > 0 m and the forcing error >= 0")
         if not (math.isfinite(self.level_error) and self.level_error >= 0):
             raise ValueError(f"the level boundaries' error must be >= 0 m, got {self.level_error}")
+        if self.issued not in ISSUED:
+            raise ValueError(f"the issued forecast must be one of {', '.join(ISSUED)}, got {self.issued!r}")
 
     def stored(self) -> dict[str, Any]:
         """The configuration as stored with the run (the thread count is not part of it).
 
-        ``level_error`` is stored only when it is not the default, so that a run stored before level boundaries
-        were perturbed resumes with the same configuration.
+        ``level_error`` and ``issued`` are stored only when they are not the default, so that a run stored before
+        level boundaries were perturbed, or before the issued forecast could be chosen, resumes with the same
+        configuration.
         """
         out = asdict(self)
         out.pop("threads")
-        if out["level_error"] == AssimilationConfig.level_error:
-            out.pop("level_error")
+        for key in ("level_error", "issued"):
+            if out[key] == getattr(AssimilationConfig, key):
+                out.pop(key)
         return out
 
 
 @dataclass(frozen=True)
 class EnsembleForecast:
-    """The forecast of an analysed ensemble: mean and 90 % band per series (m AD or m³/s), UTC index."""
+    """The forecast of an analysed ensemble per series (m AD or m³/s), UTC index.
+
+    ``mean`` is the issued forecast (the members' mean or the central run, :attr:`AssimilationConfig.issued`),
+    ``low`` … ``high`` the 90 % band.
+    """
 
     mean: pd.DataFrame
     low: pd.DataFrame
@@ -459,25 +476,61 @@ class EnsembleFilter:
                for k, m in enumerate(members)]
         return out, np.ascontiguousarray(xa[self.n_h + self.n_l :].T)
 
+    def expected_factors(self, errors: np.ndarray, n_intervals: int) -> np.ndarray:
+        """The forcing the members are expected to have over ``n_intervals``: (intervals, forcing).
+
+        A member's error continues as AR(1) from its value now, e₀: in interval k its expected value is φᵏ e₀,
+        with variance σ²(1 − φ²ᵏ) around it, so its factor exp(e − σ²/2) has the expectation
+        exp(φᵏ e₀ − σ² φ²ᵏ / 2) (a log-normal's mean) and a level offset φᵏ e₀; averaged over the members. Far
+        ahead every factor tends to one and every offset to zero: the forcing the model was given.
+        """
+        phi = math.exp(-1.0 / self.tau_steps)
+        k = np.arange(1, n_intervals + 1, dtype=float)[:, None, None]
+        e0 = np.asarray(errors, dtype=float)[None]                    # (1, members, forcing)
+        n = len(self.keys)
+        sigma = self.scale[None, None, :n]
+        factors = np.exp(phi**k * e0[..., :n] - 0.5 * sigma**2 * phi ** (2 * k)).mean(axis=1)
+        offsets = (phi**k * e0[..., n:]).mean(axis=1)
+        return np.concatenate([factors, offsets], axis=-1)
+
     def forecast(self, members: list[ModelState], errors: np.ndarray, parameters: dict[str, float],
                  horizon: pd.Timedelta, output_interval: float, rng: np.random.Generator) -> EnsembleForecast:
-        """Forecast ``horizon`` from the members: mean and 90 % band (observation error included)."""
+        """Forecast ``horizon`` from the members: the issued forecast and the 90 % band (observation error included).
+
+        The issued forecast is the members' mean, or with ``issued = "central"`` one more run, in the same call,
+        from the members' mean levels and discharges (the rest of its state, e.g. its controllers', that of the
+        first member) with :meth:`expected_factors`; should that run fail, the members' mean, with a warning.
+        """
         t0 = members[0].time
         n_int = int(np.ceil(horizon / self.interval))
         factors, _ = self._factors(n_int, errors, rng)
+        n = len(members)
+        central = self.config.issued == "central"
+        if central:
+            arrays = [self.model.state_arrays(m) for m in members]
+            mean_state = self.model.with_state_arrays(members[0], np.mean([a[0] for a in arrays], axis=0),
+                                                      np.mean([a[1] for a in arrays], axis=0))
+            members = [*members, mean_state]
+            factors = np.concatenate([factors, self.expected_factors(errors, n_int)[None]], axis=0)
         result = self._run(parameters, t0, t0 + horizon, members, factors, output_interval)
-        alive = [m for m in range(result.members) if m not in result.failures]
+        alive = [m for m in range(n) if m not in result.failures]
         if not alive:
             raise ModelRunError(f"every member's forecast failed; the first: {result.failures[min(result.failures)]}")
-        if result.failures:
+        failed = [m for m in result.failures if m < n]
+        if failed:
             log.warning("%d of %d members' forecasts failed and are left out of the forecast (the first: %s)",
-                        len(result.failures), result.members, result.failures[min(result.failures)])
+                        len(failed), n, result.failures[min(failed)])
         values = result.values[alive][:, :, self.columns]                # (N, T, m)
-        noisy = values[None] + self.sigma * rng.standard_normal((max(1, 2048 // len(members)), *values.shape))
+        noisy = values[None] + self.sigma * rng.standard_normal((max(1, 2048 // n), *values.shape))
         flat = noisy.reshape(-1, *values.shape[1:])
         frame = lambda v: pd.DataFrame(v, index=result.times, columns=self.series)  # noqa: E731
         low, high = np.quantile(flat, [0.05, 0.95], axis=0)  # one partition for both: the same values as apart
-        return EnsembleForecast(mean=frame(values.mean(axis=0)), low=frame(low), high=frame(high))
+        issued = values.mean(axis=0)
+        if central and n in result.failures:
+            log.warning("the central forecast run failed (%s); the members' mean is issued", result.failures[n])
+        elif central:
+            issued = result.values[n][:, self.columns]
+        return EnsembleForecast(mean=frame(issued), low=frame(low), high=frame(high))
 
 
 def assimilation_cycle(service: OnlineService, spec: CycleSpec, run_start: pd.Timestamp, state: ModelState,

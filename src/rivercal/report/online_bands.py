@@ -43,13 +43,15 @@ def band_figure(store: Store, run: Run, path: Path, *, cycle: int | None = None)
     obs = store.observation_table(sorted(bands["series"].unique()), before, t1, sources=run.config.get("sources"))
     observed = [s for s in sorted(bands["series"].unique()) if (obs["series"] == s).any()]
     series = (observed or sorted(bands["series"].unique()))[:MAX_PANELS]
+    central = (run.config.get("assimilation") or {}).get("issued") == "central"
+    issued = "central run" if central else "ensemble mean"
     fig, axes = subplots(len(series), 1, figsize=(8.5, 2.3 * len(series) + 0.6), sharex=True, squeeze=False)
     for ax, name in zip(axes[:, 0], series, strict=True):
         b = bands[bands["series"] == name].set_index("time").sort_index()
         probability = float(b["probability"].iloc[0])
         ax.fill_between(b.index, b["low"], b["high"], color=_BLUE, alpha=0.22, linewidth=0,
                         label=f"{probability:.0%} band (ensemble)")
-        for kind, colour, style, label in (("updated", _BLUE, "-", "rivercal (ensemble mean)"),
+        for kind, colour, style, label in (("updated", _BLUE, "-", f"rivercal ({issued})"),
                                            ("dss", _RED, "--", "fixed DSS")):
             f = fc[(fc["kind"] == kind) & (fc["series"] == name)].set_index("time").sort_index()
             if len(f):
