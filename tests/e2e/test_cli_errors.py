@@ -111,15 +111,6 @@ def test_a_failed_model_run_exits_3(monkeypatch: pytest.MonkeyPatch, tmp_path: P
     assert "model run failed: engine diverged at 2020-01-01T01:00:00+00:00 at branch B1 at 100 m" in run.stderr
 
 
-def test_the_engine_compiles_once_and_says_so_only_then(tmp_path: Path) -> None:
-    """A cold numba cache is announced on stderr (also under --json); a run that loads the cache is silent."""
-    args = ("simulate", "synthetic", "--end", "2020-01-02", "--out", str(tmp_path), "--json")
-    rivercal(*args)  # compiles if the cache is cold (a fresh clone), else loads it
-    again = rivercal(*args)
-    assert again.returncode == 0, again.stderr
-    assert "compiling" not in again.stderr
-
-
 def test_the_compile_notice_follows_numba_compilations(capsys: pytest.CaptureFixture) -> None:
     """The notice is numba's compile event for a rivercal kernel: printed at the first compilation of each kind
     (the engine, the rainfall-runoff model, others), once, and naming what is compiled."""

@@ -54,11 +54,12 @@ def test_a_replay_before_the_change_left_the_window(tmp_path: Path) -> None:
 
 
 def test_a_single_cycle_on_observations_that_end_at_its_issue_time(tmp_path: Path) -> None:
+    # a 2-day window (the default is a week): what is checked is where the observations end, not the window
     sim = rivercal("simulate", "dommel", "--start", "2010-11-01", "--end", "2010-11-10", "--out", str(tmp_path / "o"))
     assert sim.returncode == 0, sim.stderr
     run = rivercal("online", "dommel", "--observations", str(tmp_path / "o" / "series.csv"), "--from", "2010-11-10",
-                   "--to", "2010-11-10", "--db", str(tmp_path / "run.sqlite"), "--out", str(tmp_path / "r"),
-                   "--workers", "2", "--assimilate", "parameters", "--json")
+                   "--to", "2010-11-10", "--window", "2D", "--db", str(tmp_path / "run.sqlite"), "--out",
+                   str(tmp_path / "r"), "--workers", "2", "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
@@ -68,15 +69,16 @@ def test_a_single_cycle_on_observations_that_end_at_its_issue_time(tmp_path: Pat
 
 
 def test_the_first_window_touching_the_case_start(tmp_path: Path) -> None:
-    run = rivercal("online", "dommel", "--scenario", "PI-0", "--from", "2010-09-09", "--to", "2010-09-09", "--db",
-                   str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate", "parameters", "--json")
+    # a 2-day window and the 24 h warm-up: issued on 4 September, the first run starts at the case start
+    run = rivercal("online", "dommel", "--scenario", "PI-0", "--from", "2010-09-04", "--to", "2010-09-04", "--window",
+                   "2D", "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate", "parameters", "--json")
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles"] == 1 and summary["status"] == {"done": 1}
-    early = rivercal("online", "dommel", "--scenario", "PI-0", "--from", "2010-09-08T23:00", "--to", "2010-09-09",
-                     "--db", str(tmp_path / "early.sqlite"))
+    early = rivercal("online", "dommel", "--scenario", "PI-0", "--from", "2010-09-03T23:00", "--to", "2010-09-04",
+                     "--window", "2D", "--db", str(tmp_path / "early.sqlite"))
     assert early.returncode == 2
-    assert "--from 2010-09-08T23:00" in early.stderr and "issue the first cycle at 2010-09-09 00:00 or later" in \
+    assert "--from 2010-09-03T23:00" in early.stderr and "issue the first cycle at 2010-09-04 00:00 or later" in \
         early.stderr
 
 

@@ -28,6 +28,11 @@ SETUPS = {
     "FaWc": ({"FA": 20.0, "Wc": 0.8}, {"FA": 14.0, "Wc": 0.1}),
     "FA-W2-W3-W5": ({"FA": 20.0, "W2": 10.6, "W3": 8.1, "W5": 9.3}, {"FA": 16.0, "W2": 10.45, "W3": 8.4, "W5": 9.15}),
 }
+#: TRF's start, nearer the truth: its σ and correlations come from its finite-difference Jacobian at the point where
+#: it stops, so the way there proves nothing here (DuD's secant Jacobian is built on the way: DuD starts far). From
+#: both starts TRF stops at the same estimates (to 1e-4) with the same σ ratios to the reference (measured), in
+#: 26 and 37 runs instead of 32 and 57.
+NEAR = {"FaWc": {"FA": 18.0, "Wc": 0.6}, "FA-W2-W3-W5": {"FA": 18.5, "W2": 10.55, "W3": 8.2, "W5": 9.25}}
 
 
 @pytest.fixture(scope="module")
@@ -42,8 +47,9 @@ def twins() -> dict:
     return {}
 
 
-def _problem(model, setup: str, noise: str, twins: dict) -> CalibrationProblem:
+def _problem(model, setup: str, noise: str, twins: dict, *, near: bool = False) -> CalibrationProblem:
     truth, start = SETUPS[setup]
+    start = NEAR[setup] if near else start
     names = list(truth)
     params = ParameterSet(p for p in model.case.spec.parameters if p.name in names).subset(names)
     window = next((w.start, w.end) for w in model.case.spec.windows if w.name == "moderate")
@@ -62,7 +68,7 @@ def _problem(model, setup: str, noise: str, twins: dict) -> CalibrationProblem:
     ("dud", "FA-W2-W3-W5", "white"), ("sparse_dud", "FA-W2-W3-W5", "white"), ("trf", "FA-W2-W3-W5", "white"),
 ])
 def test_std_and_correlation_match_a_reference_jacobian(model, twins, method, setup, noise):
-    problem = _problem(model, setup, noise, twins)
+    problem = _problem(model, setup, noise, twins, near=method == "trf")
     result = calibrate(problem, method, workers=1).result
     reference = fd_jacobian(problem, result.x, rel_step=1e-4, scheme="central", workers=1)
     ref = covariance(reference.matrix)

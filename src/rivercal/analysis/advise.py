@@ -361,8 +361,11 @@ class LinearWorth:
 
     # -- every candidate at once ----------------------------------------------------------------------
 
-    def worth_table(self, gauges: Sequence[str] = ()) -> pd.DataFrame:
+    def worth_table(self, gauges: Sequence[str] = (), among: Sequence[str] | None = None) -> pd.DataFrame:
         """Every candidate not in ``gauges``, added to them: its worth and what the set then gives.
+
+        ``among`` limits the table to those candidates (their rows are the same as in the whole table: each row
+        depends only on ``gauges`` and its own candidate).
 
         Returns
         -------
@@ -374,7 +377,7 @@ class LinearWorth:
             target); sorted by identifiable, then worth (per cost where there are costs), descending.
         """
         chosen = set(gauges)
-        left = [c for c in self.candidates if c.id not in chosen]
+        left = [c for c in self.candidates if c.id not in chosen and (among is None or c.id in among)]
         if not left:
             return pd.DataFrame()
         base_info = self.information(gauges)
@@ -476,7 +479,7 @@ class LinearWorth:
         """``gauges`` in greedy order among themselves."""
         left, out = list(gauges), []
         while left:
-            table = self.worth_table(out)
+            table = self.worth_table(out, among=left)
             pick = next(i for i in table.index if i in left)
             out.append(str(pick))
             left.remove(pick)

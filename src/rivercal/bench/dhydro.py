@@ -116,7 +116,8 @@ class DellenComparison:
 
 
 def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
-                   parameters: dict[str, float] | None = None, dt: float | None = None) -> DellenComparison:
+                   parameters: dict[str, float] | None = None, dt: float | None = None,
+                   case: Path | None = None) -> DellenComparison:
     """Import Dellen with its exchange series, run it, and compare with D-HYDRO's levels.
 
     Parameters
@@ -129,13 +130,21 @@ def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
         Model quantities to set for the run (default: the model as imported).
     dt
         The longest time step of the run, s (default: the model's own).
+    case
+        A case folder already imported from ``folder`` with its two exchange files, as this function imports it
+        (``rivercal import dhydro Flow1D.mdu --realtime rr_to_flow.nc --realtime rtc_to_flow.nc``): run as it
+        is, not imported again (``out`` is then unused, and :attr:`DellenComparison.imported` is empty: the
+        import's ledger is not at hand).
     """
     folder = Path(folder) if folder is not None else dellen_folder()
-    out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="dellen-"))
-    result = import_dhydro(folder / "dflowfm" / "Flow1D.mdu", out,
-                           ImportOptions(realtime=(folder / "rr_to_flow.nc", folder / "rtc_to_flow.nc")))
-    data = tomllib.loads((out / "case.toml").read_text(encoding="utf-8"))
-    case = result.folder
+    imported: dict[str, int] = {}
+    if case is None:
+        out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="dellen-"))
+        result = import_dhydro(folder / "dflowfm" / "Flow1D.mdu", out,
+                               ImportOptions(realtime=(folder / "rr_to_flow.nc", folder / "rtc_to_flow.nc")))
+        case, imported = result.folder, ledger_counts(result.ledger)
+    case = Path(case)
+    data = tomllib.loads((case / "case.toml").read_text(encoding="utf-8"))
     refdate = pd.Timestamp(str(data["case"]["start"])).normalize()
     computed = read_exchange(folder / "flow_to_rtc.nc", refdate)
     computed.update(read_exchange(folder / "flow_to_rr.nc", refdate))
@@ -164,7 +173,7 @@ def compare_dellen(folder: Path | None = None, out: Path | None = None, *,
     table = pd.DataFrame(rows).sort_values("rmse_m", ascending=False, ignore_index=True)
     return DellenComparison(table=table, wall_s=wall, period_s=(sim.end - sim.start).total_seconds(),
                             balance_error=run.balance.relative_error, case_folder=case,
-                            series=pd.DataFrame(columns), imported=ledger_counts(result.ledger),
+                            series=pd.DataFrame(columns), imported=imported,
                             dt_s=float(data["engine"]["dt"]), imported_dt_s=imported_dt,
                             run_stats=dict(sim.last_run_stats))
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rivercal.case import Case
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io._calibration import write_parameters
 from rivercal.io.ledger import conclude
@@ -45,11 +46,14 @@ class ImportResult:
         boundaries, laterals, stations, exact, approximated, refused; and the time step (s).
     ledger
         The full account (also in ``import.md``).
+    case
+        The case as written, loaded and validated (what :func:`rivercal.case.load_case` of ``folder`` returns).
     """
 
     folder: Path
     summary: dict
     ledger: Sobek3Ledger
+    case: Case | None = None
 
 
 def import_sobek3(md1d: Path | str, out: Path | str, options: ImportOptions | None = None) -> ImportResult:
@@ -97,7 +101,7 @@ def import_sobek3(md1d: Path | str, out: Path | str, options: ImportOptions | No
     _stations_if_none(ctx)
     write_parameters(ctx.case, ledger)
     case = conclude(ledger, out, md1d, allow_partial=options.allow_partial, write=lambda: _write(ctx, out))
-    return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger)
+    return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger, case=case)
 
 
 def _model_name(md1d: Path) -> str:
