@@ -266,6 +266,18 @@ def test_plain_language_names_the_station_at_the_weir() -> None:
     assert "cm" in words["P0"]  # the uncertainty of a crest in cm
 
 
+def test_the_uncertainty_of_a_dimensionless_parameter_carries_no_unit() -> None:
+    # an imported SOBEK 3 model's friction factor (unit "-"): "determined to ±0.5.", not "±0.5 -."; k_s keeps its unit
+    from rivercal.analysis import Context
+
+    a = np.zeros((12, 2))
+    a[0, 0], a[1, 1] = 2.0, 4.0   # σ = 1/2 and 1/4
+    context = Context(units={"F_scale": "-", "FA": "m^(1/3)/s"})
+    words = explanations(analyse_jacobian(a, ["F_scale", "FA"], context=context))
+    assert words["F_scale"].endswith("determined to ±0.5.")
+    assert words["FA"].endswith("determined to ±0.25 m^(1/3)/s.")
+
+
 def test_options_are_checked() -> None:
     with pytest.raises(ValueError, match="sv_threshold"):
         IdentifiabilityOptions(sv_threshold=0.0)

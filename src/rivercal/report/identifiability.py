@@ -121,6 +121,8 @@ class _Words:
         unit = self.c.units.get(self.names[i], "")
         if unit in ("m AD", "m", "m NAP"):
             return f"{100 * value:.2g} cm" if abs(value) < 1 else f"{value:.3g} m"
+        if unit.strip() in ("-", "1"):  # dimensionless (an imported model's friction factor): no unit after it
+            return f"{value:.3g}"
         return f"{value:.3g} {unit}".strip()
 
     def station(self, st: str) -> str:
