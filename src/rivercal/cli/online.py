@@ -35,7 +35,7 @@ from rivercal.cli.options import (
     read_observations,
     workers_for,
 )
-from rivercal.errors import OptionError, RivercalError
+from rivercal.errors import CaseError, OptionError, RivercalError
 
 __all__ = ["demo", "online", "print_summary", "report"]
 
@@ -348,6 +348,9 @@ def report(
         help="The store of an on-line run: an SQLite file or a postgresql://USER@HOST/DB URL.")],
     out: Annotated[Path, typer.Option(help="Folder for the report (index.html, figures, CSV).")],
     run: Annotated[str | None, typer.Option(help="Run name (default: the only run, or the latest).")] = None,
+    case: Annotated[str | None, typer.Option(
+        help="The run's model: a case folder, a packaged case or a model.toml (default: the model the store names; "
+             "the store knows an imported model by its name, not by its folder).")] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Write the HTML report of an on-line run from its store: tables, figures and the DSS comparison."""
@@ -364,7 +367,18 @@ def report(
         stored = store.get_run(name)
         if stored is None:
             raise OptionError(f"--run {name!r}: not in {db} (it has {', '.join(runs['name'])})", option="--run")
-        files = write_online_report(store, name, out, model=open_model(stored.case))
+        try:
+            model = open_model(case if case is not None else stored.case)
+        except CaseError:
+            if case is not None or Path(stored.case).exists():
+                raise  # a case that is there but wrong: its own error names the file and field
+            raise OptionError(f"--db {db}: run {name!r} serves the model {stored.case!r}, which is neither a folder "
+                              "here nor a packaged case (the store keeps a model's name, not its folder): give "
+                              "its case folder or model.toml with --case", option="--case") from None
+        if model.name != stored.case:
+            raise OptionError(f"--case {case}: that is the model {model.name!r}; run {name!r} of {db} serves "
+                              f"{stored.case!r}", option="--case")
+        files = write_online_report(store, name, out, model=model)
     if as_json:
         emit_json({"run": name, "files": files})
     else:
