@@ -43,3 +43,26 @@ def test_a_model_that_cannot_be_loaded_leaves_the_facts_empty_and_says_why() -> 
     facts = model_facts("no-such-model-anywhere")
     assert facts.parameters == {} and facts.network is None and "cannot be loaded" in facts.problem
     assert describe_parameter(object()) == ""
+
+
+def test_a_model_in_a_folder_of_its_own_is_found_through_its_registered_folder(tmp_path, monkeypatch) -> None:
+    # an imported model: folder 'comp/', model name 'test_compound' (what the store keeps); rivercal dashboard --case
+    import shutil
+    from importlib import resources
+    from pathlib import Path
+
+    from rivercal.dashboard import facts as module
+
+    monkeypatch.setattr(module, "_SOURCES", {})
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(Path(str(resources.files("rivercal.cases") / "dommel")), tmp_path / "comp")
+    toml = tmp_path / "comp" / "case.toml"
+    toml.write_text(toml.read_text(encoding="utf-8").replace('name = "dommel"', 'name = "test_compound"', 1),
+                    encoding="utf-8")
+    unknown = model_facts("test_compound")
+    assert unknown.network is None and "rivercal dashboard --case" in unknown.problem
+    assert module.register_model("comp") == "test_compound"
+    found = model_facts("test_compound")
+    assert found.problem == "" and found.network is not None
+    assert found.describe("W2") == "crest level of weir ZL1-3014"
+    model_facts.cache_clear()
