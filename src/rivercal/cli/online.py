@@ -310,10 +310,14 @@ def _print_figures(summary: dict[str, Any]) -> None:
 
     for line in headline_lines(summary):
         out_console.print(line, highlight=False)
-    mode = summary.get("assimilate", "parameters")
-    what = {"both": "states (hourly, ensemble Kalman filter) and parameters (daily)", "states": "states only",
+    out_console.print(updated_words(summary.get("assimilate", "parameters")), highlight=False)
+
+
+def updated_words(mode: str) -> str:
+    """What the run updated, in words: the states at every hourly forecast step, the parameters every cycle."""
+    what = {"both": "states (hourly, ensemble Kalman filter) and parameters (every cycle)", "states": "states only",
             "parameters": "parameters only"}.get(mode, mode)
-    out_console.print(f"Updated: {what}.", highlight=False)
+    return f"Updated: {what}."
 
 
 def demo(
