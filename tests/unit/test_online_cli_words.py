@@ -10,3 +10,20 @@ def test_the_parameters_are_said_to_be_updated_every_cycle_not_daily() -> None:
     assert updated_words("both") == "Updated: states (hourly, ensemble Kalman filter) and parameters (every cycle)."
     assert "daily" not in updated_words("both")
     assert updated_words("parameters") == "Updated: parameters only."
+
+
+def test_options_that_differ_from_the_stored_runs_are_bad_input_naming_run(tmp_path) -> None:
+    # a second 'rivercal online' into the same store with another --cycle: exit status 2 (the user's options),
+    # not 1 (a problem that is not the input's fault), and the message names --run; nothing is run
+    from typer.testing import CliRunner
+
+    from rivercal.cli.main import app
+    from rivercal.store import Store
+
+    db = tmp_path / "s.sqlite"
+    with Store(db) as store:
+        store.ensure_run("PI-0", "dommel", {"period": "1h"})
+    run = CliRunner().invoke(app, ["online", "dommel", "--scenario", "PI-0", "--assimilate", "parameters", "--db",
+                                   str(db), "--from", "2010-10-18", "--to", "2010-10-18", "--workers", "1", "-q"])
+    assert run.exit_code == 2, run.output
+    assert "--run PI-0: " in run.stderr and "was created with another configuration (keys differ:" in run.stderr

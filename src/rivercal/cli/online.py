@@ -178,14 +178,21 @@ def online(
             raise OptionError(f"{exc}; use --assimilate parameters", option="--assimilate") from None
     check_times(model, config, first, last, {"first": date_from, "last": date_to})
     reporter = Reporter(not (quiet or as_json))
+    from rivercal.store import RunMismatchError
+
+    name = run or scenario or "online"
     with reporter.running("starting"), workers_for(workers, address) as where:
         config = replace(config, workers=where)
-        summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
-                             noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
-                             max_cycles=max_cycles, report=out, progress=reporter,
-                             assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
-                                                             seed=seed),
-                             rain_error=rain_error, take_over=take_over)
+        try:
+            summary = run_online(model, db, name, config, first, last, scenario=scenario,
+                                 noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
+                                 max_cycles=max_cycles, report=out, progress=reporter,
+                                 assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
+                                                                 seed=seed),
+                                 rain_error=rain_error, take_over=take_over)
+        except RunMismatchError as exc:  # the options against the stored run: bad input, exit status 2
+            raise OptionError(f"--run {name}: {exc}, or the options it was started with (--run names a run, "
+                              "default: the scenario or 'online')", option="--run") from None
     summary["final_state"] = _final_state(summary)
     if as_json:
         emit_json(summary)
