@@ -317,14 +317,25 @@ def _print_figures(summary: dict[str, Any]) -> None:
 
     for line in headline_lines(summary):
         out_console.print(line, highlight=False)
-    out_console.print(updated_words(summary.get("assimilate", "parameters")), highlight=False)
+    out_console.print(updated_words(summary.get("assimilate", "parameters"), summary.get("state_updating_failed"),
+                                    summary.get("cycles")), highlight=False)
 
 
-def updated_words(mode: str) -> str:
-    """What the run updated, in words: the states at every hourly forecast step, the parameters every cycle."""
+def updated_words(mode: str, failed: list[int] | None = None, cycles: int | None = None) -> str:
+    """What the run updated, in words: the states at every hourly forecast step, the parameters every cycle.
+
+    ``failed`` lists the cycles whose state updating failed (of ``cycles``): their updated forecast is the parameters'
+    own.
+    """
     what = {"both": "states (hourly, ensemble Kalman filter) and parameters (every cycle)", "states": "states only",
             "parameters": "parameters only"}.get(mode, mode)
-    return f"Updated: {what}."
+    text = f"Updated: {what}."
+    if failed:
+        listed = ", ".join(map(str, failed[:5])) + (" …" if len(failed) > 5 else "")
+        text += (f" The state updating failed in {len(failed)} of {cycles or len(failed)} cycles ({listed}: every "
+                 "member of the ensemble failed; the cycle log says why): their updated forecast is the parameters' "
+                 "own, without state updating or band.")
+    return text
 
 
 def demo(
