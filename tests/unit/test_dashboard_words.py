@@ -66,3 +66,18 @@ def test_a_model_in_a_folder_of_its_own_is_found_through_its_registered_folder(t
     assert found.problem == "" and found.network is not None
     assert found.describe("W2") == "crest level of weir ZL1-3014"
     model_facts.cache_clear()
+
+
+def test_the_network_map_of_a_run_without_scores_draws_the_network_without_errors(tmp_path) -> None:
+    # a run of one cycle has no scored forecast yet: the map page failed with HTTP 500 (KeyError in the split of
+    # no series names) once the model could be loaded
+    from rivercal.dashboard.views import map_view
+    from rivercal.store import Store
+
+    with Store(tmp_path / "s.sqlite") as store:
+        run = store.ensure_run("online", "dommel", {})
+        view = map_view(store, run)
+    assert "problem" not in view or not view["problem"]
+    assert len(view["figures"]) == 2   # DSS and rivercal
+    assert [r["station"] for r in view["rows"]] == ["0028", "0040", "0029", "0030", "0031"]
+    assert all(r[k]["text"] == "–" for r in view["rows"] for k in ("dss", "updated"))   # nothing scored yet

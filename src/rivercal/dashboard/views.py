@@ -444,9 +444,9 @@ def map_view(store: Store, run: Run) -> dict[str, Any]:
         where = station_coordinates(network)
     except ValueError as exc:  # a network without map coordinates
         return {"problem": f"the network of {run.case!r} cannot be drawn: {exc}", "figures": [], "rows": []}
-    scores = store.scores(run)
-    scores = scores[scores["series"].str.rpartition(".")[2].isin(_LEVELS)]
-    scores = scores.assign(station=scores["series"].str.rpartition(".")[0])
+    scores = store.scores(run)  # none before a cycle's forecast is scored (a run of one cycle)
+    parts = scores["series"].astype(str).str.rsplit(".", n=1)  # rpartition of no rows has no columns to pick
+    scores = scores.assign(station=parts.str[0])[parts.str[-1].isin(_LEVELS)]
     bias = scores.groupby(["station", "kind"])["bias"].mean().unstack("kind") if len(scores) else pd.DataFrame()
     lines_x: list[float | None] = []
     lines_y: list[float | None] = []
