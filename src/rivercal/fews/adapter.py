@@ -226,7 +226,7 @@ def _check_times(run: RunFile, model: Model, config: OnlineConfig) -> None:
         check_schedule(model, config, run.time0, run.time0, names=names)
     except ValueError as exc:
         text = str(exc)
-        if text.startswith("time0") and "output times" in text:
+        if text.startswith("time0") and "cycles are issued on" in text:
             text += f" (check the run file's timeZone, {run.time_zone:+g} h)"
         raise AdapterError(text, file=str(run.path), field="time0" if text.startswith("time0") else "properties") \
             from None
