@@ -278,6 +278,22 @@ def test_the_uncertainty_of_a_dimensionless_parameter_carries_no_unit() -> None:
     assert words["FA"].endswith("determined to ±0.25 m^(1/3)/s.")
 
 
+def test_a_station_at_a_culvert_is_said_to_be_at_a_culvert_not_a_weir() -> None:
+    # the imported Korte Woerden model: 'station PMP2, which measures the levels up- and downstream of weir PMP2'
+    # (a pump); the synthetic case has a culvert K1 beside its weirs
+    from rivercal.case import load_case
+
+    network = load_case("synthetic").network
+    stations = [SimpleNamespace(id="SK", structure="K1", branch=None, chainage=None,
+                                quantities=["h_up", "h_down", "Q"]),
+                SimpleNamespace(id="SW", structure="W1", branch=None, chainage=None, quantities=["h_up", "Q"])]
+    model = SimpleNamespace(case=SimpleNamespace(network=SimpleNamespace(stations=stations,
+                                                                         structure=network.structure)))
+    context = context_from_problem(SimpleNamespace(parameters=[], model=model))
+    assert context.stations["SK"] == "the levels up- and downstream of culvert K1 and the discharge through it"
+    assert context.stations["SW"] == "the level upstream of weir W1 and the discharge over it"
+
+
 def test_options_are_checked() -> None:
     with pytest.raises(ValueError, match="sv_threshold"):
         IdentifiabilityOptions(sv_threshold=0.0)
