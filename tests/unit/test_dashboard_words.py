@@ -81,3 +81,32 @@ def test_the_network_map_of_a_run_without_scores_draws_the_network_without_error
     assert len(view["figures"]) == 2   # DSS and rivercal
     assert [r["station"] for r in view["rows"]] == ["0028", "0040", "0029", "0030", "0031"]
     assert all(r[k]["text"] == "–" for r in view["rows"] for k in ("dss", "updated"))   # nothing scored yet
+
+
+def test_the_forecast_page_draws_the_observed_series_and_counts_the_others(tmp_path) -> None:
+    # an imported model forecasts every series of every structure (Dellen: 546) while FEWS hands over a few
+    # gauges (21): the page drew all 546 (2.5 MB, 9 s); now the observed ones, and says how many are left out
+    import numpy as np
+    import pandas as pd
+
+    from rivercal.dashboard.views import forecast_view
+    from rivercal.observations import ObservationSet
+    from rivercal.store import CycleRecord, Schedule, Store
+
+    series = ["G1.h", "S1.h_up", "S1.Q"]
+    schedule = Schedule("2010-11-01T00:00:00Z", period=pd.Timedelta(days=1), window=pd.Timedelta(days=2))
+    with Store(tmp_path / "s.sqlite") as store:
+        run = store.ensure_run("r", "dommel", {})
+        spec = store.begin_cycle(run.id, store.next_cycle(run.id, schedule))
+        times = pd.date_range(spec.issue_time, periods=25, freq="h")
+        mean = pd.DataFrame({c: np.full(25, 7.0) for c in series}, index=times)
+        store.commit_cycle(run.id, CycleRecord(0, spec.window_start, spec.window_end, spec.issue_time,
+                                               forecasts={"updated": mean, "dss": mean + 0.03}))
+        before = pd.date_range(spec.issue_time - pd.Timedelta("12h"), spec.issue_time, freq="h")
+        store.ingest(ObservationSet.from_frame(pd.DataFrame({"G1.h": 7.01}, index=before)), "telemetry")
+        view = forecast_view(store, run)
+        assert [f["series"] for f in view["figures"]] == ["G1.h"] and view["latest"]["unobserved"] == 2
+        store.ingest(ObservationSet.from_frame(pd.DataFrame({"S1.Q": 1.0, "S1.h_up": 7.0}, index=before)), "more")
+        view = forecast_view(store, run)
+    assert [f["series"] for f in view["figures"]] == ["G1.h", "S1.h_up", "S1.Q"]
+    assert view["latest"]["unobserved"] == 0

@@ -315,7 +315,8 @@ def forecast_view(store: Store, run: Run) -> dict[str, Any]:
 
     Per series: the observations of the 48 h before the issue time (and those stored since, lighter), the
     forecast the cycle issued (thick) with its band when one is stored, the other forecast beside it (thin,
-    dashed), and the jump alerts and transitions on the time axis.
+    dashed), and the jump alerts and transitions on the time axis. Only the series with an observation in those
+    four days, when any has one (``latest["unobserved"]`` counts the others); else every series.
     """
     cycles = store.cycles(run)
     row, fc = _latest_with_forecasts(store, run, cycles)
@@ -329,6 +330,10 @@ def forecast_view(store: Store, run: Run) -> dict[str, Any]:
     series = sorted(fc["series"].unique(), key=lambda s: (s.rpartition(".")[0], order.get(s.rpartition(".")[2], 4), s))
     observed = store.observation_table(series, start, end)
     parts = dict(tuple(observed.groupby("series", sort=False)))
+    # an imported model forecasts every series of every structure (Dellen: 546); the gauges are what the
+    # forecaster checks, so a series without an observation in these four days is not drawn when others have one
+    unobserved = [s for s in series if s not in parts] if parts else []
+    series = [s for s in series if s in parts] if parts else series
     bands = store.forecast_bands(run, cycle=int(row.name))
     shapes, notes, events = _event_marks(_events(store, run), start, end)
     shapes = [*shapes, {"type": "line", "xref": "x", "yref": "paper", "x0": _t(t0), "x1": _t(t0), "y0": 0, "y1": 1,
@@ -373,7 +378,7 @@ def forecast_view(store: Store, run: Run) -> dict[str, Any]:
                         "figure": {"data": data, "layout": layout}})
     latest = {"cycle": int(row.name), "issue_time": _t(t0), "kind": kind,
               "whose": "the DSS's" if kind == "dss" else "rivercal's", "bands": bool(len(bands)),
-              "start": _t(start), "end": _t(end)}
+              "start": _t(start), "end": _t(end), "unobserved": len(unobserved)}
     return {"latest": latest, "figures": figures, "events": events}
 
 
