@@ -101,7 +101,7 @@ def test_the_forecast_page_draws_the_observed_series_and_counts_the_others(tmp_p
         times = pd.date_range(spec.issue_time, periods=25, freq="h")
         mean = pd.DataFrame({c: np.full(25, 7.0) for c in series}, index=times)
         store.commit_cycle(run.id, CycleRecord(0, spec.window_start, spec.window_end, spec.issue_time,
-                                               forecasts={"updated": mean, "dss": mean + 0.03}))
+                                               forecasts={"updated": mean, "dss": mean + 0.005}))
         before = pd.date_range(spec.issue_time - pd.Timedelta("12h"), spec.issue_time, freq="h")
         store.ingest(ObservationSet.from_frame(pd.DataFrame({"G1.h": 7.01}, index=before)), "telemetry")
         view = forecast_view(store, run)
@@ -110,3 +110,9 @@ def test_the_forecast_page_draws_the_observed_series_and_counts_the_others(tmp_p
         view = forecast_view(store, run)
     assert [f["series"] for f in view["figures"]] == ["G1.h", "S1.h_up", "S1.Q"]
     assert view["latest"]["unobserved"] == 0
+    # a level that does not move (Dellen's basin at -0.66414 m AD, its forecast 4e-7 m off) gets an axis of 2 cm,
+    # not one of 4e-7 m; one that moves keeps plotly's own range
+    axes = {f["series"]: f["figure"]["layout"]["yaxis"] for f in view["figures"]}
+    assert axes["S1.h_up"]["range"] == pytest.approx([7.0025 - 0.01, 7.0025 + 0.01])   # 7.0 and 7.005
+    assert axes["G1.h"]["range"] == pytest.approx([7.005 - 0.01, 7.005 + 0.01])   # 7.0 and 7.005, 7.01 observed
+    assert "range" not in axes["S1.Q"]   # from 1 m³/s observed to 7 forecast

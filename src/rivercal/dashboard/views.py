@@ -301,6 +301,20 @@ def _layout(ytitle: str, xtitle: str, **extra: Any) -> dict[str, Any]:
             "font": {"size": 12}, **extra}
 
 
+#: The least span of a forecast figure's value axis (m for a level, m³/s for a discharge): 2 cm, as the errors
+#: the pages show are in cm.
+_MIN_SPAN = 0.02
+
+
+def _at_least(data: list[dict[str, Any]], span: float) -> list[float] | None:
+    """A value-axis range of ``span`` about the figure's values when they span less; None when they span more."""
+    values = [v for trace in data for v in trace.get("y", []) if v is not None]
+    if not values or max(values) - min(values) >= span:
+        return None
+    middle = (max(values) + min(values)) / 2
+    return [middle - span / 2, middle + span / 2]
+
+
 def _latest_with_forecasts(store: Store, run: Run, cycles: pd.DataFrame) -> tuple[Any, pd.DataFrame]:
     """The latest final cycle that stored forecasts (among the last three) and its forecasts."""
     for cycle in _final(cycles)["cycle"].iloc[::-1][:3]:
@@ -374,6 +388,9 @@ def forecast_view(store: Store, run: Run) -> dict[str, Any]:
                          shapes=shapes, annotations=notes)
         layout["xaxis"]["range"] = [_t(start), _t(end)]
         layout["yaxis"]["hoverformat"] = ".2f"
+        flat = _at_least(data, _MIN_SPAN)
+        if flat is not None:  # a level that does not move: not an axis of 1e-7 m with ticks to the 7th decimal
+            layout["yaxis"]["range"] = flat
         figures.append({"id": f"fc-{len(figures)}", "series": sid, "title": describe_series(sid), "unit": unit,
                         "figure": {"data": data, "layout": layout}})
     latest = {"cycle": int(row.name), "issue_time": _t(t0), "kind": kind,
