@@ -294,6 +294,28 @@ def test_a_station_at_a_culvert_is_said_to_be_at_a_culvert_not_a_weir() -> None:
     assert context.stations["SW"] == "the level upstream of weir W1 and the discharge over it"
 
 
+def test_a_parameter_the_window_hardly_sees_is_not_identifiable_even_alone() -> None:
+    # the D-HYDRO model c01 observes only discharges that its boundaries set: 'rivercal analyse --params F_T1' said
+    # 'identifiable (identifiability index 1.00) ... determined to ±1.79e+10', because the significance of a
+    # singular value is relative to the largest, which was F_T1's own. Over its whole range (20 here) it now has to
+    # move the weighted misfit by one σ (σ = 1 m): an effect of 1e-4 m per unit does not
+    a = np.zeros((40, 1))
+    a[:20, 0] = 1e-4
+    result = identifiability(linear_problem(a), workers=1)
+    assert result.extra["unseen"] and result.singular_values[0] < 1.0
+    assert list(result.verdict["verdict"]) == [NOT_IDENTIFIABLE]
+    words = explanations(result)["P0"]
+    assert words.startswith("P0 (crest level of weir P0) is not identifiable (identifiability index 0.00): moving "
+                            "it over its whole range (20 m) changes the misfit by less than one observation error")
+    from rivercal.report.identifiability import suggestions
+
+    assert suggestions(result) == ["fix P0 at its current value: moved over its whole range it changes the misfit "
+                                   "by less than one observation error."]
+    a[:20, 0] = 0.1   # moved over its range of 20: 2 m at 20 hours, well seen
+    seen = identifiability(linear_problem(a), workers=1)
+    assert not seen.extra["unseen"] and list(seen.verdict["verdict"]) == [IDENTIFIABLE]
+
+
 def test_options_are_checked() -> None:
     with pytest.raises(ValueError, match="sv_threshold"):
         IdentifiabilityOptions(sv_threshold=0.0)
