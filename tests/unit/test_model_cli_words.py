@@ -15,3 +15,19 @@ def test_the_quantities_title_names_the_parameters_table() -> None:
     assert run.exit_code == 0, run.output
     text = " ".join(captured.get().split())
     assert "what --set and [[parameters]] targets may name" in text
+
+
+def test_an_unknown_case_or_model_lists_the_packaged_models_too(tmp_path, monkeypatch) -> None:
+    # 'rivercal simulate dommel_swmm' listed the packaged cases only; dommel-swmm is a packaged model
+    import pytest
+
+    from rivercal.errors import CaseError
+    from rivercal.models import load_model
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(CaseError) as caught:
+        load_model("dommel_swmm")
+    assert str(caught.value) == ("'dommel_swmm' is neither a case folder nor a packaged case, nor a model.toml or a "
+                                 "packaged model (packaged cases: dommel, dommel-controlled, synthetic, westerscheldt; "
+                                 "packaged models: dommel-swmm)")
+    assert load_model("synthetic").name == "synthetic"
