@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["decimals", "format_cm", "format_std", "format_value", "plural"]
+__all__ = ["decimals", "format_cm", "format_std", "format_value", "plural", "unit_suffix"]
 
 #: Decimals shown per unit (the resolution that matters to the operator; thesis §4-2 uses cm and 0.5 m^(1/3)/s).
 _DECIMALS = {"m": 2, "m AD": 2, "m NAP": 2, "m³/s": 2, "m3/s": 2, "m^(1/3)/s": 1, "m1/3/s": 1, "s/m^(1/3)": 3,
@@ -25,6 +25,12 @@ def decimals(unit: str | None) -> int:
 def _fixed(value: float, places: int) -> str:
     text = f"{value:.{places}f}"
     return text[1:] if text.startswith("-") and float(text) == 0.0 else text  # no "-0.00"
+
+
+def unit_suffix(unit: str | None) -> str:
+    """The unit as it follows a number in a sentence: `` m AD``; nothing for a dimensionless (``-``, ``1``) one."""
+    text = (unit or "").strip()
+    return "" if text in ("", "-", "1") else f" {text}"
 
 
 def format_value(value: float | None, unit: str | None = None, *, with_unit: bool = False) -> str:

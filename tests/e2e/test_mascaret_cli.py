@@ -19,7 +19,8 @@ def test_the_oriege_imports_with_its_gauges_and_prints_the_summary(tmp_path: Pat
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert set(summary) == {"folder", "branches", "points", "profiles", "friction_groups", "boundaries", "laterals",
-                            "stations", "start", "end", "approximated", "refused"}
+                            "stations", "start", "end", "approximated", "refused", "parameters"}
+    assert summary["parameters"] == ["Kz1_minor"]
     assert (summary["profiles"], summary["stations"], summary["refused"]) == (84, 84 + 3, 0)
     run = rivercal("case", "check", str(tmp_path / "case"), "--json")
     assert run.returncode == 0, run.stderr

@@ -30,6 +30,27 @@ def test_bad_input_exits_2_with_a_message(args: list[str], message: str) -> None
     assert "Traceback" not in run.output
 
 
+def test_the_default_window_on_a_model_without_named_windows_says_so_and_gives_the_period() -> None:
+    # 'rivercal analyse' defaults to --window moderate; an imported model names no windows
+    from types import SimpleNamespace
+
+    from rivercal.cli.options import parse_window
+    from rivercal.errors import OptionError
+
+    model = SimpleNamespace(name="test_compound", calibration=SimpleNamespace(windows={}),
+                            start=pd.Timestamp("2001-01-01", tz="UTC"), end=pd.Timestamp("2001-02-08", tz="UTC"))
+    with pytest.raises(OptionError) as caught:
+        parse_window(model, "moderate")
+    assert str(caught.value) == ("--window 'moderate': not a window of 'test_compound', which names none (an imported "
+                                 "model has none); give a date range START/END or START/DURATION in its period "
+                                 "2001-01-01 00:00 .. 2001-02-08 00:00, e.g. 2001-01-01/1D")
+    model.calibration.windows = {"calm": ("2001-01-02", "2001-01-03")}
+    with pytest.raises(OptionError, match=r"window of the case \(calm\); its period is 2001-01-01 00:00 .. 2001-02-08"):
+        parse_window(model, "moderate")
+    assert parse_window(model, "2001-01-20/2D") == (pd.Timestamp("2001-01-20", tz="UTC"),
+                                                    pd.Timestamp("2001-01-22", tz="UTC"))
+
+
 @pytest.mark.slow
 def test_analyse_dommel_json_and_files(tmp_path: Path) -> None:
     run = rivercal("analyse", "dommel", "--params", "W2,FA", "--what", "identifiability,residuals", "--twin",

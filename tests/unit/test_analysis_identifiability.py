@@ -266,6 +266,56 @@ def test_plain_language_names_the_station_at_the_weir() -> None:
     assert "cm" in words["P0"]  # the uncertainty of a crest in cm
 
 
+def test_the_uncertainty_of_a_dimensionless_parameter_carries_no_unit() -> None:
+    # an imported SOBEK 3 model's friction factor (unit "-"): "determined to ±0.5.", not "±0.5 -."; k_s keeps its unit
+    from rivercal.analysis import Context
+
+    a = np.zeros((12, 2))
+    a[0, 0], a[1, 1] = 2.0, 4.0   # σ = 1/2 and 1/4
+    context = Context(units={"F_scale": "-", "FA": "m^(1/3)/s"})
+    words = explanations(analyse_jacobian(a, ["F_scale", "FA"], context=context))
+    assert words["F_scale"].endswith("determined to ±0.5.")
+    assert words["FA"].endswith("determined to ±0.25 m^(1/3)/s.")
+
+
+def test_a_station_at_a_culvert_is_said_to_be_at_a_culvert_not_a_weir() -> None:
+    # the imported Korte Woerden model: 'station PMP2, which measures the levels up- and downstream of weir PMP2'
+    # (a pump); the synthetic case has a culvert K1 beside its weirs
+    from rivercal.case import load_case
+
+    network = load_case("synthetic").network
+    stations = [SimpleNamespace(id="SK", structure="K1", branch=None, chainage=None,
+                                quantities=["h_up", "h_down", "Q"]),
+                SimpleNamespace(id="SW", structure="W1", branch=None, chainage=None, quantities=["h_up", "Q"])]
+    model = SimpleNamespace(case=SimpleNamespace(network=SimpleNamespace(stations=stations,
+                                                                         structure=network.structure)))
+    context = context_from_problem(SimpleNamespace(parameters=[], model=model))
+    assert context.stations["SK"] == "the levels up- and downstream of culvert K1 and the discharge through it"
+    assert context.stations["SW"] == "the level upstream of weir W1 and the discharge over it"
+
+
+def test_a_parameter_the_window_hardly_sees_is_not_identifiable_even_alone() -> None:
+    # the D-HYDRO model c01 observes only discharges that its boundaries set: 'rivercal analyse --params F_T1' said
+    # 'identifiable (identifiability index 1.00) ... determined to ±1.79e+10', because the significance of a
+    # singular value is relative to the largest, which was F_T1's own. Over its whole range (20 here) it now has to
+    # move the weighted misfit by one σ (σ = 1 m): an effect of 1e-4 m per unit does not
+    a = np.zeros((40, 1))
+    a[:20, 0] = 1e-4
+    result = identifiability(linear_problem(a), workers=1)
+    assert result.extra["unseen"] and result.singular_values[0] < 1.0
+    assert list(result.verdict["verdict"]) == [NOT_IDENTIFIABLE]
+    words = explanations(result)["P0"]
+    assert words.startswith("P0 (crest level of weir P0) is not identifiable (identifiability index 0.00): moving "
+                            "it over its whole range (20 m) changes the misfit by less than one observation error")
+    from rivercal.report.identifiability import suggestions
+
+    assert suggestions(result) == ["fix P0 at its current value: moved over its whole range it changes the misfit "
+                                   "by less than one observation error."]
+    a[:20, 0] = 0.1   # moved over its range of 20: 2 m at 20 hours, well seen
+    seen = identifiability(linear_problem(a), workers=1)
+    assert not seen.extra["unseen"] and list(seen.verdict["verdict"]) == [IDENTIFIABLE]
+
+
 def test_options_are_checked() -> None:
     with pytest.raises(ValueError, match="sv_threshold"):
         IdentifiabilityOptions(sv_threshold=0.0)

@@ -43,3 +43,76 @@ def test_a_model_that_cannot_be_loaded_leaves_the_facts_empty_and_says_why() -> 
     facts = model_facts("no-such-model-anywhere")
     assert facts.parameters == {} and facts.network is None and "cannot be loaded" in facts.problem
     assert describe_parameter(object()) == ""
+
+
+def test_a_model_in_a_folder_of_its_own_is_found_through_its_registered_folder(tmp_path, monkeypatch) -> None:
+    # an imported model: folder 'comp/', model name 'test_compound' (what the store keeps); rivercal dashboard --case
+    import shutil
+    from importlib import resources
+    from pathlib import Path
+
+    from rivercal.dashboard import facts as module
+
+    monkeypatch.setattr(module, "_SOURCES", {})
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(Path(str(resources.files("rivercal.cases") / "dommel")), tmp_path / "comp")
+    toml = tmp_path / "comp" / "case.toml"
+    toml.write_text(toml.read_text(encoding="utf-8").replace('name = "dommel"', 'name = "test_compound"', 1),
+                    encoding="utf-8")
+    unknown = model_facts("test_compound")
+    assert unknown.network is None and "rivercal dashboard --case" in unknown.problem
+    assert module.register_model("comp") == "test_compound"
+    found = model_facts("test_compound")
+    assert found.problem == "" and found.network is not None
+    assert found.describe("W2") == "crest level of weir ZL1-3014"
+    model_facts.cache_clear()
+
+
+def test_the_network_map_of_a_run_without_scores_draws_the_network_without_errors(tmp_path) -> None:
+    # a run of one cycle has no scored forecast yet: the map page failed with HTTP 500 (KeyError in the split of
+    # no series names) once the model could be loaded
+    from rivercal.dashboard.views import map_view
+    from rivercal.store import Store
+
+    with Store(tmp_path / "s.sqlite") as store:
+        run = store.ensure_run("online", "dommel", {})
+        view = map_view(store, run)
+    assert "problem" not in view or not view["problem"]
+    assert len(view["figures"]) == 2   # DSS and rivercal
+    assert [r["station"] for r in view["rows"]] == ["0028", "0040", "0029", "0030", "0031"]
+    assert all(r[k]["text"] == "–" for r in view["rows"] for k in ("dss", "updated"))   # nothing scored yet
+
+
+def test_the_forecast_page_draws_the_observed_series_and_counts_the_others(tmp_path) -> None:
+    # an imported model forecasts every series of every structure (Dellen: 546) while FEWS hands over a few
+    # gauges (21): the page drew all 546 (2.5 MB, 9 s); now the observed ones, and says how many are left out
+    import numpy as np
+    import pandas as pd
+
+    from rivercal.dashboard.views import forecast_view
+    from rivercal.observations import ObservationSet
+    from rivercal.store import CycleRecord, Schedule, Store
+
+    series = ["G1.h", "S1.h_up", "S1.Q"]
+    schedule = Schedule("2010-11-01T00:00:00Z", period=pd.Timedelta(days=1), window=pd.Timedelta(days=2))
+    with Store(tmp_path / "s.sqlite") as store:
+        run = store.ensure_run("r", "dommel", {})
+        spec = store.begin_cycle(run.id, store.next_cycle(run.id, schedule))
+        times = pd.date_range(spec.issue_time, periods=25, freq="h")
+        mean = pd.DataFrame({c: np.full(25, 7.0) for c in series}, index=times)
+        store.commit_cycle(run.id, CycleRecord(0, spec.window_start, spec.window_end, spec.issue_time,
+                                               forecasts={"updated": mean, "dss": mean + 0.005}))
+        before = pd.date_range(spec.issue_time - pd.Timedelta("12h"), spec.issue_time, freq="h")
+        store.ingest(ObservationSet.from_frame(pd.DataFrame({"G1.h": 7.01}, index=before)), "telemetry")
+        view = forecast_view(store, run)
+        assert [f["series"] for f in view["figures"]] == ["G1.h"] and view["latest"]["unobserved"] == 2
+        store.ingest(ObservationSet.from_frame(pd.DataFrame({"S1.Q": 1.0, "S1.h_up": 7.0}, index=before)), "more")
+        view = forecast_view(store, run)
+    assert [f["series"] for f in view["figures"]] == ["G1.h", "S1.h_up", "S1.Q"]
+    assert view["latest"]["unobserved"] == 0
+    # a level that does not move (Dellen's basin at -0.66414 m AD, its forecast 4e-7 m off) gets an axis of 2 cm,
+    # not one of 4e-7 m; one that moves keeps plotly's own range
+    axes = {f["series"]: f["figure"]["layout"]["yaxis"] for f in view["figures"]}
+    assert axes["S1.h_up"]["range"] == pytest.approx([7.0025 - 0.01, 7.0025 + 0.01])   # 7.0 and 7.005
+    assert axes["G1.h"]["range"] == pytest.approx([7.005 - 0.01, 7.005 + 0.01])   # 7.0 and 7.005, 7.01 observed
+    assert "range" not in axes["S1.Q"]   # from 1 m³/s observed to 7 forecast

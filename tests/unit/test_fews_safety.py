@@ -184,7 +184,7 @@ def test_a_time0_rivercal_cannot_represent_is_a_clean_error(tmp_path: Path, zone
                                 "the horizon can be 1h to 24D, or issue the cycle at 2010-10-22 00:00 or earlier")),
     ({"period": "5D"}, None, ("properties: property 'window' 1D: with the warm-up (3h) shorter than the cycle "
                               "(property 'period' 5D)", "lengthen property 'warmup' to 4D or more")),
-    ({}, ("2010-11-07", "01:30:00"), ("time0: time0 2010-11-07 00:30: cycles are issued at the model's output times",
+    ({}, ("2010-11-07", "01:30:00"), ("time0: time0 2010-11-07 00:30: cycles are issued on the service's time step",
                                       "check the run file's timeZone, +1 h")),
 ])
 def test_times_that_do_not_fit_the_case_are_refused_as_the_command_line_refuses_them(tmp_path: Path, properties,

@@ -53,6 +53,17 @@ def test_reaches_become_branches_between_the_free_ends_and_the_confluence(import
     assert result.summary["branches"] == 3 and result.summary["refused"] == 1
 
 
+def test_the_calibration_parameters_are_listed_in_the_summary_and_in_import_md(imported) -> None:
+    # as the D-HYDRO and SOBEK 3 imports list theirs: --json 'parameters', import.md '## Calibration parameters'
+    result, data, folder = imported
+    names = [p["name"] for p in data["parameters"]]
+    assert names and result.summary["parameters"] == names
+    text = (folder / "case" / "import.md").read_text(encoding="utf-8")
+    section = text.split("## Calibration parameters", 1)[1].split("\n## ", 1)[0]
+    for p in data["parameters"]:
+        assert f"- `{p['name']}`: {p['targets'][0]}, {p['min']:g} .. {p['max']:g} {p['unit']}, initial " in section
+
+
 def test_the_grid_is_mascarets_method_5(imported) -> None:
     """Between two profiles int(distance / step) equal cells (when more than one), as Mascaret's MAILLER lays them."""
     _, data, _ = imported

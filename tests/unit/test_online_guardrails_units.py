@@ -98,3 +98,19 @@ def test_a_declared_series_that_is_never_observed_is_named_once(tmp_path) -> Non
         silent = store.observations(["G.h"], times[-1] + pd.Timedelta("1D"), times[-1] + pd.Timedelta("3D"))
         alerts = data_alerts(silent, "48h", 3600.0, 0.5, store=store, first=False)
         assert len(alerts) == 1 and "G.h (0%)" in alerts[0].message
+
+
+def test_alerts_put_a_unit_after_a_value_and_none_after_a_dimensionless_one() -> None:
+    # an imported SOBEK 3 model's friction factor F_scale has unit "-": "from 1 to 1.2 (+0.2 ...", not "1.2 - (+0.2"
+    from rivercal.online.guardrails import jump_alert, limit_alerts
+    from rivercal.store import CycleSpec
+
+    spec = CycleSpec(3, START, START + pd.Timedelta("2D"), START + pd.Timedelta("2D"))
+    jump = jump_alert("F_scale", "-", 1.0, 1.2, 5.0, spec, "found")
+    assert jump.message.startswith("F_scale changed from 1 to 1.2 (+0.2, 5 σ) found in the window")
+    assert jump_alert("FA", "m^(1/3)/s", 16, 25, 5.0, spec, "found").message.startswith(
+        "FA changed from 16 to 25 m^(1/3)/s (+9, 5 σ)")
+    scale = Parameter(name="F_scale", targets=["friction:scale"], min=0.5, max=2.0, initial=1.0, perturbation=0.1,
+                      unit="-")
+    (limit,) = limit_alerts([scale], {"F_scale": 1.0}, {"F_scale": 1.1}, {"F_scale": 0.1})
+    assert limit.message.startswith("F_scale stopped at the per-cycle change bound ±0.1; the true change")

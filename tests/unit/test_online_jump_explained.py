@@ -63,3 +63,19 @@ def test_the_report_lists_the_coverage_of_every_series_behind_a_data_alert(tmp_p
     assert list(table["series"]) == ["A.h", "B.h"] and set(table["cycle"]) == {0}
     assert (table["expected"] == 169).all() and (table["values"] == 121).all()
     assert table["coverage"].tolist() == [round(121 / 169, 4)] * 2
+
+
+def test_the_runs_end_shows_no_unit_after_a_dimensionless_value(tmp_path) -> None:
+    # an imported SOBEK 3 model's friction factor F_scale has unit "-": "1.20, by cycle 0", not "1.20 -, by cycle 0"
+    from rivercal.store import CycleRecord, EstimateRecord, Schedule, Store
+
+    schedule = Schedule("2001-01-20T00:00:00Z", period=pd.Timedelta(days=1), window=pd.Timedelta(days=2))
+    with Store(tmp_path / "s.db") as store:
+        run = store.ensure_run("r", "test_compound", {})
+        spec = store.begin_cycle(run.id, store.next_cycle(run.id, schedule))
+        store.commit_cycle(run.id, CycleRecord(0, spec.window_start, spec.window_end, spec.issue_time, estimates=[
+            EstimateRecord("F_scale", 1.2, "-", 0.01, True),
+            EstimateRecord("W_1", 0.123456, "m AD", 0.01, True)]))
+        lines = final_state_lines(store, run)
+    assert "F_scale: last accepted 1.20, by cycle 0." in lines
+    assert "W_1: last accepted 0.1235 m AD, by cycle 0." in lines

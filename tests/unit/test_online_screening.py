@@ -113,12 +113,14 @@ def test_a_series_the_model_does_not_simulate_is_refused_with_the_known_ids() ->
      "would forecast to 2013-07-22 00:00, after the end of the model's period (2010-11-30 00:00), where its forcing "
      "ends; the horizon can be 1h to 35D, or issue every cycle (first issue and last issue) at 2008-03-05 00:00 or "
      "earlier"),
-    ({"period": "7s"}, "2010-10-25", "2010-10-26", "period 7s: must be a whole number of the output interval (1h)"),
-    ({"window": "30min"}, "2010-10-25", "2010-10-26", "window 30min: must be a whole number of the output interval"),
-    ({"warmup": "90min"}, "2010-10-25", "2010-10-26", "warmup 90min: must be a whole number of the output interval "
-     "(1h), 0 or more; e.g. 1h or 2h"),
-    ({}, "2010-10-25T00:30", "2010-10-26", "first issue 2010-10-25 00:30: cycles are issued at the model's "
-     "output times, every 1h from 2010-10-01 00:00"),
+    ({"period": "7s"}, "2010-10-25", "2010-10-26", "period 7s: must be a whole number of the service's time step "
+     "(1h, "),
+    ({"window": "30min"}, "2010-10-25", "2010-10-26", "window 30min: must be a whole number of the service's time "
+     "step"),
+    ({"warmup": "90min"}, "2010-10-25", "2010-10-26", "warmup 90min: must be a whole number of the service's time "
+     "step (1h, the step of its forecasts and windows), 0 or more; e.g. 1h or 2h"),
+    ({}, "2010-10-25T00:30", "2010-10-26", "first issue 2010-10-25 00:30: cycles are issued on the service's "
+     "time step, every 1h from 2010-10-01 00:00"),
     ({"window": "90D"}, "2010-10-25", "2010-10-26", "window 90D: with the warm-up (1D) longer than the model's "
      "period (60D) allows; give 1h to 58D23h"),
     ({}, "2010-10-25", "2010-12-02", "last issue 2010-12-02 00:00: after the end of the model's period"),

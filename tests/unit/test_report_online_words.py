@@ -53,3 +53,19 @@ def test_the_forecast_sentence_names_the_cycles_leads_and_count_it_covers() -> N
                          "DSS's forecast because nothing was scored yet).")
     assert forecast_words({**f, "forecast_values": 0, "forecast_errors": {"reason": "no cycle yet"}}).endswith(
         "nothing to compare yet — no cycle yet.")
+
+
+def test_the_parameter_table_is_explained_for_what_the_run_estimated_and_found() -> None:
+    # an imported D-HYDRO model (Dellen) estimating one friction group on real-like observations: the text said
+    # 'rivercal moves all adjustable crests alike (Wd) and one global friction (FA)' and spoke of a transition
+    from rivercal.report.online import _parameter_words
+
+    table = pd.DataFrame({"parameter": ["F_Strickler_35_0"], "rivercal before": [float("nan")],
+                          "rivercal after": [44.98]})
+    text = _parameter_words(None, ["F_Strickler_35_0"], table)
+    assert text.startswith("No transition was found, so 'rivercal after' is each parameter's value accepted by the "
+                           "last cycle ('rivercal before' is empty).")
+    assert "rivercal estimates F_Strickler_35_0;" in text and "(Wd)" not in text and "(FA)" not in text
+    with_change = _parameter_words(pd.Timestamp("2010-11-01", tz="UTC"), ["FA", "Wd"], table)
+    assert with_change.startswith("'before': the last cycle whose window ends before the transition")
+    assert "'rivercal before' is empty: no cycle's window ends before the transition." in with_change

@@ -67,13 +67,27 @@ def _measures(quantities: list[str], where: str, at_structure: bool) -> str:
         elif levels:
             parts.append(f"the level {'upstream' if levels[0] == 'h_up' else 'downstream'} of {where}")
         if "Q" in quantities:
-            parts.append("the discharge over it" if parts else f"the discharge over {where}")
+            over = "over" if where.startswith("weir ") else "through"  # a weir spills; a culvert or pump passes
+            parts.append(f"the discharge {over} it" if parts else f"the discharge {over} {where}")
     else:
         if levels:
             parts.append(f"the level {where}")
         if "Q" in quantities:
             parts.append("the discharge there" if parts else f"the discharge {where}")
     return " and ".join(parts)
+
+
+#: A structure's kind in words, by its class in the network (rivercal.network.topology).
+_KINDS = {"Weir": "weir", "UniversalWeir": "weir", "Orifice": "orifice", "Culvert": "culvert", "Pump": "pump",
+          "Bridge": "bridge"}
+
+
+def _structure_kind(network: Any, structure_id: str) -> str:
+    """``weir``, ``pump``, ``culvert`` … for a structure of the network (``structure`` when it cannot tell)."""
+    try:
+        return _KINDS.get(type(network.structure(structure_id)).__name__, "structure")
+    except (AttributeError, KeyError, ValueError):  # a duck-typed network without its structures
+        return "structure"
 
 
 def context_from_problem(problem: Any) -> Context:
@@ -105,7 +119,7 @@ def context_from_problem(problem: Any) -> Context:
     for st in getattr(network, "stations", None) or []:
         quantities = list(st.quantities or (["h_up", "h_down"] if st.structure else ["h"]))
         if st.structure:
-            stations[st.id] = _measures(quantities, f"weir {st.structure}", True)
+            stations[st.id] = _measures(quantities, f"{_structure_kind(network, st.structure)} {st.structure}", True)
             structure_of[st.id] = st.structure
         else:
             stations[st.id] = _measures(quantities, f"on branch {st.branch} at {st.chainage:g} m", False)

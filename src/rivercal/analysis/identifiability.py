@@ -45,7 +45,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -343,6 +343,13 @@ def _effects(jac: np.ndarray, d: np.ndarray, rows: Sequence[str] | None,
     return change.max(axis=0)
 
 
+#: With the Jacobian scaled by the parameters' ranges, a largest singular value below this means that no
+#: combination of the parameters, moved over their whole ranges, changes the weighted misfit by one observation
+#: error σ: the window sees none of them, however the others compare with the largest (the on-line service's
+#: identifiability gate uses the same bound of 1, on the parameters' resolutions).
+UNSEEN_SV = 1.0
+
+
 def identifiability(problem: Any, x: np.ndarray | None = None, *, rel_step: float = 0.01,
                     scheme: Literal["forward", "central"] = "forward",
                     scale: Sequence[float] | np.ndarray | None = None,
@@ -373,12 +380,19 @@ def identifiability(problem: Any, x: np.ndarray | None = None, *, rel_step: floa
     Returns
     -------
     Identifiability
-        With ``extra["nfev"]`` (model runs) and ``extra["jacobian"]`` (the :class:`Jacobian`).
+        With ``extra["nfev"]`` (model runs), ``extra["jacobian"]`` (the :class:`Jacobian`) and ``extra["unseen"]``:
+        True when, over the parameters' whole ranges, the largest singular value is below :data:`UNSEEN_SV` (the
+        window sees no parameter: every one is not identifiable).
     """
     jac = jacobian or fd_jacobian(problem, x, rel_step=rel_step, scale=scale, scheme=scheme, batch=batch,
                                   workers=workers)
-    result = analyse_jacobian(jac.matrix, jac.names, scale=jac.scale, rows=jac.rows, options=options,
-                              context=context or context_from_problem(problem), sqrt_weights=problem.sqrt_weights,
-                              scale_name="its whole range" if scale is None else "its scale")
-    result.extra.update(nfev=jac.nfev, jacobian=jac)
+    opts = _options(options)
+    kwargs = dict(scale=jac.scale, rows=jac.rows, context=context or context_from_problem(problem),
+                  sqrt_weights=problem.sqrt_weights, scale_name="its whole range" if scale is None else "its scale")
+    result = analyse_jacobian(jac.matrix, jac.names, options=opts, **kwargs)
+    unseen = opts.k is None and scale is None and bool(result.singular_values.size) \
+        and float(result.singular_values[0]) < UNSEEN_SV
+    if unseen:  # the significance of a singular value is relative to the largest: not when that one sees nothing
+        result = analyse_jacobian(jac.matrix, jac.names, options=replace(opts, k=0), **kwargs)
+    result.extra.update(nfev=jac.nfev, jacobian=jac, unseen=unseen)
     return result

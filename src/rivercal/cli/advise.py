@@ -168,8 +168,9 @@ def _print(summary: dict) -> None:
 
     names = summary["parameters"]
     console = out_console
+    window = " .. ".join(str(t)[:16].replace("T", " ") for t in summary["window"])  # UTC, as the other commands
     console.print(f"[bold]{summary['case']}[/]: where to add gauges for {', '.join(names)} over "
-                  f"{summary['window'][0]} .. {summary['window'][1]} ({summary['candidates']['count']} candidates, "
+                  f"{window} UTC ({summary['candidates']['count']} candidates, "
                   f"{summary['jacobian_runs']} model runs, {summary['wall_s']} s)")
     before = summary["before"]
     console.print(f"present stations ({', '.join(summary['stations'])}): {before['identifiable']} of {len(names)} "
@@ -181,7 +182,11 @@ def _print(summary: dict) -> None:
     for s in summary["steps"]:
         table.add_row(str(s["step"]), s["name"], ", ".join(s["series"]), f"{s['worth']:.3f}",
                       f"{s['identifiable']}/{len(names)}", f"{s['smallest_singular_value']:.3g}")
-    console.print(table)
+    if summary["steps"]:
+        console.print(table)
+    else:  # not an empty table: say why nothing is advised
+        console.print("no gauge advised: the present stations make every parameter identifiable already (--add N "
+                      "ranks N candidates all the same; candidates.csv has the worth of each)")
     verdicts = Table(title="verdict per parameter")
     for col in ("parameter", "present stations", "with the advised gauges", "σ before", "σ after", "unit"):
         verdicts.add_column(col, justify="right" if col.startswith("σ") else "left")
@@ -191,8 +196,10 @@ def _print(summary: dict) -> None:
                          f"{after['posterior_std'][n]:.3g}", summary["units"].get(n, ""))
     console.print(verdicts)
     enough = summary["enough"]
-    if enough is not None:
+    if enough:
         console.print(f"every parameter is identifiable with {enough} added gauge{'s' if enough != 1 else ''}")
+    elif enough == 0:
+        console.print("every parameter is identifiable with the present stations")
     else:
         console.print("not every parameter is identifiable with the chosen gauges (see after.csv)")
     console.print("wrote " + ", ".join(summary["files"].values()))

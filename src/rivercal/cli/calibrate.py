@@ -160,4 +160,6 @@ def _print(summary: dict, cal, pset, win) -> None:
     r = cal.result
     out_console.print(f"cost {r.cost:.4g} after {r.nit} iterations, {r.nfev} model runs, {cal.wall_time:.1f} s; "
                       f"{stop_words(r)}", highlight=False, markup=False)
+    for name, why in (summary.get("undetermined") or {}).items():
+        out_console.print(f"not determined: {name}: {why}", style="yellow", highlight=False, markup=False)
     out_console.print("wrote " + ", ".join(summary["files"].values()), highlight=False, markup=False)

@@ -19,6 +19,9 @@ def dashboard(
     host: Annotated[str, typer.Option(help="Address to listen on (default: this machine only).")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="Port to listen on.")] = 8050,
     poll: Annotated[float, typer.Option(help="Seconds between an open page's looks for a new cycle.")] = 2.0,
+    case: Annotated[list[str] | None, typer.Option(
+        help="A run's model: a case folder or model.toml, for the map, the parameters in words and the DSS's values "
+             "(the store knows an imported model by its name, not by its folder); repeatable.")] = None,
 ) -> None:
     """Serve the live dashboard of a store: the forecast in use and why, the latest forecast per station, more.
 
@@ -39,6 +42,16 @@ def dashboard(
         Store(db, readonly=True).close()
     except StoreError as exc:
         raise OptionError(f"--db {db}: {exc}", option="--db") from None
+    if case:
+        from rivercal.dashboard.facts import register_model
+
+        with Store(db, readonly=True) as store:
+            served = sorted(set(store.runs()["case"]))
+        for source in case:
+            name = register_model(source)
+            if name not in served:
+                raise OptionError(f"--case {source}: that is the model {name!r}; the runs of {db} serve "
+                                  f"{', '.join(map(repr, served)) or 'none'}", option="--case")
     check_number(port, "--port", low=0, high=65535)
     check_number(poll, "--poll", low=0, low_open=True)
     _check_address(host, port)

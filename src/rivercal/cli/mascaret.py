@@ -70,7 +70,8 @@ def import_mascaret_cmd(
     s = result.summary
     parts = [plural(s["branches"], "branch"), plural(s["points"], "point"), plural(s["profiles"], "profile"),
              plural(s["friction_groups"], "friction group"), plural(s["boundaries"], "boundary"),
-             plural(s["laterals"], "lateral"), plural(s["stations"], "station")]
+             plural(s["laterals"], "lateral"), plural(s["stations"], "station"),
+             plural(len(s["parameters"]), "calibration parameter")]
     out_console.print(f"imported [bold]{model.name}[/] into {out}: {', '.join(parts)}, {s['start']} .. {s['end']}; "
                       f"{s['approximated']} approximated, {s['refused']} refused (see {out / 'import.md'})")
 

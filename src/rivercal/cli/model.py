@@ -6,6 +6,7 @@ import math
 from typing import Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from rivercal.cli.common import CaseArg, JsonOpt, emit_json, guard, out_console
@@ -104,8 +105,8 @@ def print_summary(summary: dict[str, Any], title: str) -> None:
             shown = ", ".join(map(str, value)) if isinstance(value, list) else str(value)
         table.add_row(key, shown)
     out_console.print(table)
-    quantities = Table(title=f"settable quantities ({summary['n_quantities']}): what --set and [[parameters]] "
-                             "targets may name", title_justify="left")
+    quantities = Table(title=escape(f"settable quantities ({summary['n_quantities']}): what --set and "
+                                    "[[parameters]] targets may name"), title_justify="left")  # no markup in it
     for col in ("quantity", "unit", "range", "count", "ids"):
         quantities.add_column(col, justify="right" if col == "count" else "left", overflow="fold",
                               no_wrap=col in ("quantity", "count"))

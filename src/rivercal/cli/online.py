@@ -35,7 +35,7 @@ from rivercal.cli.options import (
     read_observations,
     workers_for,
 )
-from rivercal.errors import OptionError, RivercalError
+from rivercal.errors import CaseError, OptionError, RivercalError
 
 __all__ = ["demo", "online", "print_summary", "report"]
 
@@ -184,14 +184,21 @@ def online(
             raise OptionError(f"{exc}; use --assimilate parameters", option="--assimilate") from None
     check_times(model, config, first, last, {"first": date_from, "last": date_to})
     reporter = Reporter(not (quiet or as_json))
+    from rivercal.store import RunMismatchError
+
+    name = run or scenario or "online"
     with reporter.running("starting"), workers_for(workers, address) as where:
         config = replace(config, workers=where)
-        summary = run_online(model, db, run or scenario or "online", config, first, last, scenario=scenario,
-                             noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
-                             max_cycles=max_cycles, report=out, progress=reporter,
-                             assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
-                                                             seed=seed, issued=issued),
-                             rain_error=rain_error, take_over=take_over)
+        try:
+            summary = run_online(model, db, name, config, first, last, scenario=scenario,
+                                 noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
+                                 max_cycles=max_cycles, report=out, progress=reporter,
+                                 assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
+                                                                 seed=seed, issued=issued),
+                                 rain_error=rain_error, take_over=take_over)
+        except RunMismatchError as exc:  # the options against the stored run: bad input, exit status 2
+            raise OptionError(f"--run {name}: {exc}, or the options it was started with (--run names a run, "
+                              "default: the scenario or 'online')", option="--run") from None
     summary["final_state"] = _final_state(summary)
     if as_json:
         emit_json(summary)
@@ -316,10 +323,25 @@ def _print_figures(summary: dict[str, Any]) -> None:
 
     for line in headline_lines(summary):
         out_console.print(line, highlight=False)
-    mode = summary.get("assimilate", "parameters")
-    what = {"both": "states (hourly, ensemble Kalman filter) and parameters (daily)", "states": "states only",
+    out_console.print(updated_words(summary.get("assimilate", "parameters"), summary.get("state_updating_failed"),
+                                    summary.get("cycles")), highlight=False)
+
+
+def updated_words(mode: str, failed: list[int] | None = None, cycles: int | None = None) -> str:
+    """What the run updated, in words: the states at every hourly forecast step, the parameters every cycle.
+
+    ``failed`` lists the cycles whose state updating failed (of ``cycles``): their updated forecast is the parameters'
+    own.
+    """
+    what = {"both": "states (hourly, ensemble Kalman filter) and parameters (every cycle)", "states": "states only",
             "parameters": "parameters only"}.get(mode, mode)
-    out_console.print(f"Updated: {what}.", highlight=False)
+    text = f"Updated: {what}."
+    if failed:
+        listed = ", ".join(map(str, failed[:5])) + (" …" if len(failed) > 5 else "")
+        text += (f" The state updating failed in {len(failed)} of {cycles or len(failed)} cycles ({listed}: every "
+                 "member of the ensemble failed; the cycle log says why): their updated forecast is the parameters' "
+                 "own, without state updating or band.")
+    return text
 
 
 def demo(
@@ -354,6 +376,9 @@ def report(
         help="The store of an on-line run: an SQLite file or a postgresql://USER@HOST/DB URL.")],
     out: Annotated[Path, typer.Option(help="Folder for the report (index.html, figures, CSV).")],
     run: Annotated[str | None, typer.Option(help="Run name (default: the only run, or the latest).")] = None,
+    case: Annotated[str | None, typer.Option(
+        help="The run's model: a case folder, a packaged case or a model.toml (default: the model the store names; "
+             "the store knows an imported model by its name, not by its folder).")] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Write the HTML report of an on-line run from its store: tables, figures and the DSS comparison."""
@@ -370,7 +395,18 @@ def report(
         stored = store.get_run(name)
         if stored is None:
             raise OptionError(f"--run {name!r}: not in {db} (it has {', '.join(runs['name'])})", option="--run")
-        files = write_online_report(store, name, out, model=open_model(stored.case))
+        try:
+            model = open_model(case if case is not None else stored.case)
+        except CaseError:
+            if case is not None or Path(stored.case).exists():
+                raise  # a case that is there but wrong: its own error names the file and field
+            raise OptionError(f"--db {db}: run {name!r} serves the model {stored.case!r}, which is neither a folder "
+                              "here nor a packaged case (the store keeps a model's name, not its folder): give "
+                              "its case folder or model.toml with --case", option="--case") from None
+        if model.name != stored.case:
+            raise OptionError(f"--case {case}: that is the model {model.name!r}; run {name!r} of {db} serves "
+                              f"{stored.case!r}", option="--case")
+        files = write_online_report(store, name, out, model=model)
     if as_json:
         emit_json({"run": name, "files": files})
     else:

@@ -286,8 +286,13 @@ def parse_window(model: Any, text: str, *, option: str = "--window", warmup: Any
                                   f"2010-09-27/2010-10-04), START/DURATION (e.g. 2010-09-27/{text.strip()}) or a "
                                   f"window of the case ({known}). ('rivercal online --window' is the length of each "
                                   "cycle's window.)", option=option)
+            period = f"{model.start:%Y-%m-%d %H:%M} .. {model.end:%Y-%m-%d %H:%M}"
+            if not named:  # e.g. analyse's default 'moderate' on an imported model, which names no windows
+                raise OptionError(f"{option} {text!r}: not a window of {model.name!r}, which names none (an imported "
+                                  f"model has none); give a date range START/END or START/DURATION in its period "
+                                  f"{period}, e.g. {model.start:%Y-%m-%d}/1D", option=option)
             raise OptionError(f"{option} {text!r}: expected START/END (e.g. 2010-09-27/2010-10-04) or a window of "
-                              f"the case ({known})", option=option)
+                              f"the case ({known}); its period is {period}", option=option)
         a = parse_time(first, option)
         length = _duration(second)
         if length is not None:

@@ -1,8 +1,9 @@
 """What the dashboard knows of a run's model besides the store: its map, its parameters in words, the DSS's values.
 
-Read once per model name and process (the model is loaded, never run). A model that cannot be loaded
-here (an external program's ``model.toml`` elsewhere, a case folder given by path when the run was
-started) leaves the facts empty and says why; the pages then show what the store holds alone.
+Read once per model name and process (the model is loaded, never run). A store names a run's model by its
+name; a model that cannot be found by it (a case folder of its own, such as an imported model, or an external
+program's ``model.toml``) is found through :func:`register_model` (``rivercal dashboard --case``), or leaves
+the facts empty and says why; the pages then show what the store holds alone.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 
 from rivercal.dashboard.words import describe_parameter
 
-__all__ = ["ModelFacts", "dss_values", "model_facts"]
+__all__ = ["ModelFacts", "dss_values", "model_facts", "register_model"]
 
 log = logging.getLogger(__name__)
 
@@ -52,16 +53,35 @@ class ModelFacts:
         return describe_parameter(p) if p is not None else ""
 
 
+#: Where the model of each name is, for the models a store names by a name that is no case (register_model).
+_SOURCES: dict[str, str] = {}
+
+
+def register_model(source: str) -> str:
+    """Load the model at ``source`` (a case folder, a packaged case or a ``model.toml``) for the runs naming it.
+
+    Returns the model's name, by which the store names it. A bad source raises the loader's error
+    (:class:`~rivercal.errors.CaseError`).
+    """
+    from rivercal.model import load_model
+
+    name = str(load_model(source).name)
+    _SOURCES[name] = str(source)
+    model_facts.cache_clear()
+    return name
+
+
 @functools.lru_cache(maxsize=8)
 def model_facts(name: str) -> ModelFacts:
-    """The facts of the model ``name`` (a packaged case, a case folder or a ``model.toml``), cached."""
+    """The facts of the model ``name`` (a packaged case, a case folder, a ``model.toml`` or a registered name)."""
     from rivercal.model import load_model
 
     try:
-        model = load_model(name)
+        model = load_model(_SOURCES.get(name, name))
     except Exception as exc:  # any failure only leaves the pages without the model's facts
         log.info("the dashboard cannot load model %r: %s", name, exc)
-        return ModelFacts(name, problem=f"the model {name!r} cannot be loaded here ({exc})")
+        return ModelFacts(name, problem=f"the model {name!r} cannot be loaded here ({exc}; give its case folder "
+                                        "or model.toml with rivercal dashboard --case)")
     quantities: dict[str, float] = {}
     defaults = getattr(model, "default_parameters", None)
     if callable(defaults):

@@ -301,6 +301,20 @@ def _layout(ytitle: str, xtitle: str, **extra: Any) -> dict[str, Any]:
             "font": {"size": 12}, **extra}
 
 
+#: The least span of a forecast figure's value axis (m for a level, m³/s for a discharge): 2 cm, as the errors
+#: the pages show are in cm.
+_MIN_SPAN = 0.02
+
+
+def _at_least(data: list[dict[str, Any]], span: float) -> list[float] | None:
+    """A value-axis range of ``span`` about the figure's values when they span less; None when they span more."""
+    values = [v for trace in data for v in trace.get("y", []) if v is not None]
+    if not values or max(values) - min(values) >= span:
+        return None
+    middle = (max(values) + min(values)) / 2
+    return [middle - span / 2, middle + span / 2]
+
+
 def _latest_with_forecasts(store: Store, run: Run, cycles: pd.DataFrame) -> tuple[Any, pd.DataFrame]:
     """The latest final cycle that stored forecasts (among the last three) and its forecasts."""
     for cycle in _final(cycles)["cycle"].iloc[::-1][:3]:
@@ -315,7 +329,8 @@ def forecast_view(store: Store, run: Run) -> dict[str, Any]:
 
     Per series: the observations of the 48 h before the issue time (and those stored since, lighter), the
     forecast the cycle issued (thick) with its band when one is stored, the other forecast beside it (thin,
-    dashed), and the jump alerts and transitions on the time axis.
+    dashed), and the jump alerts and transitions on the time axis. Only the series with an observation in those
+    four days, when any has one (``latest["unobserved"]`` counts the others); else every series.
     """
     cycles = store.cycles(run)
     row, fc = _latest_with_forecasts(store, run, cycles)
@@ -329,6 +344,10 @@ def forecast_view(store: Store, run: Run) -> dict[str, Any]:
     series = sorted(fc["series"].unique(), key=lambda s: (s.rpartition(".")[0], order.get(s.rpartition(".")[2], 4), s))
     observed = store.observation_table(series, start, end)
     parts = dict(tuple(observed.groupby("series", sort=False)))
+    # an imported model forecasts every series of every structure (Dellen: 546); the gauges are what the
+    # forecaster checks, so a series without an observation in these four days is not drawn when others have one
+    unobserved = [s for s in series if s not in parts] if parts else []
+    series = [s for s in series if s in parts] if parts else series
     bands = store.forecast_bands(run, cycle=int(row.name))
     shapes, notes, events = _event_marks(_events(store, run), start, end)
     shapes = [*shapes, {"type": "line", "xref": "x", "yref": "paper", "x0": _t(t0), "x1": _t(t0), "y0": 0, "y1": 1,
@@ -369,11 +388,14 @@ def forecast_view(store: Store, run: Run) -> dict[str, Any]:
                          shapes=shapes, annotations=notes)
         layout["xaxis"]["range"] = [_t(start), _t(end)]
         layout["yaxis"]["hoverformat"] = ".2f"
+        flat = _at_least(data, _MIN_SPAN)
+        if flat is not None:  # a level that does not move: not an axis of 1e-7 m with ticks to the 7th decimal
+            layout["yaxis"]["range"] = flat
         figures.append({"id": f"fc-{len(figures)}", "series": sid, "title": describe_series(sid), "unit": unit,
                         "figure": {"data": data, "layout": layout}})
     latest = {"cycle": int(row.name), "issue_time": _t(t0), "kind": kind,
               "whose": "the DSS's" if kind == "dss" else "rivercal's", "bands": bool(len(bands)),
-              "start": _t(start), "end": _t(end)}
+              "start": _t(start), "end": _t(end), "unobserved": len(unobserved)}
     return {"latest": latest, "figures": figures, "events": events}
 
 
@@ -444,9 +466,9 @@ def map_view(store: Store, run: Run) -> dict[str, Any]:
         where = station_coordinates(network)
     except ValueError as exc:  # a network without map coordinates
         return {"problem": f"the network of {run.case!r} cannot be drawn: {exc}", "figures": [], "rows": []}
-    scores = store.scores(run)
-    scores = scores[scores["series"].str.rpartition(".")[2].isin(_LEVELS)]
-    scores = scores.assign(station=scores["series"].str.rpartition(".")[0])
+    scores = store.scores(run)  # none before a cycle's forecast is scored (a run of one cycle)
+    parts = scores["series"].astype(str).str.rsplit(".", n=1)  # rpartition of no rows has no columns to pick
+    scores = scores.assign(station=parts.str[0])[parts.str[-1].isin(_LEVELS)]
     bias = scores.groupby(["station", "kind"])["bias"].mean().unstack("kind") if len(scores) else pd.DataFrame()
     lines_x: list[float | None] = []
     lines_y: list[float | None] = []

@@ -226,7 +226,7 @@ def _check_times(run: RunFile, model: Model, config: OnlineConfig) -> None:
         check_schedule(model, config, run.time0, run.time0, names=names)
     except ValueError as exc:
         text = str(exc)
-        if text.startswith("time0") and "output times" in text:
+        if text.startswith("time0") and "cycles are issued on" in text:
             text += f" (check the run file's timeZone, {run.time_zone:+g} h)"
         raise AdapterError(text, file=str(run.path), field="time0" if text.startswith("time0") else "properties") \
             from None
@@ -343,7 +343,8 @@ def _check_schemas(run: RunFile, schemas: Mapping[str, Any], files: list[Path], 
 
 
 def _report_cycle(outcome: CycleOutcome, service: OnlineService, diag: Diagnostics) -> None:
-    units = {p.name: p.unit for p in service.parameters}
+    # a unit after each value, none after a dimensionless one ("1.2 ± 0.006", not "1.2 ± 0.006 -")
+    units = {p.name: "" if (p.unit or "").strip() in ("", "-", "1") else f" {p.unit}" for p in service.parameters}
     diag.add("info", f"forecast {outcome.cycle} issued at {outcome.issue_time:%Y-%m-%d %H:%M} UTC: {outcome.status}, "
                      f"{outcome.model_runs} model runs, {outcome.wall_s:.1f} s"
                      + ("" if outcome.hot_start else ", cold start (no usable model state at the window's start)"))
@@ -351,10 +352,10 @@ def _report_cycle(outcome: CycleOutcome, service: OnlineService, diag: Diagnosti
         std = outcome.std.get(name)
         sigma = f" ± {std:.3g}" if std is not None and math.isfinite(std) else ""
         if name in outcome.held:
-            diag.add("warn", f"{name}: estimate {outcome.estimates[name]:.4g}{sigma} {units[name]} held; the forecast "
-                             f"uses {value:.4g} {units[name]}: {outcome.held[name]}")
+            diag.add("warn", f"{name}: estimate {outcome.estimates[name]:.4g}{sigma}{units[name]} held; the forecast "
+                             f"uses {value:.4g}{units[name]}: {outcome.held[name]}")
         else:
-            diag.add("info", f"{name} = {value:.4g}{sigma} {units[name]} (accepted)")
+            diag.add("info", f"{name} = {value:.4g}{sigma}{units[name]} (accepted)")
     if outcome.status in ("failed", "aborted"):
         diag.add("warn", f"the calibration {outcome.status} ({outcome.message}); the forecast uses the last accepted "
                          "estimates")

@@ -13,6 +13,7 @@ from typing import Any
 
 from rivercal._time import Windows
 from rivercal.case.load import CASE_FILE, available_cases
+from rivercal.errors import CaseError
 from rivercal.models.config import MODEL_FILE, ModelFile, ModelFileError, read_model_file
 from rivercal.models.contract import CalibrationSetup
 from rivercal.models.embedded import load_case_model
@@ -58,6 +59,10 @@ def load_model(source: str | Path) -> Any:
     path = model_file_path(source)
     if path is not None:
         return load_model_file(path)
+    if not Path(source).exists() and str(source) not in available_cases():  # name the packaged models too
+        raise CaseError(f"{str(source)!r} is neither a case folder nor a packaged case, nor a model.toml or a packaged "
+                        f"model (packaged cases: {', '.join(available_cases())}; packaged models: "
+                        f"{', '.join(available_models())})")
     return load_case_model(source)
 
 

@@ -8,8 +8,9 @@ against a model (its parameters, their quantities, a dependency map). Every prob
 way (``--window``, ``property 'window'``) with :meth:`OnlineConfigError.describe`.
 
 :func:`check_schedule` checks the times of a run against its model before anything runs: the window,
-the cycle, the horizon and the warm-up are whole numbers of the output interval, cycles are issued at the
-model's output times, and every window and forecast lies inside the model's period.
+the cycle, the horizon and the warm-up are whole numbers of the service's time step (the output interval of
+its forecasts, ``OnlineConfig.output_interval_s``), cycles are issued on it, and every window and forecast
+lies inside the model's period.
 """
 
 from __future__ import annotations
@@ -387,7 +388,7 @@ def check_schedule(model: Model, config: OnlineConfig, first: Any, last: Any | N
     """
     name = {**SETTING_NAMES, **(names or {})}
     step = pd.Timedelta(seconds=config.output_interval_s)
-    grid = f"the output interval ({span(step)})"
+    grid = f"the service's time step ({span(step)}, the step of its forecasts and windows)"  # not the model's output
     start, end = utc(model.start), utc(model.end)
     length = end - start
     whose = "the case" if isinstance(model, FromCase) else "the model's period"
@@ -414,7 +415,7 @@ def check_schedule(model: Model, config: OnlineConfig, first: Any, last: Any | N
     text = {"first": _when(first), **({"last": _when(utc(last))} if last is not None else {}), **(shown or {})}
     if (first - start) % step:
         before = start + ((first - start) // step) * step
-        raise ValueError(f"{name['first']} {text['first']}: cycles are issued at the model's output times, every "
+        raise ValueError(f"{name['first']} {text['first']}: cycles are issued on the service's time step, every "
                          f"{span(step)} from {start:%Y-%m-%d %H:%M}; e.g. {before:%Y-%m-%d %H:%M} or "
                          f"{before + step:%Y-%m-%d %H:%M}")
     need = values["window"] + values["warmup"]

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from rivercal._format import unit_suffix
 from rivercal.analysis.identifiability import IdentifiabilityOptions, analyse_jacobian, fd_jacobian
 from rivercal.errors import ModelRunError
 from rivercal.problem import CalibrationProblem
@@ -76,7 +77,7 @@ def gate(problem: CalibrationProblem, result: Any, resolution: Mapping[str, floa
         if ident.index[i] < gate_index:
             held[n] = (f"this window cannot see {n}: identifiability index {ident.index[i]:.2f} < "
                        f"{gate_index:g} over the {seen} direction(s) whose singular value reaches "
-                       f"{gate_sv:g} (a change of {resolution[n]:g} {units.get(n, '')} "
+                       f"{gate_sv:g} (a change of {resolution[n]:g}{unit_suffix(units.get(n))} "
                        f"moves the cost by less than that); held at its last accepted value")
     return held, extra
 
@@ -150,7 +151,7 @@ def jump_alert(name: str, unit: str, before: float, after: float, k: float, spec
                detail: str) -> AlertRecord:
     """The ``jump`` alert of a probable intervention."""
     return AlertRecord(
-        "jump", f"{name} changed from {before:.4g} to {after:.4g} {unit} ({after - before:+.3g}"
+        "jump", f"{name} changed from {before:.4g} to {after:.4g}{unit_suffix(unit)} ({after - before:+.3g}"
         + (f", {k:.0f} σ" if math.isfinite(k) else "") + f") {detail} in the window "
         f"{spec.window_start:%Y-%m-%d %H:%M} – {spec.window_end:%Y-%m-%d %H:%M}: a probable intervention (mowing, "
         "a changed weir setting)", parameter=name, magnitude=k if math.isfinite(k) else None)
@@ -168,8 +169,8 @@ def limit_alerts(parameters: Any, warm: Mapping[str, float], estimates: Mapping[
             inside = p.min < estimates[n] < p.max
             if at_box and inside:
                 out.append(AlertRecord(
-                    "limit", f"{n} stopped at the per-cycle change bound ±{step:g} {p.unit}; the true change may "
-                    "be larger and the next cycles will continue", parameter=n))
+                    "limit", f"{n} stopped at the per-cycle change bound ±{step:g}{unit_suffix(p.unit)}; the true "
+                    "change may be larger and the next cycles will continue", parameter=n))
     return out
 
 

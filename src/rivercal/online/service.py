@@ -54,7 +54,8 @@ from rivercal.parameters import ParameterSet
 from rivercal.problem import Calibration, CalibrationProblem, calibrate
 from rivercal.store import AlertRecord, BandRecord, CycleRecord, CycleSpec, EstimateRecord, Store, TransitionRecord
 
-__all__ = ["DEFAULT_RESOLUTION", "OPTIMISER_NOTE", "CycleOutcome", "OnlineConfig", "OnlineService", "outcome_words"]
+__all__ = ["DEFAULT_RESOLUTION", "OPTIMISER_NOTE", "STATE_UPDATING_FAILED", "CycleOutcome", "OnlineConfig",
+           "OnlineService", "outcome_words"]
 
 log = logging.getLogger(__name__)
 
@@ -130,6 +131,9 @@ def outcome_words(result: Any) -> str:
         words = "did not converge"
     return f"{words} [optimiser: {getattr(result, 'message', '')} (status {status})]"
 
+
+#: How a stored cycle message says that the cycle's state updating failed (its forecast is the parameters' own).
+STATE_UPDATING_FAILED = "state updating failed"
 
 #: The optimiser's own words in a stored cycle message (see :func:`outcome_words`), for pages to leave out.
 OPTIMISER_NOTE = r"\s*\[optimiser: [^\]]*\]"
@@ -310,7 +314,7 @@ class OnlineService:
             except ModelRunError as exc:  # the cycle goes on with the parameters' forecast; the next starts anew
                 log.warning("cycle %d: state updating failed (%s); the parameters' forecast is issued", spec.cycle,
                             exc)
-                est.message += f"; state updating failed ({exc}): the parameters' forecast is issued"
+                est.message += f"; {STATE_UPDATING_FAILED} ({exc}): the parameters' forecast is issued"
             else:
                 forecasts["updated"] = bands.mean
                 est.message += f"; {analyses} state analyses of {self.filter.config.members} members"

@@ -39,6 +39,11 @@ def suggestion(ident: Identifiability, cluster: ClusterSuggestion) -> str:
     """What to do with one suggested group, in words."""
     listed = _and(cluster.members)
     strength = _pct(cluster.strength)
+    if ident.extra.get("unseen"):  # nothing is seen: the share of the best-seen combination says nothing
+        one = len(cluster.members) == 1
+        return (f"fix {listed} at {'its current value' if one else 'their current values'}: moved over "
+                f"{ident.scale_name} {'it changes' if one else 'they change'} the misfit by less than one "
+                "observation error.")
     if len(cluster.members) == 1:
         return (f"fix {listed} at its current value: the stations hardly see it (seen {strength} as strongly as the "
                 "best-seen combination).")
@@ -121,6 +126,8 @@ class _Words:
         unit = self.c.units.get(self.names[i], "")
         if unit in ("m AD", "m", "m NAP"):
             return f"{100 * value:.2g} cm" if abs(value) < 1 else f"{value:.3g} m"
+        if unit.strip() in ("-", "1"):  # dimensionless (an imported model's friction factor): no unit after it
+            return f"{value:.3g}"
         return f"{value:.3g} {unit}".strip()
 
     def station(self, st: str) -> str:
@@ -169,6 +176,12 @@ class _Words:
         text = f"{self.label(i)} is not identifiable (identifiability index {row['index']:.2f}): "
         if strength == 0.0:
             return text + "no observation changes at all when it changes. Keep it at its current value."
+        if self.ident.extra.get("unseen"):  # no parameter is seen: a share of the best-seen says nothing
+            sd = f" (σ ±{self.amount(i, row['std'])})" if math.isfinite(row["std"]) else ""
+            return text + (f"moving it over {self.ident.scale_name} ({self.amount(i, self.ident.scale[i])}) changes "
+                           f"the misfit by less than one observation error{sd}: the observations in this window "
+                           "hardly depend on it, nor on any other parameter analysed. Keep it at its current value, "
+                           "or choose a window or measurements that it changes.")
         text += (f"moving it over {self.ident.scale_name} ({self.amount(i, self.ident.scale[i])}) is seen only "
                  f"{_pct(strength)} as strongly as the best-seen parameter combination")
         if math.isfinite(row["effect"]):

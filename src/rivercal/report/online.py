@@ -259,6 +259,20 @@ def _station_scores(scores: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def _parameter_words(change: pd.Timestamp | None, estimated: list[str], ptable: pd.DataFrame) -> str:
+    """What the table of crest levels and friction shows, for this run: its columns, units and what was estimated."""
+    if change is not None:
+        sides = ("'before': the last cycle whose window ends before the transition; 'after': the last cycle, whose "
+                 "window lies after it." + _missing_columns(ptable))
+    else:
+        sides = ("No transition was found, so 'rivercal after' is each parameter's value accepted by the last cycle "
+                 "('rivercal before' is empty).")
+    return (f"{sides} Each row in its own unit (the unit column). rivercal estimates {', '.join(estimated)}; the "
+            "other rows keep the DSS's value (a branch's friction the global one), so a local change can only show "
+            "as a compromise in what is estimated. The rivercal columns are accepted values; whether the forecast a "
+            "cycle issued used them or the DSS's says the table of the headline (do no harm).")
+
+
 def _missing_columns(ptable: pd.DataFrame) -> str:
     """Say why a 'rivercal before/after' column is empty (the run has no cycle on that side of the change)."""
     empty = [c for c in ("rivercal before", "rivercal after") if c in ptable and ptable[c].isna().all()]
@@ -370,13 +384,7 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
         ptable.to_csv(out / "parameters.csv")
         files["parameters_csv"] = str(out / "parameters.csv")
         page.section("Crest levels and friction: true, DSS and rivercal (thesis Tables 5-1 … 5-5)",
-                     paragraph("'before': the last cycle whose window ends before the transition; 'after': the "
-                               "last cycle, whose window lies after it. Crest levels in m AD, friction in "
-                               "m^(1/3)/s. rivercal moves all adjustable crests alike (Wd) and one global friction "
-                               "(FA), so a local change can only show as a compromise in those two. The rivercal "
-                               "columns are accepted values; whether the forecast a cycle issued used them or the "
-                               "DSS's says the table of the headline (do no harm)."
-                               + _missing_columns(ptable)),
+                     paragraph(_parameter_words(change, list(config["parameters"]), ptable)),
                      table(ptable, "Parameters", float_format=".4g"))
         shown = cycles[["cycle", "issue_time", "status", "algorithm", "model_runs", "wall_time_s", "cost_before",
                         "cost_after", "message"]].set_index("cycle")

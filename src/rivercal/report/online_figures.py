@@ -97,7 +97,7 @@ def final_state_lines(store: Store, run: Run | str) -> list[str]:
             text = f"{name}: no estimate accepted yet"
         else:
             row = ok.iloc[-1]
-            text = (f"{name}: last accepted {_value(float(row['value']), unit)} {unit}, by cycle "
+            text = (f"{name}: last accepted {_value(float(row['value']), unit)}{_unit(unit)}, by cycle "
                     f"{int(row['cycle'])}" + (f" — {row['reason']}" if isinstance(row["reason"], str) and row["reason"]
                                               else ""))
         if len(mine) and not bool(mine["accepted"].iloc[-1]):
@@ -105,6 +105,11 @@ def final_state_lines(store: Store, run: Run | str) -> list[str]:
                      f"{str(mine['reason'].iloc[-1]).rstrip('.')}")
         lines.append(text + ".")
     return lines
+
+
+def _unit(unit: str) -> str:
+    """The unit after a value: `` m AD``, or nothing for a dimensionless one (``-``, ``1``, empty)."""
+    return f" {unit}" if unit.strip() not in ("", "-", "1", "nan", "None") else ""
 
 
 def _value(value: float, unit: str) -> str:

@@ -65,6 +65,7 @@ from rivercal.store.records import (
     CycleSpec,
     CycleStateError,
     Run,
+    RunMismatchError,
     Schedule,
     StoreError,
     StoreVersionError,
@@ -312,7 +313,7 @@ class Store(ResultTables, ObservationTables):
 
         Raises
         ------
-        StoreError
+        RunMismatchError
             If the run exists with another case or configuration (resuming would mix two set-ups); the
             message names the differing keys.
         """
@@ -323,10 +324,10 @@ class Store(ResultTables, ObservationTables):
             assert run is not None
             return run
         if run.case != str(case):
-            raise StoreError(f"{self.path}: run {name!r} serves case {run.case!r}, not {case!r}")
+            raise RunMismatchError(f"{self.path}: run {name!r} serves case {run.case!r}, not {case!r}")
         differ = fr.config_differences(run.config, config or {})
         if differ:
-            raise StoreError(f"{self.path}: run {name!r} was created with another configuration (keys differ: "
+            raise RunMismatchError(f"{self.path}: run {name!r} was created with another configuration (keys differ: "
                              f"{', '.join(differ)}); use a new run name")
         return run
 

@@ -59,6 +59,10 @@ class StoreVersionError(StoreError):
     """The file's schema version cannot be used by this rivercal (newer file, or read-only and older)."""
 
 
+class RunMismatchError(StoreError):
+    """A run of that name exists with another model or configuration: resuming it would mix two set-ups."""
+
+
 class CycleStateError(StoreError):
     """A cycle is not in a state that allows the operation (already final, owned by a live process, a gap)."""
 

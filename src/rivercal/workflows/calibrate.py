@@ -7,6 +7,7 @@ Files under ``out``: ``history.csv`` (per iteration), ``evaluations.csv`` (every
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,7 @@ from rivercal.models.contract import Model
 from rivercal.parameters import ParameterSet
 from rivercal.workflows.progress import NO_PROGRESS, Progress, jsonable
 
-__all__ = ["calibrate_window"]
+__all__ = ["calibrate_window", "undetermined"]
 
 
 def calibrate_window(model: Model, parameters: ParameterSet, window: tuple[pd.Timestamp, pd.Timestamp],
@@ -99,9 +100,30 @@ def calibrate_window(model: Model, parameters: ParameterSet, window: tuple[pd.Ti
         "observations": {"series": len(problem.observations), "values": problem.observations.n_values,
                          "missing_dropped": problem.observations.n_missing},
         **cal.summary(), "files": files}
+    summary["undetermined"] = undetermined(parameters, cal.std)
     if truth is not None:
         summary["truth"] = dict(truth)
         summary["error"] = {n: cal.estimates[n] - truth[n] for n in truth}
     summary = jsonable(summary)
     (out / "result.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary, cal
+
+
+def undetermined(parameters: ParameterSet, std: Mapping[str, float]) -> dict[str, str]:
+    """The parameters a calibration could not determine, each with why, in words.
+
+    A parameter whose σ (thesis Eq. 2-12, from the observations' σ) is wider than its whole range
+    (``max − min``, in its unit), or infinite, is one the observations in the window hardly depend on: its
+    estimate says little, however well the optimiser converged (e.g. a bed friction seen only through discharges
+    that its boundaries set). A method that gives no σ (``std`` without the name) judges none.
+    """
+    out: dict[str, str] = {}
+    for p in parameters:
+        sd = std.get(p.name)
+        if sd is None:
+            continue
+        if not math.isfinite(sd) or sd > float(p.max) - float(p.min):
+            shown = f"{sd:.2g}" if math.isfinite(sd) else "infinite"
+            out[p.name] = (f"σ {shown} is wider than its whole range {p.min:g} .. {p.max:g}: the observations in "
+                           "this window hardly depend on it, so its estimate says little")
+    return out

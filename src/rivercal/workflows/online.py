@@ -333,7 +333,8 @@ def online_summary(store: Store, service: OnlineService, outcomes: Sequence[Cycl
                    truth: pd.DataFrame | None = None) -> dict[str, Any]:
     """JSON-friendly summary of a run: cycles, estimates, alerts and the run metrics (updated vs DSS).
 
-    ``cycles_done_now`` counts the cycles this call computed, ``cycles_succeeded_now`` those of them that
+    ``state_updating_failed`` lists the cycles whose state updating failed (their forecast is the parameters'
+    own). ``cycles_done_now`` counts the cycles this call computed, ``cycles_succeeded_now`` those of them that
     ended ``done`` (not failed or aborted), ``status_now`` counts them by status and ``first_message_now`` is
     the message of the first that did not end ``done``.
 
@@ -344,6 +345,7 @@ def online_summary(store: Store, service: OnlineService, outcomes: Sequence[Cycl
     (:func:`rivercal.online.metrics.mae_by_lead`). ``wall_s`` in s; estimates in the parameters' units.
     """
     from rivercal.online.metrics import mae_by_lead
+    from rivercal.online.service import STATE_UPDATING_FAILED
 
     cycles = store.cycles(service.run)
     est = store.estimates(service.run)
@@ -363,6 +365,8 @@ def online_summary(store: Store, service: OnlineService, outcomes: Sequence[Cycl
         "first_message_now": next((o.message for o in outcomes if o.status != "done"), None),
         "cycles": len(cycles),
         "status": cycles["status"].value_counts().to_dict(),
+        "state_updating_failed": [int(c) for c, m in zip(cycles["cycle"], cycles["message"], strict=True)
+                                  if STATE_UPDATING_FAILED in str(m or "")] if len(cycles) else [],
         "wall_s": round(wall, 2),
         "units": {p.name: p.unit for p in service.parameters},
         "cycle_wall_s_median": float(cycles["wall_time_s"].median()) if len(cycles) else None,

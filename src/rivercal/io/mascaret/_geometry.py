@@ -202,6 +202,9 @@ class _GeometrySteps(_Context):
         self.case["friction_groups"] = list(groups.values())
         self.case["profiles"] = profiles
         self.case["parameters"] = parameters
+        for p in parameters:  # import.md lists them, as the D-HYDRO and SOBEK 3 imports do
+            self.ledger.parameters.append(f"`{p['name']}`: {p['targets'][0]}, {p['min']:g} .. {p['max']:g} "
+                                          f"{p['unit']}, initial {p['initial']:g}")
         # conveyance settings
         composition = self.x.integer("parametresModelePhysique/compositionLits", 1)
         self.ledger.approximated("setting", "compositionLits", "minor and major beds convey side by side, each with "

@@ -125,7 +125,7 @@ class ImportResult:
         The case folder (``case.toml``, ``forcing.csv``, ``import.md``).
     summary
         Counts: branches, points, profiles, friction groups, boundaries, laterals, stations, approximated,
-        refused; and the case period.
+        refused; the case period; the names of the calibration parameters written.
     ledger
         The full account (also in ``import.md``).
     """
@@ -269,6 +269,7 @@ def import_mascaret(xcas: Path | str, out: Path | str, options: ImportOptions | 
         "end": _iso(case.end),
         "approximated": ledger.counts("approximated"),
         "refused": ledger.counts("refused"),
+        "parameters": [p.name for p in case.spec.parameters],
     }
     return ImportResult(folder=out, summary=summary, ledger=ledger)
 

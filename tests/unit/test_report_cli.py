@@ -1,0 +1,40 @@
+"""``rivercal report`` of a run whose model the store knows by its name only (an imported model in a folder)."""
+
+from __future__ import annotations
+
+import shutil
+from importlib import resources
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from rivercal.cli.main import app
+from rivercal.store import Store
+
+
+def test_a_run_of_a_model_in_a_folder_of_its_own_takes_the_folder_with_case(tmp_path: Path,
+                                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    # an imported model is a folder ('comp/') whose case is named by the model ('test_compound'); the store keeps
+    # the name, so 'rivercal report' cannot find the model from the store alone and asks for --case
+    monkeypatch.chdir(tmp_path)
+    case = tmp_path / "comp"
+    shutil.copytree(Path(str(resources.files("rivercal.cases") / "synthetic")), case)
+    toml = case / "case.toml"
+    text = toml.read_text(encoding="utf-8")
+    assert 'name = "synthetic"' in text
+    toml.write_text(text.replace('name = "synthetic"', 'name = "test_compound"', 1), encoding="utf-8")
+    with Store(tmp_path / "s.sqlite") as store:
+        store.ensure_run("online", "test_compound", {})
+    base = ["report", "--db", "s.sqlite", "--out", "report"]
+    run = CliRunner().invoke(app, base)
+    assert run.exit_code == 2, run.output
+    assert ("run 'online' serves the model 'test_compound', which is neither a folder here nor a packaged case"
+            in run.stderr and "with --case" in run.stderr)
+    run = CliRunner().invoke(app, [*base, "--case", "synthetic"])   # another model
+    assert run.exit_code == 2, run.output
+    assert ("--case synthetic: that is the model 'synthetic'; run 'online' of s.sqlite serves 'test_compound'"
+            in run.stderr)
+    run = CliRunner().invoke(app, [*base, "--case", "comp"])
+    assert run.exit_code == 0, run.output
+    assert (tmp_path / "report" / "index.html").is_file()
