@@ -277,6 +277,14 @@ def test_bad_configurations_are_refused_before_any_run(tmp_path) -> None:
     with pytest.raises(OnlineConfigError) as bad:
         OnlineConfig.from_options(parameters="FA,Wd", max_change="FA=-1")
     assert bad.value.describe("--max-change") == "--max-change 'FA=-1': the value of FA must be a positive number"
+    # observation errors: the quantities left out keep their defaults; a σ is positive, of a quantity or a series
+    assert OnlineConfig.from_options(sigma="Q=50,0040.Q=2").sigma == {"h": 0.025, "h_up": 0.025, "h_down": 0.025,
+                                                                     "Q": 50.0, "0040.Q": 2.0}
+    for text, why in (("Q=0", "the σ of Q must be a positive number"),
+                      ("flow=5", "'flow' is neither a quantity (h, h_up, h_down, Q) nor a series id")):
+        with pytest.raises(OnlineConfigError) as bad:
+            OnlineConfig.from_options(sigma=text)
+        assert bad.value.field == "sigma" and why in bad.value.describe("--sigma")
     with Store(tmp_path / "s.sqlite") as store:
         with pytest.raises(ValueError, match="unknown parameter 'Fx'"):
             OnlineService(ToyRiver(), store, "x", OnlineConfig(parameters=("Fx",)), "2010-10-25")

@@ -69,6 +69,10 @@ def online(
     dependency_threshold: DependencyThresholdOpt = 0.1,
     max_change: Annotated[str | None, typer.Option(
         "--max-change", help="Largest change per cycle, e.g. 'FA=5,Wd=0.1' (default: none).")] = None,
+    sigma: Annotated[str | None, typer.Option(
+        "--sigma", help="Observation error σ per quantity or series, e.g. 'Q=50' or 'h=0.05,0040.Q=2' (m, m³/s; "
+                        "default h=0.025, Q=0.1): the weights of the calibrations and the errors of the state "
+                        "analyses.")] = None,
     alert_k: Annotated[float, typer.Option(
         "--alert-k", help="An estimate that moves more than k σ and its resolution jumps: a jump starts the "
                            "transition estimator, and a transition it finds raises one jump alert.")] = 3.0,
@@ -152,8 +156,8 @@ def online(
     check_number(poll, "--poll", low=0, low_open=True)
     # the configuration's own checks (rivercal.online.config), each problem named by its option
     settings = {"parameters": params, "window": window, "period": cycle, "horizon": horizon, "warmup": warmup,
-                "algorithm": algorithm, "deadline_s": deadline, "max_change": max_change, "alert_k": alert_k,
-                "loss": loss, "transition": transition, "skill_cycles": skill_cycles,
+                "algorithm": algorithm, "deadline_s": deadline, "max_change": max_change, "sigma": sigma,
+                "alert_k": alert_k, "loss": loss, "transition": transition, "skill_cycles": skill_cycles,
                 "dependency": str(dependency) if dependency is not None else None,
                 "dependency_threshold": dependency_threshold}
     config = _config(None, settings)
@@ -220,7 +224,8 @@ def _final_state(summary: dict[str, Any]) -> list[str]:
 #: The option that sets each field of the on-line configuration (for the messages of its checks).
 _OPTION_OF = {"parameters": "--params", "window": "--window", "period": "--cycle", "horizon": "--horizon",
               "warmup": "--warmup", "algorithm": "--algorithm", "deadline_s": "--deadline",
-              "max_change": "--max-change", "alert_k": "--alert-k", "loss": "--loss", "skill_cycles": "--skill-cycles",
+              "max_change": "--max-change", "sigma": "--sigma", "alert_k": "--alert-k", "loss": "--loss",
+              "skill_cycles": "--skill-cycles",
               "dependency": "--dependency", "dependency_threshold": "--dependency-threshold", "workers": "--workers"}
 
 

@@ -239,7 +239,7 @@ class EnsembleFilter:
         self.n_h, self.n_l = len(layout.levels), len(layout.discharges)
         col = {name: i for i, name in enumerate(model.observables)}
         self.columns = np.array([col[s] for s in self.series], dtype=np.int64)
-        sig = dict(DEFAULT_SIGMA if sigma is None else sigma)
+        sig = {**DEFAULT_SIGMA, **(sigma or {})}  # a quantity left out keeps its default
         self.sigma = np.array([float(sig.get(s, sig.get(s.rpartition(".")[2]))) for s in self.series])
         unplaced = [s for s in self.series if s not in layout.places]
         if unplaced:

@@ -25,6 +25,7 @@ import pandas as pd
 from rivercal._time import utc
 from rivercal.evaluate import DaskCluster, Workers, check_workers
 from rivercal.models.contract import FromCase, Model
+from rivercal.observations import DEFAULT_SIGMA
 from rivercal.problem import LOSSES
 from rivercal.store import Schedule
 
@@ -141,7 +142,10 @@ class OnlineConfig:
     sources
         Observation sources in priority order (default all).
     sigma
-        σ per quantity or series id (default :data:`~rivercal.observations.DEFAULT_SIGMA`).
+        σ per quantity or series id (default :data:`~rivercal.observations.DEFAULT_SIGMA`): m for levels, m³/s
+        for discharges. Given as text (``"Q=50"``, ``"h=0.05,0040.Q=2"``), the quantities it leaves out keep
+        their defaults. The weights of the calibrations (1/σ²) and the observation errors of the state
+        analyses: a large river's discharges are not known to the default 0.1 m³/s.
     min_coverage
         A window whose observations cover less than this share of the hourly values raises a
         ``data`` alert; with none at all the cycle fails (and keeps the last estimate).
@@ -213,6 +217,12 @@ class OnlineConfig:
                                     self.algorithm)
         if self.deadline_s is not None:
             _number("deadline_s", self.deadline_s, above=0)
+        for key, value in (self.sigma or {}).items():
+            if not (math.isfinite(value) and value > 0):
+                raise OnlineConfigError("sigma", f"the σ of {key} must be a positive number", f"{key}={value:g}")
+            if "." not in key and key not in DEFAULT_SIGMA:
+                raise OnlineConfigError("sigma", f"{key!r} is neither a quantity ({', '.join(DEFAULT_SIGMA)}) nor a "
+                                                 "series id (STATION.QUANTITY)", f"{key}={value:g}")
         for name in ("max_change", "resolution"):
             for key, value in getattr(self, name).items():
                 if key not in self.parameters:
@@ -259,7 +269,8 @@ class OnlineConfig:
         """A configuration from options as a user gives them, checked (against ``model`` when given).
 
         ``options`` are fields of the class; ``parameters``, ``series`` and ``sources`` may be comma-separated
-        text (``"FA,Wd"``), ``max_change`` and ``resolution`` text such as ``"FA=5,Wd=0.1"``, numbers text.
+        text (``"FA,Wd"``), ``max_change`` and ``resolution`` text such as ``"FA=5,Wd=0.1"``, ``sigma`` text such as
+        ``"Q=50"`` (over the defaults), numbers text.
         Options left out (or None, except those whose default is None) take the defaults.
 
         Raises
@@ -279,6 +290,8 @@ class OnlineConfig:
                 value = _names(name, value)
             elif name in ("max_change", "resolution", "dss") and value is not None:
                 value = _assignments(name, value)
+            elif name == "sigma" and isinstance(value, str):
+                value = {**DEFAULT_SIGMA, **_assignments(name, value)}
             elif name in _NUMBERS and isinstance(value, str):
                 value = _number(name, value)
             values[name] = value
