@@ -121,4 +121,5 @@ def test_scores_errors_and_band_coverage_pair_every_reading_inside_the_forecasts
     assert cover["n"] == len(scored) and cover["fraction"] == pytest.approx(float(inside.mean()))
     metrics = run_metrics(s, run)
     assert metrics["forecast_mae_ratio"] == pytest.approx(errors["dss_mae_m"] / errors["updated_mae_m"])
+    assert metrics["lead_h"] == LEADS[-1] < 24   # the headline says the forecasts' 12-h horizon, not "up to 24 h"
     assert metrics["forecast_mae_by_lead"]["updated"]["0-6h"] is not None

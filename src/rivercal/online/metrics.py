@@ -379,14 +379,18 @@ def run_figures(store: Store, run: Run | str, *, lead_h: float = 24.0, facts: Ch
                 forecasts: pd.DataFrame | None = None, cycles: pd.DataFrame | None = None) -> dict[str, Any]:
     """The headline figures of a run (module docstring); MAE in m.
 
-    ``facts``: default from the run's ``meta``; ``forecasts`` and ``cycles``: the run's stored forecasts and
-    cycles when the caller has read them already (default: read here).
+    ``lead_h`` (h): the longest lead time scored, or the forecasts' own horizon where that is shorter (the
+    figures then say that horizon). ``facts``: default from the run's ``meta``; ``forecasts`` and ``cycles``:
+    the run's stored forecasts and cycles when the caller has read them already (default: read here).
     """
     run = _run(store, run)
     meta = dict(run.config.get("meta") or {})
     scenario = _facts(run, facts)
     cycles = store.cycles(run) if cycles is None else cycles
+    forecasts = store.forecasts(run) if forecasts is None else forecasts
     change = scenario.change_time if scenario is not None else None
+    if len(forecasts) and float(forecasts["lead_h"].max()) < lead_h:  # a shorter horizon: say what was scored
+        lead_h = float(forecasts["lead_h"].max())
     out: dict[str, Any] = {"scenario": scenario.scenario if scenario else None,
                            "realism": (meta.get("realism") or {}).get("name", "ideal") if scenario else None,
                            "noise": meta.get("noise", "none") if scenario else None,
