@@ -58,6 +58,11 @@ from rivercal.results import SimulationResult
 __all__ = ["EmbeddedModel", "build_model", "load_case_model"]
 
 
+#: The share of ``engine.max_velocity`` that an analysed state may give a link's velocity
+#: (:meth:`EmbeddedModel.with_state_arrays`).
+ANALYSED_SPEED_SHARE = 0.5
+
+
 class EmbeddedModel(Simulator):
     """A case ready to run on the embedded engine, with the model contract's declarations.
 
@@ -462,7 +467,11 @@ class EmbeddedModel(Simulator):
         """A copy of ``state`` with these levels (never below the bed) and discharges.
 
         The volumes follow from the levels; each link keeps its flow area (discharge over velocity), so its
-        velocity follows the new discharge; a link at rest keeps its discharge and velocity.
+        velocity follows the new discharge; a link at rest keeps its discharge and velocity. A discharge that
+        would move the water through the link's area faster than half the engine's largest velocity
+        (``engine.max_velocity``, m/s) is taken at that speed, in its direction: through a link that had little
+        water (a point filling after a cold start) an analysis's discharge increment would otherwise start the
+        next step at tens of m/s, and the member would diverge.
         """
         a = self.compiled.arrays
         out = state.copy()
@@ -473,8 +482,12 @@ class EmbeddedModel(Simulator):
         with np.errstate(divide="ignore", invalid="ignore"):
             area = np.where(np.abs(state.u) > 1e-9, state.q / state.u, np.nan)
         moving = np.isfinite(area) & (area > 0)
-        out.u = np.where(moving, discharges / area, state.u)
-        out.q = np.where(moving, discharges, state.q)
+        limit = ANALYSED_SPEED_SHARE * float(self.settings.max_velocity)
+        discharges = np.asarray(discharges, dtype=float)
+        u = np.where(moving, discharges / np.where(moving, area, 1.0), state.u)
+        fast = moving & (np.abs(u) > limit)
+        out.u = np.where(fast, np.sign(u) * limit, u)
+        out.q = np.where(fast, out.u * np.where(fast, area, 0.0), np.where(moving, discharges, state.q))
         return out
 
     def simulate_fields(self, parameters: Mapping[str, float] | None = None, start: Any = None, end: Any = None,
