@@ -277,6 +277,14 @@ class ScreenRule:
     ``discharge_floor`` (m³/s) and ``discharge_floor_rel`` times the median. A value with fewer than
     ``min_values`` values in its window (itself included) is not judged.
 
+    A spike is also short and stands out from its neighbours: a value that passes that test is flagged only when
+    it lies in a block of at most ``max_run`` consecutive values that all differ from the value just before and
+    the value just after the block by more than their thresholds, in the value's direction (for a discharge,
+    also by more than ``discharge_floor_rel`` times that neighbour). A discharge that a pump or a
+    rainfall-runoff delivery switches between nothing and a few m³/s, or a level held for an hour, has windows
+    whose median and MAD are those of the other state, so the Hampel test alone flags every value of the
+    shorter state; such a value lies close to a neighbour of its own state.
+
     Attributes
     ----------
     half_window_h
@@ -287,6 +295,8 @@ class ScreenRule:
         Smallest deviation that counts, m, m³/s, share of the median.
     min_values
         Fewest values in a window to judge its middle one.
+    max_run
+        Most consecutive values that still count as one spike.
     """
 
     half_window_h: float = 3.0
@@ -295,10 +305,12 @@ class ScreenRule:
     discharge_floor: float = 0.05
     discharge_floor_rel: float = 0.3
     min_values: int = 5
+    max_run: int = 2
 
     def __post_init__(self) -> None:
-        if not (self.half_window_h > 0 and self.k > 0 and self.min_values >= 3):
-            raise ValueError("screen rule: half_window_h and k must be positive and min_values at least 3")
+        if not (self.half_window_h > 0 and self.k > 0 and self.min_values >= 3 and self.max_run >= 1):
+            raise ValueError("screen rule: half_window_h and k must be positive, min_values at least 3 and "
+                             "max_run at least 1")
         if min(self.level_floor_m, self.discharge_floor, self.discharge_floor_rel) < 0:
             raise ValueError("screen rule: the floors must not be negative")
 
@@ -324,6 +336,9 @@ def screen_outliers(times: pd.DatetimeIndex | np.ndarray, values: np.ndarray, qu
     >>> v = np.array([1.00, 1.01, 1.02, 1.03, 1.54, 1.05, 1.06, 1.07, 1.08])
     >>> screen_outliers(t, v, "h").nonzero()[0].tolist()
     [4]
+    >>> q = np.array([0.0, 0.0, 0.0, 0.0, 3.1, 3.0, 3.1, 0.0, 0.0])  # a pump on for three hours
+    >>> screen_outliers(t, q, "Q").nonzero()[0].tolist()
+    []
     """
     rule = rule or ScreenRule()
     v = np.asarray(values, dtype=float)
@@ -338,6 +353,8 @@ def screen_outliers(times: pd.DatetimeIndex | np.ndarray, values: np.ndarray, qu
     half = round(rule.half_window_h * 3600)
     lo = np.searchsorted(seconds, seconds - half, side="left")
     hi = np.searchsorted(seconds, seconds + half, side="right")
+    side = np.zeros(n, dtype=np.int8)  # +1 above its window's median by more than the threshold, -1 below
+    threshold = np.zeros(n)
     for i in range(n):
         if hi[i] - lo[i] < rule.min_values:
             continue
@@ -348,5 +365,35 @@ def screen_outliers(times: pd.DatetimeIndex | np.ndarray, values: np.ndarray, qu
             floor = max(rule.discharge_floor, rule.discharge_floor_rel * abs(med))
         else:
             floor = rule.level_floor_m
-        out[i] = abs(v[i] - med) > max(rule.k * 1.4826 * mad, floor)
+        threshold[i] = max(rule.k * 1.4826 * mad, floor)
+        if abs(v[i] - med) > threshold[i]:
+            side[i] = 1 if v[i] > med else -1
+    # a Hampel candidate is a spike when it lies in a block of at most max_run candidates of its side that all
+    # stand out from the values just before and just after the block
+    for i in np.flatnonzero(side):
+        out[i] = any(_stands_out(v, side, a, a + size, threshold, quantity, rule)
+                     for size in range(1, rule.max_run + 1) for a in range(max(0, i - size + 1), min(i, n - size) + 1))
     return out
+
+
+def _stands_out(v: np.ndarray, side: np.ndarray, a: int, b: int, threshold: np.ndarray, quantity: str,
+                rule: ScreenRule) -> bool:
+    """Whether the block ``v[a:b]`` is a spike (:class:`ScreenRule`).
+
+    Its values all passed the Hampel test on one side (``side``: +1 above, -1 below), and each differs from
+    ``v[a - 1]`` and ``v[b]`` (those that exist) by more than its threshold in that direction; for a discharge,
+    also by more than ``discharge_floor_rel`` times the neighbour (the Hampel threshold of a window whose median
+    is the other state of a switching flow is that state's, not this one's).
+    """
+    block = v[a:b]
+    if side[a] == 0 or np.any(side[a:b] != side[a]):
+        return False
+    for j in (a - 1, b):
+        if not 0 <= j < v.size:
+            continue
+        need = threshold[a:b]
+        if quantity == "Q":
+            need = np.maximum(need, rule.discharge_floor_rel * abs(v[j]))
+        if not np.all(side[a] * (block - v[j]) > need):
+            return False
+    return True

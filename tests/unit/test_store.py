@@ -353,6 +353,20 @@ def test_spikes_are_flagged_at_ingestion_kept_and_left_out_and_gaps_recorded(sto
     assert store.flag_counts(["b.h"])["flag"].tolist() == ["ok"]
 
 
+def test_a_discharge_switched_on_and_off_is_not_a_spike_while_its_spikes_are() -> None:
+    """A pump's discharge every 10 minutes: 2.5 m³/s for 40 minutes, then nothing for 80 (a rainfall-runoff
+    delivery or a pump switching as in real telemetry). Each window of ±3 h holds more of "off" than of "on",
+    so its median and MAD are those of "off" and the Hampel test alone flags every "on" value; two spikes (an
+    isolated reading of 1.8 m³/s while off, one of 6 m³/s while on) are what the screen must find."""
+    from rivercal.observations import screen_outliers
+
+    t = pd.date_range("2010-11-01", periods=144, freq="10min", tz="UTC")
+    q = np.where(np.arange(144) % 12 < 4, 2.5, 0.0) + 0.01 * np.sin(np.arange(144))
+    q[[30, 50]] = [1.8, 6.0]  # 30: off (30 % 12 = 6); 50: on (50 % 12 = 2)
+    flagged = screen_outliers(t, q, "Q")
+    assert flagged.nonzero()[0].tolist() == [30, 50]
+
+
 # -- scores ---------------------------------------------------------------------------------------------------
 
 
