@@ -360,3 +360,24 @@ def test_a_setting_the_case_holds_constant_and_a_time_step_off_the_model_s_are_r
         words = ("property 'timeStep': '90s' (90 s) is not a whole multiple of the model's time step (60 s)",)
     _assert_refused(run_module(run_file), *words)
     assert not (folder / "state").exists()
+
+
+def test_written_files_are_readable_as_the_umask_allows(tmp_path: Path) -> None:
+    """Delft-FEWS may read the module's exports as another user: a file written atomically gets the umask's
+    permissions (0644 under umask 022), not the owner-only 0600 of a temporary file, and a replaced file too."""
+    import os
+    import stat
+
+    from rivercal.fews.pi import replace_atomically
+
+    target = tmp_path / "output" / "levels.xml"
+    target.parent.mkdir()
+    old = os.umask(0o022)
+    try:
+        replace_atomically(target, lambda part: part.write_text("first", encoding="utf-8"))
+        assert stat.S_IMODE(target.stat().st_mode) == 0o644
+        replace_atomically(target, lambda part: part.write_text("second", encoding="utf-8"))
+        assert stat.S_IMODE(target.stat().st_mode) == 0o644 and target.read_text(encoding="utf-8") == "second"
+    finally:
+        os.umask(old)
+    assert [p.name for p in target.parent.iterdir()] == ["levels.xml"]  # no temporary file left

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import os
 import re
-import tempfile
+import uuid
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -304,10 +304,13 @@ def _write(root: ET.Element, path: Path) -> Path:
 
 
 def replace_atomically(path: Path, write: Any) -> None:
-    """Write ``path`` through ``write(temporary_path)`` and rename: a killed run leaves the old file or the new one."""
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    os.close(fd)
-    part = Path(name)
+    """Write ``path`` through ``write(temporary_path)`` and rename: a killed run leaves the old file or the new one.
+
+    The temporary file is created by ``write`` itself, so the file gets the permissions of any file the process
+    writes (the umask's: readable by Delft-FEWS running as another user where the umask allows it), not the
+    owner-only ones of a file :func:`tempfile.mkstemp` creates.
+    """
+    part = path.with_name(f".{path.name}.{uuid.uuid4().hex}.part")
     try:
         write(part)
         os.replace(part, path)
