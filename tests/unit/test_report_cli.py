@@ -38,3 +38,34 @@ def test_a_run_of_a_model_in_a_folder_of_its_own_takes_the_folder_with_case(tmp_
     run = CliRunner().invoke(app, [*base, "--case", "comp"])
     assert run.exit_code == 0, run.output
     assert (tmp_path / "report" / "index.html").is_file()
+
+
+def test_a_run_that_recorded_its_models_folder_is_reported_without_case(tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    # 'rivercal online comp …' records where the model lay (model_source); report and dashboard open it from there,
+    # and a run whose folder moved resumes (the location is not part of what a resumed run must match)
+    from rivercal.dashboard.facts import model_facts
+
+    monkeypatch.chdir(tmp_path)
+    case = tmp_path / "comp"
+    shutil.copytree(Path(str(resources.files("rivercal.cases") / "synthetic")), case)
+    toml = case / "case.toml"
+    toml.write_text(toml.read_text(encoding="utf-8").replace('name = "synthetic"', 'name = "test_compound"', 1),
+                    encoding="utf-8")
+    with Store(tmp_path / "s.sqlite") as store:
+        store.ensure_run("online", "test_compound", {"window": "2D", "model_source": str(case)})
+    facts = model_facts("test_compound", str(case))
+    assert facts.problem == "" and facts.network is not None
+    assert "cannot be loaded" in model_facts("test_compound", str(tmp_path / "elsewhere")).problem
+    model_facts.cache_clear()
+    base = ["report", "--db", "s.sqlite", "--out", "report"]
+    run = CliRunner().invoke(app, base)
+    assert run.exit_code == 0, run.output
+    assert (tmp_path / "report" / "index.html").is_file()
+    moved = case.rename(tmp_path / "moved")
+    run = CliRunner().invoke(app, [*base[:-1], "report2"])
+    assert run.exit_code == 2, run.output
+    assert f"(it lay at {case} when the run was created)" in " ".join(run.stderr.split())
+    with Store(tmp_path / "s.sqlite") as store:  # the same run, its model now elsewhere: it resumes
+        resumed = store.ensure_run("online", "test_compound", {"window": "2D", "model_source": str(moved)})
+    assert resumed.name == "online"

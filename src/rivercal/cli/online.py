@@ -28,6 +28,7 @@ from rivercal.cli.options import (
     check_number,
     check_workers,
     dask_address,
+    model_source,
     open_model,
     output_dir,
     output_file,
@@ -199,7 +200,8 @@ def online(
                                  max_cycles=max_cycles, report=out, progress=reporter,
                                  assimilation=AssimilationConfig(mode=mode, members=members, method=ensemble_filter,
                                                                  seed=seed, issued=issued),
-                                 rain_error=rain_error, take_over=take_over)
+                                 rain_error=rain_error, take_over=take_over,
+                                 source=model_source(case))
         except RunMismatchError as exc:  # the options against the stored run: bad input, exit status 2
             raise OptionError(f"--run {name}: {exc}, or the options it was started with (--run names a run, "
                               "default: the scenario or 'online')", option="--run") from None
@@ -400,14 +402,18 @@ def report(
         stored = store.get_run(name)
         if stored is None:
             raise OptionError(f"--run {name!r}: not in {db} (it has {', '.join(runs['name'])})", option="--run")
+        recorded = stored.config.get("model_source")  # where the model lay when the run was created
+        if case is None and recorded and Path(recorded).exists():
+            case = recorded
         try:
             model = open_model(case if case is not None else stored.case)
         except CaseError:
             if case is not None or Path(stored.case).exists():
                 raise  # a case that is there but wrong: its own error names the file and field
+            where = f" (it lay at {recorded} when the run was created)" if recorded else ""
             raise OptionError(f"--db {db}: run {name!r} serves the model {stored.case!r}, which is neither a folder "
-                              "here nor a packaged case (the store keeps a model's name, not its folder): give "
-                              "its case folder or model.toml with --case", option="--case") from None
+                              f"here nor a packaged case{where}: give its case folder or model.toml with --case",
+                              option="--case") from None
         if model.name != stored.case:
             raise OptionError(f"--case {case}: that is the model {model.name!r}; run {name!r} of {db} serves "
                               f"{stored.case!r}", option="--case")

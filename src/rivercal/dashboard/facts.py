@@ -72,12 +72,23 @@ def register_model(source: str) -> str:
 
 
 @functools.lru_cache(maxsize=8)
-def model_facts(name: str) -> ModelFacts:
-    """The facts of the model ``name`` (a packaged case, a case folder, a ``model.toml`` or a registered name)."""
+def model_facts(name: str, source: str | None = None) -> ModelFacts:
+    """The facts of the model ``name`` (a packaged case, a case folder, a ``model.toml`` or a registered name).
+
+    ``source``: where a run recorded its model (``model_source``, a case folder or ``model.toml``); used when no
+    model is registered under ``name`` and the model there still bears that name.
+    """
     from rivercal.model import load_model
 
+    model = None
+    if source and name not in _SOURCES:
+        try:
+            found = load_model(source)
+            model = found if str(found.name) == name else None
+        except Exception as exc:  # a moved or changed folder: the name is tried instead
+            log.info("the dashboard cannot load model %r from %s: %s", name, source, exc)
     try:
-        model = load_model(_SOURCES.get(name, name))
+        model = model if model is not None else load_model(_SOURCES.get(name, name))
     except Exception as exc:  # any failure only leaves the pages without the model's facts
         log.info("the dashboard cannot load model %r: %s", name, exc)
         return ModelFacts(name, problem=f"the model {name!r} cannot be loaded here ({exc}; give its case folder "

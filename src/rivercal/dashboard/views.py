@@ -137,7 +137,7 @@ def now_view(store: Store, run: Run) -> dict[str, Any]:
     if final.empty:
         return out
     last = final.iloc[-1]
-    facts = model_facts(run.case)
+    facts = model_facts(run.case, run.config.get("model_source"))
     out["model_problem"] = facts.problem
     kind = last.get("issued_forecast")
     kind = str(kind) if isinstance(kind, str) else ""
@@ -262,7 +262,7 @@ def _event_marks(events: list[dict[str, Any]], start: pd.Timestamp | None = None
 def estimates_view(store: Store, run: Run) -> dict[str, Any]:
     """One figure per parameter: the estimate per cycle with ±σ, held ones open, the DSS's value, alerts marked."""
     est = store.estimates(run)
-    facts = model_facts(run.case)
+    facts = model_facts(run.case, run.config.get("model_source"))
     dss = dss_values(facts, run.config.get("dss") or {}, list(dict.fromkeys(est["parameter"])))
     events = _events(store, run)
     figures = []
@@ -457,7 +457,7 @@ def map_view(store: Store, run: Run) -> dict[str, Any]:
     """
     from rivercal.network.coordinates import branch_polylines, station_coordinates
 
-    facts = model_facts(run.case)
+    facts = model_facts(run.case, run.config.get("model_source"))
     if facts.network is None:
         why = facts.problem or f"the model {run.case!r} has no river network to draw"
         return {"problem": why, "figures": [], "rows": []}

@@ -164,6 +164,10 @@ class OnlineService:
     take_over
         Compute an unfinished cycle even when the store names a live process as its owner
         (:meth:`rivercal.store.Store.begin_cycle`): only when no other service runs this run.
+    source
+        Where the model lies (its case folder or ``model.toml``, absolute), recorded with a new run as
+        ``model_source`` so that a report or the dashboard can open the model without being told; the store names
+        the model by its name, which need not be a folder (an imported model's name is its model file's).
 
     Raises
     ------
@@ -177,7 +181,7 @@ class OnlineService:
 
     def __init__(self, model: Model, store: Store, run_name: str, config: OnlineConfig, first_issue: Any,
                  meta: Mapping[str, Any] | None = None, assimilation: AssimilationConfig | None = None,
-                 take_over: bool = False):
+                 take_over: bool = False, source: str | None = None):
         self.model = model
         self.take_over = take_over
         self.store = store
@@ -208,6 +212,8 @@ class OnlineService:
         if assimilation is not None and assimilation.mode != "parameters":
             self.filter = EnsembleFilter(model, assimilation, self.series, config.sigma, workers=config.workers)
             stored["assimilation"] = assimilation.stored()
+        if source is not None:
+            stored["model_source"] = source
         self.run = store.ensure_run(run_name, model.name, stored)
 
     # -- helpers -----------------------------------------------------------------------------------

@@ -108,11 +108,19 @@ def config_json(config: Mapping[str, Any]) -> str:
     return json.dumps(dict(config), sort_keys=True, allow_nan=False, default=_json_default)
 
 
+#: Keys of a run's configuration that say where its model lies, not how the run computes: a case folder may move
+#: between a run's cycles, so they are not compared when a run resumes.
+LOCATION_KEYS = frozenset({"model_source"})
+
+
 def config_differences(stored: Mapping[str, Any], given: Mapping[str, Any]) -> list[str]:
-    """Top-level keys whose values differ between two configurations (after JSON normalisation)."""
+    """Top-level keys whose values differ between two configurations (after JSON normalisation).
+
+    :data:`LOCATION_KEYS` are not compared.
+    """
     a = json.loads(config_json(stored))
     b = json.loads(config_json(given))
-    return sorted(k for k in set(a) | set(b) if a.get(k, _MISSING) != b.get(k, _MISSING))
+    return sorted(k for k in (set(a) | set(b)) - LOCATION_KEYS if a.get(k, _MISSING) != b.get(k, _MISSING))
 
 
 _MISSING = object()

@@ -83,7 +83,7 @@ def run_online(model: Model, db: str | Path, run: str, config: OnlineConfig, fir
                max_cycles: int | None = None, report: str | Path | None = None,
                progress: Progress = NO_PROGRESS, assimilation: AssimilationConfig | None = None,
                rain_error: float = 0.0,
-               take_over: bool = False) -> dict[str, Any]:
+               take_over: bool = False, source: str | None = None) -> dict[str, Any]:
     """Run the cycles issued from ``first`` to ``last`` and return the summary (:func:`online_summary`).
 
     Parameters
@@ -121,6 +121,8 @@ def run_online(model: Model, db: str | Path, run: str, config: OnlineConfig, fir
         (:func:`rivercal.twin.forcing_error.rain_error_model`; 0.3: about 30 %).
     take_over
         Resume a cycle whose recorded owner looks alive (:meth:`rivercal.store.Store.begin_cycle`).
+    source
+        Where the model lies, recorded with a new run (:class:`~rivercal.online.service.OnlineService`).
 
     Raises
     ------
@@ -159,7 +161,7 @@ def run_online(model: Model, db: str | Path, run: str, config: OnlineConfig, fir
         config.workers.share(model)
     with Store(db) as store:
         service = OnlineService(model, store, run, config, first, meta=meta, assimilation=assimilation,
-                                take_over=take_over)
+                                take_over=take_over, source=source)
         if scenario is not None:
             from rivercal.twin.practical import practical_truth
 
