@@ -186,7 +186,8 @@ def test_a_second_service_on_the_same_store_resumes_without_repeating(tmp_path) 
     store, svc = _service(tmp_path, config, _observations(ToyRiver(), MOWED))
     with store:
         first = svc.replay("2010-11-03")
-        again = OnlineService(ToyRiver(), store, "toy", config, first_issue="2010-10-25")
+        # a service started with its model's folder elsewhere (the folder moved) resumes the same run
+        again = OnlineService(ToyRiver(), store, "toy", config, first_issue="2010-10-25", source="/moved/toy")
         assert again.replay("2010-11-03") == []
         more = again.replay("2010-11-05")
         assert [o.cycle for o in first] == list(range(10)) and [o.cycle for o in more] == [10, 11]
@@ -260,6 +261,13 @@ def test_a_window_without_observations_fails_but_still_forecasts(tmp_path) -> No
         assert o.status == "failed" and "no observations" in o.message
         assert store.alerts(svc.run)["kind"].tolist() == ["data"]
         assert set(store.forecasts(svc.run)["kind"]) == {"updated", "dss"}
+
+
+def test_a_new_run_records_where_its_model_lies(tmp_path) -> None:
+    with Store(tmp_path / "s.sqlite") as store:
+        OnlineService(ToyRiver(), store, "toy", OnlineConfig(parameters=("FA",), workers=1), "2010-10-25",
+                      source="/data/models/toy")
+        assert store.get_run("toy").config["model_source"] == "/data/models/toy"
 
 
 def test_bad_configurations_are_refused_before_any_run(tmp_path) -> None:

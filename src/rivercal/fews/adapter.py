@@ -275,7 +275,8 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
     for key in sorted(set(run.properties) - set(PROPERTIES)):
         diag.add("warn", f"{run.path}: property {key!r} is not one rivercal reads; ignored (it reads "
                          f"{', '.join(PROPERTIES)})")
-    case = load_case(case_source(run))
+    case_folder = case_source(run)
+    case = load_case(case_folder)
     diag.add("info", f"rivercal {rivercal.__version__}: case {case.name}, time0 {run.time0:%Y-%m-%d %H:%M} UTC")
     observables = case_observables(case)
     observations, forcing = read_inputs(run, case, observables, diag)
@@ -302,7 +303,8 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
         stored = store.get_run(name)
         first = stored.config.get("first_issue") if stored is not None else None
         try:
-            service = OnlineService(model, store, name, config, first or run.time0)
+            service = OnlineService(model, store, name, config, first or run.time0,
+                                    source=str(Path(case_folder).resolve()) if Path(case_folder).exists() else None)
         except ValueError as exc:
             raise AdapterError(str(exc), file=str(run.path), field="properties") from None
         try:
