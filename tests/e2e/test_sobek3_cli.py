@@ -37,6 +37,14 @@ def test_a_refusal_is_an_error_naming_the_objects_and_the_way_out(tmp_path: Path
     run = rivercal("import", "sobek3", str(md1d), "--out", str(tmp_path / "case"), "--allow-partial")
     assert run.returncode == 0, run.stderr
     assert "6 refused" in " ".join(run.stdout.split())
+    # -q: the same import, nothing on the terminal (in this process: what the command prints is the point)
+    from typer.testing import CliRunner
+
+    from rivercal.cli.main import app
+
+    quiet = CliRunner().invoke(app, ["import", "sobek3", str(md1d), "--out", str(tmp_path / "quiet"), "--allow-partial",
+                                     "-q"])
+    assert quiet.exit_code == 0 and quiet.stdout == "" and (tmp_path / "quiet" / "case.toml").is_file()
     run = rivercal("simulate", str(tmp_path / "case"), "--out", str(tmp_path / "sim"), "--json")
     assert run.returncode == 0, run.stderr
 

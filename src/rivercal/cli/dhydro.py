@@ -6,7 +6,7 @@ from typing import Annotated
 import typer
 
 from rivercal._format import plural
-from rivercal.cli.common import CaseArg, JsonOpt, emit_json, guard, out_console
+from rivercal.cli.common import CaseArg, JsonOpt, QuietOpt, emit_json, guard, out_console
 
 __all__ = ["export_app", "import_app"]
 
@@ -41,6 +41,7 @@ def import_dhydro_cmd(
                                                   "exported the model, else at most 60 s, a divisor of the output "
                                                   "interval).")] = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Convert a D-Flow FM 1D model into a case folder, accounting for every object in import.md."""
     _require_hydrolib()
@@ -51,6 +52,8 @@ def import_dhydro_cmd(
     result = import_dhydro(model, out, options)
     if as_json:
         emit_json(result.summary)
+        return
+    if quiet:
         return
     s = result.summary
     kinds = ", ".join(plural(n, k.replace("_", " ")) for k, n in s["structures"].items()) or "no structures"
@@ -70,6 +73,7 @@ def export_dhydro_cmd(
     case: CaseArg,
     out: Annotated[Path, typer.Option("--out", help="Folder to write the D-Flow FM files to.")],
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Write a case as D-Flow FM 1D files (MDU, network, cross-sections, structures, forcing)."""
     _require_hydrolib()
@@ -80,5 +84,7 @@ def export_dhydro_cmd(
     summary = {"mdu": str(result.mdu), "files": [str(p) for p in result.files], "notes": result.notes}
     if as_json:
         emit_json(summary)
+        return
+    if quiet:
         return
     out_console.print(f"wrote {result.mdu} and {len(result.files) - 1} other files (see {out / 'export.md'})")

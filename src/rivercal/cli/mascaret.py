@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from rivercal._format import plural
-from rivercal.cli.common import JsonOpt, emit_json, guard, out_console
+from rivercal.cli.common import JsonOpt, QuietOpt, emit_json, guard, out_console
 from rivercal.errors import RivercalError
 
 __all__ = ["import_mascaret_cmd", "oriege_bench"]
@@ -39,6 +39,7 @@ def import_mascaret_cmd(
     initial_depth: Annotated[float, typer.Option(
         help="Depth of the cold start, m (Mascaret's initial water line is not carried over).")] = 0.5,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Convert a Mascaret model into a case folder, accounting for every object in import.md."""
     from rivercal.cli.options import check_choice, check_number, parse_time
@@ -66,6 +67,8 @@ def import_mascaret_cmd(
     result = import_mascaret(model, out, options)
     if as_json:
         emit_json({"folder": str(result.folder), **result.summary})
+        return
+    if quiet:
         return
     s = result.summary
     parts = [plural(s["branches"], "branch"), plural(s["points"], "point"), plural(s["profiles"], "profile"),

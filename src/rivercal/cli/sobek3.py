@@ -6,7 +6,7 @@ from typing import Annotated
 import typer
 
 from rivercal._format import plural
-from rivercal.cli.common import JsonOpt, emit_json, guard, out_console
+from rivercal.cli.common import JsonOpt, QuietOpt, emit_json, guard, out_console
 
 __all__ = ["import_sobek3_cmd"]
 
@@ -28,6 +28,7 @@ def import_sobek3_cmd(
     dt: Annotated[float | None, typer.Option(help="Time step of the case, s (default: the model's own "
                                                   "TimeStep).")] = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Convert a SOBEK 3 1D model into a case folder, accounting for every object in import.md."""
     _require_tomli_w()
@@ -36,6 +37,8 @@ def import_sobek3_cmd(
     result = import_sobek3(model, out, ImportOptions(allow_partial=allow_partial, dt=dt))
     if as_json:
         emit_json(result.summary)
+        return
+    if quiet:
         return
     s = result.summary
     kinds = ", ".join(plural(n, k.replace("_", " ")) for k, n in s["structures"].items()) or "no structures"
