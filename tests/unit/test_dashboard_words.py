@@ -71,16 +71,30 @@ def test_a_model_in_a_folder_of_its_own_is_found_through_its_registered_folder(t
 def test_the_network_map_of_a_run_without_scores_draws_the_network_without_errors(tmp_path) -> None:
     # a run of one cycle has no scored forecast yet: the map page failed with HTTP 500 (KeyError in the split of
     # no series names) once the model could be loaded
+    import pandas as pd
+
     from rivercal.dashboard.views import map_view
-    from rivercal.store import Store
+    from rivercal.store import CycleRecord, Schedule, Store
 
     with Store(tmp_path / "s.sqlite") as store:
         run = store.ensure_run("online", "dommel", {})
         view = map_view(store, run)
-    assert "problem" not in view or not view["problem"]
-    assert len(view["figures"]) == 2   # DSS and rivercal
-    assert [r["station"] for r in view["rows"]] == ["0028", "0040", "0029", "0030", "0031"]
-    assert all(r[k]["text"] == "–" for r in view["rows"] for k in ("dss", "updated"))   # nothing scored yet
+        assert "problem" not in view or not view["problem"]
+        assert len(view["figures"]) == 2   # DSS and rivercal
+        assert view["rows"] == [] and view["unscored"] == 5   # nothing scored yet: no row of dashes
+        # scores at two of the five stations: the table lists those two (an imported model has hundreds of
+        # stations, most without a gauge) and counts the rest
+        schedule = Schedule("2010-11-01T00:00:00Z", period=pd.Timedelta(days=1), window=pd.Timedelta(days=2))
+        spec = store.begin_cycle(run.id, store.next_cycle(run.id, schedule))
+        store.commit_cycle(run.id, CycleRecord(0, spec.window_start, spec.window_end, spec.issue_time))
+        store.put_scores(run, pd.DataFrame({"cycle": 0, "kind": ["updated", "dss", "updated", "dss"],
+                                            "series": ["0029.h", "0029.h", "0031.h", "0031.h"], "lead_from_h": 0.0,
+                                            "lead_to_h": 24.0, "rmse": 0.05, "bias": [0.01, -0.02, 0.03, 0.04],
+                                            "n": 24}))
+        view = map_view(store, run)
+    assert [(r["station"], r["updated"]["text"], r["dss"]["text"]) for r in view["rows"]] == [
+        ("0029", "+1.0", "-2.0"), ("0031", "+3.0", "+4.0")]
+    assert view["unscored"] == 3
 
 
 def test_the_forecast_page_draws_the_observed_series_and_counts_the_others(tmp_path) -> None:

@@ -453,7 +453,8 @@ def map_view(store: Store, run: Run) -> dict[str, Any]:
 
     One colour scale (:data:`ERROR_COLOURSCALE`, symmetric about zero) for both maps: red where the forecasts
     were too high, blue where too low, as in the report's maps. Station labels are placed by the page's
-    script so that they do not overlap.
+    script so that they do not overlap; one that finds no free place is left out (its marker names it on
+    hover). The table lists the stations with a scored level forecast and counts the others (``unscored``).
     """
     from rivercal.network.coordinates import branch_polylines, station_coordinates
 
@@ -485,7 +486,8 @@ def map_view(store: Store, run: Run) -> dict[str, Any]:
                  "line": {"color": "#a0aec0", "width": 2}, "showlegend": False},
                 {"type": "scatter", "mode": "markers+text", "x": [where[s][0] for s in ids],
                  "y": [where[s][1] for s in ids], "text": ids, "textposition": "top center", "showlegend": False,
-                 "customdata": values, "hovertemplate": "%{text}: %{customdata:+.1f} cm<extra></extra>",
+                 "customdata": [[s, v] for s, v in zip(ids, values, strict=True)],
+                 "hovertemplate": "%{customdata[0]}: %{customdata[1]:+.1f} cm<extra></extra>",
                  "textfont": {"size": 11, "color": "#1a202c"}, "cliponaxis": False,
                  "marker": {"size": 16, "color": values, "colorscale": ERROR_COLOURSCALE, "cmin": -top, "cmax": top,
                             "line": {"color": "#1a202c", "width": 1},
@@ -498,9 +500,11 @@ def map_view(store: Store, run: Run) -> dict[str, Any]:
     for s in where:
         row = bias.loc[s] if not bias.empty and s in bias.index else {}
         dss, updated = _scaled(row, "dss"), _scaled(row, "updated")
+        if dss is None and updated is None:  # no level observed there (an imported model has hundreds)
+            continue
         rows.append({"station": s, "dss": _cell(dss, format_cm(_m(dss), signed=True).removesuffix(" cm")),
                      "updated": _cell(updated, format_cm(_m(updated), signed=True).removesuffix(" cm"))})
-    return {"problem": None, "figures": figures, "rows": rows, "top_cm": top}
+    return {"problem": None, "figures": figures, "rows": rows, "top_cm": top, "unscored": len(where) - len(rows)}
 
 
 def _m(cm: float | None) -> float | None:

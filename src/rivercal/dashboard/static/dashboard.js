@@ -11,7 +11,8 @@
   }
 
   // Move the labels of the text trace of a drawn figure until no label overlaps another label or another
-  // station's marker (at most a few rounds; a crowded map keeps what it has then).
+  // station's marker (at most a few rounds); on a crowded map the labels that still overlap one kept before
+  // them or a marker, or reach beyond the figure, are then left out (their markers keep the name on hover).
   async function declutter(target, fig) {
     var trace = fig.data.findIndex(function (t) { return (t.mode || "").indexOf("text") >= 0; });
     if (trace < 0 || !Array.isArray(fig.data[trace].text)) { return; }
@@ -41,6 +42,32 @@
       }
       if (!moved) { break; }
       await Plotly.restyle(target, {textposition: [chosen.map(function (k) { return POSITIONS[k]; })]}, [trace]);
+    }
+    await dropCrowded(target, fig, trace);
+  }
+
+  async function dropCrowded(target, fig, trace) {
+    var layer = target.querySelectorAll(".scatterlayer .trace")[trace];
+    if (!layer) { return; }
+    var rect = function (e) { return e.getBoundingClientRect(); };
+    var labels = Array.from(layer.querySelectorAll(".textpoint text")).map(rect);
+    var markers = Array.from(layer.querySelectorAll("path.point")).map(rect);
+    var texts = fig.data[trace].text;
+    if (labels.length !== texts.length) { return; }
+    var frame = target.getBoundingClientRect();
+    var kept = [];
+    var shown = texts.map(function (text, i) {
+      var a = labels[i];
+      var outside = a.left < frame.left || a.right > frame.right || a.top < frame.top || a.bottom > frame.bottom;
+      var clash = outside || kept.some(function (k) { return overlaps(a, labels[k]); }) ||
+        markers.some(function (m, j) { return j !== i && overlaps(a, m); });
+      if (clash) { return ""; }
+      kept.push(i);
+      return text;
+    });
+    if (kept.length < texts.length) {
+      await Plotly.restyle(target, {text: [shown]}, [trace]);
+      target.dataset.labelsLeftOut = String(texts.length - kept.length);
     }
   }
 
