@@ -75,10 +75,15 @@ def gate(problem: CalibrationProblem, result: Any, resolution: Mapping[str, floa
     held = {}
     for i, n in enumerate(names):
         if ident.index[i] < gate_index:
-            held[n] = (f"this window cannot see {n}: identifiability index {ident.index[i]:.2f} < "
-                       f"{gate_index:g} over the {seen} direction(s) whose singular value reaches "
-                       f"{gate_sv:g} (a change of {resolution[n]:g}{unit_suffix(units.get(n))} "
-                       f"moves the cost by less than that); held at its last accepted value")
+            step = f"{resolution[n]:g}{unit_suffix(units.get(n))}"
+            if seen == 0:  # the window sees no parameter: no direction to take the index over
+                why = (f"a change of {step} in {n}, or of any estimated parameter by its resolution, moves the cost "
+                       f"by less than {gate_sv:g}")
+            else:
+                why = (f"identifiability index {ident.index[i]:.2f} < {gate_index:g} over the {seen} "
+                       f"direction{'s' if seen != 1 else ''} whose singular value reaches {gate_sv:g} (a change "
+                       f"of {step} moves the cost by less than that)")
+            held[n] = f"this window cannot see {n}: {why}; held at its last accepted value"
     return held, extra
 
 
