@@ -383,7 +383,11 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
         ptable = _parameter_table(model, run, est, change)
         ptable.to_csv(out / "parameters.csv")
         files["parameters_csv"] = str(out / "parameters.csv")
-        page.section("Crest levels and friction: true, DSS and rivercal (thesis Tables 5-1 … 5-5)",
+        from rivercal.twin.practical import SCENARIOS
+
+        twin = (_meta(run).get("scenario") or "") in SCENARIOS
+        page.section("Crest levels and friction: true, DSS and rivercal (thesis Tables 5-1 … 5-5)" if twin else
+                     "The model's parameters: DSS and rivercal",
                      paragraph(_parameter_words(change, list(config["parameters"]), ptable)),
                      table(ptable, "Parameters", float_format=".4g"))
         shown = cycles[["cycle", "issue_time", "status", "algorithm", "model_runs", "wall_time_s", "cost_before",
