@@ -180,9 +180,14 @@ def test_every_command_runs_on_a_shared_model_as_imported(tmp_path: Path, name: 
     run = rivercal("online", str(case), "--observations", str(tmp_path / "observed.csv"), "--params", param,
                    "--from", issue, "--to", issue, "--max-cycles", "1", "--window", span, "--cycle", span,
                    "--horizon", span, "--warmup", online_warmup, "--db", str(tmp_path / "run.sqlite"),
-                   "--workers", "1", "--assimilate", "parameters", "--quiet", "--json")
+                   "--workers", "1", "--assimilate", "parameters", "--quiet", "--json",
+                   "--out", str(tmp_path / "report"))
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["status"] == {"done": 1}
+    # the report of a run on a water board's model: no thesis twin, so its parameter table is not named after
+    # the thesis' tables of true values
+    html = (tmp_path / "report" / "index.html").read_text(encoding="utf-8")
+    assert "The model&#x27;s parameters: DSS and rivercal" in html and "Tables 5-1" not in html
     # against the same few gauges (a twin of every station drew a panel for each of Dellen's 200 stations)
     run = rivercal("analyse", str(case), "--params", param, "--window", window, "--warmup", warmup, "--workers", "1",
                    "--observations", str(tmp_path / "observed.csv"), "--out", str(tmp_path / "analyse"), "--json")
