@@ -35,9 +35,23 @@ def twin(tmp_path_factory):
     truth = practical_truth(rain_error_model(model, 0.3, seed=5), "PI-0", *period, noise="gaussian", seed=5,
                             series=service.series)
     store.ingest(truth.observations, source="twin")
+    stages: list[str] = []  # what a cycle says it does now (the command line's progress display)
+    service.on_stage = stages.append
     outcomes = service.replay(first + pd.Timedelta("1D"))
+    service.stages = stages  # for the test of what the cycles said
     yield store, service, truth, outcomes
     store.close()
+
+
+def test_a_cycle_says_what_it_does_interval_by_interval(twin):
+    # states only: no parameter estimate; cycle 0 starts its members at the warm-up's start (2.5 days before its
+    # issue time: 60 hourly intervals), cycle 1 continues from cycle 0's members at its issue time (24)
+    stages = twin[1].stages
+    for cycle, day, count in ((0, "10-18", 60), (1, "10-19", 24)):
+        head = f"cycle {cycle} 2010-{day} 00:00: "
+        mine = [s.removeprefix(head) for s in stages if s.startswith(head)]
+        assert mine == ["forecasting", *(f"16 members, interval {k}/{count}" for k in range(1, count + 1)),
+                        "16 members' forecasts"]
 
 
 @pytest.mark.slow  # the module's twin: about 12 s, 16 members over two cycles

@@ -39,7 +39,7 @@ import io
 import logging
 import math
 import zipfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -387,8 +387,8 @@ class EnsembleFilter:
             self._tasks = None
 
     def assimilate(self, members: list[ModelState], errors: np.ndarray, parameters: dict[str, float],
-                   end: pd.Timestamp, observed: pd.DataFrame,
-                   rng: np.random.Generator) -> tuple[list[ModelState], np.ndarray, int]:
+                   end: pd.Timestamp, observed: pd.DataFrame, rng: np.random.Generator,
+                   stage: Callable[[int, int], None] | None = None) -> tuple[list[ModelState], np.ndarray, int]:
         """Advance the members to ``end``, analysing at the end of every interval with the readings inside it.
 
         ``observed`` is a wide table (UTC index, one column per series of :attr:`series`; NaN: missing) at the
@@ -396,13 +396,18 @@ class EnsembleFilter:
         second offsets). The analysis at the end of the interval (t, t + interval] uses every reading whose
         time lies in it (:meth:`_readings`); the start of the first interval (the members' time) belongs to
         the interval before it, which the previous cycle analysed. Returns the members at ``end``, their forcing
-        errors and the number of analyses made.
+        errors and the number of analyses made. ``stage`` is told the interval about to run and how many there are.
         """
         t = members[0].time
         analyses = 0
+        count = math.ceil((end - t) / self.interval)
         analysis = FILTERS[self.config.method]
         observed = observed.reindex(columns=self.series).sort_index()
+        done = 0
         while t < end:
+            if stage is not None:
+                stage(done + 1, count)
+            done += 1
             nxt = min(t + self.interval, end)
             factors, errors = self._factors(1, errors, rng)
             result = self._run(parameters, t, nxt, members, factors, self._output_step(nxt - t))
@@ -554,6 +559,10 @@ def assimilation_cycle(service: OnlineService, spec: CycleSpec, run_start: pd.Ti
         members, errors = stored
     observed = service.store.observation_table(filt.series, members[0].time, t0, sources=service.config.sources)
     wide = observed.pivot_table(index="time", columns="series", values="value").reindex(columns=filt.series)
-    members, errors, analyses = filt.assimilate(members, errors, parameters, t0, wide, rng)
+    def stage(k: int, n: int) -> None:
+        service._stage(f"cycle {spec.cycle} {t0:%Y-%m-%d %H:%M}: {filt.config.members} members, interval {k}/{n}")
+
+    members, errors, analyses = filt.assimilate(members, errors, parameters, t0, wide, rng, stage=stage)
+    service._stage(f"cycle {spec.cycle} {t0:%Y-%m-%d %H:%M}: {filt.config.members} members' forecasts")
     fc = filt.forecast(members, errors, parameters, service.horizon, service.config.output_interval_s, rng)
     return fc, filt.to_record(members, errors), analyses

@@ -184,6 +184,9 @@ class OnlineService:
                  take_over: bool = False, source: str | None = None):
         self.model = model
         self.take_over = take_over
+        #: Told what a cycle does now (the command line's progress display: a cycle of a large model with
+        #: state updating takes minutes); None: nothing is said.
+        self.on_stage: Callable[[str], None] | None = None
         self.store = store
         self.config = config
         self.schedule = config.schedule(first_issue)
@@ -217,6 +220,11 @@ class OnlineService:
         self.run = store.ensure_run(run_name, model.name, stored)
 
     # -- helpers -----------------------------------------------------------------------------------
+
+    def _stage(self, text: str) -> None:
+        """Say what the cycle does now (:attr:`on_stage`)."""
+        if self.on_stage is not None:
+            self.on_stage(text)
 
     def resolution(self, name: str) -> float:
         """The resolution of a parameter (its unit; see :class:`OnlineConfig`)."""
@@ -301,6 +309,7 @@ class OnlineService:
         elif self.filter is not None and self.filter.config.mode == "states":
             est.message = "state updating only: the parameters stay as they are"
         else:
+            self._stage(f"cycle {spec.cycle} {t0:%Y-%m-%d %H:%M}: estimating the parameters")
             self._estimate(est, spec, warm, state, obs, first=not self.store.last_accepted(self.run))
         held, estimates = est.held, est.estimates
         accepted = {n: (warm[n] if n in held else estimates[n]) for n in warm}
@@ -310,6 +319,7 @@ class OnlineService:
             change = (replace(change, after=after) if change.found_cycle == spec.cycle
                       else intervention.carried(change, after))
         alerts = [*est.alerts, *guardrails.limit_alerts(self.parameters, warm, estimates, self.config.max_change)]
+        self._stage(f"cycle {spec.cycle} {t0:%Y-%m-%d %H:%M}: forecasting")
         forecasts, states = self._forecasts(spec, run_start, state, accepted, change)
         bands = ensemble = None
         if self.filter is not None:

@@ -162,6 +162,7 @@ def run_online(model: Model, db: str | Path, run: str, config: OnlineConfig, fir
     with Store(db) as store:
         service = OnlineService(model, store, run, config, first, meta=meta, assimilation=assimilation,
                                 take_over=take_over, source=source)
+        service.on_stage = progress.stage
         if scenario is not None:
             from rivercal.twin.practical import practical_truth
 
