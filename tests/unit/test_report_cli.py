@@ -13,17 +13,22 @@ from rivercal.cli.main import app
 from rivercal.store import Store
 
 
+def _imported_like(folder: Path) -> Path:
+    """The packaged case synthetic copied to ``folder`` and named 'test_compound', as an import names a model."""
+    shutil.copytree(Path(str(resources.files("rivercal.cases") / "synthetic")), folder)
+    toml = folder / "case.toml"
+    text = toml.read_text(encoding="utf-8")
+    assert 'name = "synthetic"' in text
+    toml.write_text(text.replace('name = "synthetic"', 'name = "test_compound"', 1), encoding="utf-8")
+    return folder
+
+
 def test_a_run_of_a_model_in_a_folder_of_its_own_takes_the_folder_with_case(tmp_path: Path,
                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
     # an imported model is a folder ('comp/') whose case is named by the model ('test_compound'); the store keeps
     # the name, so 'rivercal report' cannot find the model from the store alone and asks for --case
     monkeypatch.chdir(tmp_path)
-    case = tmp_path / "comp"
-    shutil.copytree(Path(str(resources.files("rivercal.cases") / "synthetic")), case)
-    toml = case / "case.toml"
-    text = toml.read_text(encoding="utf-8")
-    assert 'name = "synthetic"' in text
-    toml.write_text(text.replace('name = "synthetic"', 'name = "test_compound"', 1), encoding="utf-8")
+    _imported_like(tmp_path / "comp")
     with Store(tmp_path / "s.sqlite") as store:
         store.ensure_run("online", "test_compound", {})
     base = ["report", "--db", "s.sqlite", "--out", "report"]
@@ -47,11 +52,7 @@ def test_a_run_that_recorded_its_models_folder_is_reported_without_case(tmp_path
     from rivercal.dashboard.facts import model_facts
 
     monkeypatch.chdir(tmp_path)
-    case = tmp_path / "comp"
-    shutil.copytree(Path(str(resources.files("rivercal.cases") / "synthetic")), case)
-    toml = case / "case.toml"
-    toml.write_text(toml.read_text(encoding="utf-8").replace('name = "synthetic"', 'name = "test_compound"', 1),
-                    encoding="utf-8")
+    case = _imported_like(tmp_path / "comp")
     with Store(tmp_path / "s.sqlite") as store:
         store.ensure_run("online", "test_compound", {"window": "2D", "model_source": str(case)})
     facts = model_facts("test_compound", str(case))
