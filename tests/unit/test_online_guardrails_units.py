@@ -98,6 +98,12 @@ def test_a_declared_series_that_is_never_observed_is_named_once(tmp_path) -> Non
         silent = store.observations(["G.h"], times[-1] + pd.Timedelta("1D"), times[-1] + pd.Timedelta("3D"))
         alerts = data_alerts(silent, "48h", 3600.0, 0.5, store=store, first=False)
         assert len(alerts) == 1 and "G.h (0%)" in alerts[0].message
+        # an imported model follows every structure's series, of which a few are gauged: the alert says so first
+        many = store.observations(["G.h", *(f"S{k}.h_up" for k in range(9))], times[0], times[-1])
+        (alert,) = data_alerts(many, "48h", 3600.0, 0.5, store=store, first=True)
+        assert alert.message.startswith("readings of 1 of the 10 series the run follows are stored; none of the "
+                                        "other 9 (S0.h_up, S1.h_up, ")
+        assert "and 1 more series): they are left out of the calibration" in alert.message
 
 
 def test_alerts_put_a_unit_after_a_value_and_none_after_a_dimensionless_one() -> None:

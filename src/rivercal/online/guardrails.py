@@ -201,9 +201,16 @@ def data_alerts(observations: Any, window: Any, interval_s: float, min_coverage:
         named = sorted(never)
         shown = ", ".join(named[:DATA_ALERT_NAMES]) + (f" and {len(named) - DATA_ALERT_NAMES} more series"
                                                         if len(named) > DATA_ALERT_NAMES else "")
-        out.append(AlertRecord("data", "no reading of " + shown + " is stored: "
-                               + ("it is" if len(never) == 1 else "they are") + " left out of the calibration and "
-                               "the coverage check until readings arrive (said once, in the run's first cycle)"))
+        rest = ("it is" if len(never) == 1 else "they are") + (" left out of the calibration and the coverage check "
+                                                               "until readings arrive (said once, in the run's first "
+                                                               "cycle)")
+        observed = len(coverage) - len(never)
+        if len(never) > observed:  # most of the model's series: an imported model's structures, a few of them gauged
+            text = (f"readings of {observed} of the {len(coverage)} series the run follows are stored; none of the "
+                    f"other {len(never)} ({shown}): {rest}")
+        else:
+            text = f"no reading of {shown} is stored: {rest}"
+        out.append(AlertRecord("data", text))
     if thin:
         out.append(AlertRecord("data", f"observations cover less than {min_coverage:.0%} of the window at "
                                + _thin_words(thin, len(coverage))))
