@@ -16,6 +16,7 @@ program, helper or run folder may be left behind.
 from __future__ import annotations
 
 import io
+import json
 import os
 import random
 import signal
@@ -161,8 +162,18 @@ def online(model: Path, history: Path, db: Path) -> list[str]:
 
 
 def comparable(rows: dict[str, list[tuple]]) -> dict[str, list[tuple]]:
-    """The store's rows with each stored state's zip archive replaced by its files (zip stamps the time)."""
+    """The store's rows with each stored state's zip archive replaced by its files (zip stamps the time), and
+    without the folder each run's model lay in (the reference run's model is another folder's)."""
     out = dict(rows)
+
+    def located(value: object) -> object:
+        if isinstance(value, str) and '"model_source"' in value:
+            config = json.loads(value)
+            config.pop("model_source")
+            return json.dumps(config, sort_keys=True)
+        return value
+
+    out["runs"] = [tuple(located(v) for v in row) for row in rows["runs"]]
 
     def files(data: bytes) -> tuple:
         with zipfile.ZipFile(io.BytesIO(data)) as z:
