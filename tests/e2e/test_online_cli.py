@@ -13,18 +13,16 @@ import pandas as pd
 import pytest
 
 from tests.cli import rivercal
+from tests.run_artefacts import PIFG_REPLAY, dommel_dependency_map, pifg_replay
 
 pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
-def pifg(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
-    folder = tmp_path_factory.mktemp("online")
-    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--window", "3D", "--db", str(folder / "run.sqlite"), "--out", str(folder / "report"), "--workers",
-                   "2", "--assimilate", "parameters", "--json")
-    assert run.returncode == 0, run.stderr
-    return folder, json.loads(run.stdout)
+def pifg() -> tuple[Path, dict]:
+    """The replay (:data:`tests.run_artefacts.PIFG_REPLAY`), run once in the test run: the store, report and summary
+    that ``tests/e2e/test_online_one_set_of_numbers.py`` reads too."""
+    return pifg_replay()
 
 
 def test_online_finds_the_new_friction_and_beats_the_dss(pifg) -> None:
@@ -63,11 +61,9 @@ def test_report_command_rewrites_from_the_store_alone(pifg, tmp_path: Path) -> N
     assert Path(json.loads(run.stdout)["files"]["report"]).is_file()
 
 
-def test_restart_with_the_same_arguments_computes_nothing_again(pifg) -> None:
-    folder, _ = pifg
-    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--window", "3D", "--db", str(folder / "run.sqlite"), "--workers", "2", "--assimilate", "parameters",
-                   "--json")
+def test_restart_with_the_same_arguments_computes_nothing_again(pifg, tmp_path: Path) -> None:
+    folder, _ = pifg_replay(tmp_path / "replay")  # a copy: the shared store stays as the replay left it
+    run = rivercal(*PIFG_REPLAY, "--db", str(folder / "run.sqlite"))
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)
     assert summary["cycles_done_now"] == 0 and summary["cycles"] == 2
@@ -110,11 +106,11 @@ def test_realistic_crest_lowering_is_dated_once_and_its_value_taken(tmp_path: Pa
 
 
 def test_sparse_dud_with_the_dependency_map_of_analyse_finds_the_local_friction(tmp_path: Path) -> None:
-    """PI-Fl (the friction of one reach 16 → 25 m^(1/3)/s): Sparse DuD on the map ``rivercal analyse`` measured."""
-    analysed = rivercal("analyse", "dommel", "--params", "FA,F1,FL,W2", "--what", "identifiability", "--workers", "2",
-                        "--out", str(tmp_path / "analyse"), "--quiet")
-    assert analysed.returncode == 0, analysed.stderr
-    dependency = tmp_path / "analyse" / "dependency.csv"
+    """PI-Fl (the friction of one reach 16 → 25 m^(1/3)/s): Sparse DuD on the map ``rivercal analyse`` measured.
+
+    The map is this run's one measurement (:func:`tests.run_artefacts.dommel_dependency_map`: the same command
+    that ``tests/unit/test_analysis_cli.py`` calibrates with), made by whichever of the two asks first."""
+    dependency = dommel_dependency_map()
     run = rivercal("online", "dommel", "--scenario", "PI-Fl", "--from", "2010-11-09", "--to", "2010-11-09",
                    "--window", "3D", "--params", "FA,F1,FL,W2", "--algorithm", "sparse_dud", "--dependency",
                    str(dependency), "--db", str(tmp_path / "run.sqlite"), "--workers", "2", "--assimilate",

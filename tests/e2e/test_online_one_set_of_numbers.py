@@ -1,7 +1,8 @@
 """One set of numbers: the terminal, the JSON, the report, the dashboard and the store give one figure per thing.
 
-One short on-line run through the CLI (twin PI-Fg, two daily cycles after the change, a two-day window:
-about a minute on 2 cores) writes its store, its report and its JSON summary. The test reads the forecast
+One short on-line run through the CLI (twin PI-Fg, two daily cycles after the change, a three-day window: the
+replay :data:`tests.run_artefacts.PIFG_REPLAY`, run once per test run and also checked by
+``tests/e2e/test_online_cli.py``) writes its store, its report and its JSON summary. The test reads the forecast
 figures from all of them — the JSON, the terminal summary printed from it, the report's headline and its
 Forecasts section, the dashboard's "Now" view and the metrics stored with the run — and requires the
 same numbers and the same statement of which forecasts they cover. The stored figure itself is checked
@@ -10,7 +11,6 @@ against an independent recomputation from the store's forecasts and observations
 
 from __future__ import annotations
 
-import json
 import re
 from html.parser import HTMLParser
 from pathlib import Path
@@ -20,11 +20,11 @@ import pandas as pd
 import pytest
 
 from rivercal.store import Store
-from tests.cli import rivercal
+from tests.run_artefacts import PIFG_RUN, pifg_replay
 
 pytestmark = pytest.mark.slow
 
-RUN = "numbers"
+RUN = PIFG_RUN
 
 
 class _Text(HTMLParser):
@@ -37,13 +37,8 @@ class _Text(HTMLParser):
 
 
 @pytest.fixture(scope="module")
-def done(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
-    folder = tmp_path_factory.mktemp("numbers")
-    run = rivercal("online", "dommel", "--scenario", "PI-Fg", "--from", "2010-11-09", "--to", "2010-11-10",
-                   "--window", "2D", "--warmup", "12h", "--db", str(folder / "run.sqlite"), "--run", RUN,
-                   "--out", str(folder / "report"), "--workers", "2", "--assimilate", "parameters", "--json")
-    assert run.returncode == 0, run.stderr
-    return folder, json.loads(run.stdout)
+def done() -> tuple[Path, dict]:
+    return pifg_replay()
 
 
 def _cm(metres: float) -> str:

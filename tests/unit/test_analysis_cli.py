@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from rivercal.cli.main import app
 from tests.cli import rivercal
+from tests.run_artefacts import dommel_dependency_map
 
 
 @pytest.mark.parametrize(("args", "message"), [
@@ -84,15 +85,15 @@ def test_analyse_dommel_json_and_files(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_calibrate_with_the_dependency_map_of_analyse(tmp_path: Path) -> None:
-    analysed = rivercal("analyse", "dommel", "--params", "FA,F1,FL,W2", "--what", "identifiability", "--workers", "2",
-                        "--out", str(tmp_path / "analyse"), "--quiet")
-    assert analysed.returncode == 0, analysed.stderr
+    """The map of ``rivercal analyse dommel --params FA,F1,FL,W2 --what identifiability``, measured once in the test
+    run (:func:`tests.run_artefacts.dommel_dependency_map`; ``tests/e2e/test_online_cli.py`` replays with it too)."""
+    dependency = dommel_dependency_map()
     run = rivercal("calibrate", "dommel", "--params", "FA,F1,FL,W2", "--window", "moderate", "--twin", "FL=20",
-                   "--algorithm", "sparse_dud", "--dependency", str(tmp_path / "analyse" / "dependency.csv"),
+                   "--algorithm", "sparse_dud", "--dependency", str(dependency),
                    "--workers", "2", "--out", str(tmp_path / "calibrate"), "--json")
     assert run.returncode == 0, run.stderr
     estimates = json.loads(run.stdout)["estimates"]
     assert estimates["FL"] == pytest.approx(20.0, abs=0.05) and estimates["FA"] == pytest.approx(16.0, abs=0.05)
     refused = rivercal("calibrate", "dommel", "--params", "FA", "--window", "moderate", "--twin", "FA=20",
-                       "--dependency", str(tmp_path / "analyse" / "dependency.csv"), "--out", str(tmp_path / "x"))
+                       "--dependency", str(dependency), "--out", str(tmp_path / "x"))
     assert refused.returncode == 2 and "serves --algorithm sparse_dud only, not dud" in refused.stderr
