@@ -57,19 +57,28 @@ def copy_of(name: str, build: Callable[[Path], object], destination: Path) -> Pa
 
 
 def _import_dellen(folder: Path) -> None:
-    from rivercal.io.dhydro import ImportOptions, import_dhydro
+    from tests.cli import rivercal
     from tests.shared_data import shared_model
 
     source = shared_model("dhydro-dellen")
-    import_dhydro(source / "dflowfm" / "Flow1D.mdu", folder,
-                  ImportOptions(realtime=(source / "rr_to_flow.nc", source / "rtc_to_flow.nc")))
+    folder.mkdir()
+    run = rivercal("import", "dhydro", str(source / "dflowfm" / "Flow1D.mdu"), "--out", str(folder / "case"),
+                   "--realtime", str(source / "rr_to_flow.nc"), "--realtime", str(source / "rtc_to_flow.nc"), "--json")
+    assert run.returncode == 0, run.stderr
+    (folder / "summary.json").write_text(run.stdout, encoding="utf-8")
 
 
 def dellen(destination: Path) -> Path:
     """The shared D-HYDRO model Dellen imported with its two exchange files (``rivercal import dhydro
-    ../shared/data/dhydro-dellen/dflowfm/Flow1D.mdu --realtime rr_to_flow.nc --realtime rtc_to_flow.nc``),
-    copied to ``destination``: the case folder."""
-    return copy_of("dellen-realtime", _import_dellen, destination)
+    ../shared/data/dhydro-dellen/dflowfm/Flow1D.mdu --realtime rr_to_flow.nc --realtime rtc_to_flow.nc``, run once
+    per test run in this process, through :mod:`tests.cli`), copied to ``destination``: the case folder."""
+    shutil.copytree(artefact("dellen-realtime", _import_dellen) / "case", destination)
+    return destination
+
+
+def dellen_summary() -> dict:
+    """The JSON summary that the import of :func:`dellen` printed."""
+    return json.loads((artefact("dellen-realtime", _import_dellen) / "summary.json").read_text(encoding="utf-8"))
 
 
 #: The command whose dependency map :func:`dommel_dependency_map` shares (its ``--out`` folder is the artefact).

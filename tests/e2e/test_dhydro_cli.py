@@ -12,6 +12,8 @@ import pytest
 from rivercal.model import load_model
 from tests.cli import rivercal
 from tests.dhydro_models import write_model
+from tests.run_artefacts import dellen as shared_dellen
+from tests.run_artefacts import dellen_summary
 from tests.shared_data import shared_model
 
 
@@ -19,13 +21,10 @@ from tests.shared_data import shared_model
 def dellen(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     """``rivercal import dhydro`` of Dellen with its real-time forcing, as a user runs it: the case and the summary.
 
-    One import serves the summary's test and the commands run on the model as imported."""
-    mdu = shared_model(*_SHARED["dellen"][0])
-    case = tmp_path_factory.mktemp("dellen") / "case"
-    extra = [str(mdu.parents[1] / x) if x.endswith(".nc") else x for x in _SHARED["dellen"][1]]
-    run = rivercal("import", "dhydro", str(mdu), "--out", str(case), *extra, "--json")
-    assert run.returncode == 0, run.stderr
-    return case, json.loads(run.stdout)
+    One import serves the summary's test and the commands run on the model as imported: the test run's one
+    (:func:`tests.run_artefacts.dellen`, the same command, made once for every module that starts from Dellen);
+    this module works on a copy of its case."""
+    return shared_dellen(tmp_path_factory.mktemp("dellen") / "case"), dellen_summary()
 
 
 def test_import_prints_the_summary_as_json(dellen) -> None:
