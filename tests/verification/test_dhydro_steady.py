@@ -44,3 +44,18 @@ def test_levels_after_three_days_follow_the_gradually_varied_flow_ode(tmp_path) 
     q = out.discharges.iloc[-1]
     assert np.allclose(q[[lab for lab in q.index if not lab.startswith(("weir", "culvert"))]], 100.0, atol=0.05)
     assert pd.Timestamp(out.levels.index[-1]) == sim.end
+
+
+def test_a_model_folder_reached_through_a_link_imports_as_the_folder_itself(tmp_path) -> None:
+    """A water board's models often lie behind a link (a mounted share, a 'current' link to a version):
+    hydrolib-core opens the network file by its real path, which the confinement to the model folder took for a
+    file outside it ('could not read it as a UGRID network'). Through a link the case is the same as without."""
+    import tomllib
+
+    mdu = shared_model("dhydro-1d-steady-state-flow", "Boundary.mdu")
+    (tmp_path / "link").symlink_to(mdu.parent, target_is_directory=True)
+    direct = import_dhydro(mdu, tmp_path / "direct")
+    linked = import_dhydro(tmp_path / "link" / mdu.name, tmp_path / "linked")
+    assert linked.summary == direct.summary
+    assert tomllib.loads((tmp_path / "linked" / "case.toml").read_text(encoding="utf-8")) == tomllib.loads(
+        (tmp_path / "direct" / "case.toml").read_text(encoding="utf-8"))

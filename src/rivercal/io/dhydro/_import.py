@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import re
 from collections import defaultdict
 from dataclasses import dataclass
@@ -80,7 +81,9 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
         partial imports are not allowed (the message lists them; ``import.md`` is written all the same).
     """
     options = options or ImportOptions()
-    mdu, out = Path(mdu), Path(out)
+    # the model folder by its real path: hydrolib-core opens the files it references by their real paths, which the
+    # confinement to the model folder would otherwise take for files outside a folder reached through a link
+    mdu, out = Path(os.path.realpath(Path(mdu).parent)) / Path(mdu).name, Path(out)
     _check_options(options)
     _check_out(out)
     ledger = Ledger()
