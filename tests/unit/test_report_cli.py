@@ -67,6 +67,12 @@ def test_a_run_that_recorded_its_models_folder_is_reported_without_case(tmp_path
     run = CliRunner().invoke(app, [*base[:-1], "report2"])
     assert run.exit_code == 2, run.output
     assert f"(it lay at {case} when the run was created)" in " ".join(run.stderr.split())
+    # another model in the recorded folder now: said as such, not as a --case the user never gave
+    shutil.copytree(Path(str(resources.files("rivercal.cases") / "synthetic")), case)
+    run = CliRunner().invoke(app, [*base[:-1], "report3"])
+    assert run.exit_code == 2, run.output
+    assert f"{case} (the folder run 'online' recorded): that is the model 'synthetic'" in " ".join(run.stderr.split())
+    shutil.rmtree(case)
     with Store(tmp_path / "s.sqlite") as store:  # the same run, its model now elsewhere: it resumes
         resumed = store.ensure_run("online", "test_compound", {"window": "2D", "model_source": str(moved)})
     assert resumed.name == "online"

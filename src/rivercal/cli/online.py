@@ -28,7 +28,6 @@ from rivercal.cli.options import (
     check_number,
     check_workers,
     dask_address,
-    model_source,
     open_model,
     output_dir,
     output_file,
@@ -37,6 +36,7 @@ from rivercal.cli.options import (
     workers_for,
 )
 from rivercal.errors import CaseError, OptionError, RivercalError
+from rivercal.models.load import model_source
 
 __all__ = ["demo", "online", "print_summary", "report"]
 
@@ -403,6 +403,7 @@ def report(
         if stored is None:
             raise OptionError(f"--run {name!r}: not in {db} (it has {', '.join(runs['name'])})", option="--run")
         recorded = stored.config.get("model_source")  # where the model lay when the run was created
+        given = case
         if case is None and recorded and Path(recorded).exists():
             case = recorded
         try:
@@ -415,8 +416,9 @@ def report(
                               f"here nor a packaged case{where}: give its case folder or model.toml with --case",
                               option="--case") from None
         if model.name != stored.case:
-            raise OptionError(f"--case {case}: that is the model {model.name!r}; run {name!r} of {db} serves "
-                              f"{stored.case!r}", option="--case")
+            where = f"--case {case}" if given is not None else f"{case} (the folder run {name!r} recorded)"
+            raise OptionError(f"{where}: that is the model {model.name!r}; run {name!r} of {db} serves "
+                              f"{stored.case!r} (give its folder with --case)", option="--case")
         files = write_online_report(store, name, out, model=model)
     if as_json:
         emit_json({"run": name, "files": files})

@@ -23,7 +23,6 @@ __all__ = [
     "check_workers",
     "dask_address",
     "input_file",
-    "model_source",
     "open_model",
     "optimiser_options",
     "output_dir",
@@ -53,12 +52,6 @@ def open_model(argument: str, *, show_compilation: bool = True) -> Any:
 
     watch_compilation(show_compilation)
     return load_model(argument)
-
-
-def model_source(argument: str) -> str | None:
-    """Where a CASE argument lies, as an absolute path (None for the name of a packaged case or model)."""
-    path = Path(argument)
-    return str(path.resolve()) if path.exists() else None
 
 
 # -- where the runs go -----------------------------------------------------------------------------

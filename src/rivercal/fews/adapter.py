@@ -75,6 +75,7 @@ from rivercal.io.pixml import (
     PiSeries,
     write_pixml_series,
 )
+from rivercal.models.load import model_source
 
 if TYPE_CHECKING:
     from rivercal.models.contract import Model
@@ -304,7 +305,7 @@ def _cycle(run: RunFile, diag: Diagnostics) -> dict[str, Any]:
         first = stored.config.get("first_issue") if stored is not None else None
         try:
             service = OnlineService(model, store, name, config, first or run.time0,
-                                    source=str(Path(case_folder).resolve()) if Path(case_folder).exists() else None)
+                                    source=model_source(case_folder))
         except ValueError as exc:
             raise AdapterError(str(exc), file=str(run.path), field="properties") from None
         try:

@@ -18,7 +18,7 @@ from rivercal.models.config import MODEL_FILE, ModelFile, ModelFileError, read_m
 from rivercal.models.contract import CalibrationSetup
 from rivercal.models.embedded import load_case_model
 
-__all__ = ["available_models", "load_model", "load_model_file", "model_file_path"]
+__all__ = ["available_models", "load_model", "load_model_file", "model_file_path", "model_source"]
 
 
 def available_models() -> list[str]:
@@ -38,6 +38,15 @@ def model_file_path(source: str | Path) -> Path | None:
     if not path.exists() and name in available_models() and name not in available_cases():
         return Path(str(resources.files("rivercal.cases") / name / MODEL_FILE))
     return None
+
+
+def model_source(source: str | Path) -> str | None:
+    """Where a model given to :func:`load_model` lies: an absolute path, or None for a packaged name.
+
+    A run records it, so that a report or the dashboard can open the model again.
+    """
+    path = Path(source)
+    return str(path.resolve()) if path.exists() else None
 
 
 def load_model(source: str | Path) -> Any:
