@@ -36,7 +36,6 @@ from rivercal.cli.options import (
     workers_for,
 )
 from rivercal.errors import CaseError, OptionError, RivercalError
-from rivercal.models.load import model_source
 
 __all__ = ["demo", "online", "print_summary", "report"]
 
@@ -194,6 +193,8 @@ def online(
     name = run or scenario or "online"
     with reporter.running("starting"), workers_for(workers, address) as where:
         config = replace(config, workers=where)
+        from rivercal.models.load import model_source
+
         try:
             summary = run_online(model, db, name, config, first, last, scenario=scenario,
                                  noise=noise, seed=seed, realism=level, observations=files, follow=follow, poll=poll,
