@@ -10,12 +10,19 @@ free overfall is close to the critical depth), and the upstream level is governe
 
 :func:`overfall_coefficients` runs in every Picard iteration after the structures, for the links with such
 a step (``net.dl_link``): when the level downstream (in the flow direction, at the iterate) lies below the
-brink ``crest`` (the higher of the link's two end beds) plus two thirds of the upstream depth above it, the
-link is written like a free weir without losses (:func:`.structures.weir_link`): flux area A(d_c) of the
-link's profile at the critical depth d_c = (2/3) h1 and velocity √(g d_c), so that at convergence
-Q = A(d_c) √(g d_c), the critical discharge of a rectangular section with upstream head h1 above the brink.
-Otherwise the link keeps its channel coefficients (:mod:`.momentum`), which are saved in the first
-iteration and restored when an iterate leaves the overfall.
+brink ``crest`` (the higher of the link's two end beds) plus two thirds of the upstream depth above it, and
+the link's channel law would carry more at the iterate than the brink's critical discharge, the link is written
+like a free weir without losses (:func:`.structures.weir_link`): flux area A(d_c) of the link's profile at the
+critical depth d_c = (2/3) h1 and velocity √(g d_c), so that at convergence Q = A(d_c) √(g d_c), the critical
+discharge of a rectangular section with upstream head h1 above the brink. Otherwise the link keeps its channel
+coefficients (:mod:`.momentum`), which are saved in the first iteration and restored when an iterate leaves the
+overfall.
+
+The brink limits the flow; it never raises it. Where the channel carries less than the brink could pass — a
+flat pipe leaving a deep manhole above its bottom, its outfall low — the brink is no control. Judged by the
+levels alone, such a pipe switched between its channel law (whose steady state lies on the free side of the
+limit) and the brink's law (whose steady state lies on the drowned side) every few steps, and its levels swung
+for as long as the flow lasted (tests/verification/test_overfall_entry.py).
 """
 
 from __future__ import annotations
@@ -53,10 +60,11 @@ def overfall_coefficients(net, work, zk, u, dt, first):
         else:
             z_up, z_down, sign, prof = zk[k2], zk[k1], -1.0, net.lk_p2[link]
         h1 = z_up - crest
+        a_ch, f_ch, r_ch = saved[0, j], saved[1, j], saved[2, j]
+        area[link] = a_ch
+        fco[link] = f_ch
+        rco[link] = r_ch
         if h1 <= 0.0 or z_down >= crest + (2.0 / 3.0) * h1:  # no flow over the brink, or drowned: a channel
-            area[link] = saved[0, j]
-            fco[link] = saved[1, j]
-            rco[link] = saved[2, j]
             continue
         d_c = (2.0 / 3.0) * h1
         a_c = flow_geometry(net.tab_off, net.tab_n, net.tab_idd, net.tab_top, net.tab_wf_top, net.tab_af, net.tab_pf,
@@ -65,6 +73,8 @@ def overfall_coefficients(net, work, zk, u, dt, first):
         u_c = math.sqrt(G * d_c)
         cu = G / (1.5 * length)
         b = 1.0 / dt + u_c / length
+        if sign * a_ch * (r_ch - f_ch * (zk[k2] - zk[k1])) <= a_c * u_c:  # the channel carries less: no control
+            continue
         area[link] = a_c
         fco[link] = cu / b
         rco[link] = (u[link] / dt + sign * cu * (z_down - crest)) / b
