@@ -30,7 +30,9 @@ __all__ = ["HUPSEL_METHODS", "HupselCalibration", "calibrate_hupsel"]
 #: Methods compared on the Hupsel Brook, with the options they need here.
 HUPSEL_METHODS: dict[str, dict] = {
     "dud": {},
-    "trf": {"options": {"rel_step": 1e-3}},  # the model has adaptive sub-steps: a 1.5e-8 step sees only noise
+    # the model has adaptive sub-steps: a 1.5e-8 step sees only noise, and with 1e-3 scipy 1.17's TRF stops short of
+    # the optimum (NSE 0.8666 against DuD's 0.8697 in the calibration year); 3e-3 reaches it (0.8697)
+    "trf": {"options": {"rel_step": 3e-3}},
     "nelder_mead": {},
     "sce_ua": {"options": {"seed": 1}, "max_nfev": 3000},
 }
