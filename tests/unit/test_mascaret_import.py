@@ -71,6 +71,8 @@ def test_the_grid_is_mascarets_method_5(imported) -> None:
     assert points["amont1"] == [0.0, 50.0, 100.0, 150.0, 200.0, 250.0]  # 100/40 -> 2 cells, 150/40 -> 3 cells
     np.testing.assert_allclose(points["amont2"], [0.0, 200 / 3, 400 / 3, 200.0], atol=1e-6)  # 200/60 -> 3 cells
     assert points["aval"] == [float(x) for x in range(0, 1001, 100)]
+    # and each of its points takes the profile interpolated at it, as Mascaret's planimetry of its sections does
+    assert data["engine"]["cross_sections"] == "points"
 
 
 def test_profiles_are_yz_with_their_beds_and_friction_sections(imported) -> None:

@@ -2,10 +2,10 @@
 
 Mascaret's computed levels at the 13 staff gauges (its validation note, ``Test19.tex``) are an independent
 reference: the same model run by another engine. Imported as it is (cross-sections interpolated between the
-profiles, Mascaret's grid, its 1 s step and Strickler 20), rivercal's levels should settle within 4 cm of
-Mascaret's at every gauge, on a torrent with supercritical stretches and pools; they do not yet (expected to
-fail: ``G03`` keeps swinging, ``G05`` and ``G06`` stay 0.26 and 0.21 m high). With the nearest profile at each
-point they settle, and the calibration on the measured levels uses that.
+profiles at each calculation point as Mascaret's planimetry does, Mascaret's grid, its 1 s step and Strickler
+20), rivercal's levels settle within 4 cm of Mascaret's at every gauge, on a torrent with supercritical stretches
+and pools. (With each link's cross-section interpolated at its middle, D-Flow FM's placement, the torrent never
+settled: ``G03`` kept swinging and ``G05`` and ``G06`` stayed 0.26 and 0.21 m high.)
 """
 
 from __future__ import annotations
@@ -21,17 +21,13 @@ from rivercal.models import load_model
 from tests.shared_data import shared_model
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="with cross-sections interpolated on its supercritical stretches the engine's "
-                   "levels alternate from point to point (a 2Δx mode) at steps other than 1 s, and the step control's "
-                   "half steps wake it (docs/mascaret.md)")
 def test_the_imported_torrent_reaches_mascarets_steady_levels(tmp_path: Path) -> None:
     """Run for 70 minutes of Mascaret's 133 (its own step, grid and placement; only the period is shorter).
 
     From the import's cold start the same torrent with the nearest profile at each point is steady within 0.1 mm
     after 70 minutes (its levels change by 0.09 mm over the last 10 of 70, by less than a micrometre over the last
-    10 of 80), so a run that settles as fast passes the steadiness check here; with interpolated cross-sections the
-    levels swing by 1-4 cm from 60 minutes on and never settle (1.2 cm over the last 10 of 70).
+    10 of 80), so a run that settles as fast passes the steadiness check here; with each link's cross-section
+    interpolated at its middle the levels swung by 1-4 cm from 60 minutes on and never settled.
     """
     folder = shared_model("oriege-mascaret-test19")
     gauges = read_gauges(folder)

@@ -84,6 +84,9 @@ def oriege_bench(
     out: Annotated[Path | None, typer.Option(
         "--out", help="Keep the imported case, the gauge list, the observation file and the table per gauge "
                       "here (default: a temporary folder).")] = None,
+    cross_sections: Annotated[str, typer.Option(
+        "--cross-sections", help="'nearest' (each calculation point takes the nearest profile) or 'interpolated' "
+                                 "(as imported: the profile interpolated at each point, Mascaret's way).")] = "nearest",
     as_json: JsonOpt = False,
 ) -> None:
     """Calibrate the Oriège (Mascaret test 19) on 7 measured levels, validate on 6, then on all 13."""
@@ -91,13 +94,15 @@ def oriege_bench(
 
     from rivercal.bench.oriege import calibrate_oriege, oriege_folder
     from rivercal.cli.common import watch_compilation
+    from rivercal.cli.options import check_choice
 
     try:
         folder = oriege_folder()
     except FileNotFoundError as exc:
         raise RivercalError(str(exc)) from None
+    check_choice(cross_sections, "--cross-sections", ("interpolated", "nearest"))
     watch_compilation(True)
-    result = calibrate_oriege(folder, out)
+    result = calibrate_oriege(folder, out, cross_sections=cross_sections)
     summary = result.summary()
     if out is not None:
         result.gauges.to_csv(out / "gauges_levels.csv", index=False)
