@@ -212,7 +212,7 @@ def model_state(model: BmiModel, synthetic, state):
 
 def test_a_bmi_model_updates_its_state_as_the_engine_does(tmp_path, synthetic) -> None:
     """[bmi.assimilate]: the levels and discharges through get_value/set_value are the engine's own arrays."""
-    from rivercal.models.contract import CAPABILITIES, has_capability
+    from rivercal.models.capabilities import CAPABILITIES, has_capability
 
     plain = _bmi_model(tmp_path, synthetic)
     assert not has_capability(plain, "state arrays") and not has_capability(plain, "perturbable forcing")

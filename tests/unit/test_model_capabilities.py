@@ -16,13 +16,7 @@ import pandas as pd
 import pytest
 
 from rivercal.model import load_model
-from rivercal.models.contract import (
-    CAPABILITIES,
-    MissingCapability,
-    has_capability,
-    require,
-    run_members,
-)
+from rivercal.models.capabilities import CAPABILITIES, MissingCapability, has_capability, require, run_members
 
 T0 = pd.Timestamp("2010-10-22", tz="UTC")
 

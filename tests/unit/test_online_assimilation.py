@@ -168,7 +168,7 @@ def test_state_updating_through_bmi_is_the_engine_s_own(tmp_path):
 
 
 def test_a_model_without_the_capabilities_is_refused_with_what_it_lacks(tmp_path):
-    from rivercal.models.contract import MissingCapability
+    from rivercal.models.capabilities import MissingCapability
     from tests.unit.test_bmi import _bmi_model
 
     model = _bmi_model(tmp_path, load_model("synthetic"))
@@ -182,7 +182,7 @@ def test_a_model_without_the_capabilities_is_refused_with_what_it_lacks(tmp_path
 
 def test_a_failed_member_is_replaced_by_a_copy_of_a_survivor_and_all_failed_stops_the_filter(twin):
     from rivercal.errors import ModelRunError
-    from rivercal.models.contract import MemberRuns
+    from rivercal.models.capabilities import MemberRuns
 
     _, service, _, _ = twin
     filt = service.filter

@@ -258,7 +258,7 @@ class _Inflows:
             self.simulate_perturbed = lambda *a, **k: None
 
     def variant_inputs(self):
-        from rivercal.models.contract import VariantInputs
+        from rivercal.models.capabilities import VariantInputs
 
         return VariantInputs(branches={}, inherit=(), catchments=(), rain=None, forcing=self.forcing)
 
@@ -268,7 +268,7 @@ class _Inflows:
 
 
 def test_a_model_without_catchments_takes_rain_and_runoff_errors_on_its_inflows() -> None:
-    from rivercal.models.contract import MissingCapability
+    from rivercal.models.capabilities import MissingCapability
     from rivercal.twin.realism import inflow_factors
     from rivercal.twin.truth_model import PerturbedTruth
 

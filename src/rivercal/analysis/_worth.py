@@ -40,7 +40,7 @@ class Candidate:
     cost
         What the gauge there costs (any unit, the same for all candidates), or None.
     location
-        The model's :class:`~rivercal.models.contract.Location` (branch, chainage, structure, point, x, y).
+        The model's :class:`~rivercal.models.capabilities.Location` (branch, chainage, structure, point, x, y).
     """
 
     id: str

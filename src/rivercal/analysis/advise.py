@@ -84,7 +84,7 @@ PRIOR_RANGE_SIGMAS = 4.0
 def model_candidates(model: Model, where: str, measure: str) -> list[Candidate]:
     """The places a model offers for a gauge (``points``: every calculation point; ``structures``: either side).
 
-    Asked through the optional capability :class:`~rivercal.models.contract.VirtualStations`; ``measure`` is
+    Asked through the optional capability :class:`~rivercal.models.capabilities.VirtualStations`; ``measure`` is
     ``level``, ``discharge`` or ``both``.
 
     Raises
@@ -92,7 +92,7 @@ def model_candidates(model: Model, where: str, measure: str) -> list[Candidate]:
     ValueError
         When the model lacks the capability.
     """
-    from rivercal.models.contract import VirtualStations
+    from rivercal.models.capabilities import VirtualStations
 
     if not isinstance(model, VirtualStations):
         raise ValueError(f"model {getattr(model, 'name', '?')!r} cannot simulate series at places where it has no "
@@ -166,7 +166,7 @@ def advice_jacobian(model: Model, parameters: ParameterSet, window: tuple[pd.Tim
     """One finite-difference Jacobian of the present stations', the candidates' and the forecasts' series.
 
     The candidates' places are added to the model through its optional capability
-    :class:`~rivercal.models.contract.VirtualStations` (a candidate whose series the model already
+    :class:`~rivercal.models.capabilities.VirtualStations` (a candidate whose series the model already
     simulates needs none); then p + 1 runs (2p + 1 central) of the window give every row at once.
 
     Parameters
@@ -205,7 +205,8 @@ def advice_jacobian(model: Model, parameters: ParameterSet, window: tuple[pd.Tim
         When a series is not simulated and the model cannot add places, the forecast horizon leaves the
         model's period, or a σ is not positive.
     """
-    from rivercal.models.contract import VirtualStations, spun_up
+    from rivercal.models.capabilities import VirtualStations
+    from rivercal.models.contract import spun_up
     from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
     from rivercal.problem import CalibrationProblem
 

@@ -113,7 +113,7 @@ def online(
     quiet: QuietOpt = False,
 ) -> None:
     """Run the on-line service: every cycle re-estimates the parameters and forecasts against the DSS."""
-    from rivercal.models.contract import require
+    from rivercal.models.capabilities import require
     from rivercal.online.assimilation import (
         ASSIMILATE_MODES,
         ISSUED,

@@ -5,7 +5,8 @@ time loop is one numba call per window (:mod:`rivercal.engine.kernels`).
 """
 
 from rivercal.engine.compile import CompiledNetwork, compile_network
-from rivercal.engine.simulator import Simulator, parse_target
+from rivercal.engine.quantities import parse_target
+from rivercal.engine.simulator import Simulator
 from rivercal.engine.state import EngineState, SimulationResult, VolumeBalance
 
 __all__ = [

@@ -1,9 +1,12 @@
 """The settable quantities of a compiled case, in one table: names, what they set, units and bounds.
 
 :func:`settable_table` builds the table once from the compiled network (and the case's controllers).
-:meth:`Simulator.parameter_arrays <rivercal.engine.Simulator.parameter_arrays>` sets parameters through it, and
-the embedded model declares it as its quantities (:attr:`rivercal.models.EmbeddedModel.quantities`), so that a
-name that one accepts the other declares, with the same bounds.
+:meth:`Simulator.parameter_arrays <rivercal.engine.Simulator.parameter_arrays>` sets parameters through it
+(:func:`quantity_arrays`), and the embedded model declares it as its quantities
+(:attr:`rivercal.models.EmbeddedModel.quantities`), so that a name that one accepts the other declares, with the
+same bounds. :func:`parse_target` splits a name into its kind and id, :func:`default_values` gives the case's
+values and :func:`quantities_table` shows them with what a model declares of them
+(:meth:`Simulator.quantities_frame <rivercal.engine.Simulator.quantities_frame>`).
 
 - ``weir:<id>.crest_level`` — crest level of a weir, m AD (a weir driven by a controller is marked
   ``controlled``: its controller sets its crest);
@@ -27,16 +30,31 @@ Friction bounds are the plausible ranges of :data:`rivercal.network.FRICTION_RAN
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
+import pandas as pd
 
 from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork
 from rivercal.engine.kernels.codes import LINK_CHANNEL
 from rivercal.network import FRICTION_RANGES, MAX_LEVEL
 
-__all__ = ["FACTOR_RANGE", "SCALE_RANGE", "FactorProblem", "Settable", "factor_slots", "settable_table"]
+__all__ = [
+    "FACTOR_RANGE",
+    "SCALE_RANGE",
+    "FactorProblem",
+    "Settable",
+    "default_values",
+    "factor_slots",
+    "mixed_group_problem",
+    "parse_target",
+    "quantities_table",
+    "quantity_arrays",
+    "settable_table",
+    "unknown_quantity",
+]
 
 #: Bounds of ``friction:scale`` (-).
 SCALE_RANGE = (0.05, 20.0)
@@ -47,6 +65,11 @@ SCALE_RANGE = (0.05, 20.0)
 #: only lets an optimiser wander where the scaled values leave every plausible range
 #: (:data:`rivercal.network.FRICTION_RANGES`). Narrower than ``friction:scale``'s, whose reach is the whole model.
 FACTOR_RANGE = (0.2, 5.0)
+
+_LAWS = {code: name for name, code in FRICTION_CODES.items()}
+#: The order in which :func:`quantity_arrays` applies the kinds of :func:`parse_target` (others: 1).
+_ORDER = {"friction": 0, "factor": 2, "scale": 3}
+_MANNING = FRICTION_CODES["manning"]
 
 
 @dataclass(frozen=True)
@@ -171,7 +194,7 @@ def settable_table(compiled: CompiledNetwork, friction_type: str, controls: Any 
         name = f"friction:branch:{b}"
         out[name] = Settable(name, "branch", (i,), unit, low, high, f"{law} friction of branch {b}")
     for i, key in enumerate(c.friction_slots):
-        if key[0] == "group" and len(key) == 2 and key[1] not in c.friction_mixed:  # see Simulator.mixed_group_problem
+        if key[0] == "group" and len(key) == 2 and key[1] not in c.friction_mixed:  # see mixed_group_problem
             law = laws[int(c.arrays.fr_type[i])]
             low, high, unit = FRICTION_RANGES[law]
             name = f"friction:group:{key[1]}"
@@ -207,3 +230,174 @@ def settable_table(compiled: CompiledNetwork, friction_type: str, controls: Any 
     for name, (unit, low, high, text) in (controls.describe() if controls else {}).items():
         out[name] = Settable(name, "control", (), unit, low, high, text)
     return out
+
+
+def parse_target(target: str) -> tuple[str, str]:
+    """Split a target string into (kind, id).
+
+    The kinds are ``("weir", id)``, ``("friction", "global")``, ``("branch", id)``, ``("group", id)``,
+    ``("factor", id)`` and ``("scale", "all")``.
+
+    Raises
+    ------
+    KeyError
+        For a malformed target.
+    """
+    if target.startswith("weir:") and target.endswith(".crest_level"):
+        return "weir", target[len("weir:") : -len(".crest_level")]
+    if target == "friction:global":
+        return "friction", "global"
+    if target.startswith("friction:branch:"):
+        return "branch", target[len("friction:branch:") :]
+    if target.startswith("friction:group:"):
+        return "group", target[len("friction:group:") :]
+    if target.startswith("friction:factor:"):
+        return "factor", target[len("friction:factor:") :]
+    if target == "friction:scale":
+        return "scale", "all"
+    raise KeyError(
+        f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global', "
+        "'friction:branch:<id>', 'friction:group:<id>', 'friction:scale', 'friction:factor:<id>' or "
+        "'control:<id>.<quantity>'"
+    )
+
+
+def default_values(compiled: CompiledNetwork, global_friction: float | None, controls: Any = None) -> dict[str, float]:
+    """The settable quantities' values in the compiled case (targets → values, in their units).
+
+    ``global_friction`` is the case's friction value (of the branches that inherit it), ``controls`` the case's
+    controllers (:class:`rivercal.engine.controllers.Controls`) or None.
+    """
+    c = compiled
+    out = {f"weir:{w}.crest_level": float(v) for w, v in zip(c.weir_ids, c.crest_levels, strict=True)}
+    if c.branch_inherits:
+        out["friction:global"] = float(global_friction)
+    for b, v in zip(c.branch_ids, c.friction_values, strict=False):
+        if b not in c.branch_inherits:
+            out[f"friction:branch:{b}"] = float(v)
+    for key, v in zip(c.friction_slots, c.friction_values, strict=True):
+        if key[0] == "group" and len(key) == 2 and key[1] not in c.friction_mixed:
+            out[f"friction:group:{key[1]}"] = float(v)
+    if controls:
+        out.update(controls.default_parameters())
+    return out
+
+
+def quantity_arrays(compiled: CompiledNetwork, table: Mapping[str, Settable], parameters: Mapping[str, float] | None,
+                    *, case_name: str, profiles: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Crest levels (m AD, per weir) and friction values (per friction slot) for a set of targets.
+
+    What :meth:`Simulator.parameter_arrays <rivercal.engine.Simulator.parameter_arrays>` computes (the order in
+    which values compose is told there): ``table`` is the case's :func:`settable_table`, ``case_name`` and
+    ``profiles`` (the network's cross-section profiles) word the error for a name that is not in it
+    (:func:`unknown_quantity`). The targets of controllers (``control:``) are left to the controllers.
+    """
+    c = compiled
+    crest = c.crest_levels.copy()
+    fric = c.friction_values.copy()
+    # Global first, so that a branch-specific value given in the same call wins; then the factors; the scale last.
+    items = sorted((parameters or {}).items(), key=lambda kv: _ORDER.get(parse_target(kv[0])[0], 1)
+                   if not kv[0].startswith("control:") else 1)
+    for target, value in items:
+        if target.startswith("control:"):
+            continue  # control_values
+        entry = table.get(target)
+        if entry is None or entry.kind == "control":
+            unknown_quantity(target, compiled, case_name, profiles)
+        value = float(value)
+        if not np.isfinite(value):
+            raise ValueError(f"{target}: value {value} is not finite")
+        if entry.kind in ("scale", "factor"):
+            if not entry.low <= value <= entry.high:
+                raise ValueError(f"{target}: factor {value:g} is outside {entry.low:g}-{entry.high:g}")
+            slots = range(fric.size) if entry.kind == "scale" else entry.slots
+            for i in slots:
+                fric[i] = fric[i] / value if int(c.arrays.fr_type[i]) == _MANNING else fric[i] * value
+            continue
+        if entry.kind == "weir":
+            if abs(value) > MAX_LEVEL:
+                raise ValueError(f"{target}: crest level {value:g} m AD is outside ±{MAX_LEVEL:g} m AD")
+            crest[entry.slots[0]] = value
+            continue
+        for slot in entry.slots:  # friction: global, branch or group
+            law = _LAWS[int(c.arrays.fr_type[slot])]
+            low, high, unit = FRICTION_RANGES[law]
+            if not low <= value <= high:
+                raise ValueError(f"{target}: {law} value {value:g} {unit} is outside the plausible range "
+                                 f"{low:g}-{high:g} {unit}")
+            fric[slot] = value
+    return crest, fric
+
+
+def unknown_quantity(target: str, compiled: CompiledNetwork, case_name: str, profiles: Sequence[Any]) -> NoReturn:
+    """KeyError saying why ``target`` is not a settable quantity of case ``case_name``.
+
+    ``profiles`` are the case network's cross-section profiles (for :func:`mixed_group_problem`).
+    """
+    kind, ident = parse_target(target)  # a malformed name: KeyError naming the forms
+    c = compiled
+    if kind == "scale":
+        raise KeyError(f"{target}: case {case_name!r} has White-Colebrook friction, whose "
+                       "conveyance a factor on the coefficient does not scale")
+    if kind == "factor":
+        raise KeyError(f"{target}: case {case_name!r} declares no friction factor {ident!r} "
+                       "(declare it in [[friction_factors]] with the branches and groups it scales)")
+    if kind == "group":
+        if ident in c.friction_mixed:
+            raise KeyError(mixed_group_problem(target, ident, compiled, profiles))
+        raise KeyError(f"{target}: no friction group {ident!r} in case {case_name!r}")
+    if kind == "weir":
+        raise KeyError(f"{target}: no weir {ident!r} in case {case_name!r}")
+    if kind == "friction" and not c.branch_inherits:
+        raise KeyError(f"{target}: every branch of case {case_name!r} has its own friction")
+    raise KeyError(f"{target}: no branch {ident!r} in case {case_name!r}")
+
+
+def mixed_group_problem(target: str, group: str, compiled: CompiledNetwork, profiles: Sequence[Any]) -> str:
+    """Why ``target``, the value of friction group ``group``, cannot be set on this network (a message).
+
+    See :meth:`Simulator.mixed_group_problem <rivercal.engine.Simulator.mixed_group_problem>`; ``profiles`` are the
+    case network's cross-section profiles.
+    """
+    profile = next(p for p in profiles if p.id == compiled.friction_mixed[group])
+    groups = list(dict.fromkeys(profile.friction))
+    effect = ("would scale the conveyance of its other sections (" + ", ".join(g for g in groups if g != group)
+              + ") as well" if groups[0] == group else "would not change the conveyance of the links that use it, "
+              f"which is held relative to its first section's group {groups[0]!r}")
+    return (f"{target}: friction group {group!r} shares profile {profile.id!r} with friction group(s) "
+            f"{', '.join(repr(g) for g in groups if g != group)}; a change of {group!r} alone {effect}, so it is "
+            "not a calibration target of this case (calibrate friction:scale, which scales every section, or "
+            "give the profile's sections one group)")
+
+
+def quantities_table(values: Mapping[str, float], declared: Mapping[str, Any],
+                     branch_inherits: Sequence[str]) -> pd.DataFrame:
+    """The model quantities as a table, one row per quantity name.
+
+    What :meth:`Simulator.quantities_frame <rivercal.engine.Simulator.quantities_frame>` shows: ``values`` are the
+    case's values (:func:`default_values`), ``declared`` the quantities a model declares
+    (:class:`rivercal.models.contract.Quantity`: unit, bounds, description; may be empty) and ``branch_inherits``
+    the branches that inherit the global friction.
+    """
+    inherited = {f"friction:branch:{b}" for b in branch_inherits}
+    rows = []
+    for name in sorted({*values, *declared}):
+        q = declared.get(name)
+        value, note = values.get(name, np.nan), ""
+        if name in inherited and "friction:global" in values:
+            value, note = values["friction:global"], " (inherits friction:global)"
+        elif name == "friction:scale" or name.startswith("friction:factor:"):
+            value = 1.0
+        rows.append({"quantity": name, "value": value, "unit": q.unit if q else "",
+                     "min": _shown_bound(None if q is None else q.min, -np.inf),
+                     "max": _shown_bound(None if q is None else q.max, np.inf),
+                     "description": (q.description if q else "") + note})
+    columns = ["quantity", "value", "unit", "min", "max", "description"]
+    return pd.DataFrame(rows, columns=columns).set_index("quantity")
+
+
+def _shown_bound(value: float | None, none: float) -> float:
+    """A declared bound for a table: ``none`` (±inf) where there is none (None, or the stand-in ±MAX_LEVEL)."""
+    if value is None or abs(float(value)) >= MAX_LEVEL:
+        return none
+    return float(value)

@@ -38,7 +38,7 @@ import pandas as pd
 from rivercal._time import utc
 from rivercal.case.load import Case
 from rivercal.engine.channels import initial_levels
-from rivercal.engine.compile import FRICTION_CODES, CompiledNetwork, compile_network, own_friction_slots
+from rivercal.engine.compile import CompiledNetwork, compile_network, own_friction_slots
 from rivercal.engine.controllers import Controls, ControlValues
 from rivercal.engine.diagnosis import divergence
 from rivercal.engine.kernels.codes import (
@@ -57,51 +57,23 @@ from rivercal.engine.kernels.codes import (
 )
 from rivercal.engine.kernels.lookup import hp_volume_width
 from rivercal.engine.kernels.timeloop import make_work, run, run_ext
-from rivercal.engine.quantities import FactorProblem, Settable, settable_table
+from rivercal.engine.quantities import (
+    FactorProblem,
+    Settable,
+    default_values,
+    mixed_group_problem,
+    quantities_table,
+    quantity_arrays,
+    settable_table,
+)
 from rivercal.engine.state import EngineState, Shortfall, SimulationResult, VolumeBalance
-from rivercal.engine.step_forcing import step_forcing
+from rivercal.engine.step_forcing import ForcingSteps
 from rivercal.errors import CaseError, EngineDivergedError
-from rivercal.network import FRICTION_RANGES, MAX_LEVEL
 
-__all__ = ["Simulator", "parse_target"]
+__all__ = ["Simulator"]
 
 log = logging.getLogger(__name__)
 
-
-def parse_target(target: str) -> tuple[str, str]:
-    """Split a target string into (kind, id).
-
-    The kinds are ``("weir", id)``, ``("friction", "global")``, ``("branch", id)``, ``("group", id)``,
-    ``("factor", id)`` and ``("scale", "all")``.
-
-    Raises
-    ------
-    KeyError
-        For a malformed target.
-    """
-    if target.startswith("weir:") and target.endswith(".crest_level"):
-        return "weir", target[len("weir:") : -len(".crest_level")]
-    if target == "friction:global":
-        return "friction", "global"
-    if target.startswith("friction:branch:"):
-        return "branch", target[len("friction:branch:") :]
-    if target.startswith("friction:group:"):
-        return "group", target[len("friction:group:") :]
-    if target.startswith("friction:factor:"):
-        return "factor", target[len("friction:factor:") :]
-    if target == "friction:scale":
-        return "scale", "all"
-    raise KeyError(
-        f"unknown model quantity {target!r}; expected 'weir:<id>.crest_level', 'friction:global', "
-        "'friction:branch:<id>', 'friction:group:<id>', 'friction:scale', 'friction:factor:<id>' or "
-        "'control:<id>.<quantity>'"
-    )
-
-
-_LAWS = {code: name for name, code in FRICTION_CODES.items()}
-#: The order in which :meth:`Simulator.parameter_arrays` applies the kinds of :func:`parse_target` (others: 1).
-_ORDER = {"friction": 0, "factor": 2, "scale": 3}
-_MANNING = FRICTION_CODES["manning"]
 
 #: How many spun-up states a Simulator keeps for :meth:`Simulator.state_at`.
 SPUN_UP_KEPT = 8
@@ -142,8 +114,7 @@ class Simulator:
             if unknown:
                 raise KeyError(f"forcing for unknown boundaries/laterals: {sorted(unknown)}")
             self.forcing.update(forcing)
-        self._forcing_cache: dict[tuple, np.ndarray] = {}
-        self._forcing_arrays: dict[str, tuple[pd.Series, np.ndarray, np.ndarray]] = {}
+        self._forcing_steps = ForcingSteps(self.forcing, self.compiled.forcing_keys, self.compiled.forcing_is_level)
         self._work = make_work(self.compiled.arrays, self.compiled.structures)
         #: The case's controllers (``None`` without ``[[controllers]]``).
         self.controls: Controls | None = Controls(case.spec.controllers, self.compiled) if case.spec.controllers \
@@ -165,7 +136,6 @@ class Simulator:
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
         state["_spun"] = OrderedDict()   # the states of earlier spin-ups stay in this process
-        state["_forcing_arrays"] = {}    # derived from the forcing; each worker makes its own
         return state
 
     # -- facts -------------------------------------------------------------------------------
@@ -192,19 +162,7 @@ class Simulator:
 
     def default_parameters(self) -> dict[str, float]:
         """The model quantities of the case as targets → values."""
-        c = self.compiled
-        out = {f"weir:{w}.crest_level": float(v) for w, v in zip(c.weir_ids, c.crest_levels, strict=True)}
-        if c.branch_inherits:
-            out["friction:global"] = float(self.case.spec.friction.value)
-        for b, v in zip(c.branch_ids, c.friction_values, strict=False):
-            if b not in c.branch_inherits:
-                out[f"friction:branch:{b}"] = float(v)
-        for key, v in zip(c.friction_slots, c.friction_values, strict=True):
-            if key[0] == "group" and len(key) == 2 and key[1] not in c.friction_mixed:
-                out[f"friction:group:{key[1]}"] = float(v)
-        if self.controls:
-            out.update(self.controls.default_parameters())
-        return out
+        return default_values(self.compiled, self.case.spec.friction.value, self.controls)
 
     def control_values(self, parameters: Mapping[str, float] | None) -> ControlValues | None:
         """The controllers' quantities for a set of targets.
@@ -240,62 +198,8 @@ class Simulator:
         Manning n and multiplies a Strickler k_s or a Chézy C, so that it scales the conveyance; a slot belongs to
         one factor at most (the case refuses overlaps).
         """
-        c = self.compiled
-        crest = c.crest_levels.copy()
-        fric = c.friction_values.copy()
-        table = self.settable
-        # Global first, so that a branch-specific value given in the same call wins; then the factors; the scale last.
-        items = sorted((parameters or {}).items(), key=lambda kv: _ORDER.get(parse_target(kv[0])[0], 1)
-                       if not kv[0].startswith("control:") else 1)
-        for target, value in items:
-            if target.startswith("control:"):
-                continue  # control_values
-            entry = table.get(target)
-            if entry is None or entry.kind == "control":
-                self._unknown_quantity(target)
-            value = float(value)
-            if not np.isfinite(value):
-                raise ValueError(f"{target}: value {value} is not finite")
-            if entry.kind in ("scale", "factor"):
-                if not entry.low <= value <= entry.high:
-                    raise ValueError(f"{target}: factor {value:g} is outside {entry.low:g}-{entry.high:g}")
-                slots = range(fric.size) if entry.kind == "scale" else entry.slots
-                for i in slots:
-                    fric[i] = fric[i] / value if int(c.arrays.fr_type[i]) == _MANNING else fric[i] * value
-                continue
-            if entry.kind == "weir":
-                if abs(value) > MAX_LEVEL:
-                    raise ValueError(f"{target}: crest level {value:g} m AD is outside ±{MAX_LEVEL:g} m AD")
-                crest[entry.slots[0]] = value
-                continue
-            for slot in entry.slots:  # friction: global, branch or group
-                law = _LAWS[int(c.arrays.fr_type[slot])]
-                low, high, unit = FRICTION_RANGES[law]
-                if not low <= value <= high:
-                    raise ValueError(f"{target}: {law} value {value:g} {unit} is outside the plausible range "
-                                     f"{low:g}-{high:g} {unit}")
-                fric[slot] = value
-        return crest, fric
-
-    def _unknown_quantity(self, target: str) -> None:
-        """KeyError saying why ``target`` is not a settable quantity of the case."""
-        kind, ident = parse_target(target)  # a malformed name: KeyError naming the forms
-        c = self.compiled
-        if kind == "scale":
-            raise KeyError(f"{target}: case {self.case.name!r} has White-Colebrook friction, whose "
-                           "conveyance a factor on the coefficient does not scale")
-        if kind == "factor":
-            raise KeyError(f"{target}: case {self.case.name!r} declares no friction factor {ident!r} "
-                           "(declare it in [[friction_factors]] with the branches and groups it scales)")
-        if kind == "group":
-            if ident in c.friction_mixed:
-                raise KeyError(self.mixed_group_problem(target, ident))
-            raise KeyError(f"{target}: no friction group {ident!r} in case {self.case.name!r}")
-        if kind == "weir":
-            raise KeyError(f"{target}: no weir {ident!r} in case {self.case.name!r}")
-        if kind == "friction" and not c.branch_inherits:
-            raise KeyError(f"{target}: every branch of case {self.case.name!r} has its own friction")
-        raise KeyError(f"{target}: no branch {ident!r} in case {self.case.name!r}")
+        return quantity_arrays(self.compiled, self.settable, parameters, case_name=self.case.name,
+                               profiles=self.case.network.profiles)
 
     def mixed_group_problem(self, target: str, group: str) -> str:
         """Why ``target``, the value of friction group ``group``, cannot be set on this network (a message).
@@ -305,15 +209,7 @@ class Simulator:
         group's value alone would scale the other sections too, changing another group's value would not reach the
         conveyance at all.
         """
-        profile = next(p for p in self.case.network.profiles if p.id == self.compiled.friction_mixed[group])
-        groups = list(dict.fromkeys(profile.friction))
-        effect = ("would scale the conveyance of its other sections (" + ", ".join(g for g in groups if g != group)
-                  + ") as well" if groups[0] == group else "would not change the conveyance of the links that use it, "
-                  f"which is held relative to its first section's group {groups[0]!r}")
-        return (f"{target}: friction group {group!r} shares profile {profile.id!r} with friction group(s) "
-                f"{', '.join(repr(g) for g in groups if g != group)}; a change of {group!r} alone {effect}, so it is "
-                "not a calibration target of this case (calibrate friction:scale, which scales every section, or "
-                "give the profile's sections one group)")
+        return mixed_group_problem(target, group, self.compiled, self.case.network.profiles)
 
     # -- state ---------------------------------------------------------------------------------
 
@@ -331,7 +227,7 @@ class Simulator:
         for bnd in range(a.b_hp.size):
             if a.b_type[bnd] == BOUNDARY_LEVEL:
                 key = self.compiled.forcing_keys[a.b_col[bnd]]
-                z[a.b_hp[bnd]] = self._values_at(key, np.array([0.0]), start)[0]
+                z[a.b_hp[bnd]] = self._forcing_steps.values_at(key, np.array([0.0]), start)[0]
         vol = np.array([
             hp_volume_width(a.sc_ptr, a.sc_prof, a.sc_bed, a.sc_len, a.hp_bed, a.hp_amin, a.tab_off, a.tab_n,
                             a.tab_dd, a.tab_idd, a.tab_top, a.tab_wt_top, a.tab_at, a.tab_wt, i, z[i])[0]
@@ -434,21 +330,6 @@ class Simulator:
 
     # -- forcing -------------------------------------------------------------------------------
 
-    def _knots(self, key: str, start: pd.Timestamp) -> tuple[np.ndarray, np.ndarray]:
-        """Forcing series ``key``'s times (s after ``start``) and values."""
-        series = self.forcing[key]
-        cached = self._forcing_arrays.get(key)
-        if cached is None or cached[0] is not series:   # times as integer ns, values as floats: once per series
-            cached = (series, series.index.as_unit("ns").asi8, series.to_numpy(dtype=float))
-            self._forcing_arrays[key] = cached
-        _, ns, values = cached
-        return (ns - pd.Timestamp(start).as_unit("ns").value) / 1e9, values   # as pandas' total_seconds, to the bit
-
-    def _values_at(self, key: str, seconds: np.ndarray, start: pd.Timestamp) -> np.ndarray:
-        """Forcing series ``key`` at ``seconds`` (s after ``start``), linear in time."""
-        t, values = self._knots(key, start)
-        return np.interp(seconds, t, values)
-
     def forcing_matrix(self, start: pd.Timestamp, n_steps: int, *, constant: bool = False) -> np.ndarray:
         """Per-step forcing: step-mean discharges (m³/s) and end-of-step levels (m AD).
 
@@ -469,23 +350,8 @@ class Simulator:
         return self._forcing(start, n_steps, False)[1]
 
     def _forcing(self, start: pd.Timestamp, n_steps: int, constant: bool) -> tuple[np.ndarray, np.ndarray]:
-        key = (start, n_steps, constant)
-        cached = self._forcing_cache.get(key)
-        if cached is not None:
-            return cached
-        c = self.compiled
-        edges = np.arange(n_steps + 1, dtype=float) * self.dt
-        if constant:
-            edges = np.zeros(n_steps + 1)
-        out = np.empty((n_steps, len(c.forcing_keys)))
-        course = np.empty((2 * n_steps, len(c.forcing_keys)))
-        for col, fkey in enumerate(c.forcing_keys):
-            out[:, col], course[:, col] = step_forcing(*self._knots(fkey, start), edges,
-                                                       level=bool(c.forcing_is_level[col]))
-        if len(self._forcing_cache) > 4:
-            self._forcing_cache.clear()
-        self._forcing_cache[key] = (out, course)
-        return out, course
+        """:meth:`forcing_matrix` and :meth:`forcing_edges` in one (:meth:`.step_forcing.ForcingSteps.arrays`)."""
+        return self._forcing_steps.arrays(start, n_steps, self.dt, constant=constant)
 
     # -- running -------------------------------------------------------------------------------
 
@@ -662,29 +528,7 @@ class Simulator:
         25.0 m^(1/3)/s
         """
         declared = getattr(self, "quantities", {})
-        values = self.default_parameters()
-        inherited = {f"friction:branch:{b}" for b in self.compiled.branch_inherits}
-        rows = []
-        for name in sorted({*values, *declared}):
-            q = declared.get(name)
-            value, note = values.get(name, np.nan), ""
-            if name in inherited and "friction:global" in values:
-                value, note = values["friction:global"], " (inherits friction:global)"
-            elif name == "friction:scale" or name.startswith("friction:factor:"):
-                value = 1.0
-            rows.append({"quantity": name, "value": value, "unit": q.unit if q else "",
-                         "min": _shown_bound(None if q is None else q.min, -np.inf),
-                         "max": _shown_bound(None if q is None else q.max, np.inf),
-                         "description": (q.description if q else "") + note})
-        columns = ["quantity", "value", "unit", "min", "max", "description"]
-        return pd.DataFrame(rows, columns=columns).set_index("quantity")
-
-
-def _shown_bound(value: float | None, none: float) -> float:
-    """A declared bound for a table: ``none`` (±inf) where there is none (None, or the stand-in ±MAX_LEVEL)."""
-    if value is None or abs(float(value)) >= MAX_LEVEL:
-        return none
-    return float(value)
+        return quantities_table(self.default_parameters(), declared, self.compiled.branch_inherits)
 
 
 def time_loop(sim: Simulator, work, cx, crest: np.ndarray, fric: np.ndarray, state: tuple, forcing: np.ndarray,

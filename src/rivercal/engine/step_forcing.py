@@ -1,15 +1,89 @@
 """The forcing a time step takes from a series: its value for the step and its course within the step.
 
 Numerics only (no I/O): a series is its times t (s after the run's start) and values, linear between them; the
-steps are given by their edges (s). :meth:`rivercal.engine.Simulator.forcing_matrix` and
-:meth:`~rivercal.engine.Simulator.forcing_edges` build the engine's forcing arrays from it, column by column.
+steps are given by their edges (s). :class:`ForcingSteps` builds the engine's forcing arrays from a case's series
+with :func:`step_forcing`, column by column (:meth:`rivercal.engine.Simulator.forcing_matrix` and
+:meth:`~rivercal.engine.Simulator.forcing_edges`).
 """
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Mapping, Sequence
 
-__all__ = ["step_forcing"]
+import numpy as np
+import pandas as pd
+
+__all__ = ["ForcingSteps", "step_forcing"]
+
+
+class ForcingSteps:
+    """The time loop's forcing arrays from a case's forcing series, for the last few periods asked.
+
+    Parameters
+    ----------
+    series
+        The forcing series by key (``"boundary:<id>"``, ``"lateral:<id>"``; m³/s or m AD; UTC index). Kept as
+        given, not copied: the simulator passes its own mapping, so that a series it adds later is read too.
+    keys
+        The keys of the forcing columns, in the order of the time loop's arrays
+        (:attr:`rivercal.engine.compile.CompiledNetwork.forcing_keys`).
+    is_level
+        Per column, whether it is a level (m AD, taken at a step's end) rather than a discharge (m³/s, its mean over
+        the step).
+    """
+
+    def __init__(self, series: Mapping[str, pd.Series], keys: Sequence[str], is_level: Sequence[bool]):
+        self.series = series
+        self.keys = keys
+        self.is_level = is_level
+        self._cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._knots: dict[str, tuple[pd.Series, np.ndarray, np.ndarray]] = {}
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_knots"] = {}    # derived from the forcing; each worker makes its own
+        return state
+
+    def knots(self, key: str, start: pd.Timestamp) -> tuple[np.ndarray, np.ndarray]:
+        """Forcing series ``key``'s times (s after ``start``) and values."""
+        series = self.series[key]
+        cached = self._knots.get(key)
+        if cached is None or cached[0] is not series:   # times as integer ns, values as floats: once per series
+            cached = (series, series.index.as_unit("ns").asi8, series.to_numpy(dtype=float))
+            self._knots[key] = cached
+        _, ns, values = cached
+        return (ns - pd.Timestamp(start).as_unit("ns").value) / 1e9, values   # as pandas' total_seconds, to the bit
+
+    def values_at(self, key: str, seconds: np.ndarray, start: pd.Timestamp) -> np.ndarray:
+        """Forcing series ``key`` at ``seconds`` (s after ``start``), linear in time."""
+        t, values = self.knots(key, start)
+        return np.interp(seconds, t, values)
+
+    def arrays(self, start: pd.Timestamp, n_steps: int, dt: float, *,
+               constant: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Per step of ``dt`` seconds from ``start``: the forcing of the step and its course within it.
+
+        The first array (steps, columns) holds step-mean discharges (m³/s) and end-of-step levels (m AD); the second
+        (two rows per step) the course each column follows within its step (:func:`step_forcing`). With ``constant``
+        every step gets the values at ``start`` (a spin-up). The arrays of up to five periods asked are kept, keyed
+        by ``start``, ``n_steps`` and ``constant``; the caller does not modify them.
+        """
+        key = (start, n_steps, constant)
+        cached = self._cache.get(key)
+        if cached is not None:
+            return cached
+        edges = np.arange(n_steps + 1, dtype=float) * dt
+        if constant:
+            edges = np.zeros(n_steps + 1)
+        out = np.empty((n_steps, len(self.keys)))
+        course = np.empty((2 * n_steps, len(self.keys)))
+        for col, fkey in enumerate(self.keys):
+            out[:, col], course[:, col] = step_forcing(*self.knots(fkey, start), edges,
+                                                       level=bool(self.is_level[col]))
+        if len(self._cache) > 4:
+            self._cache.clear()
+        self._cache[key] = (out, course)
+        return out, course
 
 
 def step_forcing(t: np.ndarray, v: np.ndarray, edges: np.ndarray, *, level: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -1,6 +1,7 @@
 """Model adapters behind the model contract (layer 4½: below problem and evaluate, above case and engine).
 
 - :mod:`~rivercal.models.contract`: the contract itself (quantities, calibration setup, states);
+- :mod:`~rivercal.models.capabilities`: what only some models can do (batches, ensembles, states as arrays …);
 - :mod:`~rivercal.models.embedded`: the embedded 1D engine of a case;
 - :mod:`~rivercal.models.transition`: a wrapper whose parameter jumps at a time (thesis §6-3);
 - :mod:`~rivercal.models.blackbox`: an external program described by a ``model.toml`` (templates in,
@@ -36,8 +37,8 @@ __all__ = [
 _WHERE = {
     "CalibrationSetup": "contract", "FileState": "contract", "Model": "contract", "Quantity": "contract",
     "check_parameters": "contract", "check_settable": "contract", "EmbeddedModel": "embedded",
-    "build_model": "embedded", "load_model": "load", "spun_up": "contract", "Location": "contract",
-    "VirtualStations": "contract",
+    "build_model": "embedded", "load_model": "load", "spun_up": "contract", "Location": "capabilities",
+    "VirtualStations": "capabilities",
 }
 
 

@@ -20,12 +20,12 @@ Quantities:
 
 Friction bounds are the plausible ranges of :data:`rivercal.network.FRICTION_RANGES`.
 
-Virtual stations (the optional capability :class:`~rivercal.models.contract.VirtualStations`): the model
+Virtual stations (the optional capability :class:`~rivercal.models.capabilities.VirtualStations`): the model
 offers every calculation point and either side of every structure as a place for a new gauge, and
 :meth:`EmbeddedModel.with_stations` returns the same model with those places added to the case's
 ``[[stations]]`` (the same grid, forcing and quantities; only the written series differ).
 
-It has every optional capability of the contract (:data:`~rivercal.models.contract.CAPABILITIES`): batches of
+It has every optional capability of the contract (:data:`~rivercal.models.capabilities.CAPABILITIES`): batches of
 parameter sets and ensembles of members in one batched engine call on threads (the compiled time loop releases
 the interpreter lock; :func:`rivercal.engine.ensemble.run_ensemble`, each member bit-identical to its single
 run), its laterals and discharge boundaries as perturbable forcing, its state as the levels at the
@@ -51,7 +51,8 @@ from rivercal.engine.kernels.codes import BOUNDARY_DISCHARGE, OBS_FLUX, OBS_LEVE
 from rivercal.engine.simulator import Simulator
 from rivercal.engine.state import EngineState
 from rivercal.hydrology.catchments import catchment_forcing
-from rivercal.models.contract import CalibrationSetup, Location, MemberRuns, Quantity, StateLayout, VariantInputs, utc
+from rivercal.models.capabilities import Location, MemberRuns, StateLayout, VariantInputs
+from rivercal.models.contract import CalibrationSetup, Quantity, utc
 from rivercal.network import Station
 from rivercal.results import SimulationResult
 
@@ -342,7 +343,7 @@ class EmbeddedModel(Simulator):
         return state
 
 
-    # -- optional capabilities (rivercal.models.contract) ------------------------------------------
+    # -- optional capabilities (rivercal.models.capabilities) --------------------------------------
 
     def run_batch(self, parameters: Sequence[Mapping[str, float] | None], start: Any = None, end: Any = None,
                   states: Sequence[EngineState] | None = None, *, output_interval: float | None = None,
@@ -383,7 +384,7 @@ class EmbeddedModel(Simulator):
 
         Returns the forcing (members, steps, columns) and the course (members, 2 × steps, columns; as
         :meth:`forcing_edges`). ``factors`` (members, intervals, columns): a factor per perturbable forcing, then
-        optionally an offset (m) per level boundary (:class:`~.contract.PerturbableLevels`). A member's factor is
+        optionally an offset (m) per level boundary (:class:`~.capabilities.PerturbableLevels`). A member's factor is
         constant within a step, so a divided step follows the case's own course scaled by it: with factors of one
         a member is the single run, also where the engine divides its steps.
         """
@@ -435,7 +436,7 @@ class EmbeddedModel(Simulator):
         return SimulationResult(series=runs.series(0), wall_time=runs.wall_time), runs.states[0]
 
     def state_layout(self) -> StateLayout:
-        """Levels at the calculation points, discharges at the links (a :class:`~.contract.StateLayout`)."""
+        """Levels at the calculation points, discharges at the links (a :class:`~.capabilities.StateLayout`)."""
         return self._layout
 
     @functools.cached_property

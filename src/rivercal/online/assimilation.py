@@ -6,9 +6,9 @@ cycle, and between cycles hourly state analyses with the parameters it accepted.
 
 The filter sees the model only through the model contract (:mod:`rivercal.models.contract`). It needs two
 optional capabilities: ``state arrays`` (the state as levels and discharges, read and written back:
-:class:`~rivercal.models.contract.StateArrays`) and ``perturbable forcing`` (its inflows and laterals scaled
-by factors: :class:`~rivercal.models.contract.PerturbableForcing`). A model without them is refused with an
-error that names what it lacks (:class:`~rivercal.models.contract.MissingCapability`). The members run in
+:class:`~rivercal.models.capabilities.StateArrays`) and ``perturbable forcing`` (its inflows and laterals scaled
+by factors: :class:`~rivercal.models.capabilities.PerturbableForcing`). A model without them is refused with an
+error that names what it lacks (:class:`~rivercal.models.capabilities.MissingCapability`). The members run in
 parallel: in one call of a model with ``ensemble runs`` (the embedded engine: threads, the compiled loop
 releases the interpreter lock), else one run per member on the service's worker processes (SWMM, whose
 engine keeps one project per process).
@@ -50,15 +50,8 @@ from rivercal.assimilate import FILTERS, gaspari_cohn, network_distances
 from rivercal.assimilate.perturb import ar1_series, multiplicative_factors
 from rivercal.errors import ModelRunError
 from rivercal.evaluate import Tasks, Workers
-from rivercal.models.contract import (
-    EnsembleRuns,
-    MemberRuns,
-    Model,
-    ModelState,
-    has_capability,
-    require,
-    run_members,
-)
+from rivercal.models.capabilities import EnsembleRuns, MemberRuns, has_capability, require, run_members
+from rivercal.models.contract import Model, ModelState
 from rivercal.observations import DEFAULT_SIGMA
 from rivercal.store import CycleSpec, Run, Store
 
@@ -74,7 +67,7 @@ log = logging.getLogger(__name__)
 ASSIMILATE_MODES = ("parameters", "states", "both")
 #: The forecasts state updating can issue (:attr:`AssimilationConfig.issued`).
 ISSUED = ("mean", "central")
-#: The model capabilities state updating needs (:mod:`rivercal.models.contract`).
+#: The model capabilities state updating needs (:mod:`rivercal.models.capabilities`).
 NEEDS = ("state arrays", "perturbable forcing")
 #: Format tag of a stored ensemble: a zip archive with each member's state as the model saves it
 #: (``members/0000`` …), the model's state format (``state-format.txt``) and the members' AR(1) forcing errors
@@ -127,7 +120,7 @@ class AssimilationConfig:
         the issued forecasts' MAE ratio is 1.93 at 24 h, 2.11 at 48 h, 2.23 at 96 h and 2.27 at 168 h.
     level_error
         σ of the additive error of each level boundary (a tide at the mouth: the surge the tide prediction does not
-        know), m; for a model with ``perturbable levels`` (:class:`~rivercal.models.contract.PerturbableLevels`).
+        know), m; for a model with ``perturbable levels`` (:class:`~rivercal.models.capabilities.PerturbableLevels`).
         0.3 m is a choice, not a measured figure: set it to the size of the departures from the boundary's series
         that are expected (the Western Scheldt benchmark takes 0.5 m for a storm surge of up to 3 m).
     seed
@@ -333,7 +326,7 @@ class EnsembleFilter:
 
         The errors are AR(1) in time, each column with its own σ (:attr:`scale`): log-normal factors of mean one
         on the inflows and laterals, then additive offsets (m) on the level boundaries
-        (:class:`~rivercal.models.contract.PerturbableLevels`).
+        (:class:`~rivercal.models.capabilities.PerturbableLevels`).
         """
         unit = np.divide(errors, self.scale, out=np.zeros_like(errors, dtype=float), where=self.scale > 0)
         e = ar1_series(rng, n_intervals, errors.shape, 1.0, self.tau_steps, initial=unit) * self.scale

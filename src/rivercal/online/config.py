@@ -24,7 +24,8 @@ import pandas as pd
 
 from rivercal._time import utc
 from rivercal.evaluate import DaskCluster, Workers, check_workers
-from rivercal.models.contract import FromCase, Model
+from rivercal.models.capabilities import FromCase
+from rivercal.models.contract import Model
 from rivercal.observations import DEFAULT_SIGMA
 from rivercal.problem import LOSSES
 from rivercal.store import Schedule

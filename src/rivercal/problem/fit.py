@@ -8,7 +8,7 @@ a tolerance (the embedded engine's Picard level tolerance, 10⁻⁴ m by default
 parameter, scipy's default, measures that jitter rather than the derivative.
 
 :func:`problem_evaluator` is the :class:`~rivercal.evaluate.Evaluator` of a problem: on a model with batch runs
-(:class:`~rivercal.models.contract.BatchRuns`, the embedded engine) a batch of points is one batched call of
+(:class:`~rivercal.models.capabilities.BatchRuns`, the embedded engine) a batch of points is one batched call of
 the model on threads; else worker processes, this process or a Dask cluster run the points.
 """
 

@@ -22,7 +22,7 @@ A model run that fails (diverges, raises a :class:`~rivercal.errors.ModelRunErro
 non-finite values) follows an explicit policy: ``raise`` re-raises it; ``penalty`` logs it and returns
 residuals whose cost is the ``penalty`` value, so that an optimiser steers away from that point.
 
-A model with batch runs (:class:`~rivercal.models.contract.BatchRuns`; the embedded engine) runs several
+A model with batch runs (:class:`~rivercal.models.capabilities.BatchRuns`; the embedded engine) runs several
 points in one call (:meth:`CalibrationProblem.residuals_batch`).
 """
 
@@ -40,7 +40,8 @@ import pandas as pd
 
 from rivercal._time import seconds_since, utc
 from rivercal.errors import ModelRunError
-from rivercal.models.contract import BatchRuns, Model, ModelState, check_parameters, spun_up
+from rivercal.models.capabilities import BatchRuns
+from rivercal.models.contract import Model, ModelState, check_parameters, spun_up
 from rivercal.observations import ObservationSet
 from rivercal.parameters import ParameterSet
 from rivercal.problem.loss import LOSSES, robust_residuals
@@ -280,7 +281,7 @@ class CalibrationProblem:
     def residuals_batch(self, xs: list[np.ndarray], *, threads: int | None = None) -> list[np.ndarray]:
         """:meth:`residuals` of several points, their model runs in one batched call of the model.
 
-        The runs go through the model's :meth:`~rivercal.models.contract.BatchRuns.run_batch` on ``threads``
+        The runs go through the model's :meth:`~rivercal.models.capabilities.BatchRuns.run_batch` on ``threads``
         threads (None: all the model offers); each is its single run, so the results equal
         ``[self.residuals(x) for x in xs]``. A point whose run fails is run again alone, so that it follows
         the failure policy with the single run's error, in the order of the points. A model without batch

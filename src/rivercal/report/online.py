@@ -23,7 +23,8 @@ import pandas as pd
 from rivercal._figure import subplots
 from rivercal._time import utc
 from rivercal.io.cf import add_stations, write_netcdf
-from rivercal.models.contract import FromCase, Model
+from rivercal.models.capabilities import FromCase
+from rivercal.models.contract import Model
 from rivercal.online.service import OPTIMISER_NOTE
 from rivercal.report.figures import mark_change
 from rivercal.report.html import Page, bullets, figure, paragraph, table
@@ -310,7 +311,7 @@ def write_online_report(store: Store, run_name: str, out: str | Path, *, model: 
         Folder for the report (created).
     model
         The run's model: its calibration setup names the parameters and the DSS's values; a model built from a
-        case (:class:`~rivercal.models.contract.FromCase`) places the stations and draws the maps. It is not run.
+        case (:class:`~rivercal.models.capabilities.FromCase`) places the stations and draws the maps. It is not run.
 
     Returns
     -------

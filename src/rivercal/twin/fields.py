@@ -12,7 +12,7 @@ and runs no model. The three continuous runs are
 - **rivercal**: each cycle's accepted parameters from its issue time until the next cycle's (a
   piecewise-constant parameter history, one run from one state).
 
-They need a model with snapshots (:class:`~rivercal.models.contract.Snapshots`); the levels are m AD, hourly.
+They need a model with snapshots (:class:`~rivercal.models.capabilities.Snapshots`); the levels are m AD, hourly.
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.models.contract import Model, Snapshots, StateArrays, capability, spun_up
+from rivercal.models.capabilities import Snapshots, StateArrays, capability
+from rivercal.models.contract import Model, spun_up
 from rivercal.parameters import ParameterSet
 from rivercal.store import Run, Store
 from rivercal.twin.practical import LOCAL_WEIR, SCENARIOS, practical_truth

@@ -12,7 +12,8 @@ import numpy as np
 import pandas as pd
 
 from rivercal.assimilate.perturb import ar1_series, multiplicative_factors
-from rivercal.models.contract import Model, require
+from rivercal.models.capabilities import require
+from rivercal.models.contract import Model
 
 __all__ = ["rain_error_model"]
 
@@ -23,7 +24,7 @@ def rain_error_model(model: Model, sigma: float, seed: int, tau: str = "24h") ->
     The model that the service and the DSS run keeps the case's forcing, so it carries the error of the
     rain and the runoff: σ of the log of the factors (0.3: about 30 %), correlation time ``tau``, hourly
     values, one series per inflow and lateral (the model's perturbable forcing). The truth is a variant of
-    the model (:class:`~rivercal.models.contract.Variants`).
+    the model (:class:`~rivercal.models.capabilities.Variants`).
 
     Raises
     ------

@@ -40,7 +40,8 @@ import numpy as np
 import pandas as pd
 
 from rivercal._time import utc
-from rivercal.models.contract import Model, ModelState, capability, spun_up
+from rivercal.models.capabilities import capability
+from rivercal.models.contract import Model, ModelState, spun_up
 from rivercal.observations import DEFAULT_SIGMA, ObservationSeries, ObservationSet, measurable
 from rivercal.twin.noise import NOISE_MODELS, add_noise
 from rivercal.twin.realism import REALISM_LEVELS, Realism, apply_sensor_errors, get_realism

@@ -2,7 +2,7 @@
 
 :func:`truth_model` returns the model itself for a level that leaves the truth alone (``ideal``,
 ``noisy``), and otherwise a :class:`PerturbedTruth`: a variant of the model (its ``variants`` capability,
-:class:`~rivercal.models.contract.Variants`; the embedded engine builds it from its case) with
+:class:`~rivercal.models.capabilities.Variants`; the embedded engine builds it from its case) with
 
 - the lateral inflows of the rainfall-runoff model fed with the measured rain times one factor per rain
   event (:func:`~rivercal.twin.realism.event_factors`) and with rainfall-runoff parameters times a
@@ -32,15 +32,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.models.contract import (
-    MissingCapability,
-    Model,
-    ModelState,
-    VariantInputs,
-    Variants,
-    has_capability,
-    require,
-)
+from rivercal.models.capabilities import MissingCapability, VariantInputs, Variants, has_capability, require
+from rivercal.models.contract import Model, ModelState
 from rivercal.results import SimulationResult
 from rivercal.twin.realism import Realism, event_factors, generator, get_realism, inflow_factors
 
@@ -71,7 +64,7 @@ class PerturbedTruth:
     Parameters
     ----------
     model
-        A model that makes variants of itself (:class:`~rivercal.models.contract.Variants`).
+        A model that makes variants of itself (:class:`~rivercal.models.capabilities.Variants`).
     realism
         The realism level (its ``rain``, ``runoff`` and ``structure`` tables).
     seed

@@ -3,7 +3,7 @@
 Candidates are every calculation point (``points``), either side of every structure (``structures``) or a
 CSV file of practical places (columns ``branch``, ``chainage`` in m, ``name``, optionally ``cost`` and
 ``id``), asked of the model through its optional capability
-:class:`~rivercal.models.contract.VirtualStations`.
+:class:`~rivercal.models.capabilities.VirtualStations`.
 
 Files under ``out``: ``candidates.csv`` (every candidate added to the present stations: its worth,
 identifiable parameters, smallest singular value, verdict and posterior σ per parameter, posterior
@@ -42,7 +42,7 @@ MEASURES = ("level", "discharge", "both")
 
 
 def _capable(model: Model, option: str) -> None:
-    from rivercal.models.contract import VirtualStations
+    from rivercal.models.capabilities import VirtualStations
 
     if not isinstance(model, VirtualStations):
         raise OptionError(f"{option}: model {getattr(model, 'name', '?')!r} cannot simulate series at places where it "

@@ -391,7 +391,7 @@ def _store_twin_fields(model: Model, store: Store, service: OnlineService, progr
 
     Only for a model with snapshots; nothing when the cycles end at the end of the model's period.
     """
-    from rivercal.models.contract import has_capability
+    from rivercal.models.capabilities import has_capability
     from rivercal.twin.fields import store_twin_fields, twin_fields
 
     cycles = store.cycles(service.run)

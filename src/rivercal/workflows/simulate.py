@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from rivercal.io.cf import add_stations, write_netcdf
-from rivercal.models.contract import FromCase, Model
+from rivercal.models.capabilities import FromCase
+from rivercal.models.contract import Model
 from rivercal.workflows.progress import NO_PROGRESS, Progress
 
 __all__ = ["simulate_case"]

@@ -17,7 +17,7 @@ BMI times are converted with the component's ``get_time_units`` (s, min, h, d) f
 (:class:`~rivercal.errors.ModelRunError`, naming the component and the call).
 
 With ``[bmi.assimilate]`` the model has the optional capabilities of state updating
-(:mod:`rivercal.models.contract`):
+(:mod:`rivercal.models.capabilities`):
 
 - **state arrays**: the state variables ``levels`` (at the nodes of an unstructured grid, m) and
   ``discharges`` (on its edges, m³/s) read and written through the state; a state written back leaves out the
@@ -43,8 +43,9 @@ import pandas as pd
 
 from rivercal.errors import ModelRunError
 from rivercal.models.blackbox.templates import Template
+from rivercal.models.capabilities import StateLayout
 from rivercal.models.config import BmiSection, ModelFile, ModelFileError
-from rivercal.models.contract import CalibrationSetup, Quantity, StateLayout, check_run, utc
+from rivercal.models.contract import CalibrationSetup, Quantity, check_run, utc
 from rivercal.results import SimulationResult
 
 __all__ = ["BmiModel", "BmiState"]
@@ -214,7 +215,7 @@ class BmiModel:
             raise ValueError(f"the state holds {sorted(state.values)}, the model's state is {sorted(self.state_vars)}")
         return state
 
-    # -- state updating ([bmi.assimilate]; rivercal.models.contract) ---------------------------------
+    # -- state updating ([bmi.assimilate]; rivercal.models.capabilities) -----------------------------
 
     def _assimilate(self, what: str) -> Any:
         section = self.section.assimilate

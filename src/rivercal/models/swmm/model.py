@@ -33,7 +33,7 @@ A run's input file holds of each ``[TIMESERIES]`` series only the points of its 
 and after it), so that SWMM does not read two months of hourly inflows to run one hour; the values SWMM
 interpolates in the period are the same.
 
-Optional capabilities (:mod:`rivercal.models.contract`):
+Optional capabilities (:mod:`rivercal.models.capabilities`):
 
 - **perturbable forcing**: the inflows of ``[INFLOWS]`` (``inflow:<node>``, flow constituents), scaled by a
   factor per interval: a run is made of one SWMM run per interval, each with the inflows' scale factors
@@ -59,16 +59,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rivercal.models.contract import (
-    CalibrationSetup,
-    ExternalRunError,
-    FileState,
-    Quantity,
-    StateLayout,
-    VariantInputs,
-    check_run,
-    utc,
-)
+from rivercal.models.capabilities import StateLayout, VariantInputs
+from rivercal.models.contract import CalibrationSetup, ExternalRunError, FileState, Quantity, check_run, utc
 from rivercal.models.swmm.hotstart import read_hotstart
 from rivercal.models.swmm.inp import NODE_SECTIONS, InpFile, seconds, swmm_date, swmm_step
 from rivercal.models.swmm.output import parse_element, read_swmm_output
@@ -414,7 +406,7 @@ class SwmmModel:
             out.extend(lines[a:b])
         return out
 
-    # -- optional capabilities (rivercal.models.contract) ---------------------------------------------
+    # -- optional capabilities (rivercal.models.capabilities) -----------------------------------------
 
     @functools.cached_property
     def _inflow_rows(self) -> dict[str, Any]:
