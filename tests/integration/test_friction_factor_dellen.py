@@ -66,4 +66,4 @@ def test_a_factor_on_twenty_dellen_branches_is_the_hand_scaled_case(tmp_path: Pa
     scaled = factored.simulate({"friction:factor:creek": F}, end=end)[0].series
     pd.testing.assert_frame_equal(scaled, by_hand.simulate({}, end=end)[0].series, check_exact=True)
     levels = [col for col in plain.columns if col.endswith(".h")]
-    assert (scaled[levels] - plain[levels]).abs().max().max() > 0.01  # the factor moves the levels
+    assert (scaled[levels] - plain[levels]).abs().max().max() > 0.002  # the factor moves the levels (by 5 mm)
