@@ -223,6 +223,10 @@ def _engine(ctx: Context) -> None:
                         field="--dt")
     engine = {"dt": float(dt), "output_interval": float(interval), "structure_length": STRUCTURE_LENGTH,
               "cross_sections": "interpolated"}
+    teta0 = getattr(fm.numerics, "teta0", None)  # D-Flow FM's default, 0.55, where the MDU gives none
+    if isinstance(teta0, int | float) and math.isfinite(teta0):
+        engine["theta"] = min(max(float(teta0), 0.5), 1.0)
+        ctx.ledger.exact("setting", "Teta0", f"implicitness of the continuity flux {engine['theta']:g}")
     ctx.case["engine"] = engine
     from rivercal.io.dhydro._export import SETTINGS_FILE, read_engine_settings
 
@@ -496,7 +500,7 @@ def _other_settings(ctx: Context) -> None:
                            hydraulic=False)
     ctx.ledger.approximated("setting", "numerics", "rivercal's engine discretises the same equations (the staggered "
                             "Delft scheme) on D-Flow FM's calculation points, with its own upwinding and structure "
-                            "linearisation; D-Flow FM's numerical settings (Teta0, advection type, limiters) are not "
+                            "linearisation; D-Flow FM's other numerical settings (advection type, limiters) are not "
                             "carried over")
     used = ctx.used_definitions
     for d in ctx.model.crossdefs.objects:
