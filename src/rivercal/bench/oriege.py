@@ -20,7 +20,7 @@ against the measurements is 0.17 m).
 4. checks that the computed levels are steady (the change over the last 10 minutes of the period).
 
 By default the model is run as imported except for the placement of cross-sections: ``nearest`` (each
-calculation point takes the nearest profile). As imported (``cross_sections="interpolated"``: each calculation
+calculation point takes the nearest profile). As imported (``cross_sections="points"``: each calculation
 point takes the profile interpolated at it, as Mascaret's planimetry does) the torrent is as steady and its levels
 at Strickler 20 are as close to the measurements as Mascaret's (RMSE 0.167 m against 0.168 m), but the three zones
 calibrated on 7 gauges miss the 6 others by more (0.18 m, against 0.14 m with ``nearest``; 0.14 m and 0.13 m
@@ -226,7 +226,7 @@ def calibrate_oriege(folder: Path | None = None, out: Path | None = None, *, alg
     workers
         Threads for the batched model runs (None: all cores).
     cross_sections
-        The import's placement of the profiles: ``nearest`` or ``interpolated`` (as imported, Mascaret's).
+        The import's placement of the profiles: ``nearest`` or ``points`` (as imported, Mascaret's).
     """
     from rivercal.io.observations import read_observations_csv
     from rivercal.models import load_model

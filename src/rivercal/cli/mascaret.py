@@ -33,8 +33,8 @@ def import_mascaret_cmd(
     hours: Annotated[float | None, typer.Option(
         help="Length of the simulated period, h (default: Mascaret's, from its stopping criterion).")] = None,
     cross_sections: Annotated[str, typer.Option(
-        "--cross-sections", help="'interpolated' (Mascaret's way: a point between two profiles takes the profile "
-                                 "interpolated between them) or 'nearest'.")] = "interpolated",
+        "--cross-sections", help="'points' (Mascaret's way: each calculation point takes the profile interpolated "
+                                 "at it between the two around it) or 'nearest'.")] = "points",
     spinup: Annotated[float, typer.Option(help="Spin-up before the period, h.")] = 0.0,
     initial_depth: Annotated[float, typer.Option(
         help="Depth of the cold start, m (Mascaret's initial water line is not carried over).")] = 0.5,
@@ -44,7 +44,7 @@ def import_mascaret_cmd(
     """Convert a Mascaret model into a case folder, accounting for every object in import.md."""
     from rivercal.cli.options import check_choice, check_number, parse_time
 
-    check_choice(cross_sections, "--cross-sections", ("interpolated", "nearest"))
+    check_choice(cross_sections, "--cross-sections", ("points", "nearest"))
     check_number(dt, "--dt", low=0.1, high=3600)
     check_number(output_interval, "--output-interval", low=0.1, high=86400 * 366, low_open=False)
     check_number(hours, "--hours", low=0, high=24 * 366 * 10, low_open=True)
@@ -85,7 +85,7 @@ def oriege_bench(
         "--out", help="Keep the imported case, the gauge list, the observation file and the table per gauge "
                       "here (default: a temporary folder).")] = None,
     cross_sections: Annotated[str, typer.Option(
-        "--cross-sections", help="'nearest' (each calculation point takes the nearest profile) or 'interpolated' "
+        "--cross-sections", help="'nearest' (each calculation point takes the nearest profile) or 'points' "
                                  "(as imported: the profile interpolated at each point, Mascaret's way).")] = "nearest",
     as_json: JsonOpt = False,
 ) -> None:
@@ -100,7 +100,7 @@ def oriege_bench(
         folder = oriege_folder()
     except FileNotFoundError as exc:
         raise RivercalError(str(exc)) from None
-    check_choice(cross_sections, "--cross-sections", ("interpolated", "nearest"))
+    check_choice(cross_sections, "--cross-sections", ("points", "nearest"))
     watch_compilation(True)
     result = calibrate_oriege(folder, out, cross_sections=cross_sections)
     summary = result.summary()

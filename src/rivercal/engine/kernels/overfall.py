@@ -71,10 +71,10 @@ def overfall_coefficients(net, work, zk, u, dt, first):
                             net.tab_flow, prof, d_c)[0]
         length = net.lk_len[link]
         u_c = math.sqrt(G * d_c)
-        cu = G / (1.5 * length)
-        b = 1.0 / dt + u_c / length
         if sign * a_ch * (r_ch - f_ch * (zk[k2] - zk[k1])) <= a_c * u_c:  # the channel carries less: no control
             continue
+        cu = G / (1.5 * length)
+        b = 1.0 / dt + u_c / length
         area[link] = a_c
         fco[link] = cu / b
         rco[link] = (u[link] / dt + sign * cu * (z_down - crest)) / b

@@ -90,9 +90,8 @@ class _ForcingSteps(_Context):
         self.case["case"] = {"name": _BAD.sub("_", self.x.path.stem)[:60] or "mascaret",
                              "description": f"imported from the Mascaret model {self.x.path.name}",
                              "start": _iso(self.start), "end": _iso(self.end)}
-        # Mascaret's planimetry interpolates a table at each computational section: the engine's "points" placement
         engine = {"dt": dt_ms / 1000.0, "output_interval": interval_ms / 1000.0,
-                  "cross_sections": "points" if self.o.cross_sections == "interpolated" else "nearest"}
+                  "cross_sections": self.o.cross_sections}
         h_min = self.x.number("parametresNumeriques/hauteurEauMini", 0.0)
         if 0 < h_min <= 1:
             engine["min_depth"] = h_min
@@ -113,7 +112,7 @@ class _ForcingSteps(_Context):
         self.cross_section_note()
 
     def cross_section_note(self) -> None:
-        if self.o.cross_sections == "interpolated":
+        if self.o.cross_sections == "points":
             self.ledger.exact("setting", "cross sections", "each calculation point between two profiles takes the "
                               "profile interpolated between them, as Mascaret interpolates its planimetry")
         else:

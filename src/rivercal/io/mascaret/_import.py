@@ -94,8 +94,8 @@ class ImportOptions:
     hours
         Length of the simulated period, h (default: Mascaret's, from its stopping criterion).
     cross_sections
-        ``interpolated`` (Mascaret's way: each calculation point between two profiles takes the profile
-        interpolated between them) or ``nearest``.
+        ``points`` (Mascaret's way: each calculation point takes the profile interpolated at it between the two
+        around it; the case's ``engine.cross_sections``) or ``nearest``.
     stations
         Stations to add (gauges), besides Mascaret's own output sites.
     spinup
@@ -109,7 +109,7 @@ class ImportOptions:
     dt: float | None = None
     output_interval: float | None = None
     hours: float | None = None
-    cross_sections: str = "interpolated"
+    cross_sections: str = "points"
     stations: tuple[StationSpec, ...] = ()
     spinup: float = 0.0
     initial_depth: float = 0.5
@@ -248,8 +248,8 @@ def import_mascaret(xcas: Path | str, out: Path | str, options: ImportOptions | 
         message lists them; ``import.md`` is written all the same).
     """
     options = options or ImportOptions()
-    if options.cross_sections not in ("interpolated", "nearest"):
-        raise CaseError(f"cross sections {options.cross_sections!r}: choose 'interpolated' or 'nearest'")
+    if options.cross_sections not in ("points", "nearest"):
+        raise CaseError(f"cross sections {options.cross_sections!r}: choose 'points' or 'nearest'")
     xcas, out = Path(xcas), Path(out)
     converter = _Converter(read_xcas(xcas), options)
     converter.run()
