@@ -73,5 +73,7 @@ def test_bench_models_scores_the_cheap_models_and_sweeps_one(tmp_path: Path) -> 
         assert row["solves_per_step"] >= 1.0  # each step at least one solve; more where the engine divided it
     assert c01["level_rmse_m"]["max"] < 0.01  # the ODE at every point
     assert compound["after_spinup"]["level_rmse_m"]["median"] <= 0.01  # SOBEK 3's own levels
-    assert compound["sweep"]["within_1cm"] and [s["ok"] for s in compound["sweep"]["steps"]] == [True] * 4
+    sweep = compound["sweep"]
+    assert sweep["rmse_within_1cm"] and sweep["max_within_1cm"] and [s["ok"] for s in sweep["steps"]] == [True] * 4
+    assert all(s["level_rmse_m"] <= s["max_diff_m"] for s in sweep["steps"])  # a mean never exceeds the largest
     assert all(s["solves_per_step"] >= 1.0 for s in compound["sweep"]["steps"])

@@ -286,11 +286,18 @@ def model_row(name: str, out: Path | None = None, *, dt: float | None = None) ->
 def sweep(name: str, steps: tuple[float, ...] = (10.0, 60.0, 300.0, 600.0), out: Path | None = None) -> dict:
     """Run a shared model at each longest time step of ``steps``; compare every run with the shortest one's.
 
-    Returns ``{"model", "steps": [{"dt_s", "ok", "error", "max_diff_m", "where", "points_over_1cm", "wall_s",
-    "solves_per_step"}],
-    "within_1cm"}``: the largest absolute level difference (m) at a compared point (every point where the model
-    has no reference), after the spin-up (the first day; the first tenth of a run of hours), from the run at the
-    shortest step that ran.
+    Each run is compared with the run at the shortest step that ran, at every compared point (every point where the
+    model has no reference), at the output times after the spin-up (the first day; the first tenth of a run of hours):
+
+    - ``level_rmse_m``: the root mean square of the level difference (m) over those times, at the point where it
+      is largest (``rmse_where``) — the measure of the model's fidelity figures, per point;
+    - ``max_diff_m``: the largest absolute level difference (m) at any point and time (``where``, ``when``) — in a
+      transient that the shortest step does not resolve either (a swing of minutes, a sewer filling), this is
+      where runs at two short steps differ too, so it is reported beside the root mean square, not instead of it.
+
+    Returns ``{"model", "steps": [{"dt_s", "ok", "error", "level_rmse_m", "rmse_where", "max_diff_m", "where",
+    "when", "points_over_1cm", "wall_s", "solves_per_step"}], "rmse_within_1cm", "max_within_1cm"}``;
+    ``points_over_1cm`` counts the points whose root mean square difference exceeds 1 cm.
     """
     from rivercal.bench.sobek3 import solves_per_step
 
@@ -303,17 +310,21 @@ def sweep(name: str, steps: tuple[float, ...] = (10.0, 60.0, 300.0, 600.0), out:
                 "solves_per_step": solves_per_step(r.run_stats)}
         if r.error is None and finest is not None:
             if len(finest.levels) == 1:  # a steady state: the last levels, whatever the last time
-                diff = (r.levels.iloc[-1] - finest.levels.iloc[-1]).abs()
+                diff = (r.levels.iloc[[-1]] - finest.levels.iloc[[-1]].to_numpy()).abs()
             else:
                 common = r.levels.index.intersection(finest.levels.index)
                 if finest.spinup is not None:
                     common = common[common >= finest.spinup]
-                diff = (r.levels.loc[common] - finest.levels.loc[common]).abs().max()
-            item.update(max_diff_m=round(float(diff.max()), 4), where=str(diff.idxmax()),
-                        points_over_1cm=int((diff > 0.01).sum()))
+                diff = (r.levels.loc[common] - finest.levels.loc[common]).abs()
+            rmse = np.sqrt((diff**2).mean())
+            largest = diff.max()
+            item.update(level_rmse_m=round(float(rmse.max()), 4), rmse_where=str(rmse.idxmax()),
+                        max_diff_m=round(float(largest.max()), 4), where=str(largest.idxmax()),
+                        when=str(diff[largest.idxmax()].idxmax()), points_over_1cm=int((rmse > 0.01).sum()))
         rows.append(item)
-    within = all(not row["ok"] or row.get("max_diff_m", 0.0) <= 0.01 for row in rows)
-    return {"model": name, "steps": rows, "within_1cm": within}
+    ran = [row for row in rows if row["ok"]]
+    return {"model": name, "steps": rows, "rmse_within_1cm": all(row["level_rmse_m"] <= 0.01 for row in ran),
+            "max_within_1cm": all(row["max_diff_m"] <= 0.01 for row in ran)}
 
 
 # -- the steady reference ------------------------------------------------------------------------------------------

@@ -224,8 +224,9 @@ def models(
                           f"{row['approximated']} approximated, {row['refused']} refused; {ran} at "
                           f"{row['dt_s']:g} s; {scores}; {row['wall_s']:.1f} s")
         for item in row.get("sweep", {}).get("steps", []):
-            what = (f"{item['max_diff_m'] * 100:.2f} cm from the shortest step at most ({item['where']})"
-                    if item["ok"] else f"stopped: {item['error']}")
+            what = (f"level RMSE against the shortest step {item['level_rmse_m'] * 100:.2f} cm at most "
+                    f"({item['rmse_where']}); largest difference {item['max_diff_m'] * 100:.2f} cm ({item['where']}, "
+                    f"{item['when']})" if item["ok"] else f"stopped: {item['error']}")
             out_console.print(f"    longest step {item['dt_s']:g} s: {what}")
 
 
