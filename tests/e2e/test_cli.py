@@ -113,3 +113,13 @@ def test_bench_engine_reports_the_network_and_a_second_call_does_not_compile() -
     assert first["points"] >= 400 and first["weirs"] >= 9 and first["laterals"] == 10 and first["dt_s"] == 60.0
     assert second["compiled"] is False
     assert 0 < second["wall_s_median"] and 0 < second["compile_s"]
+
+
+def test_bench_engine_times_from_the_cold_state_or_from_the_spin_up_s() -> None:
+    """``--spun-up`` starts the timed runs where every run without a given state begins, after the case's spin-up:
+    the synthetic network's first six hours from its cold state divide steps (1.47 solves per step), from the
+    spun-up state none (1.0)."""
+    cold, spun = (json.loads(rivercal("bench", "engine", "--days", "0.25", "--repeats", "1", *extra, "--json").stdout)
+                  for extra in ((), ("--spun-up",)))
+    assert (cold["start"], spun["start"]) == ("cold", "spun-up")
+    assert cold["solves_per_step"] > 1.2 and spun["solves_per_step"] == 1.0
