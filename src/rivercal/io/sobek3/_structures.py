@@ -33,6 +33,8 @@ __all__ = ["convert_structures"]
 _DIRECTIONS = {0: "both", 1: "positive", 2: "negative", 3: "none"}
 _TABLES = ("weirs", "universal_weirs", "orifices", "culverts", "bridges", "pumps")
 
+#: Opening given to a closed orifice, m: a case's gate must lie above its crest; no flow passes either way.
+CLOSED_OPENING = 1e-3
 
 def _direction(s: Section) -> str:
     item = s.find("allowedFlowDir")
@@ -141,15 +143,17 @@ def _orifice(ctx: Context, s: Section, base: dict):
         width = area**0.5
         gate = crest + width
     mu = s.number("contractionCoeff", default=0.63) * s.number("latContrCoeff", default=1.0)
-    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": max(gate, crest),
+    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": gate,
             "discharge_coefficient": mu, "allowed_flow": _direction(s)}
     notes = ["contraction coefficient times lateral contraction as the orifice's discharge coefficient"]
     if s.flag("useLimitFlowPos", default=False):
         item["max_flow_positive"] = s.number("limitFlowPos")
     if s.flag("useLimitFlowNeg", default=False):
         item["max_flow_negative"] = s.number("limitFlowNeg")
-    if gate < crest:
-        notes.append("the gate's lower edge lies below the crest: taken at the crest (closed)")
+    if not gate > crest:  # flow1d's ComputeOrifice: no flow when the opening (gate - crest) is not positive
+        item.update(gate_lower_edge_level=crest + CLOSED_OPENING, allowed_flow="none")
+        notes.append(f"closed: the gate's lower edge ({gate:g} m AD) is not above the crest ({crest:g} m AD), so "
+                     "SOBEK 3 lets no water through; taken as a closed orifice (allowed_flow = 'none')")
     return "orifices", item, notes, ""
 
 
