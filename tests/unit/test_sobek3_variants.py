@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from rivercal.errors import CaseError
 from rivercal.io.sobek3 import ImportOptions, import_sobek3
 from tests.sobek3_models import write_model
 
@@ -37,3 +38,54 @@ def test_a_closed_orifice_lets_no_water_through(tmp_path, open_level) -> None:
     assert orifice["gate_lower_edge_level"] > orifice["crest_level"] == -1.2
     row = next(line for line in md.splitlines() if "`orifice1`" in line)
     assert "closed" in row and "no water" in row
+
+
+# -- ids used twice ----------------------------------------------------------------------------------------------
+
+
+_ID = "    id                    = "
+_SECOND = {  # file: (text, the text with a block of the same id before it, kind)
+    "Structures.ini": ("[Structure]\n" + _ID + "weir1",
+                       "[Structure]\n" + _ID + "weir1\n    branchid = b1\n    chainage = 50.0\n    type = weir\n"
+                       "    crestLevel = -1.0\n    crestWidth = 3.0\n\n[Structure]\n" + _ID + "weir1", "structure"),
+    "ObservationPoints.ini": ("[ObservationPoint]\n" + _ID + "obs1",
+                              "[ObservationPoint]\n" + _ID + "obs1\n    branchid = b2\n    chainage = 20.0\n\n"
+                              "[ObservationPoint]\n" + _ID + "obs1", "observation point"),
+    "LateralDischargeLocations.ini": ("[LateralDischarge]\n" + _ID + "lat1",
+                                      "[LateralDischarge]\n" + _ID + "lat1\n    branchid = b2\n    chainage = 20.0\n\n"
+                                      "[LateralDischarge]\n" + _ID + "lat1", "lateral"),
+    "BoundaryLocations.ini": ("[Boundary]\n    nodeId                = A",
+                              "[Boundary]\n    nodeId                = A\n    type = 2\n\n"
+                              "[Boundary]\n    nodeId                = A", "boundary"),
+    "CrossSectionLocations.ini": (_ID + "cs_b1_down", _ID + "cs_b1_up", "cross-section"),
+}
+
+
+@pytest.mark.parametrize("file", sorted(_SECOND))
+def test_an_id_used_twice_is_an_input_error_naming_both_places(tmp_path, file) -> None:
+    old, new, kind = _SECOND[file]
+    key = file.replace(".", "_")
+    md1d = write_model(tmp_path / "model", **{key: (old, new)})
+    with pytest.raises(CaseError) as info:
+        import_sobek3(md1d, tmp_path / "case", ImportOptions(allow_partial=True))
+    message = str(info.value)
+    path = tmp_path / "model" / file
+    ident = "nodeId" if kind == "boundary" else "id"
+    lines = [k for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)
+             if line.strip().startswith(ident) and line.split("=")[1].strip() == message.split("'")[1]]
+    assert len(lines) == 2, (message, lines)
+    assert f"{file}:{lines[1]}: {ident}: {kind} id " in message and "used twice" in message, message
+    assert f"{file}:{lines[0]}" in message, message
+    assert "bug" not in message
+
+
+def test_a_valid_id_keeps_its_name_when_a_renamed_one_would_take_it(tmp_path) -> None:
+    # obs.2 becomes obs_2 (a station id has no dot), but obs_2 is the genuine id of another point
+    data, md, _ = _import(tmp_path, ObservationPoints_ini=(
+        "[ObservationPoint]\n    id                    = nowhere",
+        "[ObservationPoint]\n    id                    = obs_2\n    branchid              = b2\n"
+        "    chainage              = 300.000\n\n[ObservationPoint]\n    id                    = nowhere"))
+    stations = _by_id(data["stations"])
+    assert stations["obs_2"]["branch"] == "b2"
+    assert stations["obs_2_2"]["branch"] == "b3"
+    assert "| station | `obs.2` | `obs_2_2` |" in md

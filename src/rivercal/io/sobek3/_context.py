@@ -165,19 +165,31 @@ class IdMap:
         self._no_dot = no_dot
         self._map: dict[str, str] = {}
         self._used: set[str] = set()
+        self._reserved: set[str] = set()
+
+    def _valid(self, key: str) -> str:
+        new = _BAD.sub("_", key) or "unnamed"
+        if self._no_dot:
+            new = new.replace(".", "_")
+        if len(new) > 64:
+            new = new[:55] + "_" + hashlib.sha1(key.encode()).hexdigest()[:8]
+        return new
+
+    def reserve(self, originals) -> None:
+        """Keep the ids among ``originals`` that are valid as written for themselves: a renamed id never takes them."""
+        for original in originals:
+            key = str(original).strip()
+            if self._valid(key) == key:
+                self._reserved.add(key)
 
     def __call__(self, original: str) -> str:
         """The case id of a SOBEK 3 id (the same id each time it is asked)."""
         key = str(original).strip()
         if key in self._map:
             return self._map[key]
-        new = _BAD.sub("_", key) or "unnamed"
-        if self._no_dot:
-            new = new.replace(".", "_")
-        if len(new) > 64:
-            new = new[:55] + "_" + hashlib.sha1(key.encode()).hexdigest()[:8]
+        new = self._valid(key)
         base, k = new, 2
-        while new in self._used:
+        while new in self._used or (new != key and new in self._reserved):
             new = f"{base[:60]}_{k}"
             k += 1
         self._map[key] = new
@@ -224,16 +236,36 @@ class Context:
     profiles: dict[str, tuple[dict | None, float, str]] = field(default_factory=dict)
     definitions: dict[str, Section] = field(default_factory=dict)
     used_definitions: set[str] = field(default_factory=set)
+    claimed: dict[tuple[str, str], Section] = field(default_factory=dict)
 
     def id(self, kind: str, original: str) -> str:
         """The case id of a SOBEK 3 id of a kind (``node``, ``branch``, ``profile``, ``structure``, ...)."""
-        if kind not in self.ids:
-            self.ids[kind] = IdMap(kind, self.ledger, no_dot=(kind == "station"))
-        return self.ids[kind](original)
+        return self._map(kind)(original)
 
     def known(self, kind: str, original: str) -> bool:
         """Whether a SOBEK 3 id of a kind was given a case id."""
         return kind in self.ids and self.ids[kind].known(original)
+
+    def reserve(self, kind: str, blocks: list[Section], *keys: str) -> None:
+        """Tell the ids of a kind before they are converted, so that a valid one keeps its name (:class:`IdMap`)."""
+        self._map(kind).reserve(s.text(*keys) for s in blocks if s.has(*keys))
+
+    def _map(self, kind: str) -> IdMap:
+        if kind not in self.ids:
+            self.ids[kind] = IdMap(kind, self.ledger, no_dot=(kind == "station"))
+        return self.ids[kind]
+
+    def claim(self, kind: str, s: Section, key: str = "id") -> str:
+        """The SOBEK 3 id of a block (its ``key``); an error naming both blocks when another of the kind has it.
+
+        SOBEK 3 requires the ids of one kind of object to be unique (the kernel looks objects up by id); two
+        blocks with one id are a mistake in the model files, reported where the second is.
+        """
+        original = s.text(key).strip()
+        first = self.claimed.setdefault((kind, original), s)
+        if first is not s:
+            raise s.error(key, f"{kind} id {original!r} is used twice: here and at {first.where(first.find(key))}")
+        return original
 
     def origin(self, case_id: str, kind: str) -> tuple[str, str]:
         """The ledger kind and SOBEK 3 id of a structure or station of the case (``kind`` if unknown)."""

@@ -154,8 +154,10 @@ def convert_forcing(ctx: Context) -> None:
         for n in (b["from_node"], b["to_node"]):
             degree[n] = degree.get(n, 0) + 1
     boundaries = []
+    ctx.reserve("boundary", ctx.model.blocks("boundLocFile", "boundary"), "nodeId")
+    ctx.reserve("lateral", ctx.model.blocks("latDischargeLocFile", "lateraldischarge"), "id")
     for s in ctx.model.blocks("boundLocFile", "boundary"):
-        nid = s.text("nodeId", "nodeid")
+        nid = ctx.claim("boundary", s, "nodeId")
         code = s.integer("type", default=None)
         if not ctx.known("node", nid) or degree.get(ctx.id("node", nid), 0) == 0:
             ctx.ledger.refused("boundary", nid, f"node {nid!r} is not in the network", hydraulic=False)
@@ -183,7 +185,7 @@ def convert_forcing(ctx: Context) -> None:
     ctx.case["boundaries"] = boundaries
     laterals = []
     for s in ctx.model.blocks("latDischargeLocFile", "lateraldischarge"):
-        lid = s.text("id")
+        lid = ctx.claim("lateral", s)
         notes = []
         nid = s.text("nodeId", "nodeid", default=None)
         if nid is not None:
@@ -212,6 +214,8 @@ def convert_forcing(ctx: Context) -> None:
         if not found:
             ctx.ledger.refused("lateral", lid, "no block of this name in the boundary-condition file")
             continue
+        if len(found) > 1:
+            raise found[1].error("name", f"lateral {lid!r} has {len(found)} blocks in the boundary-condition file")
         function = found[0].text("function", default="timeseries").lower()
         if function not in ("timeseries", "constant"):
             ctx.ledger.refused("lateral", lid, f"a lateral given as {function!r} (a case takes a time series or a "

@@ -26,6 +26,7 @@ _NO_WIDTH = 1e-3
 
 
 def _cross_sections(ctx: Context) -> None:
+    ctx.reserve("profile", ctx.model.blocks("crossDefFile", "definition"), "id")
     for s in ctx.model.blocks("crossDefFile", "definition"):
         did = s.text("id")
         if did in ctx.definitions:
@@ -33,7 +34,7 @@ def _cross_sections(ctx: Context) -> None:
         ctx.definitions[did] = s
     per_branch: dict[str, list[tuple[float, dict, str]]] = defaultdict(list)
     for s in ctx.model.blocks("crossLocFile", "crosssection"):
-        cid = s.text("id")
+        cid = ctx.claim("cross-section", s)
         bid = s.text("branchId", "branchid")
         did = s.text("definitionId", "definition")
         if not ctx.known("branch", bid):

@@ -32,9 +32,9 @@ __all__ = ["convert_structures"]
 
 _DIRECTIONS = {0: "both", 1: "positive", 2: "negative", 3: "none"}
 _TABLES = ("weirs", "universal_weirs", "orifices", "culverts", "bridges", "pumps")
-
 #: Opening given to a closed orifice, m: a case's gate must lie above its crest; no flow passes either way.
 CLOSED_OPENING = 1e-3
+
 
 def _direction(s: Section) -> str:
     item = s.find("allowedFlowDir")
@@ -66,8 +66,9 @@ def _friction(s: Section, type_key: str, value_key: str) -> tuple[dict, str]:
 def convert_structures(ctx: Context) -> None:
     """Fill the structure tables of ``ctx.case`` from the model's structure file."""
     tables: dict[str, list[dict]] = {t: [] for t in _TABLES}
+    ctx.reserve("structure", ctx.model.blocks("structureFile", "structure"), "id")
     for s in ctx.model.blocks("structureFile", "structure"):
-        sid = s.text("id")
+        sid = ctx.claim("structure", s)
         kind = s.text("type").strip()
         bid = s.text("branchId", "branchid", default=None)
         if bid is None or not ctx.known("branch", bid) or ctx.id("branch", bid) not in ctx.branches:
@@ -146,14 +147,14 @@ def _orifice(ctx: Context, s: Section, base: dict):
     item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": gate,
             "discharge_coefficient": mu, "allowed_flow": _direction(s)}
     notes = ["contraction coefficient times lateral contraction as the orifice's discharge coefficient"]
-    if s.flag("useLimitFlowPos", default=False):
-        item["max_flow_positive"] = s.number("limitFlowPos")
-    if s.flag("useLimitFlowNeg", default=False):
-        item["max_flow_negative"] = s.number("limitFlowNeg")
     if not gate > crest:  # flow1d's ComputeOrifice: no flow when the opening (gate - crest) is not positive
         item.update(gate_lower_edge_level=crest + CLOSED_OPENING, allowed_flow="none")
         notes.append(f"closed: the gate's lower edge ({gate:g} m AD) is not above the crest ({crest:g} m AD), so "
                      "SOBEK 3 lets no water through; taken as a closed orifice (allowed_flow = 'none')")
+    if s.flag("useLimitFlowPos", default=False):
+        item["max_flow_positive"] = s.number("limitFlowPos")
+    if s.flag("useLimitFlowNeg", default=False):
+        item["max_flow_negative"] = s.number("limitFlowNeg")
     return "orifices", item, notes, ""
 
 
