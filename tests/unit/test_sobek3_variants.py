@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from rivercal.errors import CaseError
+from rivercal.errors import CaseError, OptionError
 from rivercal.io.sobek3 import ImportOptions, import_sobek3
 from tests.sobek3_models import write_model
 
@@ -89,3 +89,34 @@ def test_a_valid_id_keeps_its_name_when_a_renamed_one_would_take_it(tmp_path) ->
     assert stations["obs_2"]["branch"] == "b2"
     assert stations["obs_2_2"]["branch"] == "b3"
     assert "| station | `obs.2` | `obs_2_2` |" in md
+
+
+# -- time steps --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("dt", [0.0, -5.0, 0.05, float("nan")])
+def test_a_time_step_option_below_the_shortest_is_an_option_error(dt) -> None:
+    with pytest.raises(OptionError, match=r"dt .*at least 0\.1 s"):
+        ImportOptions(dt=dt)
+
+
+@pytest.mark.parametrize(("step", "option", "dt", "words"), [
+    ("0.700", None, 0.6, "time step 0.6 s instead of 0.7 s"),  # 0.7 s does not divide the 600 s output interval
+    ("0.500", None, 0.5, None),  # exact
+    ("0.050", None, 0.1, "raised to 0.1 s"),
+    ("60.000", 0.7, 0.6, "time step 0.6 s instead of 0.7 s"),
+    ("60.000", 45.0, 40.0, "time step 40 s instead of 45 s"),  # whole seconds when a whole divisor exists
+    ("60.000", 7200.0, 600.0, "cut to 3600 s"),
+])
+def test_a_sub_second_step_becomes_a_divisor_of_the_output_interval(tmp_path, step, option, dt, words) -> None:
+    md1d = write_model(tmp_path / "model", Flow1D_md1d=("TimeStep              = 60.000",
+                                                        f"TimeStep              = {step}"))
+    result = import_sobek3(md1d, tmp_path / "case", ImportOptions(allow_partial=True, dt=option))
+    assert result.case.spec.engine.dt == pytest.approx(dt)
+    assert result.case.spec.engine.output_interval == 600.0
+    md = (tmp_path / "case" / "import.md").read_text(encoding="utf-8")
+    rows = [line for line in md.splitlines() if line.startswith("| setting | `TimeStep`")]
+    if words is None:
+        assert not rows and "`TimeStep`" in md
+    else:
+        assert words in rows[0]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,11 +11,14 @@ from typing import ClassVar
 
 import pandas as pd
 
-from rivercal.errors import CaseError
+from rivercal.errors import CaseError, OptionError
 from rivercal.io.ledger import Ledger
 from rivercal.io.sobek3._ini import Section, read_ini
 
-__all__ = ["FILE_KEYS", "Context", "ImportOptions", "Sobek3Ledger", "load_model"]
+__all__ = ["FILE_KEYS", "MIN_DT", "Context", "ImportOptions", "Sobek3Ledger", "load_model"]
+
+#: Shortest time step a case takes, s (the case's ``engine.dt``).
+MIN_DT = 0.1
 
 _BAD = re.compile(r"[^A-Za-z0-9_.\-]")
 
@@ -55,11 +59,24 @@ class ImportOptions:
     allow_partial
         Write the case even when objects that change the hydraulics were refused (they are left out).
     dt
-        Time step of the case, s (default: the model's own ``TimeStep``).
+        Time step of the case, s (default: the model's own ``TimeStep``); at least 0.1 s. A longer step than the
+        case's longest (3600 s) is cut to it, and one that does not divide the output interval is shortened until
+        it does; ``import.md`` says so.
+
+    Raises
+    ------
+    OptionError
+        When ``dt`` is not a number of at least 0.1 s.
     """
 
     allow_partial: bool = False
     dt: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.dt is not None and not (isinstance(self.dt, int | float) and math.isfinite(self.dt)
+                                        and self.dt >= MIN_DT):
+            raise OptionError(f"dt {self.dt!r}: the time step must be a number of at least {MIN_DT:g} s (the "
+                              "case's shortest)", option="dt")
 
 
 @dataclass

@@ -15,7 +15,7 @@ from rivercal.case import Case
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io._calibration import write_parameters
 from rivercal.io.ledger import conclude
-from rivercal.io.sobek3._context import Context, ImportOptions, Sobek3Ledger, load_model
+from rivercal.io.sobek3._context import MIN_DT, Context, ImportOptions, Sobek3Ledger, load_model
 from rivercal.io.sobek3._forcing import convert_forcing
 from rivercal.io.sobek3._network import convert_network
 from rivercal.io.sobek3._profiles import SECTION_NAMES, unused_definitions
@@ -159,18 +159,23 @@ def _engine(ctx: Context) -> None:
         raise CaseError("the model has no positive [Time] TimeStep", file=str(model.md1d), field="TimeStep")
     interval = model.number("Time", "OutTimeStepGridPoints", default=step) or step
     notes = []
-    if span % interval:
-        new = math.gcd(round(span), round(interval)) or span
-        notes.append(f"output every {new:g} s instead of {interval:g} s (a divisor of the simulated period)")
-        interval = float(new)
-    dt = float(ctx.options.dt or step)
+    if interval < MIN_DT or _tenths(span) % _tenths(interval):
+        new = math.gcd(_tenths(span), max(_tenths(interval), 1)) / 10.0
+        notes.append(f"output every {new:g} s instead of {interval:g} s (a divisor of the simulated period in whole "
+                     "tenths of a second)")
+        interval = new
+    dt = float(step if ctx.options.dt is None else ctx.options.dt)
     if dt > MAX_DT:
         notes.append(f"time step {dt:g} s cut to {MAX_DT:g} s, the case's longest")
         dt = MAX_DT
-    if interval % dt:
-        new = max(d for d in range(1, int(min(dt, interval)) + 1) if interval % d == 0)
+    if dt < MIN_DT:  # only the model's own step: ImportOptions refuses a shorter one
+        notes.append(f"time step {dt:g} s raised to {MIN_DT:g} s, the case's shortest (the engine divides a step "
+                     "further where the Courant number asks for it)")
+        dt = MIN_DT
+    new = _divisor(interval, dt)
+    if new != dt:
         notes.append(f"time step {new:g} s instead of {dt:g} s (a divisor of the output interval)")
-        dt = float(new)
+        dt = new
     engine: dict = {"dt": dt, "output_interval": float(interval), "cross_sections": "interpolated"}
     theta = model.number("NumericalParameters", "Theta", default=None)
     if theta is not None:
@@ -185,9 +190,29 @@ def _engine(ctx: Context) -> None:
     if courant is not None and courant > 0:
         engine["courant"] = courant
     ctx.case["engine"] = engine
-    what = "the model's own time step" if not ctx.options.dt else "the time step given"
+    what = "the model's own time step" if ctx.options.dt is None else "the time step given"
     (ctx.ledger.approximated if notes else ctx.ledger.exact)(
         "setting", "TimeStep", "; ".join(notes) or f"{what}, {dt:g} s; output every {interval:g} s")
+
+
+def _tenths(seconds: float) -> int:
+    return round(seconds * 10.0)
+
+
+def _divisor(interval: float, dt: float) -> float:
+    """The longest step of at most ``dt`` that divides ``interval`` into whole steps, s.
+
+    A whole number of seconds when one of at least 1 s does, else a whole number of tenths of a second (the
+    case's shortest step is 0.1 s; ``interval`` is a whole number of tenths).
+    """
+    ratio = interval / dt
+    if ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-9:
+        return dt
+    total, most = _tenths(interval), math.floor(dt * 10.0 + 1e-6)
+    whole = [k for k in range(min(most, total) // 10, 0, -1) if total % (10 * k) == 0]
+    if whole:
+        return float(whole[0])
+    return next(k for k in range(min(most, total), 0, -1) if total % k == 0) / 10.0
 
 
 def _fit_the_grid(ctx: Context) -> None:
