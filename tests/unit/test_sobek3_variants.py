@@ -7,6 +7,8 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from rivercal.errors import CaseError, OptionError
@@ -120,3 +122,70 @@ def test_a_sub_second_step_becomes_a_divisor_of_the_output_interval(tmp_path, st
         assert not rows and "`TimeStep`" in md
     else:
         assert words in rows[0]
+
+
+# -- block-wise and periodic series -----------------------------------------------------------------------------
+
+
+def _lateral(folder: Path, column: str) -> pd.Series:
+    frame = pd.read_csv(folder / "laterals.csv", index_col="time")
+    frame.index = pd.to_datetime(frame.index)
+    return frame[column]
+
+
+def _at(series: pd.Series, when: str) -> float:
+    """The value of a case series at a time, interpolated linearly as the engine reads it."""
+    seconds = (series.index - series.index[0]).total_seconds()
+    return float(np.interp((pd.Timestamp(when) - series.index[0]).total_seconds(), seconds, series.to_numpy()))
+
+
+@pytest.mark.parametrize("spelling", ["block-to", "blockTo", "Block-To", "BLOCKTO"])
+def test_a_block_to_series_holds_the_value_at_the_end_of_each_interval(tmp_path, spelling) -> None:
+    # lat2: 0.1 at 0 h, 0.3 at 12 h; block-to: 0.3 from just after 0 h through 12 h
+    _, md, folder = _import(tmp_path, BoundaryConditions_bc=("time-interpolation    = block-from",
+                                                             f"time-interpolation    = {spelling}"))
+    lat = _lateral(folder, "lat2")
+    assert _at(lat, "2020-01-01T00:00:00Z") == pytest.approx(0.1)
+    for when in ("2020-01-01T00:00:01Z", "2020-01-01T06:00:00Z", "2020-01-01T12:00:00Z", "2020-01-01T18:00:00Z"):
+        assert _at(lat, when) == pytest.approx(0.3), when
+    assert "block-to series taken as steps" in md
+
+
+@pytest.mark.parametrize("spelling", ["block-from", "blockFrom", "BlockFrom"])
+def test_a_block_from_series_holds_each_value_until_the_next_time(tmp_path, spelling) -> None:
+    _, md, folder = _import(tmp_path, BoundaryConditions_bc=("time-interpolation    = block-from",
+                                                             f"time-interpolation    = {spelling}"))
+    lat = _lateral(folder, "lat2")
+    for when, value in (("2020-01-01T06:00:00Z", 0.1), ("2020-01-01T11:59:59Z", 0.1),
+                        ("2020-01-01T12:00:00Z", 0.3), ("2020-01-01T18:00:00Z", 0.3)):
+        assert _at(lat, when) == pytest.approx(value), when
+    assert "block-from series taken as steps" in md
+
+
+def test_an_unknown_time_interpolation_names_its_file_line_and_key(tmp_path) -> None:
+    md1d = write_model(tmp_path / "model", BoundaryConditions_bc=("time-interpolation    = block-from",
+                                                                  "time-interpolation    = cubic"))
+    with pytest.raises(CaseError, match=r"BoundaryConditions.bc:\d+: time-interpolation: 'cubic' is none of"):
+        import_sobek3(md1d, tmp_path / "case", ImportOptions(allow_partial=True))
+
+
+@pytest.mark.parametrize(("rows", "interpolation", "expect"), [
+    # linear over 12 h, repeated: 0.1 at 0, 12 and 24 h, 0.3 at 6 and 18 h
+    ("    0 0.1\n    6 0.3\n    12 0.1", "linear", {"06:00": 0.3, "12:00": 0.1, "15:00": 0.2, "18:00": 0.3}),
+    # block-from over 8 h: 0.1 from 0 h, 0.3 from 4 h, again 0.1 from 8 h
+    ("    0 0.1\n    4 0.3\n    8 0.7", "block-from", {"02:00": 0.1, "06:00": 0.3, "09:00": 0.1, "13:00": 0.3,
+                                                       "17:00": 0.1}),
+])
+def test_a_periodic_series_repeats_over_the_simulated_period(tmp_path, rows, interpolation, expect) -> None:
+    _, md, folder = _import(tmp_path, BoundaryConditions_bc=(
+        "time-interpolation    = block-from\n    quantity              = time\n"
+        "    unit                  = hours since 2020-01-01 00:00:00\n    quantity              = water_discharge\n"
+        "    unit                  = m³/s\n    0 0.1\n    12 0.3",
+        f"time-interpolation    = {interpolation}\n    periodic              = true\n    quantity              = time\n"
+        "    unit                  = hours since 2020-01-01 00:00:00\n    quantity              = water_discharge\n"
+        f"    unit                  = m³/s\n{rows}"))
+    lat = _lateral(folder, "lat2")
+    for when, value in expect.items():
+        assert _at(lat, f"2020-01-01T{when}:00Z") == pytest.approx(value), when
+    row = next(line for line in md.splitlines() if "`lat2`" in line)
+    assert "periodic: repeated every" in row and "last value held" not in row
