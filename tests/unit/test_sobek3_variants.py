@@ -189,3 +189,16 @@ def test_a_periodic_series_repeats_over_the_simulated_period(tmp_path, rows, int
         assert _at(lat, f"2020-01-01T{when}:00Z") == pytest.approx(value), when
     row = next(line for line in md.splitlines() if "`lat2`" in line)
     assert "periodic: repeated every" in row and "last value held" not in row
+
+
+# -- universal weir ----------------------------------------------------------------------------------------------
+
+
+def test_a_universal_weir_has_its_crest_at_crest_level_and_its_shape_above_it(tmp_path) -> None:
+    # flow1d's readUniversalWeir: the z values are heights relative to the crest, shifted so that the lowest is 0
+    data, md, _ = _import(tmp_path, Structures_ini=("crestLevel            = -1.5",
+                                                    "crestLevel            = -1.2"))
+    weir = _by_id(data["universal_weirs"])["uweir1"]
+    assert weir["crest_level"] == -1.2
+    assert weir["z"] == pytest.approx([0.7, 0.0, 0.0, 0.7])
+    assert "- universalWeir (1): `uweir1`" in md  # exact

@@ -4,7 +4,8 @@ SOBEK 3 → case (key names of SOBEK 3's structure file, flow1d's readStructures
 
 - ``weir`` (crestLevel, crestWidth, dischargeCoeff, latDisCoeff, allowedFlowDir) → ``[[weirs]]``: the same
   simple-weir formula with its free/submerged switch at two thirds of the upstream head;
-- ``universalWeir`` (levelsCount, yValues, zValues as levels, crestLevel, dischargeCoeff) → ``[[universal_weirs]]``;
+- ``universalWeir`` (levelsCount, yValues, zValues as heights above their lowest, crestLevel, dischargeCoeff) →
+  ``[[universal_weirs]]``;
 - ``orifice``/``gate`` (crestLevel, crestWidth, openLevel, contractionCoeff, latContrCoeff, flow limits) →
   ``[[orifices]]`` with the coefficient μ c_w;
 - ``culvert`` and ``invertedSiphon`` (csDefId, leftLevel, rightLevel, length, loss coefficients, bed friction) →
@@ -117,6 +118,12 @@ def _weir(ctx: Context, s: Section, base: dict):
 
 
 def _universal_weir(ctx: Context, s: Section, base: dict):
+    """A universal weir: its crest at ``crestLevel``, its shape the z values above their lowest.
+
+    SOBEK 3's reader (flow1d's ``readUniversalWeir``) takes the z values as heights relative to the crest and
+    shifts them so that the lowest is 0; the crest is ``crestLevel`` (raised to the bed where it lies below it,
+    as ``ComputeUniversalWeir`` takes the highest of the crest and the bed levels either side).
+    """
     count = s.integer("levelsCount", "numLevels", default=None)
     y = s.numbers("yValues", count=count)
     z = s.numbers("zValues", count=len(y))
@@ -125,12 +132,10 @@ def _universal_weir(ctx: Context, s: Section, base: dict):
         raise s.error("yValues", "the y values of a universal weir must not decrease")
     low = min(z)
     notes = []
-    if abs(low - crest) > 1e-6:
-        notes.append(f"the crest level {crest:g} m AD differs from the lowest z value {low:g} m AD; the lowest is used")
     factor = s.number("freeSubmergedFactor", default=0.667)
     if abs(factor - 0.667) > 1e-3:
         notes.append(f"freeSubmergedFactor {factor:g}: the case switches to submerged flow at 2/3")
-    item = {**base, "y": y, "z": [v - low for v in z], "crest_level": low,
+    item = {**base, "y": y, "z": [v - low for v in z], "crest_level": crest,
             "discharge_coefficient": s.number("dischargeCoeff", default=1.0), "allowed_flow": _direction(s)}
     return "universal_weirs", item, notes, ""
 
