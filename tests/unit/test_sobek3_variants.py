@@ -13,6 +13,7 @@ import pytest
 
 from rivercal.errors import CaseError, OptionError
 from rivercal.io.sobek3 import ImportOptions, import_sobek3
+from rivercal.io.sobek3._ini import read_ini
 from tests.sobek3_models import write_model
 
 
@@ -202,3 +203,20 @@ def test_a_universal_weir_has_its_crest_at_crest_level_and_its_shape_above_it(tm
     assert weir["crest_level"] == -1.2
     assert weir["z"] == pytest.approx([0.7, 0.0, 0.0, 0.7])
     assert "- universalWeir (1): `uweir1`" in md  # exact
+
+
+# -- the INI reader -------------------------------------------------------------------------------------------
+
+
+def test_an_empty_value_followed_by_a_comment_is_empty(tmp_path) -> None:
+    path = tmp_path / "x.ini"
+    path.write_text("[Files]\n  a = # Name and location of the file\n  b = #with blanks# rest\n  c =#\n"
+                    "  d = file.ini # a comment\n", encoding="utf-8")
+    (files,) = read_ini(path)
+    assert [files.find(k).value for k in "abcd"] == ["", "with blanks", "", "file.ini"]
+
+
+def test_an_empty_file_name_followed_by_a_comment_names_no_file(tmp_path) -> None:
+    _, md, _ = _import(tmp_path, Flow1D_md1d=("initialWaterDepthFile = InitialWaterDepth.ini",
+                                                 "initialWaterDepthFile = # Name and location of the file"))
+    assert "Name and location" not in md
