@@ -220,3 +220,27 @@ def test_an_empty_file_name_followed_by_a_comment_names_no_file(tmp_path) -> Non
     _, md, _ = _import(tmp_path, Flow1D_md1d=("initialWaterDepthFile = InitialWaterDepth.ini",
                                                  "initialWaterDepthFile = # Name and location of the file"))
     assert "Name and location" not in md
+
+
+# -- roughness ---------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("code", "law"), [("9", "bosbijkerk"), ("8", "engelund")])
+def test_a_global_roughness_a_case_cannot_take_is_refused_not_an_error(tmp_path, code, law) -> None:
+    replace = {"roughness_FloodPlain1_ini": ("globalType            = 6", f"globalType            = {code}")}
+    md1d = write_model(tmp_path / "strict", **replace)
+    with pytest.raises(CaseError, match=rf"friction group 'FloodPlain1': .*global roughness type {law}.*"
+                                        r"--allow-partial"):
+        import_sobek3(md1d, tmp_path / "strict-case")
+    data, md, _ = _import(tmp_path, **replace)
+    group = _by_id(data["friction_groups"])["FloodPlain1"]
+    assert (group["type"], group["value"]) == ("chezy", 45.0)
+    row = next(line for line in md.splitlines() if line.startswith("| friction group | `FloodPlain1`"))
+    assert "refused" in md and f"global roughness type {law}" in row and "Chézy 45" in row
+
+
+def test_an_unknown_global_roughness_type_is_an_error_at_its_line(tmp_path) -> None:
+    md1d = write_model(tmp_path / "model", roughness_FloodPlain1_ini=("globalType            = 6",
+                                                                      "globalType            = 42"))
+    with pytest.raises(CaseError, match=r"roughness-FloodPlain1.ini:\d+: globalType: roughness type '42' is none"):
+        import_sobek3(md1d, tmp_path / "case", ImportOptions(allow_partial=True))

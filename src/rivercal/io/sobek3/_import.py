@@ -17,6 +17,7 @@ from rivercal.io._calibration import write_parameters
 from rivercal.io.ledger import conclude
 from rivercal.io.sobek3._context import MIN_DT, Context, ImportOptions, Sobek3Ledger, load_model
 from rivercal.io.sobek3._forcing import convert_forcing
+from rivercal.io.sobek3._friction import DEFAULT_CHEZY
 from rivercal.io.sobek3._network import convert_network
 from rivercal.io.sobek3._profiles import SECTION_NAMES, unused_definitions
 from rivercal.io.sobek3._structures import convert_structures
@@ -141,10 +142,10 @@ def _finish_friction(ctx: Context) -> None:
         for name in names:
             gid = ctx.id("friction group", name)
             if gid not in groups:
-                ctx.case["friction_groups"].append({"id": gid, "type": "chezy", "value": 45.0})
+                ctx.case["friction_groups"].append({"id": gid, "type": "chezy", "value": DEFAULT_CHEZY})
                 groups.add(gid)
-                ctx.ledger.approximated("friction group", name, "no roughness file for this section: Chézy 45 "
-                                        "m^(1/2)/s, SOBEK 3's default roughness")
+                ctx.ledger.approximated("friction group", name, "no roughness file for this section: Chézy "
+                                        f"{DEFAULT_CHEZY:g} m^(1/2)/s, SOBEK 3's default roughness")
             ids.append(gid)
         prof["friction"] = ids
     order = {name.lower(): k for k, name in enumerate(SECTION_NAMES)}
