@@ -244,3 +244,40 @@ def test_an_unknown_global_roughness_type_is_an_error_at_its_line(tmp_path) -> N
                                                                       "globalType            = 42"))
     with pytest.raises(CaseError, match=r"roughness-FloodPlain1.ini:\d+: globalType: roughness type '42' is none"):
         import_sobek3(md1d, tmp_path / "case", ImportOptions(allow_partial=True))
+
+
+# -- compound structures -----------------------------------------------------------------------------------------
+
+
+def _two_weirs(compound: str) -> dict[str, tuple[str, str]]:
+    """Two weirs on b1 at 550 m (between the grid points at 500 and 600 m), members of compound C1 or not."""
+    block = ("[Structure]\n    id = {id}\n    branchid = b1\n    chainage = 550.0\n    type = weir\n"
+             "    crestLevel = {crest}\n    crestWidth = 2.0\n" + compound + "\n")
+    weirs = block.format(id="cw1", crest=-1.0) + block.format(id="cw2", crest=-0.5)
+    return {"Structures_ini": ("[Structure]\n    id                    = weir1",
+                               weirs + "[Structure]\n    id                    = weir1")}
+
+
+def test_a_compound_structure_is_refused_naming_the_compound_its_file_and_line(tmp_path) -> None:
+    replace = _two_weirs("    compound = 1\n    compoundName = C1")
+    md1d = write_model(tmp_path / "model", **replace)
+    with pytest.raises(CaseError) as info:
+        import_sobek3(md1d, tmp_path / "strict")
+    message = str(info.value)
+    line = next(k for k, text in enumerate((tmp_path / "model" / "Structures.ini").read_text(
+        encoding="utf-8").splitlines(), start=1) if "id = cw1" in text)
+    assert "compound structure 'C1'" in message and f"Structures.ini:{line};" in message, message
+    assert "members 'cw1', 'cw2'" in message and "same two grid points as" not in message
+    data, md, _ = _import(tmp_path, **replace)
+    assert not {"cw1", "cw2"} & set(_by_id(data["weirs"]))
+    row = next(line for line in md.splitlines() if "| `cw1`, `cw2` |" in line)  # refused for one reason
+    assert "a member of compound structure 'C1'" in row, row
+
+
+def test_two_structures_between_the_same_grid_points_are_refused_naming_the_file_and_line(tmp_path) -> None:
+    data, md, _ = _import(tmp_path, **_two_weirs(""))
+    assert "cw1" in _by_id(data["weirs"]) and "cw2" not in _by_id(data["weirs"])
+    row = next(line for line in md.splitlines() if "`cw2`" in line and line.startswith("|"))
+    line = next(k for k, text in enumerate((tmp_path / "model" / "Structures.ini").read_text(
+        encoding="utf-8").splitlines(), start=1) if "id = cw2" in text)
+    assert f"Structures.ini:{line}: it lies between the same two grid points as 'cw1'" in row, row

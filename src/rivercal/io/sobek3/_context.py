@@ -234,6 +234,8 @@ class Context:
         The account written to ``import.md``.
     case
         The ``case.toml`` being built (a dict of tables).
+    places
+        ``file:line`` of the block each structure of the case was made from, by case id.
     series
         Time series for the case's CSV files, by file name and column (UTC index).
     start, end
@@ -254,6 +256,7 @@ class Context:
     definitions: dict[str, Section] = field(default_factory=dict)
     used_definitions: set[str] = field(default_factory=set)
     claimed: dict[tuple[str, str], Section] = field(default_factory=dict)
+    places: dict[str, str] = field(default_factory=dict)
 
     def id(self, kind: str, original: str) -> str:
         """The case id of a SOBEK 3 id of a kind (``node``, ``branch``, ``profile``, ``structure``, ...)."""

@@ -254,8 +254,10 @@ def _fit_the_grid(ctx: Context) -> None:
                 table, item = next((t, i) for t, i in on_branch[bid] if i["id"] == exc.structure.id)
                 ctx.case[table].remove(item)
                 structures = [s for s in structures if s.id != exc.structure.id]
-                ctx.ledger.refused(*ctx.origin(item["id"], table), f"it lies between the same two grid points as "
-                                   f"{exc.previous.id!r}; each structure needs a stretch of its own")
+                where = ctx.places.get(item["id"])
+                ctx.ledger.refused(*ctx.origin(item["id"], table), (f"{where}: " if where else "") + "it lies between "
+                                   f"the same two grid points as {ctx.origin(exc.previous.id, table)[1]!r}; each "
+                                   "structure needs a stretch of its own")
     present = {i["id"] for t in _KINDS for i in ctx.case.get(t, [])}
     ctx.case["stations"] = [st for st in ctx.case["stations"] if "structure" not in st or st["structure"] in present]
     for st in ctx.case["stations"]:

@@ -67,6 +67,7 @@ def _friction(s: Section, type_key: str, value_key: str) -> tuple[dict, str]:
 def convert_structures(ctx: Context) -> None:
     """Fill the structure tables of ``ctx.case`` from the model's structure file."""
     tables: dict[str, list[dict]] = {t: [] for t in _TABLES}
+    compounds: dict[str, list[tuple[str, dict, Section]]] = {}
     ctx.reserve("structure", ctx.model.blocks("structureFile", "structure"), "id")
     for s in ctx.model.blocks("structureFile", "structure"):
         sid = ctx.claim("structure", s)
@@ -91,7 +92,11 @@ def convert_structures(ctx: Context) -> None:
             continue
         tables[table].append(item)
         ctx.origins[item["id"]] = (kind, sid)
+        ctx.places[item["id"]] = s.where(s.find("id"))
+        if s.flag("compound", default=False):
+            compounds.setdefault(s.text("compoundName", default=sid), []).append((table, item, s))
         (ctx.ledger.approximated if notes else ctx.ledger.exact)(kind, sid, "; ".join(notes))
+    _refuse_compounds(ctx, compounds, tables)
     for table, items in tables.items():
         if items:
             ctx.case[table] = items
@@ -102,6 +107,29 @@ def convert_structures(ctx: Context) -> None:
             sid = sid.replace(".", "_")
             taken.add(sid)
             ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
+
+
+def _refuse_compounds(ctx: Context, compounds: dict[str, list[tuple[str, dict, Section]]],
+                      tables: dict[str, list[dict]]) -> None:
+    """Refuse the members of each compound structure of two members or more (``compound = 1``, ``compoundName``).
+
+    SOBEK 3 sets the members of a compound side by side on one flow link, between the same two grid points, their
+    discharges adding up; a case gives each structure a stretch of its own, and the import does not yet set the
+    members side by side as parallel branches (as the D-HYDRO import does), so they are refused, naming the
+    compound. A compound of one member is that structure alone, converted as such.
+    """
+    for name, members in compounds.items():
+        if len(members) < 2:
+            continue
+        first = members[0][2]
+        ids = ", ".join(repr(ctx.origins[item["id"]][1]) for _, item, _ in members)
+        for table, item, _ in members:
+            tables[table].remove(item)
+            kind, sid = ctx.origins[item["id"]]
+            ctx.ledger.refused(kind, sid, f"a member of compound structure {name!r} ({first.where(first.find('id'))}; "
+                               f"members {ids}), whose members SOBEK 3 sets side by side between the same two grid "
+                               "points: a case gives each structure a stretch of its own, and the import does not "
+                               "convert compound structures")
 
 
 def _weir(ctx: Context, s: Section, base: dict):
