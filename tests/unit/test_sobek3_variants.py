@@ -11,6 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from rivercal.case import load_case
+from rivercal.engine import Simulator
 from rivercal.errors import CaseError, OptionError
 from rivercal.io.sobek3 import ImportOptions, import_sobek3
 from rivercal.io.sobek3._ini import read_ini
@@ -281,3 +283,43 @@ def test_two_structures_between_the_same_grid_points_are_refused_naming_the_file
     line = next(k for k, text in enumerate((tmp_path / "model" / "Structures.ini").read_text(
         encoding="utf-8").splitlines(), start=1) if "id = cw2" in text)
     assert f"Structures.ini:{line}: it lies between the same two grid points as 'cw1'" in row, row
+
+
+# -- closed tabulated profiles -----------------------------------------------------------------------------------
+
+
+_PIPE = ("[Definition]\n    id                    = pipe\n    type                  = circle\n"
+         "    diameter              = 1.0")
+
+
+def test_a_circle_with_a_table_stays_a_circle(tmp_path) -> None:
+    # DeltaShell writes a circle's table beside its diameter; the table closes at the top
+    data, _, _ = _import(tmp_path, CrossSectionDefinitions_ini=(_PIPE, _PIPE + (
+        "\n    numLevels = 5\n    levels = 0 0.146 0.5 0.854 1.0\n    flowWidths = 0 0.707 1.0 0.707 0"
+        "\n    totalWidths = 0 0.707 1.0 0.707 0")))
+    assert _by_id(data["profiles"])["pipe"] == {"id": "pipe", "type": "circular", "diameter": 1.0,
+                                                "friction": ["Main"]}
+    assert _by_id(data["culverts"])["culvert1"]["profile"] == "pipe"
+
+
+def test_a_closed_table_under_a_culvert_is_a_closed_profile(tmp_path) -> None:
+    closed = "[Definition]\n    id = box\n    type = tabulated\n    numLevels = 3\n    levels = 0 2 2.5\n" \
+             "    flowWidths = 4 4 0\n    totalWidths = 4 4 0\n\n"
+    data, md, folder = _import(tmp_path, CrossSectionDefinitions_ini=(_PIPE, closed + _PIPE),
+                               Structures_ini=("csDefId               = pipe", "csDefId               = box"))
+    box = _by_id(data["profiles"])["box"]
+    assert (box["heights"], box["flow_widths"], box.get("closed")) == ([0.0, 2.0, 2.5], [4.0, 4.0, 0.0], True)
+    assert _by_id(data["culverts"])["culvert1"]["profile"] == "box"
+    assert not any(line.startswith("| profile | `box`") for line in md.splitlines())  # exact: no note, no refusal
+    sim = Simulator(load_case(folder))
+    out, _ = sim.simulate(end=sim.start + pd.Timedelta(hours=2))
+    assert out.series.notna().all().all()
+
+
+def test_an_open_table_whose_flow_width_closes_at_the_top_keeps_a_sliver(tmp_path) -> None:
+    # the flow width closes but the total width does not: an open profile (flow1d closes on the total width)
+    data, md, _ = _import(tmp_path, CrossSectionDefinitions_ini=(
+        "flowWidths            = 6.0 10.0 30.0 24.0 40.0", "flowWidths            = 6.0 10.0 30.0 24.0 0.0"))
+    prof = _by_id(data["profiles"])["river"]
+    assert prof["flow_widths"][-1] == 0.001 and not prof.get("closed")
+    assert "the top keeps 1 mm of flow width" in md

@@ -102,8 +102,8 @@ def profile_of(ctx: Context, s: Section) -> tuple[dict | None, float, str]:
     pid = ctx.id("profile", did)
     kind = s.text("type").lower()
     names = s.words("roughnessNames", default=None)
-    if kind in ("circle", "egg") and s.has("numLevels"):
-        kind = "tabulated"
+    if (kind == "egg" or (kind == "circle" and not s.has("diameter"))) and s.has("numLevels"):
+        kind = "tabulated"  # DeltaShell writes the table of such a shape too; a circle keeps its diameter
     if kind == "tabulated":
         return _tabulated(ctx, s, pid, names)
     if s.flag("groundlayerUsed", default=False) and s.number("groundlayer", default=0.0) > 0:
@@ -165,7 +165,11 @@ def _tabulated(ctx: Context, s: Section, pid: str, names: list[str] | None) -> t
     if any(t < f - 1e-9 for t, f in zip(total, flow, strict=True)):
         notes.append("total widths below the flow widths raised to them")
         total = [max(t, f) for t, f in zip(total, flow, strict=True)]
-    if any(b < a for a, b in itertools.pairwise(total)):
+    # closed when no width is left at the top: flow1d's readTabulatedCS closes a table whose top total width is no
+    # wider than its Preissmann slot (a culvert's pipe or egg given as a table); an open one may narrow in its flow
+    # width only (the rest stores)
+    closed = len(levels) > 1 and total[-1] < _NO_WIDTH
+    if not closed and any(b < a for a, b in itertools.pairwise(total)):
         notes.append("total widths that narrow upward held at their largest value below (an open profile's storage "
                      "cannot shrink)")
         total = list(np.maximum.accumulate(total))
@@ -174,14 +178,18 @@ def _tabulated(ctx: Context, s: Section, pid: str, names: list[str] | None) -> t
         notes.append("a single level: taken as vertical walls")
     if max(flow) <= 0:
         return None, 0.0, "every flow width is 0: the profile conveys no water"
-    if flow[-1] <= 0:
-        return None, 0.0, "the flow width at the top is 0: a closed profile, which a tabulated river profile is not"
+    if not closed and flow[-1] <= 0:
+        notes.append(f"the flow width closes at the top of an open table (its total width does not): the top keeps "
+                     f"{_NO_WIDTH * 1000:g} mm of flow width")
+        flow = [*flow[:-1], _NO_WIDTH]
     if s.flag("groundlayerUsed", default=False) and s.number("groundlayer", default=0.0) > 0:
         return None, 0.0, "a ground layer (groundlayerUsed) is not converted"
     bottom = levels[0]
     prof: dict = {"id": pid, "type": "zw", "heights": [v - bottom for v in levels], "flow_widths": flow}
     if total != flow:
         prof["total_widths"] = total
+    if closed:
+        prof["closed"] = True
     sections = _sections(s, flow)
     if len(sections) > 1:
         prof["section_widths"] = sections
