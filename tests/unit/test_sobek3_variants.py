@@ -260,8 +260,41 @@ def _two_weirs(compound: str) -> dict[str, tuple[str, str]]:
                                weirs + "[Structure]\n    id                    = weir1")}
 
 
-def test_a_compound_structure_is_refused_naming_the_compound_its_file_and_line(tmp_path) -> None:
+def test_a_compound_structure_becomes_parallel_branches_with_the_stretch_s_data(tmp_path) -> None:
+    data, md, folder = _import(tmp_path, **_two_weirs("    compound = 1\n    compoundName = C1"))
+    weirs = _by_id(data["weirs"])
+    branches = _by_id(data["branches"])
+    stretch, beside = weirs["cw1"]["branch"], weirs["cw2"]["branch"]
+    assert stretch != beside and stretch not in ("b1",)
+    # b1 is cut at the grid points around 550 m (500 and 600 m); the 100 m between become two branches of 50 m
+    assert [branches[b]["length"] for b in ("b1", stretch, beside)] == [500.0, 50.0, 50.0]
+    assert (branches[stretch]["from_node"], branches[stretch]["to_node"]) == (
+        branches[beside]["from_node"], branches[beside]["to_node"]) == (branches["b1"]["to_node"],
+                                                                        branches[stretch]["to_node"])
+    assert weirs["cw1"]["chainage"] == weirs["cw2"]["chainage"] == 25.0
+    # the initial levels along b1 (1 m AD at 0, 0.5 m at 1000 m) and its water-level friction table at 0 and
+    # 1000 m carried over to each part for the stretch of b1 it stands for
+    assert branches["b1"]["initial_levels"] == {"chainages": [0.0, 500.0], "levels": [1.0, 0.75]}
+    for bid in (stretch, beside):
+        assert branches[bid]["initial_levels"]["chainages"] == [0.0, 50.0]
+        assert branches[bid]["initial_levels"]["levels"] == pytest.approx([0.75, 0.7])
+    main = {e["branch"]: e for e in _by_id(data["friction_groups"])["Main"]["branches"]}
+    assert main["b1"]["chainages"] == [0.0, 500.0]
+    assert np.allclose(main["b1"]["table"], [[30.0, 40.0, 50.0], [31.0, 41.0, 51.0]])
+    for bid in (stretch, beside):
+        assert main[bid]["chainages"] == [0.0, 50.0]
+        assert np.allclose(main[bid]["table"], [[31.0, 41.0, 51.0], [31.2, 41.2, 51.2]])
+    assert "| compound | `C1` | 2 structures side by side" in md
+    sim = Simulator(load_case(folder))
+    out, _ = sim.simulate(end=sim.start + pd.Timedelta(hours=2))
+    assert (out.series["cw1.h_up"] == out.series["cw2.h_up"]).all()
+
+
+def test_a_compound_whose_members_lie_apart_is_refused_naming_it_its_file_and_line(tmp_path) -> None:
     replace = _two_weirs("    compound = 1\n    compoundName = C1")
+    old, new = replace["Structures_ini"]
+    replace["Structures_ini"] = (old, new.replace("chainage = 550.0\n    type = weir\n    crestLevel = -0.5",
+                                                  "chainage = 750.0\n    type = weir\n    crestLevel = -0.5"))
     md1d = write_model(tmp_path / "model", **replace)
     with pytest.raises(CaseError) as info:
         import_sobek3(md1d, tmp_path / "strict")
@@ -269,11 +302,7 @@ def test_a_compound_structure_is_refused_naming_the_compound_its_file_and_line(t
     line = next(k for k, text in enumerate((tmp_path / "model" / "Structures.ini").read_text(
         encoding="utf-8").splitlines(), start=1) if "id = cw1" in text)
     assert "compound structure 'C1'" in message and f"Structures.ini:{line};" in message, message
-    assert "members 'cw1', 'cw2'" in message and "same two grid points as" not in message
-    data, md, _ = _import(tmp_path, **replace)
-    assert not {"cw1", "cw2"} & set(_by_id(data["weirs"]))
-    row = next(line for line in md.splitlines() if "| `cw1`, `cw2` |" in line)  # refused for one reason
-    assert "a member of compound structure 'C1'" in row, row
+    assert "members 'cw1', 'cw2'" in message and "do not lie at one branch and chainage" in message
 
 
 def test_two_structures_between_the_same_grid_points_are_refused_naming_the_file_and_line(tmp_path) -> None:

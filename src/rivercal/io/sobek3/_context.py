@@ -236,6 +236,9 @@ class Context:
         The ``case.toml`` being built (a dict of tables).
     places
         ``file:line`` of the block each structure of the case was made from, by case id.
+    compounds, pieces, parallel
+        The compound structures to set side by side (name, members' case ids); the branches cut for them (id →
+        the pieces' ids) and the branches added beside a stretch (:mod:`rivercal.io.sobek3._compound`).
     series
         Time series for the case's CSV files, by file name and column (UTC index).
     start, end
@@ -257,6 +260,9 @@ class Context:
     used_definitions: set[str] = field(default_factory=set)
     claimed: dict[tuple[str, str], Section] = field(default_factory=dict)
     places: dict[str, str] = field(default_factory=dict)
+    compounds: list[tuple[str, list[str]]] = field(default_factory=list)
+    pieces: dict[str, list[str]] = field(default_factory=dict)
+    parallel: set[str] = field(default_factory=set)
 
     def id(self, kind: str, original: str) -> str:
         """The case id of a SOBEK 3 id of a kind (``node``, ``branch``, ``profile``, ``structure``, ...)."""

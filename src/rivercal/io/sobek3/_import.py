@@ -15,6 +15,7 @@ from rivercal.case import Case
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io._calibration import write_parameters
 from rivercal.io.ledger import conclude
+from rivercal.io.sobek3._compound import place_compounds
 from rivercal.io.sobek3._context import MIN_DT, Context, ImportOptions, Sobek3Ledger, load_model
 from rivercal.io.sobek3._forcing import convert_forcing
 from rivercal.io.sobek3._friction import DEFAULT_CHEZY
@@ -96,11 +97,12 @@ def import_sobek3(md1d: Path | str, out: Path | str, options: ImportOptions | No
     convert_structures(ctx)
     unused_definitions(ctx)
     convert_forcing(ctx)
+    place_compounds(ctx)
     _engine(ctx)
     _fit_the_grid(ctx)
     _settings(ctx)
     _stations_if_none(ctx)
-    write_parameters(ctx.case, ledger)
+    write_parameters(ctx.case, ledger, parallel=ctx.parallel, pieces=ctx.pieces)
     case = conclude(ledger, out, md1d, allow_partial=options.allow_partial, write=lambda: _write(ctx, out))
     return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger, case=case)
 

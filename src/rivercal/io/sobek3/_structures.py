@@ -96,7 +96,7 @@ def convert_structures(ctx: Context) -> None:
         if s.flag("compound", default=False):
             compounds.setdefault(s.text("compoundName", default=sid), []).append((table, item, s))
         (ctx.ledger.approximated if notes else ctx.ledger.exact)(kind, sid, "; ".join(notes))
-    _refuse_compounds(ctx, compounds, tables)
+    _compounds(ctx, compounds, tables)
     for table, items in tables.items():
         if items:
             ctx.case[table] = items
@@ -109,27 +109,45 @@ def convert_structures(ctx: Context) -> None:
             ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
 
 
-def _refuse_compounds(ctx: Context, compounds: dict[str, list[tuple[str, dict, Section]]],
-                      tables: dict[str, list[dict]]) -> None:
-    """Refuse the members of each compound structure of two members or more (``compound = 1``, ``compoundName``).
+def _compounds(ctx: Context, compounds: dict[str, list[tuple[str, dict, Section]]],
+               tables: dict[str, list[dict]]) -> None:
+    """The compound structures (``compound = 1``, one ``compoundName``) to set side by side, or refuse.
 
     SOBEK 3 sets the members of a compound side by side on one flow link, between the same two grid points, their
-    discharges adding up; a case gives each structure a stretch of its own, and the import does not yet set the
-    members side by side as parallel branches (as the D-HYDRO import does), so they are refused, naming the
-    compound. A compound of one member is that structure alone, converted as such.
+    discharges adding up; :func:`rivercal.io.sobek3._compound.place_compounds` makes them parallel branches. A
+    compound of one member is that structure alone. Refused (each member, naming the compound and where its first
+    member is): members at different places, a branch without grid points or without coordinates to place the cut
+    at, a second compound on a branch.
     """
+    nodes = {n["id"]: n for n in ctx.case["nodes"]}
+    holding: set[str] = set()
     for name, members in compounds.items():
         if len(members) < 2:
             continue
-        first = members[0][2]
+        first = members[0][1]
+        branch = ctx.branches[first["branch"]]
+        why = ""
+        if any(i["branch"] != first["branch"] or abs(i["chainage"] - first["chainage"]) > 1e-6
+               for _, i, _ in members[1:]):
+            why = "its members do not lie at one branch and chainage"
+        elif "points" not in branch:
+            why = f"its branch {branch['id']!r} has no grid points to cut it at"
+        elif "geometry" not in branch and not all("x" in nodes[n] for n in (branch["from_node"], branch["to_node"])):
+            why = f"its branch {branch['id']!r} has neither a geometry nor nodes with coordinates to cut it at"
+        elif branch["id"] in holding:
+            why = f"a second compound on branch {branch['id']!r} (the import sets one per branch side by side)"
+        if not why:
+            holding.add(branch["id"])
+            ctx.compounds.append((name, [item["id"] for _, item, _ in members]))
+            continue
+        s = members[0][2]
         ids = ", ".join(repr(ctx.origins[item["id"]][1]) for _, item, _ in members)
         for table, item, _ in members:
             tables[table].remove(item)
             kind, sid = ctx.origins[item["id"]]
-            ctx.ledger.refused(kind, sid, f"a member of compound structure {name!r} ({first.where(first.find('id'))}; "
+            ctx.ledger.refused(kind, sid, f"a member of compound structure {name!r} ({s.where(s.find('id'))}; "
                                f"members {ids}), whose members SOBEK 3 sets side by side between the same two grid "
-                               "points: a case gives each structure a stretch of its own, and the import does not "
-                               "convert compound structures")
+                               f"points: {why}")
 
 
 def _weir(ctx: Context, s: Section, base: dict):
