@@ -45,6 +45,20 @@ def test_a_closed_orifice_lets_no_water_through(tmp_path, open_level) -> None:
     assert "closed" in row and "no water" in row
 
 
+@pytest.mark.parametrize(("old", "new", "key", "words"), [
+    ("crestWidth            = 2.0", "crestWidth            = 0.0", "crestWidth", "at least 1 mm wide"),
+    ("contractionCoeff      = 0.63", "contractionCoeff      = -0.63", "contractionCoeff", "above 0 and at most 2"),
+    ("limitFlowPos          = 4.0", "limitFlowPos          = -4.0", "limitFlowPos", "must not be negative"),
+])
+def test_a_bad_orifice_value_names_its_file_line_and_key(tmp_path, old, new, key, words) -> None:
+    md1d = write_model(tmp_path / "model", Structures_ini=(old, new))
+    with pytest.raises(CaseError) as info:
+        import_sobek3(md1d, tmp_path / "case", ImportOptions(allow_partial=True))
+    line = next(k for k, text in enumerate((tmp_path / "model" / "Structures.ini").read_text(
+        encoding="utf-8").splitlines(), start=1) if new in text)
+    assert f"Structures.ini:{line}: {key}: " in str(info.value) and words in str(info.value), str(info.value)
+
+
 # -- ids used twice ----------------------------------------------------------------------------------------------
 
 

@@ -194,7 +194,13 @@ def _orifice(ctx: Context, s: Section, base: dict):
         crest, area = s.number("bottomLevel"), s.number("area")
         width = area**0.5
         gate = crest + width
+    if not width >= 1e-3:
+        key = "crestWidth" if s.has("crestLevel") else "area"
+        raise s.error(key, f"the opening must be at least 1 mm wide, got {width:g} m")
     mu = s.number("contractionCoeff", default=0.63) * s.number("latContrCoeff", default=1.0)
+    if not 0 < mu <= 2.0:
+        raise s.error("contractionCoeff", f"contractionCoeff times latContrCoeff is {mu:g}; it must lie above 0 and "
+                                          "at most 2")
     item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": gate,
             "discharge_coefficient": mu, "allowed_flow": _direction(s)}
     notes = ["contraction coefficient times lateral contraction as the orifice's discharge coefficient"]
@@ -202,10 +208,12 @@ def _orifice(ctx: Context, s: Section, base: dict):
         item.update(gate_lower_edge_level=crest + CLOSED_OPENING, allowed_flow="none")
         notes.append(f"closed: the gate's lower edge ({gate:g} m AD) is not above the crest ({crest:g} m AD), so "
                      "SOBEK 3 lets no water through; taken as a closed orifice (allowed_flow = 'none')")
-    if s.flag("useLimitFlowPos", default=False):
-        item["max_flow_positive"] = s.number("limitFlowPos")
-    if s.flag("useLimitFlowNeg", default=False):
-        item["max_flow_negative"] = s.number("limitFlowNeg")
+    for use, key, name in (("useLimitFlowPos", "limitFlowPos", "max_flow_positive"),
+                           ("useLimitFlowNeg", "limitFlowNeg", "max_flow_negative")):
+        if s.flag(use, default=False):
+            item[name] = s.number(key)
+            if item[name] < 0:
+                raise s.error(key, f"a largest discharge must not be negative, got {item[name]:g} m³/s")
     return "orifices", item, notes, ""
 
 
