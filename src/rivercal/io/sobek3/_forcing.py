@@ -10,6 +10,8 @@ SOBEK 3 → case:
   of the level, so the table is turned around, and beyond its ends the outflow falls to 0 (below) or rises
   steeply (above) within 1 cm, which holds the level there as SOBEK 3 does;
 - ``LateralDischargeLocations.ini`` ``[LateralDischarge]`` with its ``.bc`` block → ``[[laterals]]``;
+- a series' ``time-interpolation``: ``linear``, ``block-from`` and ``block-to`` (steps whose changes take 1 s in the
+  case's linear series); ``periodic = true``: the series repeated over the simulated period;
 - the model-wide meteorology of the ``.bc`` file: wind that is not zero is refused (a case has no wind); air
   temperature, humidity and cloudiness only drive the temperature model and are not read.
 """

@@ -1,7 +1,8 @@
 """Cross-sections of a SOBEK 3 model as case profiles and as the cross-sections of its branches.
 
 ``CrossSectionDefinitions.ini`` → ``[[profiles]]``: ``tabulated`` → ``zw`` (flow and total widths, the main channel
-and floodplains as friction sections, the summer dike ``sd_*``), ``rectangle``, ``trapezium``, ``circle``, ``yz``;
+and floodplains as friction sections, the summer dike ``sd_*``; closed when no width is left at its top),
+``rectangle``, ``trapezium``, ``circle`` (also when written with a table), ``yz``;
 ``CrossSectionLocations.ini`` → ``branches[].cross_sections`` with bed level = the definition's lowest level + shift.
 :func:`add_profile` also serves the structures that name a definition.
 """

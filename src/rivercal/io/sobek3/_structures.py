@@ -12,6 +12,8 @@ SOBEK 3 → case (key names of SOBEK 3's structure file, flow1d's readStructures
   ``[[culverts]]`` with the definition as their profile;
 - ``bridge`` (csDefId, bedLevel, length, loss coefficients, bed friction) → ``[[bridges]]``;
 - ``pump`` with one stage controlled on its suction side → ``[[pumps]]``;
+- the members of a compound (``compound = 1``, one ``compoundName``) side by side as parallel branches
+  (:mod:`rivercal.io.sobek3._compound`);
 - ``siphon`` (with its own switch-on levels), ``bridgePillar``, ``riverWeir``, ``advancedWeir``,
   ``generalStructure``, ``extraResistance`` and a valve in a culvert are refused: a case has no counterpart.
 
