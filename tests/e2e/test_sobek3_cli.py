@@ -58,3 +58,15 @@ def test_a_bad_value_is_an_error_with_its_file_line_and_key(tmp_path: Path) -> N
     assert "bug" not in run.stderr
     run = rivercal("import", "sobek3", str(tmp_path / "nothing.md1d"), "--out", str(tmp_path / "case"))
     assert run.returncode == 2 and "nothing.md1d" in run.stderr
+
+
+def test_a_time_step_below_the_shortest_is_an_option_error(tmp_path: Path) -> None:
+    md1d = write_model(tmp_path / "model")
+    for dt in ("-5", "0", "0.05"):
+        run = rivercal("import", "sobek3", str(md1d), "--out", str(tmp_path / "case"), "--allow-partial", "--dt", dt)
+        assert run.returncode == 2, (dt, run.stderr)
+        assert "--dt" in run.stderr and "at least 0.1 s" in run.stderr and "bug" not in run.stderr
+    run = rivercal("import", "sobek3", str(md1d), "--out", str(tmp_path / "case"), "--allow-partial", "--dt", "0.7",
+                   "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["dt_s"] == 0.6  # the longest step of at most 0.7 s that divides the 600 s output

@@ -1,5 +1,6 @@
 """``rivercal import sobek3``: a SOBEK 3 model (``Flow1D.md1d``) into a case."""
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -7,6 +8,7 @@ import typer
 
 from rivercal._format import plural
 from rivercal.cli.common import JsonOpt, QuietOpt, emit_json, guard, out_console
+from rivercal.errors import OptionError
 
 __all__ = ["import_sobek3_cmd"]
 
@@ -25,12 +27,14 @@ def import_sobek3_cmd(
     allow_partial: Annotated[bool, typer.Option(
         "--allow-partial", help="Write the case even when objects that change the hydraulics were refused "
                                 "(they are left out; import.md lists them).")] = False,
-    dt: Annotated[float | None, typer.Option(help="Time step of the case, s (default: the model's own "
-                                                  "TimeStep).")] = None,
+    dt: Annotated[float | None, typer.Option(help="Time step of the case, s, at least 0.1 (default: the "
+                                                  "model's own TimeStep).")] = None,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
     """Convert a SOBEK 3 1D model into a case folder, accounting for every object in import.md."""
+    if dt is not None and not (math.isfinite(dt) and dt >= 0.1):
+        raise OptionError(f"--dt {dt:g}: the time step must be at least 0.1 s (the case's shortest)", option="--dt")
     _require_tomli_w()
     from rivercal.io.sobek3 import ImportOptions, import_sobek3
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,11 +11,14 @@ from typing import ClassVar
 
 import pandas as pd
 
-from rivercal.errors import CaseError
+from rivercal.errors import CaseError, OptionError
 from rivercal.io.ledger import Ledger
 from rivercal.io.sobek3._ini import Section, read_ini
 
-__all__ = ["FILE_KEYS", "Context", "ImportOptions", "Sobek3Ledger", "load_model"]
+__all__ = ["FILE_KEYS", "MIN_DT", "Context", "ImportOptions", "Sobek3Ledger", "load_model"]
+
+#: Shortest time step a case takes, s (the case's ``engine.dt``).
+MIN_DT = 0.1
 
 _BAD = re.compile(r"[^A-Za-z0-9_.\-]")
 
@@ -55,11 +59,24 @@ class ImportOptions:
     allow_partial
         Write the case even when objects that change the hydraulics were refused (they are left out).
     dt
-        Time step of the case, s (default: the model's own ``TimeStep``).
+        Time step of the case, s (default: the model's own ``TimeStep``); at least 0.1 s. A longer step than the
+        case's longest (3600 s) is cut to it, and one that does not divide the output interval is shortened until
+        it does; ``import.md`` says so.
+
+    Raises
+    ------
+    OptionError
+        When ``dt`` is not a number of at least 0.1 s.
     """
 
     allow_partial: bool = False
     dt: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.dt is not None and not (isinstance(self.dt, int | float) and math.isfinite(self.dt)
+                                        and self.dt >= MIN_DT):
+            raise OptionError(f"dt {self.dt!r}: the time step must be a number of at least {MIN_DT:g} s (the "
+                              "case's shortest)", option="dt")
 
 
 @dataclass
@@ -165,19 +182,31 @@ class IdMap:
         self._no_dot = no_dot
         self._map: dict[str, str] = {}
         self._used: set[str] = set()
+        self._reserved: set[str] = set()
+
+    def _valid(self, key: str) -> str:
+        new = _BAD.sub("_", key) or "unnamed"
+        if self._no_dot:
+            new = new.replace(".", "_")
+        if len(new) > 64:
+            new = new[:55] + "_" + hashlib.sha1(key.encode()).hexdigest()[:8]
+        return new
+
+    def reserve(self, originals) -> None:
+        """Keep the ids among ``originals`` that are valid as written for themselves: a renamed id never takes them."""
+        for original in originals:
+            key = str(original).strip()
+            if self._valid(key) == key:
+                self._reserved.add(key)
 
     def __call__(self, original: str) -> str:
         """The case id of a SOBEK 3 id (the same id each time it is asked)."""
         key = str(original).strip()
         if key in self._map:
             return self._map[key]
-        new = _BAD.sub("_", key) or "unnamed"
-        if self._no_dot:
-            new = new.replace(".", "_")
-        if len(new) > 64:
-            new = new[:55] + "_" + hashlib.sha1(key.encode()).hexdigest()[:8]
+        new = self._valid(key)
         base, k = new, 2
-        while new in self._used:
+        while new in self._used or (new != key and new in self._reserved):
             new = f"{base[:60]}_{k}"
             k += 1
         self._map[key] = new
@@ -205,6 +234,11 @@ class Context:
         The account written to ``import.md``.
     case
         The ``case.toml`` being built (a dict of tables).
+    places
+        ``file:line`` of the block each structure of the case was made from, by case id.
+    compounds, pieces, parallel
+        The compound structures to set side by side (name, members' case ids); the branches cut for them (id →
+        the pieces' ids) and the branches added beside a stretch (:mod:`rivercal.io.sobek3._compound`).
     series
         Time series for the case's CSV files, by file name and column (UTC index).
     start, end
@@ -224,16 +258,40 @@ class Context:
     profiles: dict[str, tuple[dict | None, float, str]] = field(default_factory=dict)
     definitions: dict[str, Section] = field(default_factory=dict)
     used_definitions: set[str] = field(default_factory=set)
+    claimed: dict[tuple[str, str], Section] = field(default_factory=dict)
+    places: dict[str, str] = field(default_factory=dict)
+    compounds: list[tuple[str, list[str]]] = field(default_factory=list)
+    pieces: dict[str, list[str]] = field(default_factory=dict)
+    parallel: set[str] = field(default_factory=set)
 
     def id(self, kind: str, original: str) -> str:
         """The case id of a SOBEK 3 id of a kind (``node``, ``branch``, ``profile``, ``structure``, ...)."""
-        if kind not in self.ids:
-            self.ids[kind] = IdMap(kind, self.ledger, no_dot=(kind == "station"))
-        return self.ids[kind](original)
+        return self._map(kind)(original)
 
     def known(self, kind: str, original: str) -> bool:
         """Whether a SOBEK 3 id of a kind was given a case id."""
         return kind in self.ids and self.ids[kind].known(original)
+
+    def reserve(self, kind: str, blocks: list[Section], *keys: str) -> None:
+        """Tell the ids of a kind before they are converted, so that a valid one keeps its name (:class:`IdMap`)."""
+        self._map(kind).reserve(s.text(*keys) for s in blocks if s.has(*keys))
+
+    def _map(self, kind: str) -> IdMap:
+        if kind not in self.ids:
+            self.ids[kind] = IdMap(kind, self.ledger, no_dot=(kind == "station"))
+        return self.ids[kind]
+
+    def claim(self, kind: str, s: Section, key: str = "id") -> str:
+        """The SOBEK 3 id of a block (its ``key``); an error naming both blocks when another of the kind has it.
+
+        SOBEK 3 requires the ids of one kind of object to be unique (the kernel looks objects up by id); two
+        blocks with one id are a mistake in the model files, reported where the second is.
+        """
+        original = s.text(key).strip()
+        first = self.claimed.setdefault((kind, original), s)
+        if first is not s:
+            raise s.error(key, f"{kind} id {original!r} is used twice: here and at {first.where(first.find(key))}")
+        return original
 
     def origin(self, case_id: str, kind: str) -> tuple[str, str]:
         """The ledger kind and SOBEK 3 id of a structure or station of the case (``kind`` if unknown)."""

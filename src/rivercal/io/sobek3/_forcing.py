@@ -10,6 +10,8 @@ SOBEK 3 → case:
   of the level, so the table is turned around, and beyond its ends the outflow falls to 0 (below) or rises
   steeply (above) within 1 cm, which holds the level there as SOBEK 3 does;
 - ``LateralDischargeLocations.ini`` ``[LateralDischarge]`` with its ``.bc`` block → ``[[laterals]]``;
+- a series' ``time-interpolation``: ``linear``, ``block-from`` and ``block-to`` (steps whose changes take 1 s in the
+  case's linear series); ``periodic = true``: the series repeated over the simulated period;
 - the model-wide meteorology of the ``.bc`` file: wind that is not zero is refused (a case has no wind); air
   temperature, humidity and cloudiness only drive the temperature model and are not read.
 """
@@ -109,28 +111,96 @@ def bc_series(ctx: Context, s: Section, quantity: str) -> tuple[pd.Series | floa
     index = ref + pd.to_timedelta(np.round(seconds * 1000.0).astype(np.int64), unit="ms")
     series = pd.Series(values, index=index)
     notes = []
-    interpolation = s.text("time-interpolation", "timeInterpolation", default="linear").lower()
-    if interpolation.startswith("block") and len(series) > 1:
+    interpolation = _interpolation(s)
+    if interpolation != "linear" and len(series) > 1:
         series = _blocks(series, interpolation)
-        notes.append(f"{interpolation} series taken as steps of 1 s")
+        notes.append(f"{interpolation} series taken as steps (each change over {STEP_SECONDS:g} s)")
+    if s.flag("periodic", default=False) and len(series) > 1:
+        series, note = _periodic(ctx, series, interpolation)
+        notes.append(note)
     series, note = _cover(ctx, series)
     if note:
         notes.append(note)
     return series, "; ".join(notes)
 
 
+def _interpolation(s: Section) -> str:
+    """``linear``, ``block-from`` or ``block-to``: a .bc block's time interpolation, however it is spelled.
+
+    The .bc format (hydrolib-core's ``TimeInterpolation``; DeltaShell) writes ``linear``, ``block-from`` and
+    ``block-to``; SOBEK 3 also writes ``linear-extrapolate`` and older files ``blockFrom``/``blockTo``. The words
+    are compared without case, blanks and hyphens.
+    """
+    item = s.find("time-interpolation", "timeInterpolation")
+    if item is None or not item.value:
+        return "linear"
+    word = re.sub(r"[^a-z]", "", item.value.lower())
+    found = _INTERPOLATIONS.get(word)
+    if found is None:
+        raise s.error(item.key, f"{item.value!r} is none of linear, block-from, block-to", item)
+    return found
+
+
+_INTERPOLATIONS = {"linear": "linear", "linearextrapolate": "linear", "blockfrom": "block-from",
+                   "blockto": "block-to"}
+#: Duration of a change of value of a block-wise series in the case's (linear) series, s.
+STEP_SECONDS = 1.0
+
+
 def _blocks(series: pd.Series, interpolation: str) -> pd.Series:
-    """A block-wise series as a linear one with 1 s transitions (``block-from``: a value holds from its time on)."""
-    times, values = [series.index[0]], [series.iloc[0]]
+    """A block-wise series as a linear one whose changes take 1 s (or half the interval when that is shorter).
+
+    ``block-from``: a value holds from its time until the next time; ``block-to``: it holds over the interval
+    that ends at its time, "equal to that at the end of the time interval (upcoming specified time value)"
+    (hydrolib-core's ``TimeInterpolation.block_to``; DeltaShell: "value holds until next specified time step").
+    """
+    times, values = [series.index[0]], [float(series.iloc[0])]
     for k in range(1, len(series)):
-        t = series.index[k]
-        held = series.iloc[k - 1] if interpolation == "block-from" else series.iloc[k]
-        times += [t - pd.Timedelta(seconds=1), t]
-        values += [held, series.iloc[k]]
-    if interpolation == "block-to":
-        values = [series.iloc[0], *values[1:]]
-    out = pd.Series(values, index=pd.DatetimeIndex(times))
-    return out[~out.index.duplicated(keep="last")]
+        t0, t1 = series.index[k - 1], series.index[k]
+        ramp = min(pd.Timedelta(seconds=STEP_SECONDS), (t1 - t0) / 2)
+        if interpolation == "block-from":  # v[k-1] up to t1, then v[k]
+            times += [t1 - ramp, t1]
+            values += [float(series.iloc[k - 1]), float(series.iloc[k])]
+        else:  # v[k] from just after t0 up to t1
+            times += [t0 + ramp, t1]
+            values += [float(series.iloc[k]), float(series.iloc[k])]
+    return pd.Series(values, index=pd.DatetimeIndex(times))
+
+
+def _periodic(ctx: Context, series: pd.Series, interpolation: str) -> tuple[pd.Series, str]:
+    """A periodic series (``periodic = true``) repeated over the simulated period, and the ledger's note.
+
+    ``series`` is one period as the case takes it (block-wise series already as steps). The period is its span,
+    from its first time to its last (DeltaShell's periodic extrapolation of a time series); each repeat starts
+    again at the first value at the end of the one before (a change over 1 s where the last value differs; a
+    ``block-from`` series' last value, which would hold from the end of the period on, is never reached).
+    """
+    t0, period = series.index[0], series.index[-1] - series.index[0]
+    first = int(np.floor((ctx.start - t0) / period))
+    last = max(int(np.ceil((ctx.end - t0) / period)), first + 1)
+    one = series.iloc[:-1]
+    if interpolation != "block-from" and series.iloc[-1] != series.iloc[0]:
+        ramp = min(pd.Timedelta(seconds=STEP_SECONDS), (series.index[-1] - series.index[-2]) / 2)
+        one = pd.concat([one, pd.Series([series.iloc[-1]], index=[series.index[-1] - ramp])])
+        one = one[~one.index.duplicated(keep="first")]
+    shifted = [pd.Series(one.to_numpy(), index=one.index + k * period) for k in range(first, last)]
+    end = series.iloc[[0]]
+    shifted.append(pd.Series(end.to_numpy(), index=end.index + last * period))
+    out = pd.concat(shifted)
+    note = f"periodic: repeated every {_duration(period)} over the simulated period"
+    if series.iloc[-1] != series.iloc[0] and interpolation != "block-from":
+        note += (f" (its last value {series.iloc[-1]:g} differs from its first, {series.iloc[0]:g}: each repeat "
+                 "starts again at the first, over 1 s)")
+    return out, note
+
+
+def _duration(delta: pd.Timedelta) -> str:
+    seconds = delta.total_seconds()
+    for unit, size in (("day", 86400.0), ("hour", 3600.0), ("minute", 60.0)):
+        if seconds >= size and seconds % size == 0:
+            n = int(seconds // size)
+            return f"{n} {unit}{'s' if n != 1 else ''}"
+    return f"{seconds:g} s"
 
 
 def _cover(ctx: Context, series: pd.Series) -> tuple[pd.Series, str]:
@@ -154,8 +224,10 @@ def convert_forcing(ctx: Context) -> None:
         for n in (b["from_node"], b["to_node"]):
             degree[n] = degree.get(n, 0) + 1
     boundaries = []
+    ctx.reserve("boundary", ctx.model.blocks("boundLocFile", "boundary"), "nodeId")
+    ctx.reserve("lateral", ctx.model.blocks("latDischargeLocFile", "lateraldischarge"), "id")
     for s in ctx.model.blocks("boundLocFile", "boundary"):
-        nid = s.text("nodeId", "nodeid")
+        nid = ctx.claim("boundary", s, "nodeId")
         code = s.integer("type", default=None)
         if not ctx.known("node", nid) or degree.get(ctx.id("node", nid), 0) == 0:
             ctx.ledger.refused("boundary", nid, f"node {nid!r} is not in the network", hydraulic=False)
@@ -183,7 +255,7 @@ def convert_forcing(ctx: Context) -> None:
     ctx.case["boundaries"] = boundaries
     laterals = []
     for s in ctx.model.blocks("latDischargeLocFile", "lateraldischarge"):
-        lid = s.text("id")
+        lid = ctx.claim("lateral", s)
         notes = []
         nid = s.text("nodeId", "nodeid", default=None)
         if nid is not None:
@@ -212,6 +284,8 @@ def convert_forcing(ctx: Context) -> None:
         if not found:
             ctx.ledger.refused("lateral", lid, "no block of this name in the boundary-condition file")
             continue
+        if len(found) > 1:
+            raise found[1].error("name", f"lateral {lid!r} has {len(found)} blocks in the boundary-condition file")
         function = found[0].text("function", default="timeseries").lower()
         if function not in ("timeseries", "constant"):
             ctx.ledger.refused("lateral", lid, f"a lateral given as {function!r} (a case takes a time series or a "

@@ -16,7 +16,11 @@ from rivercal.io.sobek3._context import Context
 from rivercal.io.sobek3._ini import Section
 from rivercal.network import FRICTION_RANGES
 
-__all__ = ["LAWS", "convert_value", "law_of"]
+__all__ = ["DEFAULT_CHEZY", "LAWS", "convert_value", "law_of"]
+
+#: SOBEK 3's default roughness, Chézy m^(1/2)/s: a section without a roughness file, and a stand-in in a partial
+#: import for a global roughness type a case cannot take.
+DEFAULT_CHEZY = 45.0
 
 #: SOBEK 3's roughness type codes (roughness files of version 1, culverts and bridges) → (case law, note).
 LAWS = {0: "chezy", 1: "chezy", 4: "manning", 5: "stricklernikuradse", 6: "strickler", 7: "white-colebrook",
@@ -93,11 +97,17 @@ def _friction_groups(ctx: Context) -> None:
         seen[sid] = path.name
         gid = ctx.id("friction group", sid)
         glaw = law_of(content.text("globalType", default="1"))
-        gvalue = content.number("globalValue", default=45.0)
-        if glaw in (None, "engelund", "bosbijkerk"):
-            raise content.error("globalType", f"roughness type {content.text('globalType')!r} has no counterpart in "
-                                              "a case (Chézy 1, Manning 4, Strickler k_n 5, Strickler k_s 6, "
-                                              "White-Colebrook 7)")
+        gvalue = content.number("globalValue", default=DEFAULT_CHEZY)
+        if glaw is None:
+            raise content.error("globalType", f"roughness type {content.text('globalType')!r} is none of SOBEK 3's "
+                                              "(Chézy 1, Manning 4, Strickler k_n 5, Strickler k_s 6, "
+                                              "White-Colebrook 7, Engelund 8, Bos-Bijkerk 9)")
+        if glaw in ("engelund", "bosbijkerk"):
+            ctx.ledger.refused("friction group", sid, f"{path.name}: global roughness type {glaw} has no counterpart "
+                               "in a case (its coefficient depends on the flow); where a branch gives no roughness "
+                               f"of its own, a partial import takes Chézy {DEFAULT_CHEZY:g} m^(1/2)/s, SOBEK 3's "
+                               "default roughness")
+            glaw, gvalue = "chezy", DEFAULT_CHEZY
         glaw, gvalue = convert_value(glaw, gvalue)
         gvalue = _plausible(ctx, glaw, [gvalue], f"{sid} (global value)")[0]
         group: dict = {"id": gid, "type": glaw, "value": gvalue, "branches": []}

@@ -15,8 +15,10 @@ from rivercal.case import Case
 from rivercal.errors import CaseError, StructureOverlap
 from rivercal.io._calibration import write_parameters
 from rivercal.io.ledger import conclude
-from rivercal.io.sobek3._context import Context, ImportOptions, Sobek3Ledger, load_model
+from rivercal.io.sobek3._compound import place_compounds
+from rivercal.io.sobek3._context import MIN_DT, Context, ImportOptions, Sobek3Ledger, load_model
 from rivercal.io.sobek3._forcing import convert_forcing
+from rivercal.io.sobek3._friction import DEFAULT_CHEZY
 from rivercal.io.sobek3._network import convert_network
 from rivercal.io.sobek3._profiles import SECTION_NAMES, unused_definitions
 from rivercal.io.sobek3._structures import convert_structures
@@ -95,11 +97,12 @@ def import_sobek3(md1d: Path | str, out: Path | str, options: ImportOptions | No
     convert_structures(ctx)
     unused_definitions(ctx)
     convert_forcing(ctx)
+    place_compounds(ctx)
     _engine(ctx)
     _fit_the_grid(ctx)
     _settings(ctx)
     _stations_if_none(ctx)
-    write_parameters(ctx.case, ledger)
+    write_parameters(ctx.case, ledger, parallel=ctx.parallel, pieces=ctx.pieces)
     case = conclude(ledger, out, md1d, allow_partial=options.allow_partial, write=lambda: _write(ctx, out))
     return ImportResult(folder=out, summary=_summary(ctx, case), ledger=ledger, case=case)
 
@@ -141,10 +144,10 @@ def _finish_friction(ctx: Context) -> None:
         for name in names:
             gid = ctx.id("friction group", name)
             if gid not in groups:
-                ctx.case["friction_groups"].append({"id": gid, "type": "chezy", "value": 45.0})
+                ctx.case["friction_groups"].append({"id": gid, "type": "chezy", "value": DEFAULT_CHEZY})
                 groups.add(gid)
-                ctx.ledger.approximated("friction group", name, "no roughness file for this section: Chézy 45 "
-                                        "m^(1/2)/s, SOBEK 3's default roughness")
+                ctx.ledger.approximated("friction group", name, "no roughness file for this section: Chézy "
+                                        f"{DEFAULT_CHEZY:g} m^(1/2)/s, SOBEK 3's default roughness")
             ids.append(gid)
         prof["friction"] = ids
     order = {name.lower(): k for k, name in enumerate(SECTION_NAMES)}
@@ -159,18 +162,23 @@ def _engine(ctx: Context) -> None:
         raise CaseError("the model has no positive [Time] TimeStep", file=str(model.md1d), field="TimeStep")
     interval = model.number("Time", "OutTimeStepGridPoints", default=step) or step
     notes = []
-    if span % interval:
-        new = math.gcd(round(span), round(interval)) or span
-        notes.append(f"output every {new:g} s instead of {interval:g} s (a divisor of the simulated period)")
-        interval = float(new)
-    dt = float(ctx.options.dt or step)
+    if interval < MIN_DT or _tenths(span) % _tenths(interval):
+        new = math.gcd(_tenths(span), max(_tenths(interval), 1)) / 10.0
+        notes.append(f"output every {new:g} s instead of {interval:g} s (a divisor of the simulated period in whole "
+                     "tenths of a second)")
+        interval = new
+    dt = float(step if ctx.options.dt is None else ctx.options.dt)
     if dt > MAX_DT:
         notes.append(f"time step {dt:g} s cut to {MAX_DT:g} s, the case's longest")
         dt = MAX_DT
-    if interval % dt:
-        new = max(d for d in range(1, int(min(dt, interval)) + 1) if interval % d == 0)
+    if dt < MIN_DT:  # only the model's own step: ImportOptions refuses a shorter one
+        notes.append(f"time step {dt:g} s raised to {MIN_DT:g} s, the case's shortest (the engine divides a step "
+                     "further where the Courant number asks for it)")
+        dt = MIN_DT
+    new = _divisor(interval, dt)
+    if new != dt:
         notes.append(f"time step {new:g} s instead of {dt:g} s (a divisor of the output interval)")
-        dt = float(new)
+        dt = new
     engine: dict = {"dt": dt, "output_interval": float(interval), "cross_sections": "interpolated"}
     theta = model.number("NumericalParameters", "Theta", default=None)
     if theta is not None:
@@ -185,9 +193,29 @@ def _engine(ctx: Context) -> None:
     if courant is not None and courant > 0:
         engine["courant"] = courant
     ctx.case["engine"] = engine
-    what = "the model's own time step" if not ctx.options.dt else "the time step given"
+    what = "the model's own time step" if ctx.options.dt is None else "the time step given"
     (ctx.ledger.approximated if notes else ctx.ledger.exact)(
         "setting", "TimeStep", "; ".join(notes) or f"{what}, {dt:g} s; output every {interval:g} s")
+
+
+def _tenths(seconds: float) -> int:
+    return round(seconds * 10.0)
+
+
+def _divisor(interval: float, dt: float) -> float:
+    """The longest step of at most ``dt`` that divides ``interval`` into whole steps, s.
+
+    A whole number of seconds when one of at least 1 s does, else a whole number of tenths of a second (the
+    case's shortest step is 0.1 s; ``interval`` is a whole number of tenths).
+    """
+    ratio = interval / dt
+    if ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-9:
+        return dt
+    total, most = _tenths(interval), math.floor(dt * 10.0 + 1e-6)
+    whole = [k for k in range(min(most, total) // 10, 0, -1) if total % (10 * k) == 0]
+    if whole:
+        return float(whole[0])
+    return next(k for k in range(min(most, total), 0, -1) if total % k == 0) / 10.0
 
 
 def _fit_the_grid(ctx: Context) -> None:
@@ -228,8 +256,10 @@ def _fit_the_grid(ctx: Context) -> None:
                 table, item = next((t, i) for t, i in on_branch[bid] if i["id"] == exc.structure.id)
                 ctx.case[table].remove(item)
                 structures = [s for s in structures if s.id != exc.structure.id]
-                ctx.ledger.refused(*ctx.origin(item["id"], table), f"it lies between the same two grid points as "
-                                   f"{exc.previous.id!r}; each structure needs a stretch of its own")
+                where = ctx.places.get(item["id"])
+                ctx.ledger.refused(*ctx.origin(item["id"], table), (f"{where}: " if where else "") + "it lies between "
+                                   f"the same two grid points as {ctx.origin(exc.previous.id, table)[1]!r}; each "
+                                   "structure needs a stretch of its own")
     present = {i["id"] for t in _KINDS for i in ctx.case.get(t, [])}
     ctx.case["stations"] = [st for st in ctx.case["stations"] if "structure" not in st or st["structure"] in present]
     for st in ctx.case["stations"]:

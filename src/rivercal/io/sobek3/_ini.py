@@ -181,10 +181,18 @@ def _to_number(text: str, section: Section, item: Item) -> float:
 
 
 def _strip_comment(value: str) -> str:
+    """The value of a ``key = value`` line without its comment.
+
+    A value may be delimited by ``#...#`` (one with blanks, as D-Flow FM writes ids): ``#with blanks# rest``. A
+    ``#`` followed by a blank, or one without a closing ``#``, begins a comment instead, so that an empty value
+    followed by a comment (``file = # Name and location of the file``, as DeltaShell writes it) stays empty.
+    """
     value = value.strip()
-    if value.startswith("#"):  # a value delimited by # ... # (one with blanks), as D-Flow FM writes ids
+    if value.startswith("#"):
         end = value.find("#", 1)
-        return value[1:end].strip() if end > 0 else value[1:].strip()
+        if end > 1 and not value[1].isspace():
+            return value[1:end].strip()
+        return ""
     cut = value.find("#")
     return (value[:cut] if cut >= 0 else value).strip()
 

@@ -49,6 +49,8 @@ def convert_network(ctx: Context) -> None:
 
 def _nodes_and_branches(ctx: Context) -> None:
     blocks = ctx.model.blocks("networkFile")
+    ctx.reserve("node", [s for s in blocks if s.kind == "node"], "id")
+    ctx.reserve("branch", [s for s in blocks if s.kind == "branch"], "id")
     nodes: list[dict] = []
     node_ids: dict[str, dict] = {}
     for s in blocks:
@@ -159,8 +161,9 @@ def _linestring(s: Section) -> list[list[float]] | None:
 
 def _stations(ctx: Context) -> None:
     stations = []
+    ctx.reserve("station", ctx.model.blocks("obsPointsFile", "observationpoint"), "id")
     for s in ctx.model.blocks("obsPointsFile", "observationpoint"):
-        oid = s.text("id")
+        oid = ctx.claim("observation point", s)
         bid = s.text("branchId", "branchid", default=None)
         if bid is None or not ctx.known("branch", bid) or ctx.id("branch", bid) not in ctx.branches:
             ctx.ledger.refused("observation point", oid, f"not on a branch of the network ({bid!r})", hydraulic=False)
@@ -249,7 +252,7 @@ def _along(ctx: Context, defs: list[Section], content: Section | None, quantity:
 def _retention(ctx: Context) -> None:
     nodes = {n["id"]: n for n in ctx.case["nodes"]}
     for s in ctx.model.blocks("retentionFile", "retention"):
-        rid = s.text("id")
+        rid = ctx.claim("retention", s)
         nid = s.text("nodeId", default=None)
         if nid is None or not ctx.known("node", nid) or ctx.id("node", nid) not in nodes:
             ctx.ledger.refused("retention", rid, "a retention area on a branch (not on a connection node) is not "

@@ -1,7 +1,8 @@
 """Cross-sections of a SOBEK 3 model as case profiles and as the cross-sections of its branches.
 
 ``CrossSectionDefinitions.ini`` → ``[[profiles]]``: ``tabulated`` → ``zw`` (flow and total widths, the main channel
-and floodplains as friction sections, the summer dike ``sd_*``), ``rectangle``, ``trapezium``, ``circle``, ``yz``;
+and floodplains as friction sections, the summer dike ``sd_*``; closed when no width is left at its top),
+``rectangle``, ``trapezium``, ``circle`` (also when written with a table), ``yz``;
 ``CrossSectionLocations.ini`` → ``branches[].cross_sections`` with bed level = the definition's lowest level + shift.
 :func:`add_profile` also serves the structures that name a definition.
 """
@@ -26,6 +27,7 @@ _NO_WIDTH = 1e-3
 
 
 def _cross_sections(ctx: Context) -> None:
+    ctx.reserve("profile", ctx.model.blocks("crossDefFile", "definition"), "id")
     for s in ctx.model.blocks("crossDefFile", "definition"):
         did = s.text("id")
         if did in ctx.definitions:
@@ -33,7 +35,7 @@ def _cross_sections(ctx: Context) -> None:
         ctx.definitions[did] = s
     per_branch: dict[str, list[tuple[float, dict, str]]] = defaultdict(list)
     for s in ctx.model.blocks("crossLocFile", "crosssection"):
-        cid = s.text("id")
+        cid = ctx.claim("cross-section", s)
         bid = s.text("branchId", "branchid")
         did = s.text("definitionId", "definition")
         if not ctx.known("branch", bid):
@@ -101,8 +103,8 @@ def profile_of(ctx: Context, s: Section) -> tuple[dict | None, float, str]:
     pid = ctx.id("profile", did)
     kind = s.text("type").lower()
     names = s.words("roughnessNames", default=None)
-    if kind in ("circle", "egg") and s.has("numLevels"):
-        kind = "tabulated"
+    if (kind == "egg" or (kind == "circle" and not s.has("diameter"))) and s.has("numLevels"):
+        kind = "tabulated"  # DeltaShell writes the table of such a shape too; a circle keeps its diameter
     if kind == "tabulated":
         return _tabulated(ctx, s, pid, names)
     if s.flag("groundlayerUsed", default=False) and s.number("groundlayer", default=0.0) > 0:
@@ -164,7 +166,11 @@ def _tabulated(ctx: Context, s: Section, pid: str, names: list[str] | None) -> t
     if any(t < f - 1e-9 for t, f in zip(total, flow, strict=True)):
         notes.append("total widths below the flow widths raised to them")
         total = [max(t, f) for t, f in zip(total, flow, strict=True)]
-    if any(b < a for a, b in itertools.pairwise(total)):
+    # closed when no width is left at the top: flow1d's readTabulatedCS closes a table whose top total width is no
+    # wider than its Preissmann slot (a culvert's pipe or egg given as a table); an open one may narrow in its flow
+    # width only (the rest stores)
+    closed = len(levels) > 1 and total[-1] < _NO_WIDTH
+    if not closed and any(b < a for a, b in itertools.pairwise(total)):
         notes.append("total widths that narrow upward held at their largest value below (an open profile's storage "
                      "cannot shrink)")
         total = list(np.maximum.accumulate(total))
@@ -173,14 +179,18 @@ def _tabulated(ctx: Context, s: Section, pid: str, names: list[str] | None) -> t
         notes.append("a single level: taken as vertical walls")
     if max(flow) <= 0:
         return None, 0.0, "every flow width is 0: the profile conveys no water"
-    if flow[-1] <= 0:
-        return None, 0.0, "the flow width at the top is 0: a closed profile, which a tabulated river profile is not"
+    if not closed and flow[-1] <= 0:
+        notes.append(f"the flow width closes at the top of an open table (its total width does not): the top keeps "
+                     f"{_NO_WIDTH * 1000:g} mm of flow width")
+        flow = [*flow[:-1], _NO_WIDTH]
     if s.flag("groundlayerUsed", default=False) and s.number("groundlayer", default=0.0) > 0:
         return None, 0.0, "a ground layer (groundlayerUsed) is not converted"
     bottom = levels[0]
     prof: dict = {"id": pid, "type": "zw", "heights": [v - bottom for v in levels], "flow_widths": flow}
     if total != flow:
         prof["total_widths"] = total
+    if closed:
+        prof["closed"] = True
     sections = _sections(s, flow)
     if len(sections) > 1:
         prof["section_widths"] = sections

@@ -4,13 +4,16 @@ SOBEK 3 → case (key names of SOBEK 3's structure file, flow1d's readStructures
 
 - ``weir`` (crestLevel, crestWidth, dischargeCoeff, latDisCoeff, allowedFlowDir) → ``[[weirs]]``: the same
   simple-weir formula with its free/submerged switch at two thirds of the upstream head;
-- ``universalWeir`` (levelsCount, yValues, zValues as levels, crestLevel, dischargeCoeff) → ``[[universal_weirs]]``;
+- ``universalWeir`` (levelsCount, yValues, zValues as heights above their lowest, crestLevel, dischargeCoeff) →
+  ``[[universal_weirs]]``;
 - ``orifice``/``gate`` (crestLevel, crestWidth, openLevel, contractionCoeff, latContrCoeff, flow limits) →
   ``[[orifices]]`` with the coefficient μ c_w;
 - ``culvert`` and ``invertedSiphon`` (csDefId, leftLevel, rightLevel, length, loss coefficients, bed friction) →
   ``[[culverts]]`` with the definition as their profile;
 - ``bridge`` (csDefId, bedLevel, length, loss coefficients, bed friction) → ``[[bridges]]``;
 - ``pump`` with one stage controlled on its suction side → ``[[pumps]]``;
+- the members of a compound (``compound = 1``, one ``compoundName``) side by side as parallel branches
+  (:mod:`rivercal.io.sobek3._compound`);
 - ``siphon`` (with its own switch-on levels), ``bridgePillar``, ``riverWeir``, ``advancedWeir``,
   ``generalStructure``, ``extraResistance`` and a valve in a culvert are refused: a case has no counterpart.
 
@@ -32,6 +35,8 @@ __all__ = ["convert_structures"]
 
 _DIRECTIONS = {0: "both", 1: "positive", 2: "negative", 3: "none"}
 _TABLES = ("weirs", "universal_weirs", "orifices", "culverts", "bridges", "pumps")
+#: Opening given to a closed orifice, m: a case's gate must lie above its crest; no flow passes either way.
+CLOSED_OPENING = 1e-3
 
 
 def _direction(s: Section) -> str:
@@ -64,8 +69,10 @@ def _friction(s: Section, type_key: str, value_key: str) -> tuple[dict, str]:
 def convert_structures(ctx: Context) -> None:
     """Fill the structure tables of ``ctx.case`` from the model's structure file."""
     tables: dict[str, list[dict]] = {t: [] for t in _TABLES}
+    compounds: dict[str, list[tuple[str, dict, Section]]] = {}
+    ctx.reserve("structure", ctx.model.blocks("structureFile", "structure"), "id")
     for s in ctx.model.blocks("structureFile", "structure"):
-        sid = s.text("id")
+        sid = ctx.claim("structure", s)
         kind = s.text("type").strip()
         bid = s.text("branchId", "branchid", default=None)
         if bid is None or not ctx.known("branch", bid) or ctx.id("branch", bid) not in ctx.branches:
@@ -87,7 +94,11 @@ def convert_structures(ctx: Context) -> None:
             continue
         tables[table].append(item)
         ctx.origins[item["id"]] = (kind, sid)
+        ctx.places[item["id"]] = s.where(s.find("id"))
+        if s.flag("compound", default=False):
+            compounds.setdefault(s.text("compoundName", default=sid), []).append((table, item, s))
         (ctx.ledger.approximated if notes else ctx.ledger.exact)(kind, sid, "; ".join(notes))
+    _compounds(ctx, compounds, tables)
     for table, items in tables.items():
         if items:
             ctx.case[table] = items
@@ -98,6 +109,47 @@ def convert_structures(ctx: Context) -> None:
             sid = sid.replace(".", "_")
             taken.add(sid)
             ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
+
+
+def _compounds(ctx: Context, compounds: dict[str, list[tuple[str, dict, Section]]],
+               tables: dict[str, list[dict]]) -> None:
+    """The compound structures (``compound = 1``, one ``compoundName``) to set side by side, or refuse.
+
+    SOBEK 3 sets the members of a compound side by side on one flow link, between the same two grid points, their
+    discharges adding up; :func:`rivercal.io.sobek3._compound.place_compounds` makes them parallel branches. A
+    compound of one member is that structure alone. Refused (each member, naming the compound and where its first
+    member is): members at different places, a branch without grid points or without coordinates to place the cut
+    at, a second compound on a branch.
+    """
+    nodes = {n["id"]: n for n in ctx.case["nodes"]}
+    holding: set[str] = set()
+    for name, members in compounds.items():
+        if len(members) < 2:
+            continue
+        first = members[0][1]
+        branch = ctx.branches[first["branch"]]
+        why = ""
+        if any(i["branch"] != first["branch"] or abs(i["chainage"] - first["chainage"]) > 1e-6
+               for _, i, _ in members[1:]):
+            why = "its members do not lie at one branch and chainage"
+        elif "points" not in branch:
+            why = f"its branch {branch['id']!r} has no grid points to cut it at"
+        elif "geometry" not in branch and not all("x" in nodes[n] for n in (branch["from_node"], branch["to_node"])):
+            why = f"its branch {branch['id']!r} has neither a geometry nor nodes with coordinates to cut it at"
+        elif branch["id"] in holding:
+            why = f"a second compound on branch {branch['id']!r} (the import sets one per branch side by side)"
+        if not why:
+            holding.add(branch["id"])
+            ctx.compounds.append((name, [item["id"] for _, item, _ in members]))
+            continue
+        s = members[0][2]
+        ids = ", ".join(repr(ctx.origins[item["id"]][1]) for _, item, _ in members)
+        for table, item, _ in members:
+            tables[table].remove(item)
+            kind, sid = ctx.origins[item["id"]]
+            ctx.ledger.refused(kind, sid, f"a member of compound structure {name!r} ({s.where(s.find('id'))}; "
+                               f"members {ids}), whose members SOBEK 3 sets side by side between the same two grid "
+                               f"points: {why}")
 
 
 def _weir(ctx: Context, s: Section, base: dict):
@@ -114,6 +166,12 @@ def _weir(ctx: Context, s: Section, base: dict):
 
 
 def _universal_weir(ctx: Context, s: Section, base: dict):
+    """A universal weir: its crest at ``crestLevel``, its shape the z values above their lowest.
+
+    SOBEK 3's reader (flow1d's ``readUniversalWeir``) takes the z values as heights relative to the crest and
+    shifts them so that the lowest is 0; the crest is ``crestLevel`` (raised to the bed where it lies below it,
+    as ``ComputeUniversalWeir`` takes the highest of the crest and the bed levels either side).
+    """
     count = s.integer("levelsCount", "numLevels", default=None)
     y = s.numbers("yValues", count=count)
     z = s.numbers("zValues", count=len(y))
@@ -122,12 +180,10 @@ def _universal_weir(ctx: Context, s: Section, base: dict):
         raise s.error("yValues", "the y values of a universal weir must not decrease")
     low = min(z)
     notes = []
-    if abs(low - crest) > 1e-6:
-        notes.append(f"the crest level {crest:g} m AD differs from the lowest z value {low:g} m AD; the lowest is used")
     factor = s.number("freeSubmergedFactor", default=0.667)
     if abs(factor - 0.667) > 1e-3:
         notes.append(f"freeSubmergedFactor {factor:g}: the case switches to submerged flow at 2/3")
-    item = {**base, "y": y, "z": [v - low for v in z], "crest_level": low,
+    item = {**base, "y": y, "z": [v - low for v in z], "crest_level": crest,
             "discharge_coefficient": s.number("dischargeCoeff", default=1.0), "allowed_flow": _direction(s)}
     return "universal_weirs", item, notes, ""
 
@@ -140,16 +196,26 @@ def _orifice(ctx: Context, s: Section, base: dict):
         crest, area = s.number("bottomLevel"), s.number("area")
         width = area**0.5
         gate = crest + width
+    if not width >= 1e-3:
+        key = "crestWidth" if s.has("crestLevel") else "area"
+        raise s.error(key, f"the opening must be at least 1 mm wide, got {width:g} m")
     mu = s.number("contractionCoeff", default=0.63) * s.number("latContrCoeff", default=1.0)
-    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": max(gate, crest),
+    if not 0 < mu <= 2.0:
+        raise s.error("contractionCoeff", f"contractionCoeff times latContrCoeff is {mu:g}; it must lie above 0 and "
+                                          "at most 2")
+    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": gate,
             "discharge_coefficient": mu, "allowed_flow": _direction(s)}
     notes = ["contraction coefficient times lateral contraction as the orifice's discharge coefficient"]
-    if s.flag("useLimitFlowPos", default=False):
-        item["max_flow_positive"] = s.number("limitFlowPos")
-    if s.flag("useLimitFlowNeg", default=False):
-        item["max_flow_negative"] = s.number("limitFlowNeg")
-    if gate < crest:
-        notes.append("the gate's lower edge lies below the crest: taken at the crest (closed)")
+    if not gate > crest:  # flow1d's ComputeOrifice: no flow when the opening (gate - crest) is not positive
+        item.update(gate_lower_edge_level=crest + CLOSED_OPENING, allowed_flow="none")
+        notes.append(f"closed: the gate's lower edge ({gate:g} m AD) is not above the crest ({crest:g} m AD), so "
+                     "SOBEK 3 lets no water through; taken as a closed orifice (allowed_flow = 'none')")
+    for use, key, name in (("useLimitFlowPos", "limitFlowPos", "max_flow_positive"),
+                           ("useLimitFlowNeg", "limitFlowNeg", "max_flow_negative")):
+        if s.flag(use, default=False):
+            item[name] = s.number(key)
+            if item[name] < 0:
+                raise s.error(key, f"a largest discharge must not be negative, got {item[name]:g} m³/s")
     return "orifices", item, notes, ""
 
 
