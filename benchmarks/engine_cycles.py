@@ -69,11 +69,11 @@ def _cycles(typingctx):
 '''
 
 
-def _picard(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, follow, clk):
+def _picard(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, follow, clk, ahead):
     """:func:`rivercal.engine.kernels.picard.picard_iterations` with the counter read between its parts."""
     zk = work.zk
     a0 = _cycles()  # noqa: F821 -- defined in the header of the copy
-    far = _first_iterate(net, zk, z, dz, min_depth, _GEOMETRY_FROM - tol)  # noqa: F821
+    far = _first_iterate(net, zk, z, dz, min_depth, _GEOMETRY_FROM - tol, ahead)  # noqa: F821
     clk[10] += _cycles() - a0  # noqa: F821
     for it in range(max_iter):
         b0 = _cycles()  # noqa: F821
@@ -162,9 +162,9 @@ def run_ext""")
 """)
     s = _replace(s, """        if sx is None:
             followed = picard_iterations(net, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol,
-                                         min_depth, True)""", """        if sx is None:
+                                         min_depth, True, ahead)""", """        if sx is None:
             followed = _picard(net, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol, min_depth,
-                               True, clk)""")
+                               True, clk, ahead)""")
     s += "\n\n@kernel(inline=True)\n" + re.sub(r"  # noqa: F821.*", "", inspect.getsource(_picard))
     return _load_plain(s, folder, "timeloop_cycles")
 

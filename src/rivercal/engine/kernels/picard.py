@@ -37,28 +37,35 @@ __all__ = [
 
 
 @kernel
-def first_iterate(net, zk, z, dz, min_depth, near):
-    """The first iterate of a step's levels into ``zk`` (m AD): z^n + (z^n - z^{n-1}), not below the bed.
+def first_iterate(net, zk, z, dz, min_depth, near, ahead=1.0):
+    """The first iterate of a step's levels into ``zk`` (m AD): z^n + ahead (z^n - z^{n-1}), not below the bed.
 
-    When the extrapolation is good one solve suffices (the convergence test compares with it). Returns whether
-    the iterate lies farther than ``near`` (m) from the levels ``z`` (m AD) at some point.
+    ``ahead`` is the (sub-)step's length over the last one's where it is shorter (1 otherwise): the last change
+    ``dz`` (m) extrapolated over the step to come, as the accuracy control extrapolates it
+    (:func:`.fluxes.check_levels`). A step divided 2^k times after a long one would otherwise start 2^k times
+    too far from its levels: past the top of a closed profile, where the volume curve bends, the iterations did
+    not come back, and the smallest sub-step committed a level 3.5 km above its bed. When the extrapolation is
+    good one solve suffices (the convergence test compares with it). Returns whether the iterate lies farther than
+    ``near`` (m) from the levels ``z`` (m AD) at some point.
     """
     far = 0
     for i in range(z.size):
         zi = z[i]
-        k = max(zi + dz[i], min(zi, net.hp_bed[i] + min_depth))
+        k = max(zi + ahead * dz[i], min(zi, net.hp_bed[i] + min_depth))
         zk[i] = k
         far += math.fabs(k - zi) > near
     return far > 0
 
 
 @kernel(inline=True)
-def picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, follow):
+def picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, follow,
+                      ahead=1.0):
     """Iterate the levels of step n+1 in ``work.zk`` (m AD): at most ``max_iter`` solves, until none moves by ``tol``.
 
     The first iterate is the extrapolated level (:func:`first_iterate`, from the levels ``z`` and their last change
-    ``dz``, m), and the channel links' coefficients are those of the geometry at time n. Each iteration
-    linearises the structures at the current iterate and solves the level system. With ``follow``, where the
+    ``dz``, m, over ``ahead`` times the last step), and the channel links' coefficients are those of the geometry at
+    time n. Each iteration linearises the structures at the current iterate and solves the level system. With
+    ``follow``, where the
     first solution moves a level by more than ``GEOMETRY_FROM`` (:func:`moves`), the iterations go on in
     :func:`follow_geometry`, which also evaluates the channels' geometry at each iterate.
 
@@ -67,7 +74,7 @@ def picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, ma
     """
     zk = work.zk
     # a solution within tol of an iterate that lies within GEOMETRY_FROM - tol of z moves no level by GEOMETRY_FROM
-    far = first_iterate(net, zk, z, dz, min_depth, GEOMETRY_FROM - tol)
+    far = first_iterate(net, zk, z, dz, min_depth, GEOMETRY_FROM - tol, ahead)
     for it in range(max_iter):
         structure_coefficients(net, work, zk, u, crest, dt)
         if net.dl_link.size:
@@ -86,7 +93,7 @@ def picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, ma
 
 @kernel
 def picard_iterations_ext(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth,
-                          follow):
+                          follow, ahead=1.0):
     """:func:`picard_iterations` for a network with structures of D-HYDRO's kinds (``sx.links``).
 
     A separate kernel, so that a network without them passes no more arrays per step than before (each
@@ -94,7 +101,7 @@ def picard_iterations_ext(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta
     """
     zk = work.zk
     # a solution within tol of an iterate that lies within GEOMETRY_FROM - tol of z moves no level by GEOMETRY_FROM
-    far = first_iterate(net, zk, z, dz, min_depth, GEOMETRY_FROM - tol)
+    far = first_iterate(net, zk, z, dz, min_depth, GEOMETRY_FROM - tol, ahead)
     for it in range(max_iter):
         structure_coefficients(net, work, zk, u, crest, dt)
         extended_coefficients(net, sx, work, zk, u, dt)

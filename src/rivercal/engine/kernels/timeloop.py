@@ -336,6 +336,8 @@ def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forc
         level = _level(stats)
         span = FULL >> level
         h = dt * span / FULL
+        last = stats[STAT_LAST]  # a sub-step shorter than the last extrapolates the last change over its length
+        ahead = 1.0 / (1 << (level - last)) if level > last else 1.0
         lateral = apply_forcing(net, work, n, forcing, edges, h, vol, z, span / (FULL - done), done / FULL,
                                 (done + span) / FULL)
         fastest = channel_coefficients(net, work, z, z, theta, u0, q0, h, min_depth, False)  # the geometry of time n
@@ -344,15 +346,15 @@ def _step(net, sx, dk, work, n, crest, z, dz, vol, u0, q0, u1, q1, pump_on, forc
         switched = switch_pumps(net, work, z, pump_on)
         if sx is None:
             followed = picard_iterations(net, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol,
-                                         min_depth, True)
+                                         min_depth, True, ahead)
         elif sx.links.size > 0:
             followed = picard_iterations_ext(net, sx, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter,
-                                             tol, min_depth, True)
+                                             tol, min_depth, True, ahead)
         else:
             followed = picard_iterations(net, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol,
-                                         min_depth, True)
+                                         min_depth, True, ahead)
         if not followed:
-            _explicit(net, sx, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol, min_depth)
+            _explicit(net, sx, work, z, dz, vol, u0, q0, pump_on, crest, theta, h, max_iter, tol, min_depth, ahead)
         fluxes_within_volume(net, work, vol, theta, h, tol, u0, u1, q1)
         status, index = _screen(net, work, z, dz, u1, vmax, level, done == 0, courant * FULL / (span * dt))
         if status == STATUS_OK:
@@ -409,22 +411,24 @@ def switch_dikes(dk, sc_prof, work, z):
 
 
 @kernel
-def _explicit(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth):
+def _explicit(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, ahead):
     """Solve a (sub-)step again with the channels' geometry of its start, where that of the iterate did not converge.
 
     The arguments are those of :func:`.picard.picard_iterations` (``sx`` None: a network without D-HYDRO's
-    structures); counted in ``STAT_EXPLICIT``.
+    structures; ``ahead`` the sub-step's length over the last one's, at most 1); counted in ``STAT_EXPLICIT``.
     """
     work.stats[STAT_EXPLICIT] += 1
     channel_coefficients(net, work, z, z, theta, u, q, dt, min_depth, False)
     switch_pumps(net, work, z, pump_on)
     if sx is None:
-        picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, False)
+        picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, False,
+                          ahead)
     elif sx.links.size > 0:
         picard_iterations_ext(net, sx, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth,
-                              False)
+                              False, ahead)
     else:
-        picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, False)
+        picard_iterations(net, work, z, dz, vol, u, q, pump_on, crest, theta, dt, max_iter, tol, min_depth, False,
+                          ahead)
 
 
 @kernel
