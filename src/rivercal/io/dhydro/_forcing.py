@@ -295,11 +295,11 @@ def convert_forcing(ctx: Context) -> None:
         for header, bid, reason in ext.failed:
             kind = {"boundary": "boundary", "lateral": "lateral"}.get(header.lower(), header)
             ctx.ledger.refused(kind, bid, reason, hydraulic=header.lower() in ("boundary", "lateral"))
-        for bnd in ext.boundary:
+        for bnd in _once(ctx, ext.boundary, "boundary", "at node", lambda b: b.nodeid):
             item = _boundary(ctx, bnd, degree)
             if item is not None:
                 boundaries.append(item)
-        for lat in ext.lateral:
+        for lat in _once(ctx, ext.lateral, "lateral", "with id", lambda b: b.id):
             item = _lateral(ctx, lat)
             if item is not None:
                 laterals.append(item)
@@ -315,6 +315,38 @@ def convert_forcing(ctx: Context) -> None:
                            "old-format external forcing file (.ext with .tim/.cmp): not read")
     ctx.case["boundaries"] = boundaries
     ctx.case["laterals"] = laterals
+
+
+def _once(ctx: Context, blocks: list[Any], what: str, by: str, key: Any) -> list[Any]:
+    """The blocks whose key (a boundary's node, a lateral's id) no earlier block has; each repeat is an error.
+
+    A case holds one boundary per node and one lateral per id, and which of two blocks D-Flow FM would take
+    (or whether it would add them) is not something an import should guess: the error names both blocks.
+    """
+    seen: dict[str, Any] = {}
+    kept = []
+    for block in blocks:
+        name = key(block)
+        if name is None:
+            kept.append(block)
+            continue
+        name = unquote(name)
+        first = seen.get(name)
+        if first is None:
+            seen[name] = block
+            kept.append(block)
+            continue
+        sources = ctx.model.sources
+        here = sources.where(block) or ctx.model.mdu.name
+        ctx.ledger.error(here, f"a second [{_header(sources, block, what)}] block {by} {name!r}; the first is at "
+                         f"{sources.where(first) or 'an earlier block'}: a {what} {by} {name!r} may be given once "
+                         "(remove or rename one of them)")
+    return kept
+
+
+def _header(sources: Any, block: Any, default: str) -> str:
+    found = sources.section_of(block)
+    return found[1].header if found is not None else default
 
 
 def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
