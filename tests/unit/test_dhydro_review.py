@@ -9,25 +9,17 @@ names the file and line — never an internal error, never a silent change.
 from __future__ import annotations
 
 import re
-import shutil
 import tomllib
 from pathlib import Path
 
-import pytest
+import pandas as pd
 
-from rivercal.errors import CaseError
-from rivercal.io.dhydro import ImportOptions, import_dhydro
-from tests.dhydro_models import write_model
+from tests.unit import test_dhydro_hardening as hardening
 
-
-@pytest.fixture(scope="module")
-def base(tmp_path_factory) -> Path:
-    return write_model(tmp_path_factory.mktemp("dhydro") / "model").parent
-
-
-def _model(base: Path, tmp_path: Path) -> Path:
-    shutil.copytree(base, tmp_path / "model")
-    return tmp_path / "model"
+base = hardening.base  # the test model, written once per module
+_model = hardening._model
+_import = hardening._import
+_error = hardening._error
 
 
 def _append(path: Path, text: str) -> int:
@@ -44,19 +36,6 @@ def _line_of(path: Path, pattern: str, nth: int = 0) -> int:
     matches = list(re.finditer(pattern, text, flags=re.I | re.M))
     assert len(matches) > nth, f"{pattern!r} not in {path.name}"
     return text[:matches[nth].start()].count("\n") + 1
-
-
-def _import(model: Path, tmp_path: Path, **options):
-    return import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions(realtime_lateral=0.01, **options))
-
-
-def _error(model: Path, tmp_path: Path, **options) -> str:
-    with pytest.raises(CaseError) as info:
-        _import(model, tmp_path, **options)
-    message = str(info.value)
-    assert "bug" not in message and "internal" not in message
-    assert not (tmp_path / "case" / "case.toml").exists()
-    return message
 
 
 def _case(tmp_path: Path) -> dict:
@@ -88,3 +67,66 @@ def test_two_laterals_with_one_id_are_an_error_naming_both_blocks(base, tmp_path
     message = _error(model, tmp_path, allow_partial=True)
     assert f"forcing.ext, line {second}" in message and f"forcing.ext, line {first}" in message
     assert "'lat_const'" in message
+
+
+# -- 2, 3. a gate series that is closed at some times and open at others ------------------------------------
+
+
+def _gate_bc(model: Path, name: str) -> None:
+    """A gate series for ``name``: on the crest of orifice1 (-0.2 m AD) until 00:30, 0.6 m AD from 00:31."""
+    (model / "gate.bc").write_text(
+        "[General]\nfileVersion = 1.01\nfileType = boundConds\n\n[forcing]\nname = " + name + "\n"
+        "function = timeseries\ntimeInterpolation = linear\nquantity = time\n"
+        "unit = minutes since 2020-01-01 00:00:00\nquantity = gateLowerEdgeLevel\nunit = m\n"
+        "0 -0.2\n30 -0.2\n31 0.6\n1440 0.6\n", encoding="utf-8")
+
+
+def test_an_orifice_whose_gate_series_starts_closed_opens_when_its_series_does(base, tmp_path) -> None:
+    from rivercal.model import load_model
+
+    model = _model(base, tmp_path)
+    structures = model / "structures.ini"
+    text = structures.read_text(encoding="utf-8")
+    structures.write_text(text.replace("gateLowerEdgeLevel = 0.6", "gateLowerEdgeLevel = gate.bc", 1),
+                          encoding="utf-8")
+    _gate_bc(model, "orifice1")
+    result = _import(model, tmp_path)
+    orifice = next(o for o in _case(tmp_path)["orifices"] if o["id"] == "orifice1")
+    assert orifice["allowed_flow"] == "both" and orifice["gate_series"]["column"] == "orifice1.gateLowerEdgeLevel"
+    assert orifice["gate_lower_edge_level"] > orifice["crest_level"]
+    run, _ = load_model(result.folder).simulate()
+    series = run.series
+    q = series["orifice1.Q"].abs()
+    start = series.index[0]
+    assert q[q.index <= start + pd.Timedelta(minutes=30)].max() < 1e-6  # closed: no water passes
+    assert q[q.index >= start + pd.Timedelta(hours=2)].min() > 0.01  # open from 00:31
+
+
+def test_a_general_structure_gate_series_is_kept_as_the_gate_of_an_orifice(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    structures = model / "structures.ini"
+    text = structures.read_text(encoding="utf-8")
+    head = text.index("id                             = general1")
+    at = text.index("gateLowerEdgeLevel", head)
+    end = text.index("\n", at)
+    structures.write_text(text[:at] + "gateLowerEdgeLevel = gate.bc" + text[end:], encoding="utf-8")
+    _gate_bc(model, "general1")
+    result = _import(model, tmp_path)
+    general = next(o for o in _case(tmp_path)["orifices"] if o["id"] == "general1")
+    assert general["gate_series"]["column"] == "general1.gateLowerEdgeLevel"
+    assert not any(w["id"] == "general1" for w in _case(tmp_path).get("weirs", []))
+    assert "out of the water" not in _entry(result, "generalStructure", "general1").note
+
+
+def test_an_exchanged_general_structure_gate_is_kept(base, tmp_path) -> None:
+    import numpy as np
+    import xarray as xr
+
+    model = _model(base, tmp_path)
+    exchange = tmp_path / "rtc_to_flow.nc"
+    values = xr.DataArray(np.array([[0.4], [0.5], [1.2]]), dims=("time", "n"),
+                          attrs={"long_name": "rtc -> generalStructures/general1/gateLowerEdgeLevel"})
+    xr.Dataset({"item1_values": values}, coords={"time_offset": ("time", [0.0, 3600.0, 7200.0])}).to_netcdf(exchange)
+    _import(model, tmp_path, realtime=(exchange,))
+    general = next(o for o in _case(tmp_path)["orifices"] if o["id"] == "general1")
+    assert general["gate_series"]["column"] == "general1.gateLowerEdgeLevel"

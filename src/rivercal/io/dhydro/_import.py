@@ -348,7 +348,10 @@ def _fit_the_grid(ctx: Context) -> None:
                                             "raised to the bed (D-Flow FM lets the channel bed govern there too)")
                     item[name] = bed
                     gate = item.get("gate_lower_edge_level")
-                    if gate is not None and gate <= bed and item.get("allowed_flow") != "none":
+                    if gate is not None and gate <= bed and item.get("gate_series") is not None:
+                        # the series' values at or below the raised crest close the gate at their times
+                        item["gate_lower_edge_level"] = bed + 0.001
+                    elif gate is not None and gate <= bed and item.get("allowed_flow") != "none":
                         item["gate_lower_edge_level"] = bed + 0.001
                         item["allowed_flow"] = "none"
                         ctx.ledger.approximated(*ctx.origin(item["id"], table),
