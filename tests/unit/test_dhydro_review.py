@@ -13,6 +13,7 @@ import tomllib
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from tests.unit import test_dhydro_hardening as hardening
 
@@ -130,3 +131,25 @@ def test_an_exchanged_general_structure_gate_is_kept(base, tmp_path) -> None:
     _import(model, tmp_path, realtime=(exchange,))
     general = next(o for o in _case(tmp_path)["orifices"] if o["id"] == "general1")
     assert general["gate_series"]["column"] == "general1.gateLowerEdgeLevel"
+
+
+# -- 4. Tzone and the time unit of a .bc file --------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("unit", "six_hours"), [
+    ("minutes since 2020-01-01 00:00:00", "2020-01-01T06:00:00Z"),  # no zone: GMT, as D-Flow FM's EC module
+    ("minutes since 2020-01-01 00:00:00 +01:00", "2020-01-01T05:00:00Z"),  # its own zone
+])
+def test_a_bc_time_without_a_zone_is_gmt_whatever_the_tzone(base, tmp_path, unit, six_hours) -> None:
+    model = _model(base, tmp_path)
+    mdu = model / "test.mdu"
+    mdu.write_text(re.sub(r"(?m)^(tZone\s*=\s*)0\.0", r"\g<1>1.0", mdu.read_text(encoding="utf-8")),
+                   encoding="utf-8")
+    bc = model / "boundaries.bc"
+    bc.write_text(bc.read_text(encoding="utf-8").replace("minutes since 2020-01-01 00:00:00", unit, 1),
+                  encoding="utf-8")
+    _import(model, tmp_path)
+    case = _case(tmp_path)
+    assert case["case"]["start"] == "2019-12-31T23:00:00Z"  # RefDate and TStart in Tzone = +1 h
+    csv = pd.read_csv(tmp_path / "case" / "boundaries.csv", index_col=0)
+    assert csv.loc[six_hours, "A"] == pytest.approx(6.0)  # the .bc row 360 min -> 6 m³/s

@@ -82,12 +82,22 @@ _SINCE = re.compile(r"^\s*(seconds|minutes|hours|days)\s+since\s+(.+?)\s*$", re.
 
 
 def _time_unit(unit: str) -> tuple[float, pd.Timestamp]:
+    """Seconds per unit and the reference time (UTC) of a ``.bc`` time unit ``<unit> since <date> [<offset>]``.
+
+    A date without an offset is GMT (UTC) whatever the MDU's ``Tzone``, as D-Flow FM's EC module reads a ``.bc``
+    file: ``ecSupportTimestringToUnitAndRefdate`` takes the zone 0 when the unit names none, and
+    ``ecSupportTimeToTimesteps`` moves a source time by ``k_timezone - ec_timezone`` (the model's ``Tzone``
+    minus the file's zone) into model time (Deltares delft3d, ``ec_support.f90``; the MDU's own comment: "Data
+    Sources in GMT are interrogated with time in minutes since refdat-Tzone*60"). A date with an offset
+    (``+01:00``, ``+0100``) is in that zone. A ``.tim`` file and an exchange file count from ``RefDate`` in
+    ``Tzone`` instead (``Context.refdate``).
+    """
     m = _SINCE.match(unit)
     if not m:
         raise ValueError(f"time unit {unit!r} is not '<seconds|minutes|hours|days> since <date>'")
     factor = {"seconds": 1.0, "minutes": 60.0, "hours": 3600.0, "days": 86400.0}[m.group(1).lower()]
     try:
-        base = pd.Timestamp(m.group(2).strip().replace(" +00:00", ""))
+        base = pd.Timestamp(m.group(2).strip())
     except (ValueError, OverflowError):
         base = pd.NaT
     if base is pd.NaT:
