@@ -12,6 +12,7 @@ import re
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -153,3 +154,28 @@ def test_a_bc_time_without_a_zone_is_gmt_whatever_the_tzone(base, tmp_path, unit
     assert case["case"]["start"] == "2019-12-31T23:00:00Z"  # RefDate and TStart in Tzone = +1 h
     csv = pd.read_csv(tmp_path / "case" / "boundaries.csv", index_col=0)
     assert csv.loc[six_hours, "A"] == pytest.approx(6.0)  # the .bc row 360 min -> 6 m³/s
+
+
+# -- 5. block-to and block-from interpolation --------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("spelling", "expected"), [
+    # block-To: each interval takes the value at its end, from the second after its start
+    ("block-To", {"00:00:00": 2.0, "00:00:01": 6.0, "03:00:00": 6.0, "06:00:00": 6.0, "06:00:01": 3.0,
+                  "09:00:00": 3.0}),
+    ("BLOCK-TO", {"00:00:00": 2.0, "00:00:01": 6.0, "06:00:00": 6.0, "06:00:01": 3.0}),
+    # block-From: each value holds from its time to the next
+    ("block-From", {"00:00:00": 2.0, "03:00:00": 2.0, "05:59:59": 2.0, "06:00:00": 6.0, "11:59:59": 6.0,
+                    "12:00:00": 3.0}),
+])
+def test_block_interpolation_changes_at_the_right_end_of_each_interval(base, tmp_path, spelling, expected) -> None:
+    model = _model(base, tmp_path)
+    bc = model / "boundaries.bc"
+    bc.write_text(bc.read_text(encoding="utf-8").replace("timeInterpolation = linear",
+                                                         f"timeInterpolation = {spelling}", 1), encoding="utf-8")
+    _import(model, tmp_path)
+    csv = pd.read_csv(tmp_path / "case" / "boundaries.csv", index_col=0, parse_dates=True)["A"]
+    seconds = (csv.index - csv.index[0]).total_seconds().to_numpy()
+    for clock, value in expected.items():
+        at = pd.Timedelta(clock).total_seconds()
+        assert float(np.interp(at, seconds, csv.to_numpy())) == pytest.approx(value), clock
