@@ -179,3 +179,19 @@ def test_block_interpolation_changes_at_the_right_end_of_each_interval(base, tmp
     for clock, value in expected.items():
         at = pd.Timedelta(clock).total_seconds()
         assert float(np.interp(at, seconds, csv.to_numpy())) == pytest.approx(value), clock
+
+
+# -- 6. a storage table that narrows upward ----------------------------------------------------------------
+
+
+def test_a_storage_table_that_narrows_is_approximated_with_its_extra_volume(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    nodes = model / "nodes.ini"
+    nodes.write_text(nodes.read_text(encoding="utf-8").replace("storageArea = 5.0 10.0 50.0",
+                                                               "storageArea = 5.0 50.0 2.0"), encoding="utf-8")
+    result = _import(model, tmp_path)
+    entry = _entry(result, "storage node", "sC")
+    assert entry.status == "approximated"
+    # kept at 50 m² from 0 to 1 m AD instead of narrowing to 2 m²: 0.5 · 1 m · 48 m² more
+    assert "narrows upward" in entry.note and "24 m³ more storage up to 1 m AD" in entry.note
+    assert "48 m² more area above it" in entry.note
