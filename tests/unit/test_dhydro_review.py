@@ -195,3 +195,16 @@ def test_a_storage_table_that_narrows_is_approximated_with_its_extra_volume(base
     # kept at 50 m² from 0 to 1 m AD instead of narrowing to 2 m²: 0.5 · 1 m · 48 m² more
     assert "narrows upward" in entry.note and "24 m³ more storage up to 1 m AD" in entry.note
     assert "48 m² more area above it" in entry.note
+
+
+# -- 8. a lateral beyond the end of its branch -------------------------------------------------------------
+
+
+def test_a_lateral_beyond_its_branch_end_is_an_error_at_its_chainage(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    ext = model / "forcing.ext"
+    ext.write_text(ext.read_text(encoding="utf-8").replace("chainage     = 300.0", "chainage     = 2500.0"),
+                   encoding="utf-8")
+    line = _line_of(ext, r"^chainage\s*=\s*2500")
+    message = _error(model, tmp_path, allow_partial=True)
+    assert f"forcing.ext, line {line}: lateral 'lat_const': chainage 2500 m lies beyond the end of branch b1" in message

@@ -541,8 +541,15 @@ def _lateral(ctx: Context, lat: Any) -> dict | None:
             ctx.ledger.refused("lateral", name, f"its branch {unquote(lat.branchid)!r} is not in the network")
             return None
         branch = ctx.id("branch", lat.branchid)
+        length = ctx.branch_length[branch]
+        if float(lat.chainage) > length + max(1.0, 0.01 * length):  # the tolerance of a structure's chainage
+            sources = ctx.model.sources
+            ctx.ledger.error(sources.where(lat, sources.key_of(lat, "chainage")) or ctx.model.mdu.name,
+                             f"lateral {name!r}: chainage {float(lat.chainage):g} m lies beyond the end of branch "
+                             f"{unquote(lat.branchid)} ({length:g} m long)")
+            return None
         item["branch"] = branch
-        item["chainage"] = min(max(float(lat.chainage), 0.0), ctx.branch_length[branch])
+        item["chainage"] = min(max(float(lat.chainage), 0.0), length)
     else:
         ctx.ledger.refused("lateral", name, "given by x, y coordinates or a polygon (a 2D source), not on the network")
         return None
