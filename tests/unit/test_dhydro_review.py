@@ -16,6 +16,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from rivercal.errors import CaseError
+from rivercal.io.dhydro import ImportOptions, import_dhydro
 from tests.unit import test_dhydro_hardening as hardening
 
 base = hardening.base  # the test model, written once per module
@@ -208,3 +210,45 @@ def test_a_lateral_beyond_its_branch_end_is_an_error_at_its_chainage(base, tmp_p
     line = _line_of(ext, r"^chainage\s*=\s*2500")
     message = _error(model, tmp_path, allow_partial=True)
     assert f"forcing.ext, line {line}: lateral 'lat_const': chainage 2500 m lies beyond the end of branch b1" in message
+
+
+# -- 9. refusals at the right block; a structure id given twice ---------------------------------------------
+
+
+def test_a_refusal_names_the_block_of_its_kind_when_another_kind_has_the_same_id(base, tmp_path) -> None:
+    """A sewer model names a lateral after its storage node: the refusal of the lateral points at the lateral."""
+    model = _model(base, tmp_path)
+    nodes = model / "nodes.ini"
+    nodes.write_text(re.sub(r"(?m)^(id\s*=\s*)sB\b", r"\g<1>lat_node", nodes.read_text(encoding="utf-8")),
+                     encoding="utf-8")
+    line = _line_of(model / "forcing.ext", r"^id\s*=\s*lat_node") - 1  # its [Lateral] header
+    with pytest.raises(CaseError) as info:
+        import_dhydro(model / "test.mdu", tmp_path / "case", ImportOptions())
+    assert f"forcing.ext, line {line}: lateral 'lat_node'" in str(info.value)
+    assert "nodes.ini" not in str(info.value)
+
+
+_SECOND_ORIFICE = ("\n[Structure]\nid = orifice1\ntype = weir\nbranchId = b1\nchainage = 100.0\n"
+                   "allowedFlowDir = both\ncrestLevel = 0.2\ncrestWidth = 2.0\ncorrCoeff = 1.0\n")
+
+
+def test_a_structure_id_given_twice_in_one_file_is_an_error_naming_both_blocks(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    structures = model / "structures.ini"
+    first = _line_of(structures, r"^id\s*=\s*orifice1") - 1
+    second = _append(structures, _SECOND_ORIFICE)
+    message = _error(model, tmp_path, allow_partial=True)
+    assert f"structures.ini, line {second}: a second structure with id 'orifice1' (weir)" in message
+    assert f"the first (orifice) is at structures.ini, line {first}" in message
+
+
+def test_a_structure_id_given_in_two_structure_files_is_an_error_naming_both(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    (model / "extra.ini").write_text("[General]\nfileVersion = 3.00\nfileType = structure\n" + _SECOND_ORIFICE,
+                                     encoding="utf-8")
+    mdu = model / "test.mdu"
+    mdu.write_text(re.sub(r"(?m)^(structureFile\s*=\s*)structures\.ini", r"\g<1>structures.ini;extra.ini",
+                          mdu.read_text(encoding="utf-8")), encoding="utf-8")
+    message = _error(model, tmp_path, allow_partial=True)
+    assert "extra.ini, line 5: a second structure with id 'orifice1'" in message
+    assert "the first (orifice) is at structures.ini, line" in message

@@ -33,6 +33,12 @@ log = logging.getLogger(__name__)
 #: Longest time step an import gives a case, s.
 MAX_DT = 60.0
 STRUCTURE_LENGTH = 10.0
+#: The INI section headers (lower case) of the blocks of each kind of the ledger; a structure's kind is its type.
+_HEADERS = {"lateral": ("lateral",), "boundary": ("boundary",), "storage node": ("storagenode",),
+            "profile": ("definition",), "cross-section": ("crosssection",), "friction group": ("global",),
+            "observation point": ("observationpoint",), "observation cross-section": ("observationcrosssection",)}
+_STRUCTURES = {"weir", "universalWeir", "orifice", "gate", "generalStructure", "culvert", "bridge", "pump",
+               "compound", "dambreak", "longCulvert"}
 _KINDS = {"weirs": Weir, "culverts": Culvert, "pumps": Pump, "orifices": Orifice, "universal_weirs": UniversalWeir,
           "bridges": Bridge}
 
@@ -113,7 +119,9 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     for key in unused:
         ledger.warn(f"exchange series {key} matches no object of the model and was not used")
     def where(kind: str, ident: str) -> str:
-        return model.sources.find_block(ident) if kind != "file" else ""
+        if kind == "file":
+            return ""
+        return model.sources.find_block(ident, _HEADERS.get(kind, ("structure",) if kind in _STRUCTURES else None))
 
     case = conclude(ledger, out, mdu, allow_partial=options.allow_partial, write=lambda: _write(ctx, out),
                     locate=where, nothing_left=not ctx.case.get("branches"))

@@ -32,7 +32,7 @@ def convert_structures(ctx: Context) -> None:
     """Fill the structure tables of ``ctx.case`` from the model's structure files."""
     tables: dict[str, list[dict]] = {t: [] for t in ("weirs", "culverts", "pumps", "orifices", "universal_weirs",
                                                      "bridges")}
-    objects = [s for f in ctx.model.structures for s in f.objects]
+    objects = _once(ctx, [s for f in ctx.model.structures for s in f.objects])
     for f in ctx.model.structures:
         for kind, sid, reason in f.failed:
             ctx.ledger.refused(kind, unquote(sid), reason)
@@ -103,6 +103,29 @@ def convert_structures(ctx: Context) -> None:
             sid = sid.replace(".", "_")
             taken.add(sid)
             ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
+
+
+def _once(ctx: Context, objects: list[Any]) -> list[Any]:
+    """The structures whose id no earlier block has; each repeat is an error naming both blocks.
+
+    D-Flow FM knows a structure by its id (its settings, exchange series and history output go by it), within a
+    file and across the files of ``StructureFile``; which of two blocks it would take is not for the import to guess.
+    """
+    seen: dict[str, Any] = {}
+    kept = []
+    sources = ctx.model.sources
+    for s in objects:
+        sid = unquote(s.id)
+        first = seen.get(sid)
+        if first is None:
+            seen[sid] = s
+            kept.append(s)
+            continue
+        ctx.ledger.error(sources.where(s) or ctx.model.mdu.name,
+                         f"a second structure with id {sid!r} ({s.type}); the first ({first.type}) is at "
+                         f"{sources.where(first) or 'an earlier block'}: a structure id may be given once "
+                         "(remove or rename one of them)")
+    return kept
 
 
 # -- settings that may be time series ------------------------------------------------------------------
