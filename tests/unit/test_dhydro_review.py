@@ -252,3 +252,19 @@ def test_a_structure_id_given_in_two_structure_files_is_an_error_naming_both(bas
     message = _error(model, tmp_path, allow_partial=True)
     assert "extra.ini, line 5: a second structure with id 'orifice1'" in message
     assert "the first (orifice) is at structures.ini, line" in message
+
+
+# -- 10. a stop time between two his times -----------------------------------------------------------------
+
+
+def test_a_stop_time_between_two_his_times_ends_the_period_at_the_last_one(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    mdu = model / "test.mdu"
+    mdu.write_text(re.sub(r"(?m)^(tStop\s*=\s*)86400\.0", r"\g<1>86399.0", mdu.read_text(encoding="utf-8")),
+                   encoding="utf-8")
+    result = _import(model, tmp_path)
+    case = _case(tmp_path)
+    assert case["engine"]["output_interval"] == 600.0 and case["engine"]["dt"] == 30.0  # not 1 s
+    assert case["case"]["end"] == "2020-01-01T23:50:00Z"
+    entry = _entry(result, "setting", "TStop")
+    assert entry.status == "approximated" and "599 s before D-Flow FM would" in entry.note
