@@ -268,3 +268,23 @@ def test_a_stop_time_between_two_his_times_ends_the_period_at_the_last_one(base,
     assert case["case"]["end"] == "2020-01-01T23:50:00Z"
     entry = _entry(result, "setting", "TStop")
     assert entry.status == "approximated" and "599 s before D-Flow FM would" in entry.note
+
+
+# -- 11. a long culvert on a branch ------------------------------------------------------------------------
+
+
+_LONG_CULVERT = ("\n[Structure]\nid = long1\ntype = longCulvert\nbranchId = b1\nchainage = 100.0\n"
+                 "allowedFlowDir = both\nnumCoordinates = 2\nxCoordinates = 100 110\nyCoordinates = 0 0\n"
+                 "zCoordinates = -0.5 -0.55\nwidth = 1\nheight = 1\nfrictionType = Manning\nfrictionValue = 0.014\n"
+                 "valveRelativeOpening = 1\n")
+
+
+def test_a_long_culvert_on_a_branch_is_a_hydraulic_refusal_with_its_reason(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    line = _append(model / "structures.ini", _LONG_CULVERT)
+    message = _error(model, tmp_path)
+    assert f"structures.ini, line {line}: longCulvert 'long1': a long culvert" in message
+    assert "2D or morphological" not in message
+    result = _import(model, tmp_path, allow_partial=True)  # a hydraulic refusal: --allow-partial goes on
+    entry = _entry(result, "longCulvert", "long1")
+    assert entry.status == "refused" and entry.hydraulic

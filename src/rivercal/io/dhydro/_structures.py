@@ -3,7 +3,8 @@
 D-Flow FM → case: ``weir`` → ``[[weirs]]``; ``universalWeir`` → ``[[universal_weirs]]``; ``orifice`` →
 ``[[orifices]]``; ``culvert`` (also a siphon) → ``[[culverts]]``; ``bridge`` → ``[[bridges]]``; ``pump`` →
 ``[[pumps]]``; ``compound`` → its members, side by side (:mod:`._compound`); ``generalStructure`` and ``gate`` →
-an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused. Settings given as time series
+an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused (a long culvert on a branch as a
+hydraulic refusal: it carries water). Settings given as time series
 (``.tim``/``.bc``) or supplied in real time (DIMR exchange files) become structure-setting series.
 """
 
@@ -26,6 +27,14 @@ SETTINGS_FILE = "settings.csv"
 def _direction(value: Any) -> str:
     name = str(getattr(value, "value", value) or "both").lower()
     return name if name in ("both", "positive", "negative", "none") else "both"
+
+
+#: Why a long culvert on a branch is refused (a hydraulic refusal: it carries water between two places).
+_LONG_CULVERT = ("a long culvert: D-Flow FM builds it as a conduit of flow links of its own along its polyline "
+                 "(xCoordinates, yCoordinates, zCoordinates), with friction and no inlet or outlet losses, between the "
+                 "places its ends connect; a case has no such conduit and the import does not guess where its ends "
+                 "join the network. Model it as a [[culverts]] entry (width x height, inverts from zCoordinates) or a "
+                 "branch of its own")
 
 
 def convert_structures(ctx: Context) -> None:
@@ -72,6 +81,9 @@ def convert_structures(ctx: Context) -> None:
         chainage = min(max(float(s.chainage), 0.0), length)
         base = {"id": ctx.id("structure", sid), "branch": branch, "chainage": chainage}
         handler = _HANDLERS.get(s.type)
+        if s.type == "longCulvert":
+            ctx.ledger.refused(s.type, sid, _LONG_CULVERT)
+            continue
         if handler is None:
             ctx.ledger.refused(s.type, sid, f"structure type {s.type!r} has no counterpart in a case (2D or "
                                "morphological structure)")
