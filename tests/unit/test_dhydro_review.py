@@ -288,3 +288,17 @@ def test_a_long_culvert_on_a_branch_is_a_hydraulic_refusal_with_its_reason(base,
     result = _import(model, tmp_path, allow_partial=True)  # a hydraulic refusal: --allow-partial goes on
     entry = _entry(result, "longCulvert", "long1")
     assert entry.status == "refused" and entry.hydraulic
+
+
+# -- 12. a UTF-8 byte order mark ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["structures.ini", "test.mdu", "forcing.ext"])
+def test_a_file_with_a_utf8_byte_order_mark_is_read(base, tmp_path, name) -> None:
+    model = _model(base, tmp_path)
+    path = model / name
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    result = _import(model, tmp_path)
+    assert {o["id"] for o in _case(tmp_path)["orifices"]} == {"orifice1", "general1"}
+    assert len(_case(tmp_path)["boundaries"]) == 3
+    assert not any("not INI text" in w for w in result.ledger.warnings)

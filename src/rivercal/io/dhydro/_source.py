@@ -35,7 +35,8 @@ import numpy as np
 __all__ = ["FileAccess", "IniIndex", "RawKey", "RawSection", "Sources", "is_file", "reading"]
 
 _LOCK = threading.RLock()  # reentrant: a block read inside a file read takes it again
-_ENCODINGS = ("utf-8", "latin-1")
+#: UTF-8 with or without a byte order mark (Windows tools write one; hydrolib-core reads past it), else Latin-1.
+_ENCODINGS = ("utf-8-sig", "latin-1")
 #: Comment lines of D-Flow FM's INI files: ``#``, and ``*`` as D-Flow FM's GUI writes under an MDU's header.
 _COMMENT = ("#", "*")
 
