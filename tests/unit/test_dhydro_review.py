@@ -302,3 +302,18 @@ def test_a_file_with_a_utf8_byte_order_mark_is_read(base, tmp_path, name) -> Non
     assert {o["id"] for o in _case(tmp_path)["orifices"]} == {"orifice1", "general1"}
     assert len(_case(tmp_path)["boundaries"]) == 3
     assert not any("not INI text" in w for w in result.ledger.warnings)
+
+
+# -- 13. a lateral fed by a .tim file ----------------------------------------------------------------------
+
+
+def test_a_lateral_fed_by_a_tim_file_is_refused_as_such(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    (model / "inflow.tim").write_text("0 0.1\n60 0.2\n", encoding="utf-8")
+    ext = model / "forcing.ext"
+    ext.write_text(ext.read_text(encoding="utf-8").replace("discharge    = 0.2", "discharge    = inflow.tim"),
+                   encoding="utf-8")
+    line = _line_of(ext, r"^id\s*=\s*lat_const") - 1
+    message = _error(model, tmp_path)
+    assert f"forcing.ext, line {line}: lateral 'lat_const': discharge = inflow.tim is a .tim file" in message
+    assert "no forcing block" not in message

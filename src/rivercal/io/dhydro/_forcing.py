@@ -570,6 +570,12 @@ def _lateral(ctx: Context, lat: Any) -> dict | None:
             ctx.ledger.refused("lateral", name, "realtime inflow (supplied by a coupled model at run time): give an "
                                "exchange file (--realtime) or a constant (--realtime-lateral)")
             return None
+    elif str(getattr(discharge, "filepath", "") or "").lower().endswith(".tim"):
+        ctx.ledger.refused("lateral", name, f"discharge = {getattr(discharge, 'filepath', '')} is a .tim file; a "
+                           "[Lateral]'s discharge is a number, realtime or a .bc file (hydrolib-core's "
+                           "Lateral.discharge, D-Flow FM's new external forcing format): write the series as a "
+                           f"[forcing] block named {name!r} in a .bc file")
+        return None
     else:
         try:
             series = forcing_series(ctx, discharge, name=lat.id)
