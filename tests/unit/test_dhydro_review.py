@@ -317,3 +317,17 @@ def test_a_lateral_fed_by_a_tim_file_is_refused_as_such(base, tmp_path) -> None:
     message = _error(model, tmp_path)
     assert f"forcing.ext, line {line}: lateral 'lat_const': discharge = inflow.tim is a .tim file" in message
     assert "no forcing block" not in message
+
+
+# -- 14. two storage nodes on one node ---------------------------------------------------------------------
+
+
+def test_two_storage_nodes_on_one_node_are_an_error_naming_both(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    nodes = model / "nodes.ini"
+    first = _line_of(nodes, r"^id\s*=\s*sC") - 1
+    second = _append(nodes, "\n[StorageNode]\nid = sC2\nname = sC2\nnodeId = C\nuseTable = 0\nbedLevel = -1.0\n"
+                            "area = 30.0\nstreetLevel = 2.0\nstreetStorageArea = 100.0\nstorageType = reservoir\n")
+    message = _error(model, tmp_path, allow_partial=True)
+    assert f"nodes.ini, line {second}: storage node 'sC2' is a second storage node on node 'C'" in message
+    assert f"the first, 'sC', is at nodes.ini, line {first}" in message

@@ -260,12 +260,22 @@ def _storage_nodes(ctx: Context) -> None:
     for _, sid, reason in blocks.failed:
         ctx.ledger.refused("storage node", sid, reason)
     nodes = {n["id"]: n for n in ctx.case["nodes"]}
+    taken: dict[str, Any] = {}  # the storage node block that gave each node its storage
+    sources = ctx.model.sources
     for s in blocks.objects:
         sid = unquote(s.id)
         target = s.nodeid or s.manholeid
         node = nodes.get(ctx.id("node", target)) if target and ctx.ids["node"].known(target) else None
         if node is None:
             ctx.ledger.refused("storage node", sid, f"its node {target!r} is not a connection node of the network")
+            continue
+        first = taken.setdefault(node["id"], s)
+        if first is not s:
+            # which of the two D-Flow FM would take, or whether it would add them, is not for the import to guess
+            ctx.ledger.error(sources.where(s) or ctx.model.mdu.name,
+                             f"storage node {sid!r} is a second storage node on node {unquote(target)!r}; the first, "
+                             f"{unquote(first.id)!r}, is at {sources.where(first) or 'an earlier block'}: give one "
+                             "storage node per node (one table that holds both)")
             continue
         notes = []
         if s.usetable:
