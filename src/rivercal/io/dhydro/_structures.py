@@ -235,11 +235,11 @@ def _general(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], st
     crest, cref, why = _setting(ctx, s, "crestLevel", "generalStructures", "the crest level", notes)
     if why or cref:
         return "orifices", {}, notes, why or "a crest level that varies in time"
-    gate, gref, why = (None, None, "") if s.gateloweredgelevel is None and \
-        f"generalStructures/{unquote(s.id)}/gateLowerEdgeLevel" not in ctx.exchange else \
-        _setting(ctx, s, "gateLowerEdgeLevel", "generalStructures", "the gate's lower edge", notes)
-    if why:
-        return "orifices", {}, notes, why
+    gate, gref = None, None  # no gate: a weir
+    if s.gateloweredgelevel is not None or f"generalStructures/{unquote(s.id)}/gateLowerEdgeLevel" in ctx.exchange:
+        gate, gref, why = _setting(ctx, s, "gateLowerEdgeLevel", "generalStructures", "the gate's lower edge", notes)
+        if why:
+            return "orifices", {}, notes, why
     width = float(s.crestwidth or _width_at(ctx, base["branch"], base["chainage"], crest))
     coefficient = float(s.posfreegateflowcoeff or 1.0) * float(s.poscontrcoeffreegate or 1.0)
     notes.append("general structure taken as an orifice (weir under a gate) of the crest width, with the "
