@@ -122,18 +122,36 @@ def test_a_general_structure_gate_series_is_kept_as_the_gate_of_an_orifice(base,
     assert "out of the water" not in _entry(result, "generalStructure", "general1").note
 
 
-def test_an_exchanged_general_structure_gate_is_kept(base, tmp_path) -> None:
-    import numpy as np
+def _exchange(tmp_path: Path, target: str, values: list[float]) -> Path:
+    """A DIMR exchange file with one series from RTC to ``target``, hourly from the reference date."""
     import xarray as xr
 
-    model = _model(base, tmp_path)
     exchange = tmp_path / "rtc_to_flow.nc"
-    values = xr.DataArray(np.array([[0.4], [0.5], [1.2]]), dims=("time", "n"),
-                          attrs={"long_name": "rtc -> generalStructures/general1/gateLowerEdgeLevel"})
-    xr.Dataset({"item1_values": values}, coords={"time_offset": ("time", [0.0, 3600.0, 7200.0])}).to_netcdf(exchange)
+    data = xr.DataArray(np.array(values)[:, None], dims=("time", "n"), attrs={"long_name": f"rtc -> {target}"})
+    hours = 3600.0 * np.arange(len(values))
+    xr.Dataset({"item1_values": data}, coords={"time_offset": ("time", hours)}).to_netcdf(exchange)
+    return exchange
+
+
+def test_an_exchanged_general_structure_gate_is_kept(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    exchange = _exchange(tmp_path, "generalStructures/general1/gateLowerEdgeLevel", [0.4, 0.5, 1.2])
     _import(model, tmp_path, realtime=(exchange,))
     general = next(o for o in _case(tmp_path)["orifices"] if o["id"] == "general1")
     assert general["gate_series"]["column"] == "general1.gateLowerEdgeLevel"
+
+
+def test_an_orifice_gate_from_rtc_that_starts_closed_opens_when_the_series_does(base, tmp_path) -> None:
+    model = _model(base, tmp_path)
+    structures = model / "structures.ini"  # the file's gate down on the crest (-0.2 m AD), as RTC starts it
+    structures.write_text(structures.read_text(encoding="utf-8").replace("gateLowerEdgeLevel = 0.6",
+                                                                         "gateLowerEdgeLevel = -0.2", 1),
+                          encoding="utf-8")
+    exchange = _exchange(tmp_path, "orifices/orifice1/gateLowerEdgeLevel", [-0.2, -0.2, 0.6])
+    _import(model, tmp_path, realtime=(exchange,))
+    orifice = next(o for o in _case(tmp_path)["orifices"] if o["id"] == "orifice1")
+    assert orifice["allowed_flow"] == "both" and orifice["gate_series"]["column"] == "orifice1.gateLowerEdgeLevel"
+    assert orifice["gate_lower_edge_level"] > orifice["crest_level"]
 
 
 # -- 4. Tzone and the time unit of a .bc file --------------------------------------------------------------
