@@ -82,12 +82,22 @@ _SINCE = re.compile(r"^\s*(seconds|minutes|hours|days)\s+since\s+(.+?)\s*$", re.
 
 
 def _time_unit(unit: str) -> tuple[float, pd.Timestamp]:
+    """Seconds per unit and the reference time (UTC) of a ``.bc`` time unit ``<unit> since <date> [<offset>]``.
+
+    A date without an offset is GMT (UTC) whatever the MDU's ``Tzone``, as D-Flow FM's EC module reads a ``.bc``
+    file: ``ecSupportTimestringToUnitAndRefdate`` takes the zone 0 when the unit names none, and
+    ``ecSupportTimeToTimesteps`` moves a source time by ``k_timezone - ec_timezone`` (the model's ``Tzone``
+    minus the file's zone) into model time (Deltares delft3d, ``ec_support.f90``; the MDU's own comment: "Data
+    Sources in GMT are interrogated with time in minutes since refdat-Tzone*60"). A date with an offset
+    (``+01:00``, ``+0100``) is in that zone. A ``.tim`` file and an exchange file count from ``RefDate`` in
+    ``Tzone`` instead (``Context.refdate``).
+    """
     m = _SINCE.match(unit)
     if not m:
         raise ValueError(f"time unit {unit!r} is not '<seconds|minutes|hours|days> since <date>'")
     factor = {"seconds": 1.0, "minutes": 60.0, "hours": 3600.0, "days": 86400.0}[m.group(1).lower()]
     try:
-        base = pd.Timestamp(m.group(2).strip().replace(" +00:00", ""))
+        base = pd.Timestamp(m.group(2).strip())
     except (ValueError, OverflowError):
         base = pd.NaT
     if base is pd.NaT:
@@ -226,13 +236,29 @@ def block_series(ctx: Context, block: Any, model: Any = None) -> pd.Series:
 
 
 def _steps(series: pd.Series, how: str) -> pd.Series:
-    """A block-interpolated series as change points with 1 s ramps (the case interpolates linearly)."""
+    """A block-interpolated series as change points with 1 s ramps (the case interpolates linearly).
+
+    hydrolib-core's ``TimeInterpolation`` (whose spellings, in any case, are the ones the import reads):
+    ``block-From`` holds each value from its time to the next time ("equal to that at the start of the time
+    interval"): it changes in the second before each later time. ``block-To`` gives each interval the value at its
+    end ("equal to that at the end of the time interval (upcoming specified time value)"): the value of time k holds
+    after time k-1 up to time k, so it changes in the second after each earlier time; the first value holds at the
+    first time only.
+    """
     t, v = list(series.index), list(series.to_numpy(dtype=float))
+    second = pd.Timedelta(seconds=1)
     out_t, out_v = [t[0]], [v[0]]
     for k in range(1, len(t)):
-        held = v[k - 1] if how == "block-from" else v[k]
-        out_t += [t[k] - pd.Timedelta(seconds=1), t[k]]
-        out_v += [held, v[k] if how == "block-from" else (v[k + 1] if k + 1 < len(v) else v[k])]
+        if t[k] <= t[k - 1]:  # a time given twice: the later row wins (as _cover keeps it)
+            out_t.append(t[k])
+            out_v.append(v[k])
+            continue
+        if how == "block-from":
+            out_t += [t[k] - second, t[k]]
+            out_v += [v[k - 1], v[k]]
+        else:
+            out_t += [min(t[k - 1] + second, t[k]), t[k]]
+            out_v += [v[k], v[k]]
     return pd.Series(out_v, index=pd.DatetimeIndex(out_t))
 
 
@@ -295,11 +321,11 @@ def convert_forcing(ctx: Context) -> None:
         for header, bid, reason in ext.failed:
             kind = {"boundary": "boundary", "lateral": "lateral"}.get(header.lower(), header)
             ctx.ledger.refused(kind, bid, reason, hydraulic=header.lower() in ("boundary", "lateral"))
-        for bnd in ext.boundary:
+        for bnd in _once(ctx, ext.boundary, "boundary", "at node", lambda b: b.nodeid):
             item = _boundary(ctx, bnd, degree)
             if item is not None:
                 boundaries.append(item)
-        for lat in ext.lateral:
+        for lat in _once(ctx, ext.lateral, "lateral", "with id", lambda b: b.id):
             item = _lateral(ctx, lat)
             if item is not None:
                 laterals.append(item)
@@ -315,6 +341,38 @@ def convert_forcing(ctx: Context) -> None:
                            "old-format external forcing file (.ext with .tim/.cmp): not read")
     ctx.case["boundaries"] = boundaries
     ctx.case["laterals"] = laterals
+
+
+def _once(ctx: Context, blocks: list[Any], what: str, by: str, key: Any) -> list[Any]:
+    """The blocks whose key (a boundary's node, a lateral's id) no earlier block has; each repeat is an error.
+
+    A case holds one boundary per node and one lateral per id, and which of two blocks D-Flow FM would take
+    (or whether it would add them) is not something an import should guess: the error names both blocks.
+    """
+    seen: dict[str, Any] = {}
+    kept = []
+    for block in blocks:
+        name = key(block)
+        if name is None:
+            kept.append(block)
+            continue
+        name = unquote(name)
+        first = seen.get(name)
+        if first is None:
+            seen[name] = block
+            kept.append(block)
+            continue
+        sources = ctx.model.sources
+        here = sources.where(block) or ctx.model.mdu.name
+        ctx.ledger.error(here, f"a second [{_header(sources, block, what)}] block {by} {name!r}; the first is at "
+                         f"{sources.where(first) or 'an earlier block'}: a {what} {by} {name!r} may be given once "
+                         "(remove or rename one of them)")
+    return kept
+
+
+def _header(sources: Any, block: Any, default: str) -> str:
+    found = sources.section_of(block)
+    return found[1].header if found is not None else default
 
 
 def _boundary(ctx: Context, bnd: Any, degree: dict[str, int]) -> dict | None:
@@ -483,8 +541,15 @@ def _lateral(ctx: Context, lat: Any) -> dict | None:
             ctx.ledger.refused("lateral", name, f"its branch {unquote(lat.branchid)!r} is not in the network")
             return None
         branch = ctx.id("branch", lat.branchid)
+        length = ctx.branch_length[branch]
+        if float(lat.chainage) > length + max(1.0, 0.01 * length):  # the tolerance of a structure's chainage
+            sources = ctx.model.sources
+            ctx.ledger.error(sources.where(lat, sources.key_of(lat, "chainage")) or ctx.model.mdu.name,
+                             f"lateral {name!r}: chainage {float(lat.chainage):g} m lies beyond the end of branch "
+                             f"{unquote(lat.branchid)} ({length:g} m long)")
+            return None
         item["branch"] = branch
-        item["chainage"] = min(max(float(lat.chainage), 0.0), ctx.branch_length[branch])
+        item["chainage"] = min(max(float(lat.chainage), 0.0), length)
     else:
         ctx.ledger.refused("lateral", name, "given by x, y coordinates or a polygon (a 2D source), not on the network")
         return None
@@ -505,6 +570,12 @@ def _lateral(ctx: Context, lat: Any) -> dict | None:
             ctx.ledger.refused("lateral", name, "realtime inflow (supplied by a coupled model at run time): give an "
                                "exchange file (--realtime) or a constant (--realtime-lateral)")
             return None
+    elif str(getattr(discharge, "filepath", "") or "").lower().endswith(".tim"):
+        ctx.ledger.refused("lateral", name, f"discharge = {getattr(discharge, 'filepath', '')} is a .tim file; a "
+                           "[Lateral]'s discharge is a number, realtime or a .bc file (hydrolib-core's "
+                           "Lateral.discharge, D-Flow FM's new external forcing format): write the series as a "
+                           f"[forcing] block named {name!r} in a .bc file")
+        return None
     else:
         try:
             series = forcing_series(ctx, discharge, name=lat.id)

@@ -33,6 +33,12 @@ log = logging.getLogger(__name__)
 #: Longest time step an import gives a case, s.
 MAX_DT = 60.0
 STRUCTURE_LENGTH = 10.0
+#: The INI section headers (lower case) of the blocks of each kind of the ledger; a structure's kind is its type.
+_HEADERS = {"lateral": ("lateral",), "boundary": ("boundary",), "storage node": ("storagenode",),
+            "profile": ("definition",), "cross-section": ("crosssection",), "friction group": ("global",),
+            "observation point": ("observationpoint",), "observation cross-section": ("observationcrosssection",)}
+_STRUCTURES = {"weir", "universalWeir", "orifice", "gate", "generalStructure", "culvert", "bridge", "pump",
+               "compound", "dambreak", "longCulvert"}
 _KINDS = {"weirs": Weir, "culverts": Culvert, "pumps": Pump, "orifices": Orifice, "universal_weirs": UniversalWeir,
           "bridges": Bridge}
 
@@ -89,6 +95,7 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     ledger = Ledger()
     model = load_fm_model(mdu, ledger)
     refdate, start, end = _period(model)
+    end = _whole_intervals(model, ledger, start, end)
     ctx = Context(model=model, options=options, ledger=ledger, start=start, end=end, refdate=refdate)
     for path in options.realtime:
         try:
@@ -113,7 +120,9 @@ def import_dhydro(mdu: Path | str, out: Path | str, options: ImportOptions | Non
     for key in unused:
         ledger.warn(f"exchange series {key} matches no object of the model and was not used")
     def where(kind: str, ident: str) -> str:
-        return model.sources.find_block(ident) if kind != "file" else ""
+        if kind == "file":
+            return ""
+        return model.sources.find_block(ident, _HEADERS.get(kind, ("structure",) if kind in _STRUCTURES else None))
 
     case = conclude(ledger, out, mdu, allow_partial=options.allow_partial, write=lambda: _write(ctx, out),
                     locate=where, nothing_left=not ctx.case.get("branches"))
@@ -207,12 +216,37 @@ def _datetime_text(text: str) -> str:
     return iso
 
 
+def _his_interval(fm) -> int:
+    """The model's output interval, s: the his interval (else the user time step, else an hour), whole seconds."""
+    his = fm.output.hisinterval
+    interval = float(his[0]) if his and float(his[0]) > 0 else float(fm.time.dtuser or 3600.0)
+    return max(1, round(interval))
+
+
+def _whole_intervals(model, ledger: Ledger, start: pd.Timestamp, end: pd.Timestamp) -> pd.Timestamp:
+    """The end of the period at the last whole output interval from the start (``end`` when it is one already).
+
+    A case's period holds a whole number of output intervals. When the model's stop time falls between two of its
+    his times (TStop = 7199 s with a 60 s his interval), keeping the his interval and the model's time step and
+    ending at the last his time before TStop is what a hydrologist expects; the common divisor of the two (1 s
+    here) would force a 1 s step and 1 s output. The seconds left out are recorded in the ledger. A period
+    shorter than one interval is left alone (the output interval then divides it).
+    """
+    span = round((end - start).total_seconds())
+    interval = _his_interval(model.fm)
+    if span <= interval or span % interval == 0:
+        return end
+    whole = start + pd.Timedelta(seconds=span // interval * interval)
+    ledger.approximated("setting", "TStop", f"the model stops {span % interval} s after its last whole his interval "
+                        f"({interval} s from the start): the case ends there, at {whole:%Y-%m-%d %H:%M:%S} UTC, "
+                        f"{span % interval} s before D-Flow FM would, and keeps the his interval and the time step")
+    return whole
+
+
 def _engine(ctx: Context) -> None:
     fm = ctx.model.fm
     span = round((ctx.end - ctx.start).total_seconds())
-    his = fm.output.hisinterval
-    interval = float(his[0]) if his and float(his[0]) > 0 else float(fm.time.dtuser or 3600.0)
-    interval = max(1, round(interval))
+    interval = _his_interval(fm)
     if span % interval:
         interval = math.gcd(int(span), int(interval)) or max(span, 1)
     dt_max = max(1, int(min(float(fm.time.dtmax or MAX_DT), MAX_DT)))
@@ -348,7 +382,10 @@ def _fit_the_grid(ctx: Context) -> None:
                                             "raised to the bed (D-Flow FM lets the channel bed govern there too)")
                     item[name] = bed
                     gate = item.get("gate_lower_edge_level")
-                    if gate is not None and gate <= bed and item.get("allowed_flow") != "none":
+                    if gate is not None and gate <= bed and item.get("gate_series") is not None:
+                        # the series' values at or below the raised crest close the gate at their times
+                        item["gate_lower_edge_level"] = bed + 0.001
+                    elif gate is not None and gate <= bed and item.get("allowed_flow") != "none":
                         item["gate_lower_edge_level"] = bed + 0.001
                         item["allowed_flow"] = "none"
                         ctx.ledger.approximated(*ctx.origin(item["id"], table),

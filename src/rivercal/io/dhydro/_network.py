@@ -260,12 +260,22 @@ def _storage_nodes(ctx: Context) -> None:
     for _, sid, reason in blocks.failed:
         ctx.ledger.refused("storage node", sid, reason)
     nodes = {n["id"]: n for n in ctx.case["nodes"]}
+    taken: dict[str, Any] = {}  # the storage node block that gave each node its storage
+    sources = ctx.model.sources
     for s in blocks.objects:
         sid = unquote(s.id)
         target = s.nodeid or s.manholeid
         node = nodes.get(ctx.id("node", target)) if target and ctx.ids["node"].known(target) else None
         if node is None:
             ctx.ledger.refused("storage node", sid, f"its node {target!r} is not a connection node of the network")
+            continue
+        first = taken.setdefault(node["id"], s)
+        if first is not s:
+            # which of the two D-Flow FM would take, or whether it would add them, is not for the import to guess
+            ctx.ledger.error(sources.where(s) or ctx.model.mdu.name,
+                             f"storage node {sid!r} is a second storage node on node {unquote(target)!r}; the first, "
+                             f"{unquote(first.id)!r}, is at {sources.where(first) or 'an earlier block'}: give one "
+                             "storage node per node (one table that holds both)")
             continue
         notes = []
         if s.usetable:
@@ -294,7 +304,10 @@ def _storage_nodes(ctx: Context) -> None:
                     notes.append("street storage smaller than the manhole: the manhole's area is kept above the street")
         if len(levels) < 2:
             levels, areas = [levels[0], levels[0] + 1.0], [areas[0], areas[0]]
-        areas = list(np.maximum.accumulate(np.maximum(areas, 0.0)))
+        given = np.maximum(np.asarray(areas, dtype=float), 0.0)
+        areas = list(np.maximum.accumulate(given))
+        if np.any(given < areas):
+            notes.append(_narrowing_note(levels, given, np.asarray(areas)))
         if areas[-1] <= 0:
             ctx.ledger.refused("storage node", sid, "the storage area is 0 at every level", hydraulic=False)
             continue
@@ -302,6 +315,24 @@ def _storage_nodes(ctx: Context) -> None:
         ctx.source("nodes", node["id"], s)
         node.pop("storage_area", None)
         (ctx.ledger.approximated if notes else ctx.ledger.exact)("storage node", sid, "; ".join(notes))
+
+
+def _narrowing_note(levels: list[float], given: np.ndarray, kept: np.ndarray) -> str:
+    """What keeping a narrowing storage table at its widest changes: where, and the extra volume (m³).
+
+    A case's storage area cannot shrink as the water rises (``nodes[].storage_table``); D-Flow FM interpolates
+    the table as given. The extra volume is the integral of the difference of the areas up to the table's top
+    (linear between levels, as both interpolate); above it both hold their last area.
+    """
+    z = np.asarray(levels, dtype=float)
+    k = int(np.argmax(given < kept))
+    extra = float(np.sum(0.5 * (np.diff(z)) * ((kept - given)[1:] + (kept - given)[:-1])))
+    volume = float(np.sum(0.5 * np.diff(z) * (given[1:] + given[:-1])))
+    share = f" ({100 * extra / volume:.0f} % of the table's {volume:.4g} m³)" if volume > 0 else ""
+    return (f"the storage area narrows upward (to {given[k]:g} m² at {z[k]:g} m AD); a case's storage cannot shrink "
+            f"as the water rises, so it is kept at {kept[k]:g} m² from there: {extra:.4g} m³ more storage up to "
+            f"{z[-1]:g} m AD{share}, and {kept[-1] - given[-1]:g} m² more area above it — the node fills slower "
+            "and its level rises less there than in D-Flow FM")
 
 
 def _block_to_linear(levels: list[float], areas: list[float]) -> tuple[list[float], list[float]]:

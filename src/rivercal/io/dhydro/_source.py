@@ -35,7 +35,8 @@ import numpy as np
 __all__ = ["FileAccess", "IniIndex", "RawKey", "RawSection", "Sources", "is_file", "reading"]
 
 _LOCK = threading.RLock()  # reentrant: a block read inside a file read takes it again
-_ENCODINGS = ("utf-8", "latin-1")
+#: UTF-8 with or without a byte order mark (Windows tools write one; hydrolib-core reads past it), else Latin-1.
+_ENCODINGS = ("utf-8-sig", "latin-1")
 #: Comment lines of D-Flow FM's INI files: ``#``, and ``*`` as D-Flow FM's GUI writes under an MDU's header.
 _COMMENT = ("#", "*")
 
@@ -267,11 +268,16 @@ class Sources:
             self._index[key] = IniIndex.read(key[0], datablocks=datablocks)
         return self._index[key]
 
-    def find_block(self, block_id: str) -> str:
-        """``file, line N`` of the first block read with this id (any file), or ""."""
+    def find_block(self, block_id: str, headers: tuple[str, ...] | None = None) -> str:
+        """``file, line N`` of the first block read with this id, or "".
+
+        ``headers`` (lower case) limits the search to blocks of those kinds: a sewer model names a lateral after
+        its storage node, and the lateral's block is the one wanted.
+        """
         for (path, _), index in self._index.items():
             for section in index.sections:
-                if section.header.lower() != "general" and section.block_id == block_id:
+                header = section.header.lower()
+                if header != "general" and (headers is None or header in headers) and section.block_id == block_id:
                     return f"{self.rel(path)}, line {section.line}"
         return ""
 

@@ -3,7 +3,8 @@
 D-Flow FM → case: ``weir`` → ``[[weirs]]``; ``universalWeir`` → ``[[universal_weirs]]``; ``orifice`` →
 ``[[orifices]]``; ``culvert`` (also a siphon) → ``[[culverts]]``; ``bridge`` → ``[[bridges]]``; ``pump`` →
 ``[[pumps]]``; ``compound`` → its members, side by side (:mod:`._compound`); ``generalStructure`` and ``gate`` →
-an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused. Settings given as time series
+an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused (a long culvert on a branch as a
+hydraulic refusal: it carries water). Settings given as time series
 (``.tim``/``.bc``) or supplied in real time (DIMR exchange files) become structure-setting series.
 """
 
@@ -28,11 +29,19 @@ def _direction(value: Any) -> str:
     return name if name in ("both", "positive", "negative", "none") else "both"
 
 
+#: Why a long culvert on a branch is refused (a hydraulic refusal: it carries water between two places).
+_LONG_CULVERT = ("a long culvert: D-Flow FM builds it as a conduit of flow links of its own along its polyline "
+                 "(xCoordinates, yCoordinates, zCoordinates), with friction and no inlet or outlet losses, between the "
+                 "places its ends connect; a case has no such conduit and the import does not guess where its ends "
+                 "join the network. Model it as a [[culverts]] entry (width x height, inverts from zCoordinates) or a "
+                 "branch of its own")
+
+
 def convert_structures(ctx: Context) -> None:
     """Fill the structure tables of ``ctx.case`` from the model's structure files."""
     tables: dict[str, list[dict]] = {t: [] for t in ("weirs", "culverts", "pumps", "orifices", "universal_weirs",
                                                      "bridges")}
-    objects = [s for f in ctx.model.structures for s in f.objects]
+    objects = _once(ctx, [s for f in ctx.model.structures for s in f.objects])
     for f in ctx.model.structures:
         for kind, sid, reason in f.failed:
             ctx.ledger.refused(kind, unquote(sid), reason)
@@ -72,6 +81,9 @@ def convert_structures(ctx: Context) -> None:
         chainage = min(max(float(s.chainage), 0.0), length)
         base = {"id": ctx.id("structure", sid), "branch": branch, "chainage": chainage}
         handler = _HANDLERS.get(s.type)
+        if s.type == "longCulvert":
+            ctx.ledger.refused(s.type, sid, _LONG_CULVERT)
+            continue
         if handler is None:
             ctx.ledger.refused(s.type, sid, f"structure type {s.type!r} has no counterpart in a case (2D or "
                                "morphological structure)")
@@ -103,6 +115,29 @@ def convert_structures(ctx: Context) -> None:
             sid = sid.replace(".", "_")
             taken.add(sid)
             ctx.case["stations"].append({"id": sid, "structure": item["id"], "quantities": ["h_up", "h_down", "Q"]})
+
+
+def _once(ctx: Context, objects: list[Any]) -> list[Any]:
+    """The structures whose id no earlier block has; each repeat is an error naming both blocks.
+
+    D-Flow FM knows a structure by its id (its settings, exchange series and history output go by it), within a
+    file and across the files of ``StructureFile``; which of two blocks it would take is not for the import to guess.
+    """
+    seen: dict[str, Any] = {}
+    kept = []
+    sources = ctx.model.sources
+    for s in objects:
+        sid = unquote(s.id)
+        first = seen.get(sid)
+        if first is None:
+            seen[sid] = s
+            kept.append(s)
+            continue
+        ctx.ledger.error(sources.where(s) or ctx.model.mdu.name,
+                         f"a second structure with id {sid!r} ({s.type}); the first ({first.type}) is at "
+                         f"{sources.where(first) or 'an earlier block'}: a structure id may be given once "
+                         "(remove or rename one of them)")
+    return kept
 
 
 # -- settings that may be time series ------------------------------------------------------------------
@@ -183,14 +218,9 @@ def _orifice(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], st
     if width is None:
         width = _width_at(ctx, base["branch"], base["chainage"], crest)
         notes.append(f"no crest width: the flow width of the channel at the crest, {width:.3g} m")
-    item = {**base, "crest_level": crest, "crest_width": float(width), "gate_lower_edge_level": gate,
+    item = {**base, "crest_level": crest, "crest_width": float(width),
             "discharge_coefficient": float(s.corrcoeff), "allowed_flow": _direction(s.allowedflowdir)}
-    if gate <= crest:
-        item["gate_lower_edge_level"] = crest + 0.001
-        item["allowed_flow"] = "none"
-        notes.append("the gate is down on the crest (closed): taken as closed")
-    if gref:
-        item["gate_series"] = gref
+    _gate_of(ctx, item, gate, gref, notes)
     if s.uselimitflowpos and s.limitflowpos is not None:
         item["max_flow_positive"] = float(s.limitflowpos)
     if s.uselimitflowneg and s.limitflowneg is not None:
@@ -205,21 +235,25 @@ def _general(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], st
     crest, cref, why = _setting(ctx, s, "crestLevel", "generalStructures", "the crest level", notes)
     if why or cref:
         return "orifices", {}, notes, why or "a crest level that varies in time"
-    gate = s.gateloweredgelevel
-    gate = float(gate) if isinstance(gate, int | float) else None
+    gate, gref = None, None  # no gate: a weir
+    if s.gateloweredgelevel is not None or f"generalStructures/{unquote(s.id)}/gateLowerEdgeLevel" in ctx.exchange:
+        gate, gref, why = _setting(ctx, s, "gateLowerEdgeLevel", "generalStructures", "the gate's lower edge", notes)
+        if why:
+            return "orifices", {}, notes, why
     width = float(s.crestwidth or _width_at(ctx, base["branch"], base["chainage"], crest))
     coefficient = float(s.posfreegateflowcoeff or 1.0) * float(s.poscontrcoeffreegate or 1.0)
     notes.append("general structure taken as an orifice (weir under a gate) of the crest width, with the "
                  "positive free-gate flow coefficient x contraction as discharge coefficient; the approach "
                  "widths and levels and the separate drowned/negative coefficients are not used")
-    if gate is None or gate > crest + 100:
+    if gref is None and (gate is None or gate > crest + 100):
         item = {**base, "crest_level": crest, "crest_width": width,
                 "discharge_coefficient": min(float(s.posfreeweirflowcoeff or 1.0), 2.0),
                 "allowed_flow": _direction(s.allowedflowdir)}
         notes[-1] = "general structure with its gate out of the water taken as a weir of the crest width"
         return "weirs", item, notes, ""
-    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": max(gate, crest + 0.001),
+    item = {**base, "crest_level": crest, "crest_width": width,
             "discharge_coefficient": min(coefficient, 2.0), "allowed_flow": _direction(s.allowedflowdir)}
+    _gate_of(ctx, item, gate, gref, notes)
     return "orifices", item, notes, ""
 
 
@@ -232,12 +266,40 @@ def _gate(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
     if why:
         return "orifices", {}, notes, why
     width = float(s.crestwidth or _width_at(ctx, base["branch"], base["chainage"], crest))
-    item = {**base, "crest_level": crest, "crest_width": width, "gate_lower_edge_level": max(gate, crest + 0.001),
-            "discharge_coefficient": 1.0}
-    if gref:
-        item["gate_series"] = gref
+    item = {**base, "crest_level": crest, "crest_width": width, "discharge_coefficient": 1.0}
+    _gate_of(ctx, item, gate, gref, notes)
     notes.append("gate taken as an orifice of the sill width (the horizontal gate opening is not used)")
     return "orifices", item, notes, ""
+
+
+def _gate_of(ctx: Context, item: dict, gate: float, gref: dict | None, notes: list[str]) -> None:
+    """Set an orifice's gate: a constant level, or a series that may close it at some times and open it at others.
+
+    A case's orifice needs its gate above the crest (``gate_lower_edge_level``); the engine takes a gate series'
+    value at or below the crest as a closed gate (no flow), so a series carries its closed times as they are. Only
+    a gate that is closed for the whole run (a constant, or a series never above the crest) becomes
+    ``allowed_flow = "none"``. The constant beside a series is the series' first opening (it is what a spin-up
+    without the series would take; the engine follows the series).
+    """
+    crest = item["crest_level"]
+    if gref is None:
+        if gate <= crest:
+            item["gate_lower_edge_level"] = crest + 0.001
+            item["allowed_flow"] = "none"
+            notes.append(f"the gate ({gate:g} m AD) is down on the crest ({crest:g} m AD): closed, no flow")
+        else:
+            item["gate_lower_edge_level"] = gate
+        return
+    series = ctx.series[gref["file"]][gref["column"]]
+    values = series.to_numpy(dtype=float)
+    item["gate_series"] = gref
+    open_values = values[values > crest]
+    if open_values.size == 0:
+        item["gate_lower_edge_level"] = crest + 0.001
+        item["allowed_flow"] = "none"
+        notes.append(f"the gate series never rises above the crest ({crest:g} m AD): closed all the time, no flow")
+        return
+    item["gate_lower_edge_level"] = float(gate) if gate > crest else float(open_values[0])
 
 
 def _culvert(ctx: Context, s: Any, base: dict) -> tuple[str, dict, list[str], str]:
