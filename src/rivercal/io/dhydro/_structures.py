@@ -3,8 +3,8 @@
 D-Flow FM → case: ``weir`` → ``[[weirs]]``; ``universalWeir`` → ``[[universal_weirs]]``; ``orifice`` →
 ``[[orifices]]``; ``culvert`` (also a siphon) → ``[[culverts]]``; ``bridge`` → ``[[bridges]]``; ``pump`` →
 ``[[pumps]]``; ``compound`` → its members, side by side (:mod:`._compound`); ``generalStructure`` and ``gate`` →
-an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused (a long culvert on a branch as a
-hydraulic refusal: it carries water). Settings given as time series
+an orifice (approximated); ``dambreak`` and ``longCulvert`` are refused (on a branch as hydraulic refusals: they
+carry water). Settings given as time series
 (``.tim``/``.bc``) or supplied in real time (DIMR exchange files) become structure-setting series.
 """
 
@@ -35,6 +35,12 @@ _LONG_CULVERT = ("a long culvert: D-Flow FM builds it as a conduit of flow links
                  "places its ends connect; a case has no such conduit and the import does not guess where its ends "
                  "join the network. Model it as a [[culverts]] entry (width x height, inverts from zCoordinates) or a "
                  "branch of its own")
+_DAMBREAK = ("a dam break: its breach deepens and widens in time (the Verheij-Van der Knaap growth formula, or a "
+             "series of its levels and widths) between the places it connects; a case has no breach. Model the "
+             "breach as a weir whose crest follows a series (crest_series), or leave the dam break out where it "
+             "does not break in the simulated period")
+#: Structure types on a branch that carry water and that a case cannot take: hydraulic refusals with their reason.
+_REFUSED = {"longCulvert": _LONG_CULVERT, "dambreak": _DAMBREAK}
 
 
 def convert_structures(ctx: Context) -> None:
@@ -81,12 +87,11 @@ def convert_structures(ctx: Context) -> None:
         chainage = min(max(float(s.chainage), 0.0), length)
         base = {"id": ctx.id("structure", sid), "branch": branch, "chainage": chainage}
         handler = _HANDLERS.get(s.type)
-        if s.type == "longCulvert":
-            ctx.ledger.refused(s.type, sid, _LONG_CULVERT)
+        if s.type in _REFUSED:
+            ctx.ledger.refused(s.type, sid, _REFUSED[s.type])
             continue
         if handler is None:
-            ctx.ledger.refused(s.type, sid, f"structure type {s.type!r} has no counterpart in a case (2D or "
-                               "morphological structure)")
+            ctx.ledger.refused(s.type, sid, f"structure type {s.type!r} has no counterpart in a case")
             continue
         table, item, notes, refusal = handler(ctx, s, base)
         if refusal:
