@@ -295,16 +295,29 @@ _LONG_CULVERT = ("\n[Structure]\nid = long1\ntype = longCulvert\nbranchId = b1\n
                  "allowedFlowDir = both\nnumCoordinates = 2\nxCoordinates = 100 110\nyCoordinates = 0 0\n"
                  "zCoordinates = -0.5 -0.55\nwidth = 1\nheight = 1\nfrictionType = Manning\nfrictionValue = 0.014\n"
                  "valveRelativeOpening = 1\n")
+_DAMBREAK = ("\n[Structure]\nid = breach1\ntype = dambreak\nbranchId = b1\nchainage = 100.0\n"
+             "startLocationX = 100.0\nstartLocationY = 0.0\nnumCoordinates = 2\nxCoordinates = 100 100\n"
+             "yCoordinates = -10 10\nwaterLevelUpstreamLocationX = 90\nwaterLevelUpstreamLocationY = 0\n"
+             "waterLevelDownstreamLocationX = 110\nwaterLevelDownstreamLocationY = 0\nalgorithm = 2\n"
+             "crestLevelIni = 1.0\nbreachWidthIni = 1.0\ncrestLevelMin = 0.0\nt0 = 3600\n"
+             "timeToBreachToMaximumDepth = 3600\nf1 = 1.3\nf2 = 0.04\nuCrit = 0.2\n")
 
 
-def test_a_long_culvert_on_a_branch_is_a_hydraulic_refusal_with_its_reason(base, tmp_path) -> None:
+@pytest.mark.parametrize(("block", "kind", "sid", "reason"), [
+    (_LONG_CULVERT, "longCulvert", "long1", "a long culvert"),
+    (_DAMBREAK, "dambreak", "breach1", "a dam break"),  # carries water once it breaks: the way out is named
+])
+def test_a_structure_a_case_cannot_carry_on_a_branch_is_a_hydraulic_refusal_with_its_reason(
+        base, tmp_path, block, kind, sid, reason) -> None:
     model = _model(base, tmp_path)
-    line = _append(model / "structures.ini", _LONG_CULVERT)
+    line = _append(model / "structures.ini", block)
     message = _error(model, tmp_path)
-    assert f"structures.ini, line {line}: longCulvert 'long1': a long culvert" in message
+    assert f"structures.ini, line {line}: {kind} {sid!r}: {reason}" in message
     assert "2D or morphological" not in message
+    if kind == "dambreak":
+        assert "crest_series" in message
     result = _import(model, tmp_path, allow_partial=True)  # a hydraulic refusal: --allow-partial goes on
-    entry = _entry(result, "longCulvert", "long1")
+    entry = _entry(result, kind, sid)
     assert entry.status == "refused" and entry.hydraulic
 
 
@@ -349,23 +362,3 @@ def test_two_storage_nodes_on_one_node_are_an_error_naming_both(base, tmp_path) 
     message = _error(model, tmp_path, allow_partial=True)
     assert f"nodes.ini, line {second}: storage node 'sC2' is a second storage node on node 'C'" in message
     assert f"the first, 'sC', is at nodes.ini, line {first}" in message
-
-
-_DAMBREAK = ("\n[Structure]\nid = breach1\ntype = dambreak\nbranchId = b1\nchainage = 100.0\n"
-             "startLocationX = 100.0\nstartLocationY = 0.0\nnumCoordinates = 2\nxCoordinates = 100 100\n"
-             "yCoordinates = -10 10\nwaterLevelUpstreamLocationX = 90\nwaterLevelUpstreamLocationY = 0\n"
-             "waterLevelDownstreamLocationX = 110\nwaterLevelDownstreamLocationY = 0\nalgorithm = 2\n"
-             "crestLevelIni = 1.0\nbreachWidthIni = 1.0\ncrestLevelMin = 0.0\nt0 = 3600\n"
-             "timeToBreachToMaximumDepth = 3600\nf1 = 1.3\nf2 = 0.04\nuCrit = 0.2\n")
-
-
-def test_a_dam_break_on_a_branch_is_a_hydraulic_refusal_with_its_reason(base, tmp_path) -> None:
-    """A dam break on a branch carries water once it breaks: the strict import stops, naming why and the way out."""
-    model = _model(base, tmp_path)
-    line = _append(model / "structures.ini", _DAMBREAK)
-    message = _error(model, tmp_path)
-    assert f"structures.ini, line {line}: dambreak 'breach1': a dam break" in message
-    assert "crest_series" in message and "2D or morphological" not in message
-    result = _import(model, tmp_path, allow_partial=True)
-    entry = _entry(result, "dambreak", "breach1")
-    assert entry.status == "refused" and entry.hydraulic

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rivercal.io._blockwise import block_steps
 from rivercal.io.dhydro._context import Context, unquote
 
 __all__ = ["FREE_OUTFALL_LEVEL", "convert_forcing", "forcing_series", "held_series", "read_exchange"]
@@ -231,35 +232,8 @@ def block_series(ctx: Context, block: Any, model: Any = None) -> pd.Series:
     series = pd.Series(values, index=index)
     interp = str(getattr(block.timeinterpolation, "value", block.timeinterpolation) or "linear").lower()
     if interp != "linear":
-        series = _steps(series, interp)
+        series = block_steps(series, interp)
     return _cover(ctx, series)
-
-
-def _steps(series: pd.Series, how: str) -> pd.Series:
-    """A block-interpolated series as change points with 1 s ramps (the case interpolates linearly).
-
-    hydrolib-core's ``TimeInterpolation`` (whose spellings, in any case, are the ones the import reads):
-    ``block-From`` holds each value from its time to the next time ("equal to that at the start of the time
-    interval"): it changes in the second before each later time. ``block-To`` gives each interval the value at its
-    end ("equal to that at the end of the time interval (upcoming specified time value)"): the value of time k holds
-    after time k-1 up to time k, so it changes in the second after each earlier time; the first value holds at the
-    first time only.
-    """
-    t, v = list(series.index), list(series.to_numpy(dtype=float))
-    second = pd.Timedelta(seconds=1)
-    out_t, out_v = [t[0]], [v[0]]
-    for k in range(1, len(t)):
-        if t[k] <= t[k - 1]:  # a time given twice: the later row wins (as _cover keeps it)
-            out_t.append(t[k])
-            out_v.append(v[k])
-            continue
-        if how == "block-from":
-            out_t += [t[k] - second, t[k]]
-            out_v += [v[k - 1], v[k]]
-        else:
-            out_t += [min(t[k - 1] + second, t[k]), t[k]]
-            out_v += [v[k], v[k]]
-    return pd.Series(out_v, index=pd.DatetimeIndex(out_t))
 
 
 def _constant(ctx: Context, value: float) -> pd.Series:

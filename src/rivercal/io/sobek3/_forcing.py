@@ -23,6 +23,7 @@ import re
 import numpy as np
 import pandas as pd
 
+from rivercal.io._blockwise import STEP_SECONDS, block_steps
 from rivercal.io.sobek3._context import Context
 from rivercal.io.sobek3._ini import Section
 from rivercal.network import MAX_DISCHARGE
@@ -113,7 +114,7 @@ def bc_series(ctx: Context, s: Section, quantity: str) -> tuple[pd.Series | floa
     notes = []
     interpolation = _interpolation(s)
     if interpolation != "linear" and len(series) > 1:
-        series = _blocks(series, interpolation)
+        series = block_steps(series, interpolation)
         notes.append(f"{interpolation} series taken as steps (each change over {STEP_SECONDS:g} s)")
     if s.flag("periodic", default=False) and len(series) > 1:
         series, note = _periodic(ctx, series, interpolation)
@@ -143,28 +144,6 @@ def _interpolation(s: Section) -> str:
 
 _INTERPOLATIONS = {"linear": "linear", "linearextrapolate": "linear", "blockfrom": "block-from",
                    "blockto": "block-to"}
-#: Duration of a change of value of a block-wise series in the case's (linear) series, s.
-STEP_SECONDS = 1.0
-
-
-def _blocks(series: pd.Series, interpolation: str) -> pd.Series:
-    """A block-wise series as a linear one whose changes take 1 s (or half the interval when that is shorter).
-
-    ``block-from``: a value holds from its time until the next time; ``block-to``: it holds over the interval
-    that ends at its time, "equal to that at the end of the time interval (upcoming specified time value)"
-    (hydrolib-core's ``TimeInterpolation.block_to``; DeltaShell: "value holds until next specified time step").
-    """
-    times, values = [series.index[0]], [float(series.iloc[0])]
-    for k in range(1, len(series)):
-        t0, t1 = series.index[k - 1], series.index[k]
-        ramp = min(pd.Timedelta(seconds=STEP_SECONDS), (t1 - t0) / 2)
-        if interpolation == "block-from":  # v[k-1] up to t1, then v[k]
-            times += [t1 - ramp, t1]
-            values += [float(series.iloc[k - 1]), float(series.iloc[k])]
-        else:  # v[k] from just after t0 up to t1
-            times += [t0 + ramp, t1]
-            values += [float(series.iloc[k]), float(series.iloc[k])]
-    return pd.Series(values, index=pd.DatetimeIndex(times))
 
 
 def _periodic(ctx: Context, series: pd.Series, interpolation: str) -> tuple[pd.Series, str]:
